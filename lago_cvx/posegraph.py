@@ -1,0 +1,250 @@
+"""The immutable planar pose graph (the seed's Section III).
+
+A pose graph has ``n_poses`` poses ``(x, y, θ)`` and ``n_edges`` edges. Edge ``k`` goes from its
+*tail* ``i = tails[k]`` to its *head* ``j = heads[k]`` and carries the measurement of pose ``j`` in the
+frame of pose ``i``:
+
+* ``delta_l[k]`` — Δˡ_ij, relative position of j in the frame of i, shape ``(2,)``;
+* ``delta[k]``   — δ_ij, relative orientation θ_j − θ_i, a scalar (radians, not wrapped);
+* ``information[k]`` — the 3×3 information matrix Ω_ij of the error
+  ``e = [R_iᵀ(p_j − p_i) − Δˡ_ij ; θ_j − θ_i − δ_ij]`` (order x, y, θ; translational block in the
+  frame of the tail i — the g2o convention; TORO files are converted on reading, see ``lago_cvx.io``).
+
+Everything is stored as NumPy arrays (never per-edge Python objects) and made read-only, so a
+``PoseGraph`` can be shared freely; "modifying" methods return a new graph.
+
+Poses are indexed ``0 … n_poses−1``; ``ids`` keeps the identifiers used in the file (for writing
+back and for messages). ``initial`` is the optional initial guess read from vertex lines.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+__all__ = ["PoseGraph", "GraphError", "wrap_angle", "rot2", "compose", "between"]
+
+
+class GraphError(ValueError):
+    """A graph that is well-formed as data but unusable for the requested operation
+
+    (disconnected, broken odometric chain, invalid anchor, ...). The message says what and where."""
+
+
+def wrap_angle(a):
+    """Wrap angle(s) to [−π, π)."""
+    a = np.asarray(a, dtype=float)
+    return (a + np.pi) % (2.0 * np.pi) - np.pi
+
+
+def rot2(theta):
+    """Rotation matrices R(θ), shape ``(..., 2, 2)`` for θ of shape ``(...)``."""
+    theta = np.asarray(theta, dtype=float)
+    c, s = np.cos(theta), np.sin(theta)
+    return np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], -2)
+
+
+def compose(a, b):
+    """Pose compounding a ⊕ b (the seed's eq. (1)), for arrays of shape ``(..., 3)``."""
+    a = np.asarray(a, dtype=float)
+    b = np.asarray(b, dtype=float)
+    c, s = np.cos(a[..., 2]), np.sin(a[..., 2])
+    x = a[..., 0] + c * b[..., 0] - s * b[..., 1]
+    y = a[..., 1] + s * b[..., 0] + c * b[..., 1]
+    return np.stack([x, y, a[..., 2] + b[..., 2]], -1)
+
+
+def between(a, b):
+    """Relative pose ⊖a ⊕ b: pose b in the frame of a (θ not wrapped), shapes ``(..., 3)``."""
+    a = np.asarray(a, dtype=float)
+    b = np.asarray(b, dtype=float)
+    c, s = np.cos(a[..., 2]), np.sin(a[..., 2])
+    dx = b[..., 0] - a[..., 0]
+    dy = b[..., 1] - a[..., 1]
+    return np.stack([c * dx + s * dy, -s * dx + c * dy, b[..., 2] - a[..., 2]], -1)
+
+
+def _readonly(a: np.ndarray) -> np.ndarray:
+    a = np.ascontiguousarray(a)
+    a.setflags(write=False)
+    return a
+
+
+@dataclass(frozen=True, eq=False)
+class PoseGraph:
+    """Immutable planar pose graph. See the module docstring for the conventions.
+
+    Shapes: ``tails, heads`` (m,) int64 pose indices; ``delta_l`` (m, 2); ``delta`` (m,);
+    ``information`` (m, 3, 3) symmetric positive definite; ``initial`` (n, 3) or None;
+    ``ids`` (n,) int64 file identifiers (default ``arange(n)``).
+    """
+
+    n_poses: int
+    tails: np.ndarray
+    heads: np.ndarray
+    delta_l: np.ndarray
+    delta: np.ndarray
+    information: np.ndarray
+    initial: np.ndarray | None = None
+    ids: np.ndarray | None = None
+    name: str = field(default="")
+
+    def __post_init__(self):
+        n = int(self.n_poses)
+        if n < 1:
+            raise ValueError(f"a pose graph needs at least one pose, got n_poses={n}")
+        object.__setattr__(self, "n_poses", n)
+        tails = np.asarray(self.tails)
+        heads = np.asarray(self.heads)
+        if tails.ndim != 1 or heads.shape != tails.shape:
+            raise ValueError(f"tails and heads must be 1-D of equal length, got {tails.shape} and {heads.shape}")
+        m = tails.shape[0]
+        if m and not (np.issubdtype(tails.dtype, np.integer) and np.issubdtype(heads.dtype, np.integer)):
+            raise ValueError("tails and heads must be integer pose indices")
+        tails = tails.astype(np.int64)
+        heads = heads.astype(np.int64)
+        delta_l = np.asarray(self.delta_l, dtype=float).reshape(m, 2)
+        delta = np.asarray(self.delta, dtype=float).reshape(m)
+        info = np.asarray(self.information, dtype=float).reshape(m, 3, 3)
+        if m:
+            if tails.min() < 0 or heads.min() < 0 or tails.max() >= n or heads.max() >= n:
+                raise ValueError(f"edge endpoints must lie in 0..{n - 1}")
+            loops = np.flatnonzero(tails == heads)
+            if loops.size:
+                raise ValueError(f"self-loop edge(s) at index {loops[:5].tolist()}: an edge must join two different poses")
+        bad = ~(np.isfinite(delta_l).all(1) & np.isfinite(delta) & np.isfinite(info).all((1, 2)))
+        if bad.any():
+            raise ValueError(f"non-finite measurement or information in edge(s) {np.flatnonzero(bad)[:5].tolist()}")
+        bad = np.flatnonzero(~is_spd(info))
+        if bad.size:
+            raise ValueError(
+                f"information matrix of edge(s) {bad[:5].tolist()} is not symmetric positive definite")
+        initial = self.initial
+        if initial is not None:
+            initial = np.asarray(initial, dtype=float)
+            if initial.shape != (n, 3):
+                raise ValueError(f"initial poses must have shape ({n}, 3), got {initial.shape}")
+            if not np.isfinite(initial).all():
+                raise ValueError("initial poses must be finite")
+            initial = _readonly(initial)
+        ids = np.arange(n, dtype=np.int64) if self.ids is None else np.asarray(self.ids, dtype=np.int64)
+        if ids.shape != (n,):
+            raise ValueError(f"ids must have shape ({n},), got {ids.shape}")
+        if np.unique(ids).size != n:
+            raise ValueError("pose ids must be unique")
+        for name, val in [("tails", tails), ("heads", heads), ("delta_l", delta_l), ("delta", delta),
+                          ("information", info), ("ids", ids)]:
+            object.__setattr__(self, name, _readonly(val))
+        object.__setattr__(self, "initial", initial)
+
+    # ----------------------------------------------------------------- sizes
+    @property
+    def n_edges(self) -> int:
+        """m, the number of edges (measurements)."""
+        return int(self.tails.shape[0])
+
+    @property
+    def measurements(self) -> np.ndarray:
+        """All measurements as an (m, 3) array ``[Δˡ_x, Δˡ_y, δ]``."""
+        return np.column_stack([self.delta_l, self.delta])
+
+    @property
+    def is_odometric(self) -> np.ndarray:
+        """Boolean (m,): edge joins poses with consecutive ids (|id_i − id_j| = 1)."""
+        return np.abs(self.ids[self.tails] - self.ids[self.heads]) == 1
+
+    @property
+    def n_odometric(self) -> int:
+        return int(self.is_odometric.sum())
+
+    @property
+    def n_loop_closures(self) -> int:
+        return self.n_edges - self.n_odometric
+
+    def index_of(self, pose_id: int) -> int:
+        """Index (0 … n−1) of the pose with file identifier ``pose_id``."""
+        hit = np.flatnonzero(self.ids == int(pose_id))
+        if hit.size == 0:
+            raise GraphError(f"no pose with id {pose_id} (ids range {self.ids.min()}..{self.ids.max()})")
+        return int(hit[0])
+
+    # ------------------------------------------------------------ covariances
+    @property
+    def covariance(self) -> np.ndarray:
+        """Per-edge covariance Ω⁻¹, shape (m, 3, 3)."""
+        return np.linalg.inv(self.information)
+
+    # ------------------------------------------------------------ derivations
+    def with_initial(self, poses) -> "PoseGraph":
+        """A copy with ``initial`` replaced (``poses`` of shape (n, 3) or None)."""
+        return replace(self, initial=None if poses is None else np.asarray(poses, dtype=float))
+
+    def reversed_edges(self, mask) -> "PoseGraph":
+        """A copy where the edges selected by ``mask`` (bool (m,) or indices) are reversed.
+
+        Reversing i→j with measurement t = (Δˡ, δ) gives j→i with measurement ⊖t = (−R(δ)ᵀΔˡ, −δ).
+        To first order the reversed error is e' = −M e with M = [[R(δ)ᵀ, −R(δ)ᵀSΔˡ], [0, 1]],
+        S = [[0, −1], [1, 0]], so the information that keeps eᵀΩe unchanged is Ω' = Tᵀ Ω T with
+        T = M⁻¹ = [[R(δ), SΔˡ], [0, 1]] (the SE(2) adjoint of the measurement).
+        """
+        sel = np.zeros(self.n_edges, bool)
+        sel[mask] = True
+        tails = np.where(sel, self.heads, self.tails)
+        heads = np.where(sel, self.tails, self.heads)
+        meas = self.measurements
+        inv = between(meas, np.zeros(3))  # ⊖t
+        meas = np.where(sel[:, None], inv, meas)
+        T = np.zeros((self.n_edges, 3, 3))
+        T[:, :2, :2] = rot2(self.delta)
+        T[:, 0, 2] = -self.delta_l[:, 1]
+        T[:, 1, 2] = self.delta_l[:, 0]
+        T[:, 2, 2] = 1.0
+        info_rev = np.swapaxes(T, 1, 2) @ self.information @ T
+        info = np.where(sel[:, None, None], 0.5 * (info_rev + np.swapaxes(info_rev, 1, 2)), self.information)
+        return replace(self, tails=tails, heads=heads, delta_l=meas[:, :2], delta=meas[:, 2], information=info)
+
+    def subgraph_edges(self, mask) -> "PoseGraph":
+        """A copy keeping only the edges selected by ``mask`` (poses unchanged)."""
+        sel = np.zeros(self.n_edges, bool)
+        sel[mask] = True
+        return replace(self, tails=self.tails[sel], heads=self.heads[sel], delta_l=self.delta_l[sel],
+                       delta=self.delta[sel], information=self.information[sel])
+
+    def __repr__(self) -> str:
+        nm = f" {self.name!r}" if self.name else ""
+        return (f"<PoseGraph{nm}: {self.n_poses} poses, {self.n_edges} edges "
+                f"({self.n_odometric} odometric, {self.n_loop_closures} loop closures)"
+                f"{', with initial guess' if self.initial is not None else ''}>")
+
+    def equals(self, other: "PoseGraph", *, rtol: float = 0.0, atol: float = 0.0) -> bool:
+        """Same poses, ids, edges and (within tolerance) measurements, information and initial guess."""
+        if (self.n_poses != other.n_poses or self.n_edges != other.n_edges
+                or not np.array_equal(self.ids, other.ids)
+                or not np.array_equal(self.tails, other.tails) or not np.array_equal(self.heads, other.heads)):
+            return False
+        if (self.initial is None) != (other.initial is None):
+            return False
+        pairs = [(self.delta_l, other.delta_l), (self.delta, other.delta), (self.information, other.information)]
+        if self.initial is not None:
+            pairs.append((self.initial, other.initial))
+        return all(np.allclose(a, b, rtol=rtol, atol=atol) for a, b in pairs)
+
+
+def is_spd(info: np.ndarray, *, rtol: float = 1e-9) -> np.ndarray:
+    """Boolean (m,): each 3×3 matrix in ``info`` (m, 3, 3) is symmetric (to ``rtol`` of its largest
+    entry) and positive definite (Cholesky succeeds on its symmetric part). Vectorized."""
+    info = np.asarray(info, dtype=float)
+    if info.shape[0] == 0:
+        return np.zeros(0, bool)
+    scale = np.abs(info).max(axis=(1, 2))
+    sym = np.abs(info - np.swapaxes(info, 1, 2)).max(axis=(1, 2)) <= rtol * np.maximum(scale, 1e-300)
+    # Sylvester's criterion on the symmetric part: leading principal minors > 0.
+    s = 0.5 * (info + np.swapaxes(info, 1, 2))
+    d1 = s[:, 0, 0]
+    d2 = s[:, 0, 0] * s[:, 1, 1] - s[:, 0, 1] * s[:, 1, 0]
+    d3 = np.linalg.det(s) if s.size else np.zeros(0)
+    finite = np.isfinite(s).all((1, 2))
+    with np.errstate(invalid="ignore"):
+        pd = (d1 > 0) & (d2 > 0) & (d3 > 0)
+    return sym & pd & finite
