@@ -1,0 +1,38 @@
+"""lago_cvx — LAGO (Carlone, Aragues, Castellanos, Bona, RSS 2011), every step an explicit convex problem.
+
+Public API::
+
+    graph = read_graph("file.g2o")          # g2o or TORO, auto-detected
+    result = lago(graph)                    # closed form; method="cvxpy" for the cvxpy problems
+    result.poses, result.chi2               # (n, 3) estimate and its χ² (g2o convention)
+    write_graph("out.g2o", graph, result.poses)
+"""
+
+from .cost import chi2, chi2_parts, edge_errors, whitened_errors
+from .graph import (connected_components, cycle_basis, cyclomatic_number, incidence_matrix,
+                    reduced_incidence, spanning_tree)
+from .lago import LagoResult, compare_methods, lago
+from .posegraph import GraphError, PoseGraph, between, compose, wrap_angle
+from .regularization import regularize
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "PoseGraph", "GraphError", "compose", "between", "wrap_angle",
+    "read_graph", "write_graph", "ParseError",
+    "incidence_matrix", "reduced_incidence", "connected_components", "cyclomatic_number",
+    "spanning_tree", "cycle_basis", "regularize",
+    "lago", "compare_methods", "LagoResult",
+    "chi2", "chi2_parts", "edge_errors", "whitened_errors",
+    "manhattan_world", "circle_world", "random_graph",
+]
+
+
+def __getattr__(name):  # lazy: io and synthetic are imported on first use
+    if name in ("read_graph", "write_graph", "ParseError"):
+        from . import io
+        return getattr(io, name)
+    if name in ("manhattan_world", "circle_world", "random_graph"):
+        from . import synthetic
+        return getattr(synthetic, name)
+    raise AttributeError(f"module 'lago_cvx' has no attribute {name!r}")

@@ -1,0 +1,328 @@
+"""Command-line interface ``lago-cvx`` (also ``python -m lago_cvx``).
+
+Sub-commands: ``info``, ``solve``, ``generate``, ``demo``. Exit status: 0 success, 2 bad input
+(unreadable or malformed file, unusable graph, bad option), 1 internal error. Errors are printed as one
+line ``lago-cvx: error: …`` on stderr, never as a traceback (set ``LAGO_CVX_DEBUG=1`` to see one).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import os
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from . import __version__
+from .posegraph import GraphError
+
+EXIT_OK, EXIT_INTERNAL, EXIT_BAD_INPUT = 0, 1, 2
+
+log = logging.getLogger("lago_cvx")
+
+
+class UsageError(Exception):
+    """A bad option value or a refused action (exit status 2)."""
+
+
+def _tree_arg(value: str) -> str:
+    v = value.replace("-", "_").lower()
+    if v not in ("bfs", "odometry", "mst"):
+        raise argparse.ArgumentTypeError(f"unknown spanning tree {value!r} (choose bfs, odometry or mst)")
+    return v
+
+
+def _method_arg(value: str) -> str:
+    v = value.replace("-", "_").lower()
+    if v not in ("closed_form", "cvxpy"):
+        raise argparse.ArgumentTypeError(f"unknown method {value!r} (choose closed-form or cvxpy)")
+    return v
+
+
+def _emit(args, payload: dict, lines: list[str]) -> None:
+    if getattr(args, "json", False):
+        print(json.dumps(payload, indent=None, sort_keys=False))
+    else:
+        print("\n".join(lines))
+
+
+# ----------------------------------------------------------------------------- info
+def cmd_info(args) -> int:
+    from .graph import connected_components, spanning_tree
+    from .io import detect_format, read_graph
+    from .regularization import regularize
+
+    graph = read_graph(args.file)
+    k, _ = connected_components(graph)
+    payload = {
+        "file": str(args.file), "format": detect_format(args.file),
+        "n_poses": graph.n_poses, "n_edges": graph.n_edges,
+        "n_odometric": graph.n_odometric, "n_loop_closures": graph.n_loop_closures,
+        "n_components": int(k), "cyclomatic_number": int(graph.n_edges - graph.n_poses + k),
+        "has_initial_guess": graph.initial is not None,
+        "spanning_tree": args.spanning_tree, "n_regularized": None, "n_ambiguous": None,
+    }
+    note = ""
+    if k == 1:
+        try:
+            reg = regularize(graph, spanning_tree(graph, args.spanning_tree, anchor=0))
+            payload["n_regularized"] = reg.n_regularized
+            payload["n_ambiguous"] = int(reg.ambiguous.size)
+        except GraphError as exc:  # e.g. broken odometric chain: report, don't fail the whole info
+            note = str(exc)
+            payload["note"] = note
+    else:
+        note = "graph is not connected: no spanning tree"
+        payload["note"] = note
+    lines = [
+        f"file              {args.file} ({payload['format']})",
+        f"poses             {graph.n_poses}" + ("" if graph.initial is not None else "  (no initial guess)"),
+        f"edges             {graph.n_edges}",
+        f"odometric edges   {graph.n_odometric}  (consecutive ids)",
+        f"loop closures     {graph.n_loop_closures}",
+        f"components        {k}",
+        f"cyclomatic number {payload['cyclomatic_number']}  (l = m - n + components)",
+        f"regularized ({args.spanning_tree} tree) "
+        + (f"{payload['n_regularized']} chords need a 2kπ correction" if payload["n_regularized"] is not None
+           else f"n/a: {note}"),
+    ]
+    _emit(args, payload, lines)
+    return EXIT_OK
+
+
+# ---------------------------------------------------------------------------- solve
+def _check_output(args) -> Path | None:
+    if not args.output:
+        return None
+    out = Path(args.output)
+    src = Path(args.file)
+    if out.exists() and src.exists() and out.resolve() == src.resolve() and not args.overwrite_input:
+        raise UsageError(f"refusing to overwrite the input file {src} with the estimate "
+                         "(pass --overwrite-input to allow it)")
+    return out
+
+
+def cmd_solve(args) -> int:
+    from .io import read_graph, write_graph
+    from .lago import compare_methods, lago
+
+    out = _check_output(args)
+    graph = read_graph(args.file)
+    kw = dict(spanning_tree=args.spanning_tree, anchor=args.anchor)
+    if args.check:
+        res, report = compare_methods(graph, **kw)
+    else:
+        res, report = lago(graph, method=args.method, **kw), None
+    reg = res.regularization
+    payload = {
+        "file": str(args.file), "n_poses": graph.n_poses, "n_edges": graph.n_edges,
+        "method": "closed_form" if args.check else args.method, "spanning_tree": res.tree.kind,
+        "n_chords": int(reg.chords.size), "n_regularized": reg.n_regularized, "n_ambiguous": int(reg.ambiguous.size),
+        "chi2": res.chi2, "timings": {k: res.timings[k] for k in ("regularization", "phase1", "phase2",
+                                                                  "phase3", "total")},
+    }
+    payload["timings"]["regularization"] += res.timings["tree"]
+    if graph.initial is not None:
+        from .cost import chi2
+        payload["chi2_initial"] = chi2(graph, graph.initial)
+    if report is not None:
+        payload["max_rel_diff"] = report["max_rel_diff"]
+        payload["cvxpy_timings"] = report["cvxpy_timings"]
+    if out is not None:
+        write_graph(out, graph, res.poses)
+        payload["output"] = str(out)
+    t = payload["timings"]
+    lines = [
+        f"LAGO ({payload['method'].replace('_', '-')}, {res.tree.kind} spanning tree) on {args.file}",
+        f"  poses {graph.n_poses}, edges {graph.n_edges}, chords {reg.chords.size}, "
+        f"regularized {reg.n_regularized}, ambiguous {reg.ambiguous.size}",
+        f"  chi2 = {res.chi2:.6g}  (g2o convention: sum e'Ωe, no 1/2)"
+        + (f"; at the file's initial guess {payload['chi2_initial']:.6g}" if "chi2_initial" in payload else ""),
+        f"  time [s]: regularization {t['regularization']:.4f}, phase1 {t['phase1']:.4f}, "
+        f"phase2 {t['phase2']:.4f}, phase3 {t['phase3']:.4f}, total {t['total']:.4f}",
+    ]
+    if report is not None:
+        d = report["max_rel_diff"]
+        lines.append(f"  cvxpy vs closed form, max relative difference: phase1 {d['phase1']:.2e}, "
+                     f"phase3 {d['phase3']:.2e}")
+    if out is not None:
+        lines.append(f"  estimate written to {out}")
+    _emit(args, payload, lines)
+    return EXIT_OK
+
+
+# ------------------------------------------------------------------------- generate
+def _world(kind: str, poses: int, seed: int, sigma_xy: float | None, sigma_theta: float | None, laps: float):
+    from . import synthetic
+
+    kw = {}
+    if sigma_xy is not None:
+        kw["sigma_xy"] = sigma_xy
+    if sigma_theta is not None:
+        kw["sigma_theta"] = sigma_theta
+    if kind == "manhattan":
+        return synthetic.manhattan_world(poses, seed=seed, **kw)
+    return synthetic.circle_world(poses, seed=seed, laps=laps, **kw)
+
+
+def cmd_generate(args) -> int:
+    from .io import write_graph
+
+    if args.poses < 2:
+        raise UsageError("--poses must be at least 2")
+    world = _world(args.world, args.poses, args.seed, args.sigma_xy, args.sigma_theta, args.laps)
+    out = Path(args.output)
+    truth_path = Path(args.truth) if args.truth else out.with_name(out.stem + ".truth" + (out.suffix or ".g2o"))
+    write_graph(out, world.graph)  # vertices = dead-reckoning guess, as in real datasets
+    write_graph(truth_path, world.graph, world.truth)  # same edges, vertices = ground truth
+    g = world.graph
+    payload = {"output": str(out), "truth": str(truth_path), "world": args.world, "seed": args.seed,
+               "n_poses": g.n_poses, "n_edges": g.n_edges, "n_loop_closures": g.n_loop_closures}
+    _emit(args, payload, [f"wrote {out}: {args.world} world, {g.n_poses} poses, {g.n_edges} edges "
+                          f"({g.n_loop_closures} loop closures), seed {args.seed}; vertices = dead-reckoning guess",
+                          f"wrote {truth_path}: same edges, vertices = ground truth"])
+    return EXIT_OK
+
+
+# ----------------------------------------------------------------------------- demo
+def _ate(est: np.ndarray, truth: np.ndarray) -> float:
+    """Absolute trajectory error: RMS position error (both trajectories share the anchor pose)."""
+    return float(np.sqrt(np.mean(np.sum((est[:, :2] - truth[:, :2]) ** 2, axis=1))))
+
+
+def cmd_demo(args) -> int:
+    from .cost import chi2
+    from .lago import compare_methods
+
+    world = _world("manhattan", args.poses, args.seed, None, None, 1.0)
+    g, truth = world.graph, world.truth
+    res, report = compare_methods(g, anchor_pose=truth[0])
+    d = report["max_rel_diff"]
+    payload = {
+        "n_poses": g.n_poses, "n_edges": g.n_edges, "seed": args.seed,
+        "n_regularized": res.regularization.n_regularized,
+        "chi2": {"lago": res.chi2, "truth": chi2(g, truth), "odometry": chi2(g, g.initial)},
+        "ate": {"lago": _ate(res.poses, truth), "odometry": _ate(g.initial, truth)},
+        "max_rel_diff": d, "timings": res.timings, "cvxpy_timings": report["cvxpy_timings"],
+    }
+    lines = [
+        f"Synthetic Manhattan world: {g.n_poses} poses, {g.n_edges} edges ({g.n_loop_closures} loop closures), "
+        f"seed {args.seed}",
+        f"  regularization: {res.regularization.n_regularized} of {res.regularization.chords.size} chords "
+        "needed a 2kπ correction",
+        "  chi2 (g2o convention, sum e'Ωe):",
+        f"    odometric guess {payload['chi2']['odometry']:12.4f}",
+        f"    LAGO            {payload['chi2']['lago']:12.4f}",
+        f"    ground truth    {payload['chi2']['truth']:12.4f}",
+        f"  trajectory error (RMS position vs truth): odometry {payload['ate']['odometry']:.4f} m, "
+        f"LAGO {payload['ate']['lago']:.4f} m",
+        f"  cvxpy (Clarabel) vs closed form, max relative difference: phase1 {d['phase1']:.2e}, "
+        f"phase3 {d['phase3']:.2e}",
+        f"  closed form {res.timings['total']:.3f} s; cvxpy phase1 {report['cvxpy_timings']['phase1']:.3f} s, "
+        f"phase3 {report['cvxpy_timings']['phase3']:.3f} s",
+    ]
+    if not args.no_figure:
+        path = _demo_figure(g, truth, res.poses, Path(args.out_dir))
+        payload["figure"] = str(path)
+        lines.append(f"  figure: {path}")
+    _emit(args, payload, lines)
+    return EXIT_OK
+
+
+def _demo_figure(graph, truth, est, out_dir: Path) -> Path:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from .plotting import plot_edges, plot_trajectory
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    fig, axes = plt.subplots(1, 3, figsize=(15, 5), constrained_layout=True)
+    for ax, poses, title in zip(axes, [graph.initial, est, truth],
+                                ["odometric guess (dead reckoning)", "LAGO estimate", "ground truth"]):
+        plot_edges(ax, graph, poses, which="loop_closures", linewidth=0.3, alpha=0.3)
+        plot_trajectory(ax, poses, color="k", linewidth=0.8)
+        ax.set_title(title)
+    fig.suptitle(f"lago-cvx demo: {graph.n_poses} poses, {graph.n_edges} edges (loop closures in red)")
+    path = out_dir / "demo.png"
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+# ----------------------------------------------------------------------------- main
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="lago-cvx", description="LAGO for planar pose graphs (g2o / TORO files).")
+    p.add_argument("--version", action="version", version=f"lago-cvx {__version__}")
+    p.add_argument("-v", "--verbose", action="count", default=0, help="log progress (-vv for debug)")
+    sub = p.add_subparsers(dest="command", required=True)
+
+    s = sub.add_parser("info", help="counts of a pose-graph file")
+    s.add_argument("file")
+    s.add_argument("--spanning-tree", type=_tree_arg, default="bfs", help="bfs (default), odometry, mst")
+    s.add_argument("--json", action="store_true", help="print one JSON object")
+    s.set_defaults(func=cmd_info)
+
+    s = sub.add_parser("solve", help="run LAGO on a file")
+    s.add_argument("file")
+    s.add_argument("-o", "--output", help="write the estimate as g2o to this path")
+    s.add_argument("--method", type=_method_arg, default="closed_form", help="closed-form (default) or cvxpy")
+    s.add_argument("--spanning-tree", type=_tree_arg, default="bfs", help="bfs (default), odometry, mst")
+    s.add_argument("--anchor", type=int, default=None, help="id of the fixed pose (default: smallest id)")
+    s.add_argument("--check", action="store_true", help="solve both ways and report the largest relative "
+                                                        "difference per phase")
+    s.add_argument("--overwrite-input", action="store_true", help="allow -o to name the input file")
+    s.add_argument("--json", action="store_true", help="print one JSON object")
+    s.set_defaults(func=cmd_solve)
+
+    s = sub.add_parser("generate", help="write a seeded synthetic world (g2o) and its ground truth")
+    s.add_argument("--world", choices=["manhattan", "circle"], default="manhattan")
+    s.add_argument("--poses", type=int, default=500)
+    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--sigma-xy", type=float, default=None, help="position noise std [m]")
+    s.add_argument("--sigma-theta", type=float, default=None, help="orientation noise std [rad]")
+    s.add_argument("--laps", type=float, default=3.0, help="circle world: number of turns")
+    s.add_argument("-o", "--output", required=True, help="graph file (vertices = dead-reckoning guess)")
+    s.add_argument("--truth", help="ground-truth file (default: OUTPUT with .truth before the suffix)")
+    s.add_argument("--json", action="store_true")
+    s.set_defaults(func=cmd_generate)
+
+    s = sub.add_parser("demo", help="the main job on the embedded default: synthetic world, LAGO both ways")
+    s.add_argument("--poses", type=int, default=1000)
+    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--out-dir", default="figures", help="where demo.png goes (default: figures)")
+    s.add_argument("--no-figure", action="store_true")
+    s.add_argument("--json", action="store_true")
+    s.set_defaults(func=cmd_demo)
+    return p
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=[logging.WARNING, logging.INFO, logging.DEBUG][min(args.verbose, 2)],
+                        format="lago-cvx: %(levelname)s: %(message)s")
+    from .io import ParseError
+
+    try:
+        return args.func(args)
+    except (ParseError, GraphError, UsageError) as exc:
+        print(f"lago-cvx: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print("lago-cvx: interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:  # an internal error: one line, exit 1 (traceback with LAGO_CVX_DEBUG=1)
+        if os.environ.get("LAGO_CVX_DEBUG"):
+            raise
+        print(f"lago-cvx: internal error: {type(exc).__name__}: {exc} "
+              "(set LAGO_CVX_DEBUG=1 for a traceback)", file=sys.stderr)
+        return EXIT_INTERNAL
+
+
+if __name__ == "__main__":
+    sys.exit(main())

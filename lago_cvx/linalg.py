@@ -1,0 +1,137 @@
+"""Sparse linear algebra shared by the closed forms: SPD solves, whitening, marginal covariances.
+
+``factorize(N)`` factors a sparse symmetric positive definite matrix once and returns a callable
+solver. By default it uses SciPy's SuperLU with a symmetric fill-reducing ordering (minimum degree on
+N, no pivoting off the diagonal: for an SPD matrix this is an LDLᵀ-like factorization with the
+sparsity of Cholesky). If the optional extra ``cholmod`` is installed (scikit-sparse), ``backend="cholmod"``
+or ``"auto"`` uses CHOLMOD, which is faster on large graphs; the import is lazy.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Callable
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+__all__ = ["Factor", "factorize", "solve_least_squares", "REFINEMENT_STEPS", "whitening_2x2", "block_diagonal_inverse", "SOLVER_BACKENDS"]
+
+log = logging.getLogger(__name__)
+
+SOLVER_BACKENDS = ("auto", "superlu", "cholmod")
+
+
+def _have_cholmod() -> bool:
+    try:
+        import sksparse.cholmod  # noqa: F401
+    except Exception:  # ImportError, or a broken binary build
+        return False
+    return True
+
+
+class Factor:
+    """A factored sparse SPD matrix N of shape (dim, dim): ``factor.solve(rhs)`` solves N x = rhs
+    for rhs of shape (dim,) or (dim, r); ``factor.backend`` names the library used."""
+
+    def __init__(self, solve: Callable[[np.ndarray], np.ndarray], dim: int, backend: str):
+        self._solve = solve
+        self.dim = dim
+        self.backend = backend
+
+    def solve(self, rhs: np.ndarray) -> np.ndarray:
+        return self._solve(np.asarray(rhs, dtype=float))
+
+    __call__ = solve
+
+
+def factorize(N: sp.spmatrix, *, backend: str = "auto") -> Factor:
+    """Factor the sparse SPD matrix ``N`` (shape (d, d)) once; return a ``Factor``.
+
+    ``backend``: ``"auto"`` (CHOLMOD if scikit-sparse is importable, else SuperLU), ``"superlu"``,
+    ``"cholmod"`` (raises ImportError naming the extra if missing)."""
+    if backend not in SOLVER_BACKENDS:
+        raise ValueError(f"unknown backend {backend!r}; expected one of {SOLVER_BACKENDS}")
+    N = sp.csc_matrix(N)
+    d = N.shape[0]
+    if backend == "cholmod" or (backend == "auto" and _have_cholmod()):
+        try:
+            from sksparse.cholmod import cholesky
+        except ImportError as exc:  # depends on the optional extra
+            raise ImportError("backend='cholmod' needs the optional extra: pip install 'lago-cvx[cholmod]'") from exc
+        return Factor(cholesky(N), d, "cholmod")
+    lu = spla.splu(N, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+    return Factor(lu.solve, d, "superlu")
+
+
+#: Maximum number of correction steps of the corrected semi-normal equations in ``solve_least_squares``.
+REFINEMENT_STEPS = 5
+
+
+def solve_least_squares(M: sp.spmatrix, b: np.ndarray, *, backend: str = "auto"):
+    """Minimise ‖M x − b‖² for a sparse M (r × c) of full column rank.
+
+    Factor N = MᵀM once and solve the normal equations, then apply the *corrected semi-normal
+    equations*: x ← x + N⁻¹Mᵀ(b − Mx), repeated while the correction shrinks (at most
+    ``REFINEMENT_STEPS``). The residual b − Mx is formed in the original space, so this recovers the
+    accuracy a QR factorization would give even when cond(M)² ε ≈ 1 (real files with information
+    spanning 1e1 … 1e8, e.g. carlone/input_INTEL_g2o.g2o, lose 6 digits in the plain normal equations).
+
+    Returns ``(x, N, factor, stats)``; ``stats`` has ``refinement_steps`` and ``relative_correction``
+    (size of the last correction relative to ‖x‖∞ — large means the answer is not trustworthy)."""
+    M = sp.csc_matrix(M)
+    N = (M.T @ M).tocsc()
+    factor = factorize(N, backend=backend)
+    x = factor.solve(M.T @ b)
+    scale = max(np.max(np.abs(x)) if x.size else 0.0, np.finfo(float).tiny)
+    last = np.inf
+    steps = 0
+    rel = 0.0
+    for steps in range(1, REFINEMENT_STEPS + 1):
+        dx = factor.solve(M.T @ (b - M @ x))
+        size = np.max(np.abs(dx)) if dx.size else 0.0
+        if size >= last:  # no longer converging: keep the previous iterate
+            steps -= 1
+            break
+        x = x + dx
+        rel = size / scale
+        last = size
+        if rel < 1e-14:
+            break
+    return x, N, factor, {"refinement_steps": steps, "relative_correction": float(rel)}
+
+
+def whitening_2x2(info: np.ndarray) -> np.ndarray:
+    """Upper-triangular square roots U (m, 2, 2) with UᵀU = info for SPD 2×2 ``info`` (m, 2, 2).
+
+    U = Lᵀ for the Cholesky factor L of ``info``; ‖U r‖² = rᵀ info r. Vectorized closed form."""
+    a = np.sqrt(info[:, 0, 0])
+    b = info[:, 1, 0] / a
+    c = np.sqrt(info[:, 1, 1] - b * b)
+    U = np.zeros_like(info)
+    U[:, 0, 0] = a
+    U[:, 0, 1] = b
+    U[:, 1, 1] = c
+    return U
+
+
+def block_diagonal_inverse(factor: Factor, index_blocks: np.ndarray, *, batch: int = 512) -> np.ndarray:
+    """Diagonal blocks of N⁻¹ without forming N⁻¹.
+
+    ``index_blocks`` (p, b) integer indices into N's rows; returns (p, b, b) with entry
+    [q, r, s] = (N⁻¹)[index_blocks[q, r], index_blocks[q, s]]. Computed by solving N X = E for batches
+    of unit columns (``batch`` blocks at a time), keeping only the wanted entries: memory
+    O(dim·batch·b), time O(p·b·nnz(factor))."""
+    index_blocks = np.asarray(index_blocks, dtype=np.int64)
+    p, b = index_blocks.shape
+    out = np.empty((p, b, b))
+    for s in range(0, p, batch):
+        idx = index_blocks[s:s + batch]
+        q = idx.shape[0]
+        cols = idx.reshape(-1)
+        E = np.zeros((factor.dim, q * b))
+        E[cols, np.arange(q * b)] = 1.0
+        X = factor.solve(E)[cols].reshape(q, b, q, b)
+        out[s:s + q] = X[np.arange(q), :, np.arange(q), :]
+    return out
