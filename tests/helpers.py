@@ -1,0 +1,26 @@
+"""Small helpers shared by the tests (not fixtures)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from lago_cvx.posegraph import PoseGraph, between, wrap_angle
+
+
+def pose_error(a, b) -> float:
+    """Largest difference between two (n, 3) pose arrays, angles compared modulo 2π."""
+    a = np.asarray(a, dtype=float)
+    b = np.asarray(b, dtype=float)
+    return float(max(np.abs(a[:, :2] - b[:, :2]).max(), np.abs(wrap_angle(a[:, 2] - b[:, 2])).max()))
+
+
+def graph_from_truth(truth, tails, heads, info=None) -> PoseGraph:
+    """Noiseless graph with δ wrapped, as a sensor reports it."""
+    truth = np.asarray(truth, dtype=float)
+    tails = np.asarray(tails)
+    heads = np.asarray(heads)
+    meas = between(truth[tails], truth[heads])
+    meas[:, 2] = wrap_angle(meas[:, 2])
+    if info is None:
+        info = np.broadcast_to(np.diag([100.0, 100.0, 400.0]), (tails.size, 3, 3))
+    return PoseGraph(truth.shape[0], tails, heads, meas[:, :2], meas[:, 2], info)
