@@ -9,11 +9,13 @@ Public API::
 """
 
 from .cost import chi2, chi2_parts, edge_errors, whitened_errors
+from .io import ParseError, read_graph, write_graph
 from .graph import (connected_components, cycle_basis, cyclomatic_number, incidence_matrix,
                     reduced_incidence, spanning_tree)
 from .lago import LagoResult, compare_methods, lago
 from .posegraph import GraphError, PoseGraph, between, compose, wrap_angle
 from .regularization import regularize
+from .synthetic import circle_world, manhattan_world, random_graph
 
 __version__ = "0.1.0"
 
@@ -27,12 +29,3 @@ __all__ = [
     "manhattan_world", "circle_world", "random_graph",
 ]
 
-
-def __getattr__(name):  # lazy: io and synthetic are imported on first use
-    if name in ("read_graph", "write_graph", "ParseError"):
-        from . import io
-        return getattr(io, name)
-    if name in ("manhattan_world", "circle_world", "random_graph"):
-        from . import synthetic
-        return getattr(synthetic, name)
-    raise AttributeError(f"module 'lago_cvx' has no attribute {name!r}")

@@ -34,13 +34,14 @@ A TORO information matrix Ω_toro is converted on reading to the g2o convention 
 
 where R(dθ) is the 2-D rotation by the edge's *own* measured angle dθ. This rotates the 2×2
 translational block (R(dθ)ᵀ Ω_tt R(dθ)) and the x-θ / y-θ cross terms consistently; Ω_θθ is unchanged.
-(TORO expresses the translational uncertainty in the frame of the head pose j, g2o in that of the
-tail i, and R_j = R_i R(dθ).) Writing TORO applies the inverse, Ω_toro = T Ω_g2o Tᵀ (T is orthogonal).
+Writing TORO applies the inverse, Ω_toro = T Ω_g2o Tᵀ (T is orthogonal). The rotation and its
+direction are an empirical convention, fixed by the data below rather than derived from TORO's code.
 
 Evidence (datasets README §2.3, re-checked by ``tests/test_io.py``): SE-Sync's ``manhattan.g2o`` and
 ``CSAIL.g2o`` were produced from Carlone's ``M3500_P_toro.graph`` and ``CSAIL_P_toro.graph``. The twins
 have the same endpoints and measurements, and after this conversion *every* edge's information agrees
-to 1e-4 relative (the g2o files were printed with 6 decimals); without the rotation they do not agree.
+to 1e-4 relative (the g2o files were printed with 6 decimals); without the rotation, or with the
+rotation the other way (T Ω_toro Tᵀ), they do not agree (relative differences > 1e-2).
 
 Errors
 ======
@@ -61,10 +62,12 @@ guess. Backward edges (i > j) and parallel edges are kept exactly as written.
 
 Speed
 =====
-A single Python loop splits the lines and sorts the token lists by tag (no per-edge objects); all
-numbers of a record type are then parsed in one call (``np.fromstring`` on the joined tokens, after a
-character-set check that makes it exactly as strict as the token grammar) and validated vectorized.
-Only when that fast path finds something wrong is a token-by-token pass run, to name the bad token.
+One Python loop splits each line once and files the data lines by record kind (their text, line
+number and id tokens — no per-edge objects). All numbers of a kind are then parsed by a single
+``np.fromstring`` call on the joined lines, after a character-set check that makes it exactly as strict
+as the token grammar, and everything else is validated vectorized. Only when that bulk conversion
+fails is a token-by-token pass run, to name the bad token. A 100k-edge file loads in well under a
+second.
 """
 
 from __future__ import annotations
@@ -76,7 +79,6 @@ import re
 import tempfile
 import warnings
 from dataclasses import dataclass
-from itertools import chain
 from operator import itemgetter
 from pathlib import Path
 from typing import NamedTuple
@@ -103,7 +105,7 @@ class ParseError(ValueError):
 
     def __init__(self, path, line: int | None, problem: str):
         super().__init__(path, line, problem)
-        self.path = os.fspath(path) if not isinstance(path, str) else path
+        self.path = os.fspath(path) if isinstance(path, os.PathLike) else str(path)
         self.line = None if line is None else int(line)
         self.problem = " ".join(str(problem).split("\n"))
 
@@ -117,23 +119,26 @@ class ParseError(ValueError):
 class _Spec(NamedTuple):
     tag: str
     fmt: str        # "g2o" or "toro"
-    kind: str       # "vertex" or "edge"
     fields: tuple   # names of the tokens after the tag (for messages)
     n_ids: int      # how many of the leading fields are integer ids
+    n_tokens: int   # tokens on a well-formed line, tag included
 
 
 _VERTEX_FIELDS = ("id", "x", "y", "theta")
 _G2O_EDGE_FIELDS = ("i", "j", "dx", "dy", "dtheta", "I11", "I12", "I13", "I22", "I23", "I33")
 _TORO_EDGE_FIELDS = ("i", "j", "dx", "dy", "dtheta", "Ixx", "Ixy", "Iyy", "Itt", "Ixt", "Iyt")
 
-_SPECS = {
-    "VERTEX_SE2": _Spec("VERTEX_SE2", "g2o", "vertex", _VERTEX_FIELDS, 1),
-    "EDGE_SE2": _Spec("EDGE_SE2", "g2o", "edge", _G2O_EDGE_FIELDS, 2),
-    "VERTEX2": _Spec("VERTEX2", "toro", "vertex", _VERTEX_FIELDS, 1),
-    "EDGE2": _Spec("EDGE2", "toro", "edge", _TORO_EDGE_FIELDS, 2),
-}
+_SPECS = {spec.tag: spec for spec in [
+    _Spec("VERTEX_SE2", "g2o", _VERTEX_FIELDS, 1, 5),
+    _Spec("EDGE_SE2", "g2o", _G2O_EDGE_FIELDS, 2, 12),
+    _Spec("VERTEX2", "toro", _VERTEX_FIELDS, 1, 5),
+    _Spec("EDGE2", "toro", _TORO_EDGE_FIELDS, 2, 12),
+]}
+_FORMAT_SPECS = {"g2o": (_SPECS["VERTEX_SE2"], _SPECS["EDGE_SE2"]),   # (vertex, edge) per format
+                 "toro": (_SPECS["VERTEX2"], _SPECS["EDGE2"])}
 _TAGS_OF = {"g2o": "VERTEX_SE2/EDGE_SE2", "toro": "VERTEX2/EDGE2"}
 _FIX = "FIX"
+_UNSET = object()
 
 # Index maps from the six stored information entries to the symmetric 3×3 matrix (order x, y, θ).
 _G2O_INFO_INDEX = np.array([[0, 1, 2], [1, 3, 4], [2, 4, 5]])   # I11 I12 I13 I22 I23 I33
@@ -143,11 +148,10 @@ _TORO_INFO_INDEX = np.array([[0, 1, 4], [1, 2, 5], [4, 5, 3]])  # Ixx Ixy Iyy It
 # followed by np.fromstring, which must consume every token as exactly one number.
 _INT_RE = re.compile(r"[+-]?[0-9]+\Z")
 _NUM_RE = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?\Z")
-_NUM_CHARS = b"0123456789.+-eE "
+_NUM_CHARS = b"0123456789.+-eE \t\r\n"
 _INT_CHARS = b"0123456789+- "
 _INT64_MAX = 2 ** 63 - 1
 _EXACT_INT = 2 ** 53   # ids parsed as doubles are exact below this
-_DROP_TAG = itemgetter(slice(1, None))
 
 
 # ----------------------------------------------------------------------------- token helpers
@@ -155,12 +159,13 @@ def _show(tok: str, limit: int = 40) -> str:
     """A token for an error message: repr, shortened; undecodable bytes shown as bytes."""
     if len(tok) > limit:
         tok = tok[:limit] + "..."
-    if any("\udc80" <= c <= "\udcff" for c in tok):
+    if _has_undecodable(tok):
         return repr(tok.encode("utf-8", "surrogateescape"))
     return repr(tok)
 
 
 def _has_undecodable(s: str) -> bool:
+    """Bytes that were not UTF-8 survive decoding (``surrogateescape``) as U+DC80…U+DCFF."""
     return any("\udc80" <= c <= "\udcff" for c in s)
 
 
@@ -195,9 +200,11 @@ def _float_problem(tok: str, field: str) -> tuple[float | None, str | None]:
 # ----------------------------------------------------------------------------- line scanning
 @dataclass
 class _Records:
-    """Token lists of one record kind (tag included) and their 1-based line numbers."""
-    rows: list
+    """The data lines of one record kind, as read (``text``), their 1-based line numbers
+    (``lines``) and their id tokens, flattened (``ids``: 1 per vertex, 2 per edge)."""
+    text: list
     lines: list
+    ids: list
 
 
 @dataclass
@@ -236,10 +243,16 @@ def _unknown_tag(tag: str, fmt_forced: str | None) -> str:
 
 
 def _scan(text: str, fmt_forced: str | None, path) -> _Scan:
-    """Split the lines into token lists, sorted by record kind. Stops at the first structural
-    problem (unknown tag, wrong token count, format mix, bad FIX line) and records it."""
-    vertices, edges = _Records([], []), _Records([], [])
+    """Sort the data lines by record kind (keeping their text, line number and id tokens). Stops at
+    the first structural problem (unknown tag, wrong token count, format mix, bad FIX line) and
+    records it. The hot path for an ordinary data line is: split, one dict look-up, two identity
+    tests, a length test and the appends."""
+    vertices, edges = _Records([], [], []), _Records([], [], [])
+    v_text, v_lines, v_ids = vertices.text.append, vertices.lines.append, vertices.ids.append
+    e_text, e_lines, e_ids = edges.text.append, edges.lines.append, edges.ids.append
     fmt, fmt_line = fmt_forced, None
+    # The current format's specs; a sentinel (never returned by the look-up) until the format is known.
+    vspec, espec = _FORMAT_SPECS[fmt_forced] if fmt_forced else (_UNSET, _UNSET)
     check_ascii = not text.isascii()
     error = None
     specs_get = _SPECS.get
@@ -250,21 +263,23 @@ def _scan(text: str, fmt_forced: str | None, path) -> _Scan:
             toks = line.split()
             if not toks:
                 continue
-            tag = toks[0]
-            spec = specs_get(tag)
-            if spec is None:
-                if tag[0] == "#":
-                    continue
-                if tag == _FIX:
-                    error = _fix_line(toks, lineno, path)
-                    if error:
-                        break
-                    continue
-                error = (lineno, _unknown_tag(tag, fmt_forced))
-                break
-            if spec.fmt != fmt:
-                if fmt is None:
+            spec = specs_get(toks[0])
+            if spec is not espec and spec is not vspec:
+                # Rare lines: comments, FIX, unknown tags, the first data line, a format mix.
+                tag = toks[0]
+                if spec is None:
+                    if tag[0] == "#":
+                        continue
+                    if tag == _FIX:
+                        error = _fix_line(toks, lineno, path)
+                        if error:
+                            break
+                        continue
+                    error = (lineno, _unknown_tag(tag, fmt_forced))
+                    break
+                if fmt is None:  # auto-detection: the first data tag decides
                     fmt, fmt_line = spec.fmt, lineno
+                    vspec, espec = _FORMAT_SPECS[fmt]
                 elif fmt_forced:
                     error = (lineno, f"{_FORMAT_LABEL[spec.fmt]} tag {tag!r} in a file read as "
                                      f"{fmt_forced} (expected {_TAGS_OF[fmt_forced]})")
@@ -273,8 +288,8 @@ def _scan(text: str, fmt_forced: str | None, path) -> _Scan:
                     error = (lineno, f"mixes g2o and TORO tags ({_FORMAT_LABEL[spec.fmt]} tag {tag!r} "
                                      f"here, {_FORMAT_LABEL[fmt]} tag seen on line {fmt_line})")
                     break
-            if len(toks) != len(spec.fields) + 1:
-                error = (lineno, f"{tag} expects {len(spec.fields)} numbers after the tag, "
+            if len(toks) != spec.n_tokens:
+                error = (lineno, f"{spec.tag} expects {spec.n_tokens - 1} numbers after the tag, "
                                  f"got {len(toks) - 1}")
                 break
             if check_ascii and not line.isascii():
@@ -282,9 +297,15 @@ def _scan(text: str, fmt_forced: str | None, path) -> _Scan:
                 if problem:
                     error = (lineno, problem)
                     break
-            rec = edges if spec.kind == "edge" else vertices
-            rec.rows.append(toks)
-            rec.lines.append(lineno)
+            if spec is espec:
+                e_text(line)
+                e_lines(lineno)
+                e_ids(toks[1])
+                e_ids(toks[2])
+            else:
+                v_text(line)
+                v_lines(lineno)
+                v_ids(toks[1])
     finally:
         if gc_was_enabled:
             gc.enable()
@@ -307,19 +328,21 @@ def _fix_line(toks: list, lineno: int, path) -> tuple[int, str] | None:
 
 
 # ----------------------------------------------------------------------------- number conversion
-def _convert_fast(rows: list, n_ids: int) -> np.ndarray | None:
-    """All tokens after the tags as one (k, n_fields) float array, or None when anything is off
-    (then the careful pass finds and names the problem). Exactly as strict as the token grammar:
-    only [0-9.+-eE] in numbers and [0-9+-] in ids, every token parsed as exactly one finite number."""
-    k = len(rows)
-    n_fields = len(rows[0]) - 1
-    try:
-        data = " ".join(chain.from_iterable(map(_DROP_TAG, rows))).encode("ascii")
-        id_getter = itemgetter(*range(1, n_ids + 1))
-        ids = (" ".join(map(id_getter, rows)) if n_ids == 1
-               else " ".join(chain.from_iterable(map(id_getter, rows)))).encode("ascii")
-    except UnicodeEncodeError:
+def _convert_fast(rec: _Records, spec: _Spec) -> np.ndarray | None:
+    """All numbers of the records (ids included) as one (k, n_fields) float array, or None when
+    anything is off (then the careful pass finds and names the problem).
+
+    The lines are joined, their tag removed, and parsed by one ``np.fromstring`` call. This is exactly
+    as strict as the token grammar: the tag must occur once per line (so it can only be the first
+    token), numbers may only contain ``[0-9.+-eE]`` and ids only ``[0-9+-]``, fromstring must consume
+    everything and produce exactly one number per token (``1-2`` would give two), all finite, ids
+    exact integers."""
+    k, n_fields, n_ids = len(rec.text), len(spec.fields), spec.n_ids
+    data = "\n".join(rec.text)
+    if not data.isascii() or data.count(spec.tag) != k:
         return None
+    data = data.replace(spec.tag, " ").encode("ascii")
+    ids = " ".join(rec.ids).encode("ascii")
     if data.translate(None, _NUM_CHARS) or ids.translate(None, _INT_CHARS):
         return None
     try:
@@ -331,19 +354,19 @@ def _convert_fast(rows: list, n_ids: int) -> np.ndarray | None:
     if arr.size != k * n_fields:
         return None
     arr = arr.reshape(k, n_fields)
-    if not np.isfinite(arr).all() or (n_ids and np.abs(arr[:, :n_ids]).max() >= _EXACT_INT):
+    if not np.isfinite(arr).all() or np.abs(arr[:, :n_ids]).max() >= _EXACT_INT:
         return None
     return arr
 
 
-def _convert_careful(rows: list, lines: list, spec: _Spec):
+def _convert_careful(rec: _Records, spec: _Spec):
     """Token-by-token conversion: ``(ids, values, None)`` or ``(None, None, (line, message))`` for
     the first bad token."""
     n_ids = spec.n_ids
-    ids = np.empty((len(rows), n_ids), np.int64)
-    vals = np.empty((len(rows), len(spec.fields) - n_ids))
-    for r, (toks, lineno) in enumerate(zip(rows, lines)):
-        for c, (tok, field) in enumerate(zip(toks[1:], spec.fields)):
+    ids = np.empty((len(rec.text), n_ids), np.int64)
+    vals = np.empty((len(rec.text), len(spec.fields) - n_ids))
+    for r, (line, lineno) in enumerate(zip(rec.text, rec.lines)):
+        for c, (tok, field) in enumerate(zip(line.split()[1:], spec.fields)):
             if c < n_ids:
                 v, problem = _int_problem(tok, field)
                 if problem is None:
@@ -360,12 +383,12 @@ def _convert_careful(rows: list, lines: list, spec: _Spec):
 def _convert(rec: _Records, spec: _Spec):
     """``(ids (k, n_ids) int64, values (k, n_values) float, None)`` or ``(None, None, (line, msg))``."""
     n_ids, n_vals = spec.n_ids, len(spec.fields) - spec.n_ids
-    if not rec.rows:
+    if not rec.text:
         return np.empty((0, n_ids), np.int64), np.empty((0, n_vals)), None
-    arr = _convert_fast(rec.rows, n_ids)
+    arr = _convert_fast(rec, spec)
     if arr is not None:
         return arr[:, :n_ids].astype(np.int64), np.ascontiguousarray(arr[:, n_ids:]), None
-    return _convert_careful(rec.rows, rec.lines, spec)
+    return _convert_careful(rec, spec)
 
 
 # ----------------------------------------------------------------------------- information matrices
@@ -418,9 +441,9 @@ def _self_loop(eid: np.ndarray, elines: np.ndarray):
     return int(elines[k]), f"self-loop edge {eid[k, 0]} -> {eid[k, 1]}"
 
 
-def _unknown_vertex(eid: np.ndarray, elines: np.ndarray, ids: np.ndarray):
-    pos = np.clip(np.searchsorted(ids, eid), 0, ids.size - 1)
-    known = ids[pos] == eid
+def _unknown_vertex(eid: np.ndarray, pos: np.ndarray, elines: np.ndarray, ids: np.ndarray):
+    """First edge with an endpoint id not in ``ids`` (``pos = searchsorted(ids, eid)``)."""
+    known = ids[np.minimum(pos, ids.size - 1)] == eid
     bad = np.flatnonzero(~known.all(axis=1))
     if bad.size == 0:
         return None
@@ -431,15 +454,22 @@ def _unknown_vertex(eid: np.ndarray, elines: np.ndarray, ids: np.ndarray):
 
 def _bad_information(info: np.ndarray, raw: np.ndarray, elines: np.ndarray):
     """First edge whose (converted) information fails :func:`is_spd` — the very test PoseGraph applies."""
-    bad = np.flatnonzero(~is_spd(info))
+    with np.errstate(over="ignore", invalid="ignore"):  # absurdly large entries: reported below
+        bad = np.flatnonzero(~is_spd(info))
     if bad.size == 0:
         return None
     k = bad[0]
     if not np.isfinite(info[k]).all():
         return int(elines[k]), "information matrix overflows when rotated to the g2o convention"
-    ev = np.linalg.eigvalsh(raw[k])
-    return int(elines[k]), ("information matrix is not positive definite (eigenvalues "
-                            + ", ".join(f"{e:.6g}" for e in ev) + ")")
+    with np.errstate(over="ignore", invalid="ignore"):
+        ev = np.linalg.eigvalsh(raw[k]) if np.isfinite(2.0 * raw[k]).all() else np.full(3, np.nan)
+    shown = ", ".join(f"{e:.6g}" for e in ev)
+    if ev.min() > 0:  # positive definite on paper, but not usable in floating point
+        return int(elines[k]), (f"information matrix is not numerically positive definite "
+                                f"(entries too large or too badly scaled; eigenvalues {shown})")
+    if np.isnan(ev).any():
+        return int(elines[k]), "information matrix is not numerically positive definite (entries too large)"
+    return int(elines[k]), f"information matrix is not positive definite (eigenvalues {shown})"
 
 
 # ----------------------------------------------------------------------------- public API
@@ -479,37 +509,41 @@ def read_graph(path, *, format: str | None = None) -> PoseGraph:
     vlines = np.asarray(scan.vertices.lines, np.int64)
     elines = np.asarray(scan.edges.lines, np.int64)
     raw = evals[:, 3:][:, _TORO_INFO_INDEX if espec.fmt == "toro" else _G2O_INFO_INDEX]
-    info = _toro_to_g2o(raw, evals[:, 2]) if espec.fmt == "toro" else raw
-
-    # Semantic problems: the earliest line among them.
-    if vid.size:
-        ids = np.unique(vid)
-        unknown = _unknown_vertex(eid, elines, ids) if eid.size else None
+    if espec.fmt == "toro":
+        with np.errstate(over="ignore", invalid="ignore"):  # overflow is reported per edge below
+            info = _toro_to_g2o(raw, evals[:, 2])
     else:
-        ids = np.unique(eid)
-        unknown = None
-    problem = _first([_duplicate_vertex(vid, vlines), _self_loop(eid, elines), unknown,
-                      _bad_information(info, raw, elines)])
-    if problem:
-        raise ParseError(path, *problem)
+        info = raw
 
-    initial = None
-    if vid.size:
-        initial = vval[np.argsort(vid)]
+    # Semantic problems; the earliest line among them is reported. Duplicate and unknown ids are
+    # checked here. Self-loops and information matrices are checked by PoseGraph itself (with the
+    # same is_spd test), so they are only located here when it objects — or when another semantic
+    # problem was found and the earliest one must be chosen.
+    ids = np.unique(vid if vid.size else eid)
+    pos = np.searchsorted(ids, eid)  # (m, 2) pose indices of the endpoints, if the ids are known
+    problem = _first([_duplicate_vertex(vid, vlines),
+                      _unknown_vertex(eid, pos, elines, ids) if vid.size and eid.size else None])
+    if problem:
+        raise ParseError(path, *_first([problem, _self_loop(eid, elines),
+                                        _bad_information(info, raw, elines)]))
     try:
-        return PoseGraph(
-            n_poses=ids.size,
-            tails=np.searchsorted(ids, eid[:, 0]),
-            heads=np.searchsorted(ids, eid[:, 1]),
-            delta_l=evals[:, 0:2],
-            delta=evals[:, 2],
-            information=info,
-            initial=initial,
-            ids=ids,
-            name=Path(path).name,
-        )
-    except ValueError as exc:  # should not happen: every condition PoseGraph checks is checked above
-        raise ParseError(path, None, f"invalid pose graph: {exc}") from None
+        with np.errstate(over="ignore", invalid="ignore"):  # absurd magnitudes are reported below
+            return PoseGraph(
+                n_poses=ids.size,
+                tails=pos[:, 0],
+                heads=pos[:, 1],
+                delta_l=evals[:, 0:2],
+                delta=evals[:, 2],
+                information=info,
+                initial=vval[np.argsort(vid)] if vid.size else None,
+                ids=ids,
+                name=Path(path).name,
+            )
+    except ValueError as exc:
+        problem = _first([_self_loop(eid, elines), _bad_information(info, raw, elines)])
+        if problem:
+            raise ParseError(path, *problem) from None
+        raise ParseError(path, None, f"invalid pose graph: {exc}") from None  # not expected
 
 
 def detect_format(path) -> str:
@@ -542,9 +576,14 @@ def _file_mode(path: Path) -> int:
     try:
         return os.stat(path).st_mode & 0o7777
     except OSError:
-        mask = os.umask(0)
+        pass
+    try:  # Linux: read the umask without changing it
+        with open("/proc/self/status") as f:
+            mask = next(int(ln.split()[1], 8) for ln in f if ln.startswith("Umask:"))
+    except (OSError, StopIteration, ValueError, IndexError):
+        mask = os.umask(0)  # elsewhere: the classic (briefly process-wide) set-and-restore
         os.umask(mask)
-        return 0o666 & ~mask
+    return 0o666 & ~mask
 
 
 def write_graph(path, graph: PoseGraph, poses=None, *, format: str = "g2o",
@@ -573,7 +612,9 @@ def write_graph(path, graph: PoseGraph, poses=None, *, format: str = "g2o",
             raise ValueError("poses must be finite")
         if wrap_angles:
             poses = np.column_stack([poses[:, :2], _wrap_vertex_angles(poses[:, 2])])
-    elif graph.n_edges and np.unique(np.concatenate([graph.tails, graph.heads])).size < graph.n_poses:
+    elif graph.n_edges == 0:
+        raise ValueError("nothing to write: the graph has no edges and no poses were given")
+    elif np.unique(np.concatenate([graph.tails, graph.heads])).size < graph.n_poses:
         logger.warning("%s: writing an edge-only file; poses that appear in no edge are lost", path)
 
     vtag = "VERTEX_SE2" if fmt == "g2o" else "VERTEX2"

@@ -237,14 +237,14 @@ def is_spd(info: np.ndarray, *, rtol: float = 1e-9) -> np.ndarray:
     info = np.asarray(info, dtype=float)
     if info.shape[0] == 0:
         return np.zeros(0, bool)
-    scale = np.abs(info).max(axis=(1, 2))
-    sym = np.abs(info - np.swapaxes(info, 1, 2)).max(axis=(1, 2)) <= rtol * np.maximum(scale, 1e-300)
-    # Sylvester's criterion on the symmetric part: leading principal minors > 0.
-    s = 0.5 * (info + np.swapaxes(info, 1, 2))
-    d1 = s[:, 0, 0]
-    d2 = s[:, 0, 0] * s[:, 1, 1] - s[:, 0, 1] * s[:, 1, 0]
-    d3 = np.linalg.det(s) if s.size else np.zeros(0)
-    finite = np.isfinite(s).all((1, 2))
-    with np.errstate(invalid="ignore"):
+    with np.errstate(over="ignore", invalid="ignore"):  # absurd magnitudes (1e308) → not PD, no warning
+        scale = np.abs(info).max(axis=(1, 2))
+        sym = np.abs(info - np.swapaxes(info, 1, 2)).max(axis=(1, 2)) <= rtol * np.maximum(scale, 1e-300)
+        # Sylvester's criterion on the symmetric part: leading principal minors > 0.
+        s = 0.5 * (info + np.swapaxes(info, 1, 2))
+        d1 = s[:, 0, 0]
+        d2 = s[:, 0, 0] * s[:, 1, 1] - s[:, 0, 1] * s[:, 1, 0]
+        d3 = np.linalg.det(s) if s.size else np.zeros(0)
+        finite = np.isfinite(s).all((1, 2)) & np.isfinite(d2) & np.isfinite(d3)
         pd = (d1 > 0) & (d2 > 0) & (d3 > 0)
     return sym & pd & finite
