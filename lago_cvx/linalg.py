@@ -1,10 +1,17 @@
 """Sparse linear algebra shared by the closed forms: SPD solves, whitening, marginal covariances.
 
-``factorize(N)`` factors a sparse symmetric positive definite matrix once and returns a callable
-solver. By default it uses SciPy's SuperLU with a symmetric fill-reducing ordering (minimum degree on
-N, no pivoting off the diagonal: for an SPD matrix this is an LDLᵀ-like factorization with the
-sparsity of Cholesky). If the optional extra ``cholmod`` is installed (scikit-sparse), ``backend="cholmod"``
-or ``"auto"`` uses CHOLMOD, which is faster on large graphs; the import is lazy.
+``factorize(N)`` factors a sparse symmetric positive definite matrix once and returns a ``Factor``.
+Backends:
+
+* ``"qdldl"`` — QDLDL's LDLᵀ with an AMD fill-reducing ordering (the ``qdldl`` package, which cvxpy
+  already depends on, and the same factorization Clarabel uses). 3–5× faster than SuperLU on our
+  systems (phase 3 of city10000: 0.19 s against 0.65 s) — the default.
+* ``"superlu"`` — SciPy's SuperLU with a symmetric minimum-degree ordering and no off-diagonal
+  pivoting (for SPD matrices, Cholesky's sparsity). Solves many right-hand sides at once, so it is
+  used for selected inverses (marginal covariances).
+* ``"cholmod"`` — CHOLMOD through scikit-sparse, an optional extra (lazy import; GPL parts).
+
+``"auto"`` picks CHOLMOD if importable, else QDLDL, else SuperLU.
 """
 
 from __future__ import annotations
@@ -20,7 +27,7 @@ __all__ = ["Factor", "factorize", "solve_least_squares", "REFINEMENT_STEPS", "wh
 
 log = logging.getLogger(__name__)
 
-SOLVER_BACKENDS = ("auto", "superlu", "cholmod")
+SOLVER_BACKENDS = ("auto", "qdldl", "superlu", "cholmod")
 
 
 def _have_cholmod() -> bool:
@@ -35,10 +42,11 @@ class Factor:
     """A factored sparse SPD matrix N of shape (dim, dim): ``factor.solve(rhs)`` solves N x = rhs
     for rhs of shape (dim,) or (dim, r); ``factor.backend`` names the library used."""
 
-    def __init__(self, solve: Callable[[np.ndarray], np.ndarray], dim: int, backend: str):
+    def __init__(self, solve: Callable[[np.ndarray], np.ndarray], dim: int, backend: str, matrix=None):
         self._solve = solve
         self.dim = dim
         self.backend = backend
+        self.matrix = matrix
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         return self._solve(np.asarray(rhs, dtype=float))
@@ -46,11 +54,19 @@ class Factor:
     __call__ = solve
 
 
+def _have_qdldl() -> bool:
+    try:
+        import qdldl  # noqa: F401
+    except Exception:
+        return False
+    return True
+
+
 def factorize(N: sp.spmatrix, *, backend: str = "auto") -> Factor:
     """Factor the sparse SPD matrix ``N`` (shape (d, d)) once; return a ``Factor``.
 
-    ``backend``: ``"auto"`` (CHOLMOD if scikit-sparse is importable, else SuperLU), ``"superlu"``,
-    ``"cholmod"`` (raises ImportError naming the extra if missing)."""
+    ``backend``: ``"auto"`` (CHOLMOD if importable, else QDLDL, else SuperLU), ``"qdldl"``,
+    ``"superlu"``, ``"cholmod"`` (raises ImportError naming the extra if missing)."""
     if backend not in SOLVER_BACKENDS:
         raise ValueError(f"unknown backend {backend!r}; expected one of {SOLVER_BACKENDS}")
     N = sp.csc_matrix(N)
@@ -61,6 +77,17 @@ def factorize(N: sp.spmatrix, *, backend: str = "auto") -> Factor:
         except ImportError as exc:  # depends on the optional extra
             raise ImportError("backend='cholmod' needs the optional extra: pip install 'lago-cvx[cholmod]'") from exc
         return Factor(cholesky(N), d, "cholmod")
+    if backend == "qdldl" or (backend == "auto" and _have_qdldl()):
+        import qdldl
+
+        solver = qdldl.Solver(sp.triu(N, format="csc"), upper=True)
+
+        def solve(rhs: np.ndarray) -> np.ndarray:
+            if rhs.ndim == 1:
+                return solver.solve(rhs)
+            return np.column_stack([solver.solve(np.ascontiguousarray(rhs[:, j])) for j in range(rhs.shape[1])])
+
+        return Factor(solve, d, "qdldl", N)
     lu = spla.splu(N, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
     return Factor(lu.solve, d, "superlu")
 
@@ -125,6 +152,8 @@ def block_diagonal_inverse(factor: Factor, index_blocks: np.ndarray, *, batch: i
     O(dim·batch·b), time O(p·b·nnz(factor))."""
     index_blocks = np.asarray(index_blocks, dtype=np.int64)
     p, b = index_blocks.shape
+    if factor.backend == "qdldl" and factor.matrix is not None:
+        factor = factorize(factor.matrix, backend="superlu")  # multi-RHS solves are SuperLU's strength
     out = np.empty((p, b, b))
     for s in range(0, p, batch):
         idx = index_blocks[s:s + batch]

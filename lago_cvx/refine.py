@@ -1,0 +1,486 @@
+"""Nonlinear refinement of a planar pose graph (Gauss–Newton / Levenberg–Marquardt), dead-reckoning
+initial guesses and trajectory error metrics.
+
+LAGO (``lago_cvx.lago``) gives a linear approximation of the maximum-likelihood estimate. This module
+minimises the **full nonlinear cost of eq. (3)** of the seed, in the g2o χ² convention of
+``lago_cvx.cost`` (no factor ½), starting from any guess — typically LAGO's — so that the two can be
+compared, and LAGO can be used as an initialization of an iterative solver (the seed's Section V).
+
+Problem
+-------
+Unknowns: the poses x_v = (p_v, θ_v) = (x_v, y_v, θ_v), v = 0 … n−1, shape (n, 3); the anchor pose a
+is held fixed at the value it has in the input poses, so the unknown vector has dimension 3(n − 1)
+(pose v ≠ a occupies columns 3·r(v) … 3·r(v)+2, r(v) = v − [v > a]).
+
+For an edge k: i → j with measurement (Δˡ, δ) and information Ω (3×3, g2o convention) the error is
+
+    e_k = [ R_iᵀ(p_j − p_i) − Δˡ ;  wrap(θ_j − θ_i − δ) ]          (3,)
+
+and the cost χ² = Σ_k e_kᵀ Ω_k e_k.
+
+Whitening. With the upper Cholesky factor U_k of Ω_k (U_kᵀU_k = Ω_k, full 3×3, cross terms
+included; U = Lᵀ for L = ``np.linalg.cholesky(Ω)``, vectorized over edges) the whitened residual is
+r_k = U_k e_k and χ² = Σ ‖r_k‖² = ‖r‖², r of shape (3m,).
+
+Jacobian blocks. Let c = cos θ_i, s = sin θ_i, d = p_j − p_i and u = R_iᵀ d (so e_t = u − Δˡ).
+Then, in the order (x, y, θ):
+
+    ∂e/∂x_i = [[−c, −s,  u_y],        ∂e/∂x_j = [[ c, s, 0],
+               [ s, −c, −u_x],                   [−s, c, 0],
+               [ 0,  0,  −1 ]]                   [ 0, 0, 1]]
+
+(∂(R_iᵀd)/∂θ_i = (u_y, −u_x); the wrap is piecewise constant, so it does not enter the derivative).
+The whitened blocks U_k·∂e/∂x_i and U_k·∂e/∂x_j (each 3×3, dense because U mixes the rows) fill
+rows 3k … 3k+2 of ONE sparse Jacobian J of shape (3m, 3(n−1)), 18 entries per edge minus the
+anchor's columns. Its CSR structure (row pointers, column indices, and the gather index that
+drops the anchor's entries and sorts the columns of every row) does not change between iterations
+and is built once; an iteration only computes the (m, 3, 6) block values — no Python loop over
+edges.
+
+Gauss–Newton. Solve the normal equations JᵀJ·dx = −Jᵀr (``lago_cvx.linalg.factorize``, the same
+SuperLU/CHOLMOD machinery as LAGO's closed form) and update additively,
+x ← x + dx, which is exact for this (x, y, θ) parametrization (θ stays unwrapped; residuals wrap).
+With g = Jᵀr and H = JᵀJ the linear model ‖r + J dx‖² predicts the decrease −gᵀdx for the GN step.
+If a GN step increases χ², the step is halved (backtracking line search, at most
+``MAX_HALVINGS`` times) and this is logged.
+
+Levenberg–Marquardt. Solve (H + λ·D) dx = −g with D = diag(H) (Marquardt's scaling); the predicted
+decrease is L(0) − L(dx) = −gᵀdx + λ·dxᵀD dx > 0 and the gain ratio ρ = actual / predicted decides:
+ρ > 0 accepts the step and sets λ ← λ·max(1/3, 1 − (2ρ − 1)³), ν ← 2; otherwise the step is
+rejected, λ ← λ·ν, ν ← 2ν (Nielsen's rule). Rejected steps never change the poses, so χ² is monotone.
+
+Stopping: relative χ² decrease below ``tolerance``; step ‖dx‖∞ ≤ ``STEP_TOLERANCE``·(1 + ‖x‖∞);
+``max_iterations`` (GN: iterations; LM: trials, accepted or not); LM also stops when λ exceeds
+``MAX_LAMBDA``. The returned χ² is never larger than the starting one.
+
+Also here: ``odometry_guess`` (dead reckoning along a spanning tree, vectorized by pointer jumping)
+and ``ate`` / ``rotation_error`` (trajectory errors after the best rigid 2-D alignment).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+from .graph import _accumulate_to_root, spanning_tree as build_tree
+from .linalg import SOLVER_BACKENDS, factorize
+from .posegraph import PoseGraph, rot2, wrap_angle
+
+__all__ = ["RefineResult", "refine", "REFINE_METHODS", "odometry_guess", "ate", "rotation_error",
+           "jacobian", "whitened_residuals"]
+
+log = logging.getLogger(__name__)
+
+#: Accepted values of ``refine(method=...)``.
+REFINE_METHODS = ("gauss-newton", "levenberg-marquardt")
+#: Maximum number of step halvings of the Gauss–Newton backtracking line search.
+MAX_HALVINGS = 10
+#: A step with ‖dx‖∞ ≤ STEP_TOLERANCE·(1 + ‖x‖∞) counts as "no further change" (converged).
+STEP_TOLERANCE = 1e-12
+#: Initial Levenberg–Marquardt damping (relative to diag(JᵀJ)).
+INITIAL_LAMBDA = 1e-5
+#: LM gives up (the point is stationary to working precision) once λ exceeds this.
+MAX_LAMBDA = 1e16
+
+
+@dataclass(eq=False)
+class RefineResult:
+    """Outcome of ``refine``.
+
+    ``poses`` (n, 3) refined estimate (θ unwrapped); ``chi2`` its χ² (g2o convention, no ½) and
+    ``chi2_initial`` that of the starting poses; ``iterations`` the number of accepted steps;
+    ``converged`` True when a convergence test (not ``max_iterations``, not a failed line search)
+    stopped the solver; ``reason`` says which; ``log`` one dict per iteration (entry 0 = the start)
+    with keys ``iteration`` (accepted steps so far), ``chi2`` (current χ², after the iteration),
+    ``step_norm`` (‖dx‖∞ of the step tried), ``time`` (seconds since the start) and, for LM,
+    ``lambda`` (damping used) and ``accepted``; for GN ``halvings`` (line-search halvings);
+    ``method``; ``anchor`` the index of the fixed pose; ``backend`` the sparse solver used."""
+
+    poses: np.ndarray
+    chi2: float
+    chi2_initial: float
+    iterations: int
+    converged: bool
+    log: list = field(default_factory=list)
+    reason: str = ""
+    method: str = ""
+    anchor: int = 0
+    backend: str = ""
+
+    @property
+    def times(self) -> np.ndarray:
+        """Seconds since the start at each log entry, shape (len(log),)."""
+        return np.array([e["time"] for e in self.log])
+
+
+# ------------------------------------------------------------------------------ the problem
+class _Problem:
+    """Precomputed, iteration-independent data of the least-squares problem.
+
+    ``U`` (m, 3, 3) upper Cholesky factors; ``indptr`` (3m + 1,), ``indices`` (nnz,), ``take`` (nnz,)
+    the fixed CSR structure of J (``take`` gathers from the flattened (m, 3, 6) block values)."""
+
+    def __init__(self, graph: PoseGraph, anchor: int):
+        n, m = graph.n_poses, graph.n_edges
+        self.graph = graph
+        self.n, self.m, self.anchor = n, m, anchor
+        self.tails, self.heads = graph.tails, graph.heads
+        self.delta_l, self.delta = graph.delta_l, graph.delta
+        info = 0.5 * (graph.information + np.swapaxes(graph.information, 1, 2))
+        self.U = np.ascontiguousarray(np.swapaxes(np.linalg.cholesky(info), 1, 2))  # UᵀU = Ω
+        self.dim = 3 * (n - 1)
+        # reduced column of every (pose, component); −1 for the anchor's three columns
+        col = np.arange(3 * n, dtype=np.int64).reshape(n, 3)
+        col = np.where(np.arange(n)[:, None] > anchor, col - 3, col)
+        col[anchor] = -1
+        self.col = col
+        # block column order per edge: tail block then head block, swapped when head < tail so
+        # that the column indices of every CSR row come out sorted
+        cols = np.concatenate([col[self.tails], col[self.heads]], axis=1)  # (m, 6)
+        swap = self.heads < self.tails
+        order = np.where(swap[:, None], np.array([3, 4, 5, 0, 1, 2]), np.arange(6))  # (m, 6)
+        cols = np.take_along_axis(cols, order, axis=1)
+        flat = (np.arange(m)[:, None, None] * 18 + np.arange(3)[None, :, None] * 6
+                + order[:, None, :])  # (m, 3, 6) index into the (m, 3, 6) values, flattened
+        cols3 = np.broadcast_to(cols[:, None, :], (m, 3, 6))
+        keep = cols3 >= 0
+        self.take = flat[keep]
+        self.indices = cols3[keep].astype(np.int32 if self.dim < 2**31 else np.int64)
+        counts = keep.reshape(3 * m, 6).sum(1)
+        self.indptr = np.concatenate([[0], np.cumsum(counts)]).astype(self.indices.dtype)
+
+    # -- residuals
+    def errors(self, poses: np.ndarray):
+        """Errors e (m, 3) and u = R_iᵀ(p_j − p_i) (m, 2), cos θ_i, sin θ_i (m,)."""
+        pi, pj = poses[self.tails], poses[self.heads]
+        c, s = np.cos(pi[:, 2]), np.sin(pi[:, 2])
+        dx, dy = pj[:, 0] - pi[:, 0], pj[:, 1] - pi[:, 1]
+        u = np.column_stack([c * dx + s * dy, -s * dx + c * dy])
+        e = np.empty((self.m, 3))
+        e[:, :2] = u - self.delta_l
+        e[:, 2] = wrap_angle(pj[:, 2] - pi[:, 2] - self.delta)
+        return e, u, c, s
+
+    def residuals(self, poses: np.ndarray) -> np.ndarray:
+        """Whitened residuals r = U e, shape (m, 3)."""
+        e = self.errors(poses)[0]
+        return np.einsum("kab,kb->ka", self.U, e)
+
+    def chi2(self, poses: np.ndarray) -> float:
+        r = self.residuals(poses)
+        return float(np.einsum("ka,ka->", r, r))
+
+    # -- Jacobian
+    def linearize(self, poses: np.ndarray):
+        """Whitened residual vector r (3m,) and sparse Jacobian J (3m, 3(n−1)) CSR at ``poses``."""
+        e, u, c, s = self.errors(poses)
+        r = np.einsum("kab,kb->ka", self.U, e).reshape(-1)
+        Jj = np.zeros((self.m, 3, 3))
+        Jj[:, 0, 0] = c
+        Jj[:, 0, 1] = s
+        Jj[:, 1, 0] = -s
+        Jj[:, 1, 1] = c
+        Jj[:, 2, 2] = 1.0
+        Ji = -Jj
+        Ji[:, 0, 2] = u[:, 1]
+        Ji[:, 1, 2] = -u[:, 0]
+        blocks = np.concatenate([self.U @ Ji, self.U @ Jj], axis=2)  # (m, 3, 6)
+        data = blocks.reshape(-1)[self.take]
+        J = sp.csr_matrix((data, self.indices, self.indptr), shape=(3 * self.m, self.dim))
+        J.has_sorted_indices = True
+        return r, J
+
+    def update(self, poses: np.ndarray, dx: np.ndarray) -> np.ndarray:
+        """Additive update x ← x + dx of the free poses (dx of shape (3(n−1),))."""
+        new = poses.copy()
+        free = np.ones(self.n, bool)
+        free[self.anchor] = False
+        new[free] += dx.reshape(-1, 3)
+        return new
+
+
+def _resolve_anchor(graph: PoseGraph, anchor) -> int:
+    """Anchor given as a pose id (as in ``lago``); default the smallest id. Returns its index."""
+    if anchor is None:
+        return int(np.argmin(graph.ids))
+    return graph.index_of(anchor)
+
+
+def _check_poses(graph: PoseGraph, poses) -> np.ndarray:
+    poses = np.array(poses, dtype=float)
+    if poses.shape != (graph.n_poses, 3):
+        raise ValueError(f"poses must have shape ({graph.n_poses}, 3), got {poses.shape}")
+    if not np.isfinite(poses).all():
+        raise ValueError("poses must be finite")
+    return poses
+
+
+def whitened_residuals(graph: PoseGraph, poses) -> np.ndarray:
+    """Whitened residuals r = U e (m, 3), U the upper Cholesky factor of each Ω; Σ‖r‖² = χ²."""
+    return _Problem(graph, 0).residuals(_check_poses(graph, poses))
+
+
+def jacobian(graph: PoseGraph, poses, *, anchor=None) -> sp.csr_matrix:
+    """The analytic sparse Jacobian of the whitened residuals (3m, 3(n−1)) at ``poses``; the anchor's
+    (a pose id, default the smallest) columns are removed. Row 3k + a is component a of edge k."""
+    prob = _Problem(graph, _resolve_anchor(graph, anchor))
+    return prob.linearize(_check_poses(graph, poses))[1]
+
+
+# ------------------------------------------------------------------------------ the solvers
+def refine(graph: PoseGraph, poses, *, method: str = "gauss-newton", max_iterations: int = 50,
+           tolerance: float = 1e-9, anchor=None, backend: str = "auto") -> RefineResult:
+    """Minimise the nonlinear χ² of eq. (3) over the SE(2) poses, starting from ``poses`` (n, 3).
+
+    Parameters (keyword-only):
+      method — ``"gauss-newton"`` (plain steps, backtracking line search if a step increases χ²) or
+        ``"levenberg-marquardt"`` (Marquardt damping λ·diag(JᵀJ), Nielsen's λ update).
+      max_iterations — GN iterations / LM trials.
+      tolerance — stop when the relative χ² decrease of an iteration is below this.
+      anchor — id of the pose held fixed (as in ``lago``; default the smallest id, i.e. index 0 for
+        files read by ``lago_cvx.io``); it keeps the value it has in ``poses``.
+      backend — sparse solver, see ``lago_cvx.linalg.factorize``.
+    Returns a ``RefineResult``. See the module docstring for the maths.
+    """
+    if method not in REFINE_METHODS:
+        raise ValueError(f"unknown method {method!r}; expected one of {REFINE_METHODS}")
+    if backend not in SOLVER_BACKENDS:
+        raise ValueError(f"unknown backend {backend!r}; expected one of {SOLVER_BACKENDS}")
+    if max_iterations < 0:
+        raise ValueError(f"max_iterations must be >= 0, got {max_iterations}")
+    if not tolerance >= 0:
+        raise ValueError(f"tolerance must be >= 0, got {tolerance}")
+    x = _check_poses(graph, poses)
+    a = _resolve_anchor(graph, anchor)
+    t0 = time.perf_counter()
+    prob = _Problem(graph, a)
+    chi = prob.chi2(x)
+    chi_initial = chi
+    entries = [{"iteration": 0, "chi2": chi, "step_norm": 0.0, "time": time.perf_counter() - t0}]
+    if method == "levenberg-marquardt":
+        entries[0]["lambda"] = None
+    result = RefineResult(poses=x, chi2=chi, chi2_initial=chi, iterations=0, converged=False, log=entries,
+                          method=method, anchor=a, backend="")
+    if prob.dim == 0 or graph.n_edges == 0:
+        result.converged, result.reason = True, "nothing to optimize"
+        return result
+    if method == "gauss-newton":
+        _gauss_newton(prob, result, max_iterations, tolerance, t0, backend)
+    else:
+        _levenberg_marquardt(prob, result, max_iterations, tolerance, t0, backend)
+    log.info("refine (%s): χ² %.6g → %.6g in %d accepted steps, %.3f s; %s", method, chi_initial,
+             result.chi2, result.iterations, time.perf_counter() - t0, result.reason)
+    return result
+
+
+def _small_step(dx: np.ndarray, x: np.ndarray) -> bool:
+    return float(np.max(np.abs(dx))) <= STEP_TOLERANCE * (1.0 + float(np.max(np.abs(x))))
+
+
+def _normal_equations(prob: _Problem, x: np.ndarray):
+    r, J = prob.linearize(x)
+    Jt = J.T.tocsr()
+    H = (Jt @ J).tocsc()
+    g = Jt @ r
+    return H, g
+
+
+def _gauss_newton(prob: _Problem, res: RefineResult, max_iterations: int, tol: float, t0: float,
+                  backend: str = "auto") -> None:
+    x, chi = res.poses, res.chi2
+    res.reason = "max_iterations reached"
+    for it in range(1, max_iterations + 1):
+        H, g = _normal_equations(prob, x)
+        try:
+            factor = factorize(H, backend=backend)
+        except RuntimeError as exc:  # exactly singular normal equations
+            res.reason = f"singular normal equations ({exc})"
+            break
+        res.backend = factor.backend
+        dx = -factor.solve(g)
+        step = float(np.max(np.abs(dx)))
+        if not np.isfinite(dx).all():
+            res.reason = "non-finite Gauss-Newton step (singular normal equations)"
+            break
+        if _small_step(dx, x):
+            res.converged, res.reason = True, f"step norm {step:.3g} below tolerance"
+            res.log.append({"iteration": res.iterations, "chi2": chi, "step_norm": step,
+                            "time": time.perf_counter() - t0, "halvings": 0})
+            break
+        predicted = -float(g @ dx)  # model decrease of the full GN step
+        alpha, halvings = 1.0, 0
+        new = prob.update(x, dx)
+        chi_new = prob.chi2(new)
+        if abs(chi - chi_new) <= tol * max(chi, np.finfo(float).tiny) and chi_new <= chi:
+            x, chi = new, chi_new
+            res.iterations += 1
+            res.converged, res.reason = True, "relative χ² decrease below tolerance"
+            res.log.append({"iteration": res.iterations, "chi2": chi, "step_norm": step,
+                            "time": time.perf_counter() - t0, "halvings": 0})
+            log.info("GN iteration %d: χ² = %.10g, |dx| = %.3g", res.iterations, chi, step)
+            break
+        while not chi_new < chi and halvings < MAX_HALVINGS:
+            halvings += 1
+            alpha *= 0.5
+            new = prob.update(x, alpha * dx)
+            chi_new = prob.chi2(new)
+        if halvings:
+            log.info("GN iteration %d: full step increased χ²; backtracking line search used %d "
+                     "halving(s), step %.3g", it, halvings, alpha)
+        if not chi_new < chi:
+            # no decrease along the GN direction: stationary to working precision if the model
+            # predicts (almost) nothing, otherwise a genuine failure
+            res.log.append({"iteration": res.iterations, "chi2": chi, "step_norm": step,
+                            "time": time.perf_counter() - t0, "halvings": halvings})
+            if predicted <= 10 * tol * max(chi, np.finfo(float).tiny):
+                res.converged, res.reason = True, "no further decrease (stationary to working precision)"
+            else:
+                res.reason = (f"line search failed: χ² did not decrease after {halvings} halvings "
+                              f"(predicted decrease {predicted:.3g})")
+            log.info("GN iteration %d: %s", it, res.reason)
+            break
+        rel = (chi - chi_new) / max(chi, np.finfo(float).tiny)
+        x, chi = new, chi_new
+        res.iterations += 1
+        res.log.append({"iteration": res.iterations, "chi2": chi, "step_norm": alpha * step,
+                        "time": time.perf_counter() - t0, "halvings": halvings})
+        log.info("GN iteration %d: χ² = %.10g, |dx| = %.3g", res.iterations, chi, alpha * step)
+        if rel < tol:
+            res.converged, res.reason = True, "relative χ² decrease below tolerance"
+            break
+    res.poses, res.chi2 = x, chi
+
+
+def _levenberg_marquardt(prob: _Problem, res: RefineResult, max_iterations: int, tol: float, t0: float,
+                         backend: str) -> None:
+    x, chi = res.poses, res.chi2
+    lam, nu = INITIAL_LAMBDA, 2.0
+    res.reason = "max_iterations reached"
+    H, g = _normal_equations(prob, x)
+    D = H.diagonal()
+    D = np.maximum(D, 1e-12 * max(float(D.max()), np.finfo(float).tiny))
+    for _trial in range(max_iterations):
+        A = (H + sp.diags(lam * D)).tocsc()
+        try:
+            factor = factorize(A, backend=backend)
+            dx = -factor.solve(g)
+            res.backend = factor.backend
+        except RuntimeError:
+            dx = np.full(prob.dim, np.nan)
+        step = float(np.max(np.abs(dx))) if np.isfinite(dx).all() else np.inf
+        entry = {"iteration": res.iterations, "chi2": chi, "step_norm": step, "lambda": lam, "accepted": False}
+        if np.isfinite(step) and _small_step(dx, x):
+            entry["time"] = time.perf_counter() - t0
+            res.log.append(entry)
+            res.converged, res.reason = True, f"step norm {step:.3g} below tolerance"
+            break
+        if np.isfinite(step):
+            new = prob.update(x, dx)
+            chi_new = prob.chi2(new)
+            predicted = -float(g @ dx) + lam * float(dx @ (D * dx))
+        else:
+            chi_new, predicted = np.inf, 1.0
+        small_change = abs(chi - chi_new) <= tol * max(chi, np.finfo(float).tiny)
+        rho = (chi - chi_new) / predicted if predicted > 0 else -1.0
+        if chi_new < chi and rho > 0:
+            x, chi = new, chi_new
+            res.iterations += 1
+            entry.update(iteration=res.iterations, chi2=chi, accepted=True)
+            lam *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
+            nu = 2.0
+        else:
+            lam *= nu
+            nu *= 2.0
+        entry["time"] = time.perf_counter() - t0
+        res.log.append(entry)
+        log.info("LM trial %d: %s, χ² = %.10g, |dx| = %.3g, λ = %.3g", _trial + 1,
+                 "accepted" if entry["accepted"] else "rejected", chi, step, entry["lambda"])
+        if small_change:
+            res.converged, res.reason = True, "relative χ² change below tolerance"
+            break
+        if lam > MAX_LAMBDA:
+            res.converged = True
+            res.reason = "damping exceeded MAX_LAMBDA (no decrease possible: stationary to working precision)"
+            break
+        if entry["accepted"]:
+            H, g = _normal_equations(prob, x)
+            D = np.maximum(H.diagonal(), 1e-12 * max(float(H.diagonal().max()), np.finfo(float).tiny))
+    res.poses, res.chi2 = x, chi
+
+
+# ------------------------------------------------------------------------------ dead reckoning
+def odometry_guess(graph: PoseGraph, *, spanning_tree="odometry", anchor=None) -> np.ndarray:
+    """Dead reckoning: compose the measurements along a spanning tree from the anchor at the origin.
+
+    ``spanning_tree`` — anything ``lago_cvx.graph.spanning_tree`` accepts (``"odometry"`` default:
+    the chain of consecutive ids; ``"bfs"``, ``"mst"``, or edge indices). ``anchor`` — pose id
+    (default the smallest). Returns (n, 3) poses, θ unwrapped.
+
+    For a child c reached from its parent p through tree edge k (measurement Δˡ_k, δ_k):
+      * forward edge p → c:  c = p ⊕ z_k, so θ_c = θ_p + δ_k and p_c = p_p + R(θ_p)·Δˡ_k;
+      * backward edge c → p: p = c ⊕ z_k, so θ_c = θ_p − δ_k and p_c = p_p − R(θ_c)·Δˡ_k.
+    The orientations come from ``SpanningTree.integrate``; the global position steps above only need
+    the (already known) orientations, so positions are their sums along the path to the root,
+    accumulated by the same pointer jumping (O(n log depth), no loop over poses)."""
+    a = _resolve_anchor(graph, anchor)
+    tree = build_tree(graph, spanning_tree, anchor=a)
+    theta = tree.integrate(graph)
+    n = graph.n_poses
+    steps = np.zeros((n, 2))
+    child = np.flatnonzero(tree.parent >= 0)
+    if child.size:
+        k = tree.parent_edge[child]
+        fwd = tree.forward[child]
+        ang = np.where(fwd, theta[tree.parent[child]], theta[child])
+        rotated = np.einsum("kab,kb->ka", rot2(ang), graph.delta_l[k])
+        steps[child] = np.where(fwd[:, None], rotated, -rotated)
+    x = _accumulate_to_root(tree.parent, steps[:, 0])
+    y = _accumulate_to_root(tree.parent, steps[:, 1])
+    return np.column_stack([x, y, theta])
+
+
+# ------------------------------------------------------------------------------ metrics
+def _alignment(estimate: np.ndarray, truth: np.ndarray):
+    """Best rigid 2-D alignment (rotation φ, translation t) with R(φ)·p_est + t ≈ p_truth in the
+    least-squares sense (Kabsch/Umeyama without scale; in 2-D φ = atan2(H₀₁ − H₁₀, H₀₀ + H₁₁) with
+    H = X̄ᵀȲ of the centred positions, which is always a proper rotation)."""
+    X, Y = estimate[:, :2], truth[:, :2]
+    mx, my = X.mean(0), Y.mean(0)
+    Hm = (X - mx).T @ (Y - my)
+    phi = float(np.arctan2(Hm[0, 1] - Hm[1, 0], Hm[0, 0] + Hm[1, 1]))
+    t = my - rot2(phi) @ mx
+    return phi, t
+
+
+def _check_pair(estimate, truth):
+    estimate = np.asarray(estimate, dtype=float)
+    truth = np.asarray(truth, dtype=float)
+    if estimate.ndim != 2 or estimate.shape[1] != 3 or estimate.shape != truth.shape or estimate.shape[0] == 0:
+        raise ValueError(f"estimate and truth must both have shape (n, 3), n ≥ 1; got {estimate.shape} "
+                         f"and {truth.shape}")
+    return estimate, truth
+
+
+def ate(estimate, truth, *, align: bool = True) -> float:
+    """Absolute trajectory error: RMS of the position errors ‖p_est − p_truth‖ over the n poses
+    (both (n, 3)), after the best rigid 2-D alignment of the estimate onto the truth when ``align``
+    (no scale), else raw."""
+    estimate, truth = _check_pair(estimate, truth)
+    p = estimate[:, :2]
+    if align:
+        phi, t = _alignment(estimate, truth)
+        p = p @ rot2(phi).T + t
+    return float(np.sqrt(np.mean(np.sum((p - truth[:, :2]) ** 2, axis=1))))
+
+
+def rotation_error(estimate, truth, align: bool = True) -> float:
+    """RMS wrapped orientation error (radians) over the n poses (both (n, 3)); with ``align`` the
+    estimate is first rotated by the same rigid alignment as in ``ate`` (its rotation angle is added
+    to every θ)."""
+    estimate, truth = _check_pair(estimate, truth)
+    phi = _alignment(estimate, truth)[0] if align else 0.0
+    return float(np.sqrt(np.mean(wrap_angle(estimate[:, 2] + phi - truth[:, 2]) ** 2)))
