@@ -82,7 +82,7 @@ MAX_HALVINGS = 10
 #: A step with ‖dx‖∞ ≤ STEP_TOLERANCE·(1 + ‖x‖∞) counts as "no further change" (converged).
 STEP_TOLERANCE = 1e-12
 #: Initial Levenberg–Marquardt damping (relative to diag(JᵀJ)).
-INITIAL_LAMBDA = 1e-5
+INITIAL_LAMBDA = 1e-7
 #: LM gives up (the point is stationary to working precision) once λ exceeds this.
 MAX_LAMBDA = 1e16
 
