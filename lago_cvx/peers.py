@@ -1,0 +1,79 @@
+"""Side-by-side runs of peer implementations (optional extras, imported lazily).
+
+GTSAM (``pip install 'lago-cvx[gtsam]'``, PyPI ``gtsam`` 4.x) ships LAGO as ``gtsam.lago.initialize``.
+Differences to keep in mind when comparing:
+
+* GTSAM's between factors take a noise *model*; we give it ``Diagonal.Sigmas`` built from the
+  marginal standard deviations of each edge's covariance Ω⁻¹ (x, y, θ). Cross terms are dropped —
+  GTSAM's LAGO accepts only diagonal models — so on files with full information (se-sync/intel.g2o,
+  the TORO files after rotation, manhattan.g2o) GTSAM solves a slightly different problem. On files
+  with diagonal information (input_M3500*.g2o, city10000) both solve the same problem.
+* GTSAM needs a prior on the anchor; we add ``PriorFactorPose2(anchor, Pose2(), tiny variances)``.
+* ``useOdometricPath=True`` (GTSAM's default) integrates orientations along consecutive keys and fails on
+  graphs without a complete odometric chain; ``False`` uses its minimum spanning tree.
+
+Only ``gtsam.lago.initialize`` is timed; building the GTSAM factor graph (a Python loop over edges,
+outside any hot path of ours) is not.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from .posegraph import PoseGraph
+
+__all__ = ["have_gtsam", "gtsam_factor_graph", "gtsam_lago"]
+
+#: Variances of the prior GTSAM needs on the anchor (x, y, θ).
+GTSAM_PRIOR_VARIANCES = (1e-10, 1e-10, 1e-12)
+
+
+def have_gtsam() -> bool:
+    try:
+        import gtsam  # noqa: F401
+    except Exception:
+        return False
+    return True
+
+
+def _gtsam():
+    try:
+        import gtsam
+    except ImportError as exc:
+        raise ImportError("GTSAM comparisons need the optional extra: pip install 'lago-cvx[gtsam]'") from exc
+    return gtsam
+
+
+def gtsam_factor_graph(graph: PoseGraph, *, anchor: int = 0):
+    """GTSAM ``NonlinearFactorGraph`` of ``graph`` with diagonal noise models (marginal sigmas) and a
+    prior on the anchor index. Keys are pose indices."""
+    gtsam = _gtsam()
+    cov = graph.covariance
+    sig = np.sqrt(np.stack([cov[:, 0, 0], cov[:, 1, 1], cov[:, 2, 2]], axis=1))
+    fg = gtsam.NonlinearFactorGraph()
+    for k in range(graph.n_edges):
+        fg.add(gtsam.BetweenFactorPose2(int(graph.tails[k]), int(graph.heads[k]),
+                                        gtsam.Pose2(float(graph.delta_l[k, 0]), float(graph.delta_l[k, 1]),
+                                                    float(graph.delta[k])),
+                                        gtsam.noiseModel.Diagonal.Sigmas(sig[k])))
+    fg.add(gtsam.PriorFactorPose2(int(anchor), gtsam.Pose2(),
+                                  gtsam.noiseModel.Diagonal.Variances(np.array(GTSAM_PRIOR_VARIANCES))))
+    return fg
+
+
+def gtsam_lago(graph: PoseGraph, *, odometric_path: bool = True, anchor: int = 0, repeat: int = 1,
+               factor_graph=None) -> tuple[np.ndarray, float]:
+    """Run ``gtsam.lago.initialize`` ``repeat`` times; return (poses (n, 3), median seconds)."""
+    gtsam = _gtsam()
+    fg = factor_graph if factor_graph is not None else gtsam_factor_graph(graph, anchor=anchor)
+    times = []
+    values = None
+    for _ in range(max(1, repeat)):
+        t = time.perf_counter()
+        values = gtsam.lago.initialize(fg, odometric_path)
+        times.append(time.perf_counter() - t)
+    poses = np.array([[values.atPose2(i).x(), values.atPose2(i).y(), values.atPose2(i).theta()]
+                      for i in range(graph.n_poses)])
+    return poses, float(np.median(times))
