@@ -38,7 +38,7 @@ and is built once; an iteration only computes the (m, 3, 6) block values — no 
 edges.
 
 Gauss–Newton. Solve the normal equations JᵀJ·dx = −Jᵀr (``lago_cvx.linalg.factorize``, the same
-SuperLU/CHOLMOD machinery as LAGO's closed form) and update additively,
+sparse SPD machinery — QDLDL / SuperLU / CHOLMOD — as LAGO's closed form) and update additively,
 x ← x + dx, which is exact for this (x, y, θ) parametrization (θ stays unwrapped; residuals wrap).
 With g = Jᵀr and H = JᵀJ the linear model ‖r + J dx‖² predicts the decrease −gᵀdx for the GN step.
 If a GN step increases χ², the step is halved (backtracking line search, at most
@@ -66,7 +66,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
-from .graph import _accumulate_to_root, spanning_tree as build_tree
+from .graph import _accumulate_to_root, check_connected, spanning_tree as build_tree
 from .linalg import SOLVER_BACKENDS, factorize
 from .posegraph import PoseGraph, rot2, wrap_angle
 
@@ -244,7 +244,8 @@ def refine(graph: PoseGraph, poses, *, method: str = "gauss-newton", max_iterati
       anchor — id of the pose held fixed (as in ``lago``; default the smallest id, i.e. index 0 for
         files read by ``lago_cvx.io``); it keeps the value it has in ``poses``.
       backend — sparse solver, see ``lago_cvx.linalg.factorize``.
-    Returns a ``RefineResult``. See the module docstring for the maths.
+    Returns a ``RefineResult``. See the module docstring for the maths. Raises ``GraphError`` for a
+    disconnected graph (its normal equations are singular), ``ValueError`` for bad arguments.
     """
     if method not in REFINE_METHODS:
         raise ValueError(f"unknown method {method!r}; expected one of {REFINE_METHODS}")
@@ -256,6 +257,7 @@ def refine(graph: PoseGraph, poses, *, method: str = "gauss-newton", max_iterati
         raise ValueError(f"tolerance must be >= 0, got {tolerance}")
     x = _check_poses(graph, poses)
     a = _resolve_anchor(graph, anchor)
+    check_connected(graph)
     t0 = time.perf_counter()
     prob = _Problem(graph, a)
     chi = prob.chi2(x)
