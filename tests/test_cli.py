@@ -124,3 +124,11 @@ def test_module_entry_point_and_bad_option():
     r = subprocess.run([sys.executable, "-m", "lago_cvx", "solve", "x.g2o", "--method", "magic"],
                        capture_output=True, text=True)
     assert r.returncode == 2 and "unknown method" in r.stderr
+
+
+def test_solve_refine_reports_refined_chi2(capsys):
+    code, out, _ = run(capsys, "solve", str(dataset_path("se-sync/MIT.g2o")), "--refine", "--json")
+    res = json.loads(out)
+    assert code == 0
+    assert res["chi2_refined"] == pytest.approx(39.6013, rel=1e-3) and res["chi2_refined"] < res["chi2"]
+    assert 1 <= res["refine_iterations"] <= 8
