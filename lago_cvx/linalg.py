@@ -32,6 +32,22 @@ log = logging.getLogger(__name__)
 SOLVER_BACKENDS = ("auto", "qdldl", "superlu", "cholmod")
 
 
+class Factor:
+    """A factored sparse SPD matrix N of shape (dim, dim): ``factor.solve(rhs)`` solves N x = rhs
+    for rhs of shape (dim,) or (dim, r); ``factor.backend`` names the library used."""
+
+    def __init__(self, solve: Callable[[np.ndarray], np.ndarray], dim: int, backend: str, matrix=None):
+        self._solve = solve
+        self.dim = dim
+        self.backend = backend
+        self.matrix = matrix
+
+    def solve(self, rhs: np.ndarray) -> np.ndarray:
+        return self._solve(np.asarray(rhs, dtype=float))
+
+    __call__ = solve
+
+
 def _have_qdldl() -> bool:
     try:
         import qdldl  # noqa: F401
