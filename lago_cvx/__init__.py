@@ -14,6 +14,7 @@ from .graph import (connected_components, cycle_basis, cyclomatic_number, incide
                     reduced_incidence, spanning_tree)
 from .lago import LagoResult, compare_methods, lago
 from .posegraph import GraphError, PoseGraph, between, compose, wrap_angle
+from .refine import odometry_guess, refine
 from .regularization import regularize
 from .synthetic import circle_world, manhattan_world, random_graph
 
@@ -25,7 +26,7 @@ __all__ = [
     "incidence_matrix", "reduced_incidence", "connected_components", "cyclomatic_number",
     "spanning_tree", "cycle_basis", "regularize",
     "lago", "compare_methods", "LagoResult",
-    "chi2", "chi2_parts", "edge_errors", "whitened_errors",
+    "chi2", "chi2_parts", "edge_errors", "whitened_errors", "refine", "odometry_guess",
     "manhattan_world", "circle_world", "random_graph",
 ]
 
