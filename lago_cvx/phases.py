@@ -28,9 +28,13 @@ P_Δ^{-1/2} is any square root with (P_Δ^{-1/2})ᵀP_Δ^{-1/2} = P_Δ⁻¹ (upp
 Phase 3 — eqs. (12), (15). Joint WLS for x = [p; θ] ∈ ℝ^{3d} (p interleaved x₁, y₁, x₂, y₂, …):
     z = Bᵀx + noise,   Bᵀ = blkdiag(A2ᵀ ⊗ I₂, I_d)   ((2m+d) × 3d),
     x* = (B P_z⁻¹ Bᵀ)⁻¹ B P_z⁻¹ z = argmin ‖W (z − Bᵀx)‖²,     information Ω* = B P_z⁻¹ Bᵀ.
-Written out, the first 2m rows of W(z − Bᵀx) are P_Δ^{-1/2}[Δˡ − R(θ̂_i)ᵀ(p_j − p_i) − SΔˡ(θ̂_i − θ_i)]:
-the relative-position error of eq. (3) linearised at θ̂ — which is why phase 3 is exactly one
-Gauss–Newton step from the point (p arbitrary, θ̂) (Remark 1).
+Written out, the first 2m rows of W(z − Bᵀx) are P_Δ^{-1/2}R(θ̂_i)ᵀ[R(θ̂_i)Δˡ − (p_j − p_i) − SR(θ̂_i)Δˡ(θ̂_i − θ_i)]:
+the *global-frame* relative-position error p_j − p_i − R(θ_i)Δˡ linearised in θ at θ̂ and weighted by
+(R(θ̂_i)P_ΔR(θ̂_i)ᵀ)⁻¹. Phase 3 is therefore exactly one Gauss–Newton step, from (any p, θ̂), of the cost
+written with that global-frame residual (plus the phase-1 orientation term); it is linear in p, so the
+starting p does not matter (Remark 1, verified in lecture 04). With the local-frame residual
+R(θ_i)ᵀ(p_j − p_i) − Δˡ of ``lago_cvx.cost`` (equivalent at the solution, not in its linearization) a
+GN step depends on the starting p.
 
 cvxpy objectives are written ``cp.sum_squares(W @ r)`` with sparse whitening W (never ``quad_form``)
 and solved with Clarabel using ``CLARABEL_SETTINGS``.
