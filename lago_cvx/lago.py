@@ -84,7 +84,7 @@ def _resolve_anchor(graph: PoseGraph, anchor) -> int:
 
 def lago(graph: PoseGraph, *, method: str = "closed_form", spanning_tree="bfs", anchor: int | None = None,
          anchor_pose=None, margin: float = AMBIGUITY_MARGIN, solver_settings: dict | None = None,
-         backend: str = "auto") -> LagoResult:
+         backend: str = "auto", anchors=None) -> LagoResult:
     """LAGO: the linear approximation of planar pose-graph optimization (the seed's Section IV).
 
     Parameters (keyword-only):
@@ -97,9 +97,16 @@ def lago(graph: PoseGraph, *, method: str = "closed_form", spanning_tree="bfs", 
         with the anchor at the origin and the result is rigidly moved there (exactly equivariant).
       margin — ambiguity margin of the regularization report (radians).
       backend — sparse solver of the closed form: ``"auto"``, ``"superlu"``, ``"cholmod"``.
+      anchors — ``{id: (x, y, θ)}`` known poses (None for unknown components); when given (even ``{}``)
+        LAGO runs with the known entries moved to the right-hand side, see ``lago_cvx.variants``
+        (``anchored_lago``; returns its ``VariantResult``).
     Raises ``GraphError`` for a disconnected graph (naming component sizes), a broken odometric chain,
     or an unknown anchor.
     """
+    if anchors is not None:
+        from .variants import anchored_lago
+        return anchored_lago(graph, anchors=anchors, method=method, spanning_tree=spanning_tree, anchor=anchor,
+                             anchor_pose=anchor_pose, margin=margin, solver_settings=solver_settings, backend=backend)
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; expected one of {METHODS}")
     if graph.n_edges == 0 and graph.n_poses > 1:
@@ -156,12 +163,17 @@ def relative_difference(a, b) -> float:
     return float(np.max(np.abs(a - b)) / max(np.max(np.abs(b)), np.finfo(float).tiny))
 
 
-def compare_methods(graph: PoseGraph, *, solver_settings: dict | None = None, **kwargs) -> tuple[LagoResult, dict]:
+def compare_methods(graph: PoseGraph, *, solver_settings: dict | None = None, anchors=None,
+                    **kwargs) -> tuple[LagoResult, dict]:
     """Run LAGO in closed form, then solve phases 1 and 3 as cvxpy problems **on the same inputs**
     (phase 3 uses the closed form's z and W, so each phase is compared in isolation).
 
     Returns (closed-form result, report) where report has ``max_rel_diff`` {phase1, phase3}, the
-    cvxpy timings and the problems."""
+    cvxpy timings and the problems. ``anchors`` as in ``lago`` (then
+    ``lago_cvx.variants.compare_anchored_methods``)."""
+    if anchors is not None:
+        from .variants import compare_anchored_methods
+        return compare_anchored_methods(graph, anchors=anchors, solver_settings=solver_settings, **kwargs)
     res = lago(graph, method="closed_form", **kwargs)
     t = time.perf_counter()
     ph1, prob1 = P.phase1_from_problem(graph, res.regularization.delta_reg, res.uncertainty, anchor=res.anchor,
