@@ -94,6 +94,27 @@ def cmd_info(args) -> int:
 
 
 # ---------------------------------------------------------------------------- solve
+def _parse_anchors(specs) -> tuple[int | None, dict]:
+    """``--anchor`` values: one bare ``ID`` picks the anchor pose of plain LAGO; ``ID:X,Y,THETA``
+    (repeatable, empty fields for partial anchors) fixes poses exactly (``lago_cvx.variants``)."""
+    if not specs:
+        return None, {}
+    if len(specs) == 1 and specs[0].strip().lstrip("-").isdigit():
+        return int(specs[0]), {}
+    from .variants import parse_anchor_spec
+
+    anchors = {}
+    for spec in specs:
+        try:
+            pid, value = parse_anchor_spec(spec)
+        except ValueError as exc:
+            raise UsageError(f"{exc} (a bare ID is accepted only alone)") from None
+        if pid in anchors:
+            raise UsageError(f"anchor {pid} given twice")
+        anchors[pid] = value
+    return None, anchors
+
+
 def _check_output(args) -> Path | None:
     if not args.output:
         return None
@@ -110,8 +131,11 @@ def cmd_solve(args) -> int:
     from .lago import compare_methods, lago
 
     out = _check_output(args)
+    anchor, anchors = _parse_anchors(args.anchor)
     graph = read_graph(args.file)
-    kw = dict(spanning_tree=args.spanning_tree, anchor=args.anchor)
+    kw = dict(spanning_tree=args.spanning_tree, anchor=anchor)
+    if anchors:
+        kw["anchors"] = anchors
     if args.check:
         res, report = compare_methods(graph, **kw)
     else:
@@ -128,6 +152,10 @@ def cmd_solve(args) -> int:
     if graph.initial is not None:
         from .cost import chi2
         payload["chi2_initial"] = chi2(graph, graph.initial)
+    strained = getattr(res, "strained", None)
+    if anchors:
+        payload["anchors"] = {str(k): list(v) for k, v in anchors.items()}
+        payload["strained_anchors"] = [int(a) for a in (strained or [])]
     if report is not None:
         payload["max_rel_diff"] = report["max_rel_diff"]
         payload["cvxpy_timings"] = report["cvxpy_timings"]
@@ -158,6 +186,8 @@ def cmd_solve(args) -> int:
         d = report["max_rel_diff"]
         lines.append(f"  cvxpy vs closed form, max relative difference: phase1 {d['phase1']:.2e}, "
                      f"phase3 {d['phase3']:.2e}")
+    if anchors:
+        lines.append(f"  anchors {sorted(anchors)}; strained: {payload['strained_anchors'] or 'none'}")
     if args.refine:
         lines.append(f"  refined ({args.refine_method}): chi2 = {payload['chi2_refined']:.6g} after "
                      f"{payload['refine_iterations']} iterations"
@@ -290,7 +320,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("-o", "--output", help="write the estimate as g2o to this path")
     s.add_argument("--method", type=_method_arg, default="closed_form", help="closed-form (default) or cvxpy")
     s.add_argument("--spanning-tree", type=_tree_arg, default="bfs", help="bfs (default), odometry, mst")
-    s.add_argument("--anchor", type=int, default=None, help="id of the fixed pose (default: smallest id)")
+    s.add_argument("--anchor", action="append", metavar="ID[:X,Y,THETA]",
+                   help="ID alone: the pose held at the origin (default: smallest id); ID:X,Y,THETA "
+                        "(repeatable; leave fields empty for partial anchors, e.g. 7:,,1.57): poses known exactly")
     s.add_argument("--check", action="store_true", help="solve both ways and report the largest relative "
                                                         "difference per phase")
     s.add_argument("--refine", action="store_true", help="refine the LAGO estimate on the full cost eq. (3)")

@@ -132,3 +132,15 @@ def test_solve_refine_reports_refined_chi2(capsys):
     assert code == 0
     assert res["chi2_refined"] == pytest.approx(39.6013, rel=1e-3) and res["chi2_refined"] < res["chi2"]
     assert 1 <= res["refine_iterations"] <= 8
+
+
+def test_solve_with_anchors_and_strain(capsys, tmp_path):
+    out = tmp_path / "w.g2o"
+    run(capsys, "generate", "--poses", "200", "--seed", "1", "-o", str(out))
+    code, text, _ = run(capsys, "solve", str(out), "--anchor", "0:0,0,0", "--anchor", "150:,,0.3", "--json")
+    res = json.loads(text)
+    assert code == 0 and set(res["anchors"]) == {"0", "150"} and isinstance(res["strained_anchors"], list)
+    code, _, err = run(capsys, "solve", str(out), "--anchor", "3:1,,", "--json")
+    assert code == 2 and "give both X and Y" in err
+    code, text, _ = run(capsys, "solve", str(out), "--anchor", "5", "--json")
+    assert code == 0
