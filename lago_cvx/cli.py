@@ -42,9 +42,20 @@ def _method_arg(value: str) -> str:
     return v
 
 
+def _strict(obj):
+    """Non-finite floats become null: the output must be strict JSON (RFC 8259 has no NaN/Infinity)."""
+    if isinstance(obj, dict):
+        return {k: _strict(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_strict(v) for v in obj]
+    if isinstance(obj, float) and not np.isfinite(obj):
+        return None
+    return obj
+
+
 def _emit(args, payload: dict, lines: list[str]) -> None:
     if getattr(args, "json", False):
-        print(json.dumps(payload, indent=None, sort_keys=False))
+        print(json.dumps(_strict(payload), allow_nan=False))
     else:
         print("\n".join(lines))
 

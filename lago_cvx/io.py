@@ -147,7 +147,8 @@ _TORO_INFO_INDEX = np.array([[0, 1, 4], [1, 2, 5], [4, 5, 3]])  # Ixx Ixy Iyy It
 # Token grammar (ASCII only). The fast path enforces the same grammar with a character-set check
 # followed by np.fromstring, which must consume every token as exactly one number.
 _INT_RE = re.compile(r"[+-]?[0-9]+\Z")
-_NUM_RE = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?\Z")
+# Linear-time: no two adjacent unbounded digit runs can split the same digits (a 100 kB token fails fast).
+_NUM_RE = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?\Z")
 _NUM_CHARS = b"0123456789.+-eE \t\r\n"
 _INT_CHARS = b"0123456789+- "
 _INT64_MAX = 2 ** 63 - 1

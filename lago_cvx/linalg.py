@@ -25,7 +25,9 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-__all__ = ["Factor", "factorize", "solve_least_squares", "REFINEMENT_STEPS", "whitening_2x2", "block_diagonal_inverse", "SOLVER_BACKENDS"]
+from .posegraph import GraphError
+
+__all__ = ["Factor", "factorize", "solve_least_squares", "REFINEMENT_STEPS", "TRUST_TOLERANCE", "NumericalError", "whitening_2x2", "block_diagonal_inverse", "SOLVER_BACKENDS"]
 
 log = logging.getLogger(__name__)
 
@@ -90,6 +92,24 @@ def factorize(N: sp.spmatrix, *, backend: str = "auto") -> Factor:
 REFINEMENT_STEPS = 5
 
 
+#: After refinement, a last correction larger than this (relative to ‖x‖∞) means the normal equations
+#: are too ill-conditioned to trust: the augmented system is solved instead.
+TRUST_TOLERANCE = 1e-8
+
+
+class NumericalError(GraphError):
+    """The least-squares system is numerically singular (e.g. information spanning > 1e16)."""
+
+
+def _augmented_solve(M: sp.csc_matrix, b: np.ndarray) -> np.ndarray:
+    """Solve min ‖Mx − b‖ through the augmented system [[I, M], [Mᵀ, 0]] [r; x] = [b; 0] by sparse LU
+    with partial pivoting: its conditioning is that of M, not cond(M)² as for MᵀM."""
+    r, c = M.shape
+    K = sp.bmat([[sp.identity(r, format="csc"), M], [M.T, None]], format="csc")
+    sol = spla.splu(K).solve(np.concatenate([b, np.zeros(c)]))
+    return sol[r:]
+
+
 def solve_least_squares(M: sp.spmatrix, b: np.ndarray, *, backend: str = "auto"):
     """Minimise ‖M x − b‖² for a sparse M (r × c) of full column rank.
 
@@ -99,28 +119,55 @@ def solve_least_squares(M: sp.spmatrix, b: np.ndarray, *, backend: str = "auto")
     accuracy a QR factorization would give even when cond(M)² ε ≈ 1 (real files with information
     spanning 1e1 … 1e8, e.g. carlone/input_INTEL_g2o.g2o, lose 6 digits in the plain normal equations).
 
-    Returns ``(x, N, factor, stats)``; ``stats`` has ``refinement_steps`` and ``relative_correction``
-    (size of the last correction relative to ‖x‖∞ — large means the answer is not trustworthy)."""
+    The solver checks itself: if the factorization of N fails (N singular in floating point although M
+    is not, e.g. one edge with information 1e16 and the others 1) or the last correction is still
+    larger than ``TRUST_TOLERANCE``, it solves the augmented system instead (``_augmented_solve``);
+    if that gives no finite answer it raises ``NumericalError`` (a ``GraphError``).
+
+    Returns ``(x, N, factor, stats)``; ``factor`` is None when the augmented system was used; ``stats``
+    has ``method`` ("normal equations" or "augmented system"), ``refinement_steps`` and
+    ``relative_correction`` (size of the last correction relative to ‖x‖∞)."""
     M = sp.csc_matrix(M)
     N = (M.T @ M).tocsc()
-    factor = factorize(N, backend=backend)
-    x = factor.solve(M.T @ b)
-    scale = max(np.max(np.abs(x)) if x.size else 0.0, np.finfo(float).tiny)
-    last = np.inf
-    steps = 0
-    rel = 0.0
-    for steps in range(1, REFINEMENT_STEPS + 1):
-        dx = factor.solve(M.T @ (b - M @ x))
-        size = np.max(np.abs(dx)) if dx.size else 0.0
-        if size >= last:  # no longer converging: keep the previous iterate
-            steps -= 1
-            break
-        x = x + dx
-        rel = size / scale
-        last = size
-        if rel < 1e-14:
-            break
-    return x, N, factor, {"refinement_steps": steps, "relative_correction": float(rel)}
+    stats = {"method": "normal equations", "refinement_steps": 0, "relative_correction": 0.0}
+    factor, x = None, None
+    try:
+        factor = factorize(N, backend=backend)
+        x = factor.solve(M.T @ b)
+        scale = max(np.max(np.abs(x)) if x.size else 0.0, np.finfo(float).tiny)
+        last = np.inf
+        rel = 0.0
+        steps = 0
+        for steps in range(1, REFINEMENT_STEPS + 1):
+            dx = factor.solve(M.T @ (b - M @ x))
+            size = np.max(np.abs(dx)) if dx.size else 0.0
+            if not size < last:  # no longer converging (or non-finite): keep the previous iterate
+                steps -= 1
+                break
+            x = x + dx
+            rel = size / scale
+            last = size
+            if rel < 1e-14:
+                break
+        stats.update(refinement_steps=steps, relative_correction=float(rel))
+        trusted = bool(np.isfinite(x).all()) and rel <= TRUST_TOLERANCE
+    except Exception as exc:  # qdldl "not quasi-definite", SuperLU "exactly singular", CHOLMOD errors
+        log.info("normal equations could not be factored (%s): using the augmented system", exc)
+        trusted = False
+    if not trusted:
+        log.warning("least squares: normal equations too ill-conditioned (relative correction %.2g); "
+                    "solving the augmented system instead", stats["relative_correction"])
+        try:
+            x = _augmented_solve(M, b)
+        except Exception as exc:
+            raise NumericalError(f"the least-squares system is numerically singular ({exc}); check for "
+                                 "information matrices spanning more than ~1e15") from None
+        if not np.isfinite(x).all():
+            raise NumericalError("the least-squares system is numerically singular (non-finite solution); "
+                                 "check for information matrices spanning more than ~1e15")
+        stats["method"] = "augmented system"
+        factor = None
+    return x, N, factor, stats
 
 
 def whitening_2x2(info: np.ndarray) -> np.ndarray:

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .graph import SpanningTree
-from .posegraph import PoseGraph
+from .posegraph import GraphError, PoseGraph
 
 __all__ = ["RegularizationReport", "regularize", "AMBIGUITY_MARGIN"]
 
@@ -35,6 +35,10 @@ log = logging.getLogger(__name__)
 #: ±π is reported as ambiguous. 0.5 rad ≈ 29°; a residual that large means the tree path's
 #: accumulated rotation error is of the order of the decision boundary.
 AMBIGUITY_MARGIN = 0.5
+
+#: Largest accepted |δ| (radians). Beyond it δ mod 2π loses more than ~1e-10 rad to rounding
+#: (ulp(1e6) ≈ 1.2e-10) and k would not fit the arithmetic; such a "measurement" is an input error.
+MAX_ABS_ANGLE = 1e6
 
 
 @dataclass(frozen=True, eq=False)
@@ -85,6 +89,13 @@ def regularize(graph: PoseGraph, tree: SpanningTree, *, margin: float = AMBIGUIT
     """2kπ regularization of the chords of ``tree`` (Theorem 3, eqs. (20)–(23)); vectorized, O(m + n log n).
 
     Returns a ``RegularizationReport``; logs a warning listing (up to 10) ambiguous chords."""
+    big = np.flatnonzero(np.abs(graph.delta) > MAX_ABS_ANGLE)
+    if big.size:
+        k0 = big[0]
+        raise GraphError(
+            f"edge {graph.ids[graph.tails[k0]]}->{graph.ids[graph.heads[k0]]}: measured relative orientation "
+            f"{graph.delta[k0]:.6g} rad is too large to be reduced modulo 2π accurately (|δ| > {MAX_ABS_ANGLE:g} rad"
+            f"{f'; {big.size} such edges' if big.size > 1 else ''})")
     theta_tree = tree.integrate(graph)
     path = theta_tree[graph.heads] - theta_tree[graph.tails]  # (m,), equals δ on tree edges
     c = tree.chords

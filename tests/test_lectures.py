@@ -4,6 +4,7 @@ Notebooks run with lectures/ as the working directory. Real-data cells read ../s
 ``lago_cvx.datasets`` and say so clearly when it is absent.
 """
 
+import os
 from pathlib import Path
 
 import pytest
@@ -31,7 +32,8 @@ def test_pair_in_sync(src):
 
 
 @pytest.mark.parametrize("src", SOURCES, ids=[s.stem for s in SOURCES])
-def test_lecture_executes(src):
+def test_lecture_executes(src, monkeypatch):
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "0")  # reproducible figure metadata (the kernel inherits it)
     nb = jupytext.read(src)
     client = nbclient.NotebookClient(nb, timeout=600, kernel_name="python3",
                                      resources={"metadata": {"path": str(LECTURES)}})
