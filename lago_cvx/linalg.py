@@ -130,6 +130,8 @@ def solve_least_squares(M: sp.spmatrix, b: np.ndarray, *, backend: str = "auto")
     M = sp.csc_matrix(M)
     N = (M.T @ M).tocsc()
     stats = {"method": "normal equations", "refinement_steps": 0, "relative_correction": 0.0}
+    if M.shape[1] == 0:  # nothing to estimate (a single pose)
+        return np.zeros(0), N, None, stats
     factor, x = None, None
     try:
         factor = factorize(N, backend=backend)

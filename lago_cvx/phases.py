@@ -179,6 +179,8 @@ def phase1_from_problem(graph: PoseGraph, delta_reg, unc: EdgeUncertainty, *, an
                         settings: dict | None = None) -> tuple[Phase1, cp.Problem]:
     """Build and solve the phase-1 cvxpy problem with Clarabel; returns (Phase1, problem)."""
     problem, theta = phase1_problem(graph, delta_reg, unc, anchor=anchor)
+    if theta.size == 0:  # a single pose: nothing to estimate (cvxpy cannot build an empty problem)
+        return phase1_closed_form(graph, delta_reg, unc, anchor=anchor), problem
     solve_problem(problem, settings=settings)
     A2, W, _ = _phase1_terms(graph, delta_reg, unc, anchor)
     M = W @ A2.T
@@ -310,6 +312,8 @@ def phase3_from_problem(graph: PoseGraph, ph2: Phase2, *, anchor: int = 0,
                         settings: dict | None = None) -> tuple[Phase3, cp.Problem]:
     """Build and solve the phase-3 cvxpy problem with Clarabel; returns (Phase3, problem)."""
     problem, x = phase3_problem(graph, ph2, anchor=anchor)
+    if x.size == 0:  # a single pose
+        return phase3_closed_form(graph, ph2, anchor=anchor), problem
     solve_problem(problem, settings=settings)
     xv = np.asarray(x.value, dtype=float)
     M = ph2.W @ design_matrix(graph, anchor=anchor)

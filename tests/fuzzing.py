@@ -21,7 +21,9 @@ import contextlib
 import io
 import json
 import random
+import time
 import traceback
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -382,8 +384,12 @@ def m_indefinite_information(data, rng):
     if how == 0:
         toks[rng.choice(diag)] = rng.choice([b"-1", b"0", b"-0.0", b"-1e-300"])
     elif how == 1:  # |off-diagonal| > sqrt(product of its diagonal entries)
-        vals = [abs(float(toks[d])) if toks[d].replace(b".", b"").replace(b"-", b"").isdigit() else 1.0
-                for d in diag]
+        vals = []
+        for d in diag:
+            try:
+                vals.append(abs(float(toks[d])))
+            except ValueError:
+                vals.append(1.0)
         toks[rng.choice(off)] = repr(2.0 * max(vals) + 1.0).encode()
     elif how == 2:  # all entries equal: rank one
         for p in diag + off:
@@ -472,6 +478,8 @@ class Outcome:
     (CLI). ``detail``: the error message, or for "unexpected" what went wrong (with traceback)."""
     kind: str
     detail: str = ""
+    warnings: list = field(default_factory=list)   # "Category: message" of warnings raised meanwhile
+    seconds: float = 0.0                           # wall time of the call
 
 
 def _blank(data: bytes, line: int) -> bool:
@@ -481,16 +489,36 @@ def _blank(data: bytes, line: int) -> bool:
     return not lines[line - 1].decode("utf-8", "surrogateescape").split()
 
 
-def check_read(path, *, roundtrip_dir=None) -> Outcome:
+def check_read(path, *, roundtrip_dir=None, time_limit: float | None = None) -> Outcome:
     """Run ``read_graph(path)`` and check its contract.
 
     * success: a ``PoseGraph``; if ``roundtrip_dir`` is given, writing it (g2o, angles as stored) and
       reading it back must give the same graph bit for bit (``io`` module docstring);
     * ``ParseError``: ``.line`` is None or in 1..number of lines and names a non-blank line; ``str``
       contains the file name, is one line and equals ``"{path}:{line}: {problem}"``;
-    * any other exception, or a broken contract: "unexpected"."""
+    * any other exception, or a broken contract: "unexpected";
+    * taking longer than ``time_limit`` seconds (if given) is "unexpected" too (a pathological input:
+      the reader is meant to be linear-time)."""
     path = Path(path)
     data = path.read_bytes()
+    t = time.perf_counter()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        outcome = _check_read(path, data, roundtrip_dir)
+    outcome.seconds = time.perf_counter() - t
+    outcome.warnings = _warning_list(caught)
+    if time_limit is not None and outcome.seconds > time_limit and outcome.kind != "unexpected":
+        return Outcome("unexpected", f"slow: read_graph took {outcome.seconds:.3g} s (limit {time_limit} s; "
+                                     f"outcome {outcome.kind}: {outcome.detail[:200]})",
+                       outcome.warnings, outcome.seconds)
+    return outcome
+
+
+def _warning_list(caught) -> list:
+    return [f"{w.category.__name__}: {w.message} ({Path(w.filename).name}:{w.lineno})" for w in caught]
+
+
+def _check_read(path: Path, data: bytes, roundtrip_dir) -> Outcome:
     try:
         graph = read_graph(path)
     except ParseError as err:
@@ -526,13 +554,26 @@ def check_read(path, *, roundtrip_dir=None) -> Outcome:
     return Outcome("parsed", repr(graph))
 
 
-def check_cli(path, command: str) -> Outcome:
+def check_cli(path, command: str, *, time_limit: float | None = None) -> Outcome:
     """Run ``lago_cvx.cli.main([command, path, "--json"])``: exit status 0 (stdout one JSON object)
-    or 2 (last stderr line ``lago-cvx: error: …``); status 1, another status or an escaping
-    exception is "unexpected"."""
+    or 2 (last stderr line ``lago-cvx: error: …``); status 1, another status, an escaping exception
+    or (if given) more than ``time_limit`` seconds is "unexpected"."""
     from lago_cvx.cli import main
 
     out, err = io.StringIO(), io.StringIO()
+    t = time.perf_counter()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        outcome = _check_cli(main, path, command, out, err)
+    outcome.seconds = time.perf_counter() - t
+    outcome.warnings = _warning_list(caught) + outcome.warnings
+    if time_limit is not None and outcome.seconds > time_limit and outcome.kind != "unexpected":
+        return Outcome("unexpected", f"slow: {command} took {outcome.seconds:.3g} s (limit {time_limit} s; "
+                                     f"outcome {outcome.kind})", outcome.warnings, outcome.seconds)
+    return outcome
+
+
+def _check_cli(main, path, command, out, err) -> Outcome:
     try:
         with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
             rc = main([command, str(path), "--json"])
@@ -541,11 +582,14 @@ def check_cli(path, command: str) -> Outcome:
                                      + traceback.format_exc(limit=6))
     stderr = err.getvalue().strip()
     if rc == 0:
+        constants = []
         try:
-            json.loads(out.getvalue())
+            json.loads(out.getvalue(), parse_constant=lambda c: constants.append(c) or float(c))
         except ValueError as exc:
             return Outcome("unexpected", f"{command}: exit 0 but stdout is not JSON ({exc})")
-        return Outcome("exit0")
+        # not a failure, but worth seeing: a "successful" run whose numbers are NaN/Infinity
+        return Outcome("exit0", warnings=[f"note: {command} exit 0 with {c} in its JSON output"
+                                          for c in sorted(set(constants))])
     if rc == 2:
         last = stderr.splitlines()[-1] if stderr else ""
         if not last.startswith("lago-cvx: error: "):
@@ -560,6 +604,8 @@ class Tally:
     counts: dict = field(default_factory=dict)
     by_mutation: dict = field(default_factory=dict)
     unexpected: list = field(default_factory=list)   # (label, mutations, detail, mutant bytes)
+    warned: int = 0                                  # runs that raised at least one warning
+    warnings: dict = field(default_factory=dict)     # warning text → (count, first label, mutant bytes)
 
     def add(self, outcome: Outcome, mutations, label: str = "", data: bytes = b""):
         self.counts[outcome.kind] = self.counts.get(outcome.kind, 0) + 1
@@ -568,6 +614,11 @@ class Tally:
             row[outcome.kind] = row.get(outcome.kind, 0) + 1
         if outcome.kind == "unexpected":
             self.unexpected.append((label, list(mutations), outcome.detail, data))
+        if outcome.warnings:
+            self.warned += 1
+        for w in set(outcome.warnings):
+            count, first, first_data = self.warnings.get(w, (0, label, data))
+            self.warnings[w] = (count + 1, first, first_data)
 
     @property
     def total(self) -> int:
