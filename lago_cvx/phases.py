@@ -7,8 +7,12 @@ m edges, d = n − 1 free poses. Free poses are ordered as the rows of A2 (``gra
 Edge uncertainty (the seed assumes P_ij = blkdiag(P_Δ, P_δ); real files carry a full 3×3 information
 Ω_ij with x–θ and y–θ cross terms). We use the **marginal covariances** of the full matrix:
 Σ = Ω⁻¹, P_Δ,ij = Σ[0:2, 0:2], P_δ,ij = Σ[2, 2]. This keeps each measurement's own accuracy exactly
-and drops only the Δˡ–δ correlation, which the seed's phase split cannot represent (phase 1 uses δ
-alone; phase 3's Δˡ rows would otherwise be correlated with phase 1's input). P_Δ is expressed in the
+and drops only the Δˡ–δ correlation, which the seed's phase-3 model (z = [Δᵍ; θ̂], P_z from independent
+Δˡ and δ) does not carry. Known consequence (tests/test_properties.py, strict xfails): with strongly
+correlated information — full 3×3 matrices, or edges reversed (which turns diagonal information into
+a correlated one) — the estimate is not first-order optimal and depends on edge direction (χ² up to
+2.3× the optimum on random full-information graphs; on the real files the effect is ≤ 1 %). A phase 3
+that keeps each edge's full information in one joint linear step removes it (prototyped; not yet here). P_Δ is expressed in the
 frame of the tail (as Δˡ is) and rotated into the global frame by R(θ̂_i) exactly as eq. (10) says.
 
 Phase 1 — eqs. (8), (13). Orientations: minimise ‖P_δ^{-1/2}(A2ᵀθ − δ_reg)‖², θ ∈ ℝ^d.
