@@ -967,6 +967,31 @@ def _choose_reference(graph, anchors, priors, anchor) -> int:
     return 0  # the smallest id, as in lago()
 
 
+
+def _solve_with_constraints(graph, system, level, phase, constraints_fn, theta_tree, known, values, loss, threshold,
+                            grouping, solver_settings):
+    """Solve one phase's cvxpy problem with the user's named constraints added (V9).
+
+    ``level`` 1 (phase 1, θ only) or 3 (phase 3, [p; θ]); ``known``/``values`` the anchored entries.
+    Infeasibility is diagnosed by ``_diagnose`` (raises naming the constraint). Returns
+    (``SystemSolution``, constraint names)."""
+    problem, x, anchor_c = system_problem(system, loss=loss, threshold=threshold, grouping=grouping)
+    named = [c for c in constraints_fn(PoseVariables(graph, level, x, theta_tree)) if c.constraints]
+    problem = cp.Problem(problem.objective, problem.constraints + [k for c in named for k in c.constraints])
+    status = _solve_cvxpy(problem, solver_settings)
+    if status in _INFEASIBLE:
+        _diagnose(phase, x, [anchor_c] if anchor_c is not None else [], named, solver_settings)
+    if status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE):
+        raise RuntimeError(f"Clarabel did not solve {phase}: status {status!r}")
+    xv = np.asarray(x.value, float).copy()
+    xv[known] = values[known]
+    MU = system.design()[:, ~known]
+    g = -np.asarray(anchor_c.dual_value, float).reshape(-1) if anchor_c is not None else np.zeros(0)
+    sol = SystemSolution(xv, (MU.T @ MU).tocsc(), g, problem=problem,
+                         weights=_row_weights(system, xv, loss, threshold, grouping))
+    return sol, [c.name for c in named]
+
+
 def lago_variant(graph: PoseGraph, *, anchors=None, priors=None, constraints_fn: Callable | None = None,
                  loss: str = "l2", threshold: float = DEFAULT_THRESHOLD, grouping: str = "edge",
                  method: str = "closed_form", spanning_tree="bfs", anchor=None, anchor_pose=None,
@@ -1079,24 +1104,11 @@ def lago_variant(graph: PoseGraph, *, anchors=None, priors=None, constraints_fn:
         s1 = phase1_system(graph, dreg, unc, th_known, th_vals, pr)
         if not use_cvxpy:
             return s1, solve_system(s1, backend=backend)
-        named = []
         if constraints_fn is not None:
-            problem, x, anchor_c = system_problem(s1, loss=loss, threshold=threshold, grouping=grouping)
-            pv = PoseVariables(graph, 1, x, areg.theta_tree)
-            named = [c for c in constraints_fn(pv) if c.constraints]
-            c1[:] = [c.name for c in named]
-            problem = cp.Problem(problem.objective, problem.constraints + [k for c in named for k in c.constraints])
-            status = _solve_cvxpy(problem, solver_settings)
-            if status in _INFEASIBLE:
-                _diagnose("phase1", x, [anchor_c] if anchor_c is not None else [], named, solver_settings)
-            if status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE):
-                raise RuntimeError(f"Clarabel did not solve phase1: status {status!r}")
-            xv = np.asarray(x.value, float).copy()
-            xv[th_known] = th_vals[th_known]
-            MU = s1.design()[:, ~th_known]
-            g = -np.asarray(anchor_c.dual_value, float).reshape(-1) if anchor_c is not None else np.zeros(0)
-            return s1, SystemSolution(xv, (MU.T @ MU).tocsc(), g, problem=problem,
-                                      weights=_row_weights(s1, xv, loss, threshold, grouping))
+            sol, names = _solve_with_constraints(graph, s1, 1, "phase1", constraints_fn, areg.theta_tree, th_known,
+                                                 th_vals, loss, threshold, grouping, solver_settings)
+            c1[:] = names
+            return s1, sol
         return s1, solve_system_cvxpy(s1, loss=loss, threshold=threshold, grouping=grouping, settings=solver_settings)
 
     sys1, sol1 = solve1(delta_reg)
@@ -1143,23 +1155,9 @@ def lago_variant(graph: PoseGraph, *, anchors=None, priors=None, constraints_fn:
     if not use_cvxpy:
         sol3 = solve_system(sys3, backend=backend)
     else:
-        named3 = []
         if constraints_fn is not None:
-            problem3, x3, anchor3 = system_problem(sys3, loss=loss, threshold=threshold, grouping=grouping)
-            named3 = [c for c in constraints_fn(PoseVariables(graph, 3, x3, areg.theta_tree)) if c.constraints]
-            c3 = [c.name for c in named3]
-            problem3 = cp.Problem(problem3.objective, problem3.constraints + [k for c in named3 for k in c.constraints])
-            status = _solve_cvxpy(problem3, solver_settings)
-            if status in _INFEASIBLE:
-                _diagnose("phase3", x3, [anchor3] if anchor3 is not None else [], named3, solver_settings)
-            if status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE):
-                raise RuntimeError(f"Clarabel did not solve phase3: status {status!r}")
-            xv = np.asarray(x3.value, float).copy()
-            xv[known3] = vals3[known3]
-            MU = sys3.design()[:, ~known3]
-            g = -np.asarray(anchor3.dual_value, float).reshape(-1) if anchor3 is not None else np.zeros(0)
-            sol3 = SystemSolution(xv, (MU.T @ MU).tocsc(), g, problem=problem3,
-                                  weights=_row_weights(sys3, xv, loss, threshold, grouping))
+            sol3, c3 = _solve_with_constraints(graph, sys3, 3, "phase3", constraints_fn, areg.theta_tree, known3,
+                                               vals3, loss, threshold, grouping, solver_settings)
         else:
             sol3 = solve_system_cvxpy(sys3, loss=loss, threshold=threshold, grouping=grouping, settings=solver_settings)
         problems["phase3"] = sol3.problem
