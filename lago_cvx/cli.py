@@ -74,12 +74,14 @@ def cmd_info(args) -> int:
         "n_odometric": graph.n_odometric, "n_loop_closures": graph.n_loop_closures,
         "n_components": int(k), "cyclomatic_number": int(graph.n_edges - graph.n_poses + k),
         "has_initial_guess": graph.initial is not None,
-        "spanning_tree": args.spanning_tree, "n_regularized": None, "n_ambiguous": None,
+        "spanning_tree": args.spanning_tree, "regularization": args.regularization, "n_regularized": None,
+        "n_ambiguous": None,
     }
     note = ""
     if k == 1:
         try:
-            reg = regularize(graph, spanning_tree(graph, args.spanning_tree, anchor=0))
+            reg = regularize(graph, spanning_tree(graph, args.spanning_tree, anchor=0),
+                             regularization=args.regularization)
             payload["n_regularized"] = reg.n_regularized
             payload["n_ambiguous"] = int(reg.ambiguous.size)
         except GraphError as exc:  # e.g. broken odometric chain: report, don't fail the whole info
@@ -96,8 +98,8 @@ def cmd_info(args) -> int:
         f"loop closures     {graph.n_loop_closures}",
         f"components        {k}",
         f"cyclomatic number {payload['cyclomatic_number']}  (l = m - n + components)",
-        f"regularized ({args.spanning_tree} tree) "
-        + (f"{payload['n_regularized']} chords need a 2kπ correction" if payload["n_regularized"] is not None
+        f"regularized ({args.regularization}, {args.spanning_tree} tree) "
+        + (f"{payload['n_regularized']} cycles need a 2kπ correction" if payload["n_regularized"] is not None
            else f"n/a: {note}"),
     ]
     _emit(args, payload, lines)
@@ -144,7 +146,7 @@ def cmd_solve(args) -> int:
     out = _check_output(args)
     anchor, anchors = _parse_anchors(args.anchor)
     graph = read_graph(args.file)
-    kw = dict(spanning_tree=args.spanning_tree, anchor=anchor)
+    kw = dict(spanning_tree=args.spanning_tree, anchor=anchor, regularization=args.regularization)
     if anchors:
         kw["anchors"] = anchors
     if args.check:
@@ -155,7 +157,8 @@ def cmd_solve(args) -> int:
     payload = {
         "file": str(args.file), "n_poses": graph.n_poses, "n_edges": graph.n_edges,
         "method": "closed_form" if args.check else args.method, "spanning_tree": res.tree.kind,
-        "n_chords": int(reg.chords.size), "n_regularized": reg.n_regularized, "n_ambiguous": int(reg.ambiguous.size),
+        "regularization": reg.regularization, "n_chords": int(reg.chords.size), "n_regularized": reg.n_regularized,
+        "n_ambiguous": int(reg.ambiguous.size),
         "chi2": res.chi2, "timings": {k: res.timings[k] for k in ("regularization", "phase1", "phase2",
                                                                   "phase3", "total")},
     }
@@ -185,7 +188,8 @@ def cmd_solve(args) -> int:
         payload["output"] = str(out)
     t = payload["timings"]
     lines = [
-        f"LAGO ({payload['method'].replace('_', '-')}, {res.tree.kind} spanning tree) on {args.file}",
+        f"LAGO ({payload['method'].replace('_', '-')}, {res.tree.kind} spanning tree, {reg.regularization} "
+        f"regularization) on {args.file}",
         f"  poses {graph.n_poses}, edges {graph.n_edges}, chords {reg.chords.size}, "
         f"regularized {reg.n_regularized}, ambiguous {reg.ambiguous.size}",
         f"  chi2 = {res.chi2:.6g}  (g2o convention: sum e'Ωe, no 1/2)"
@@ -196,7 +200,7 @@ def cmd_solve(args) -> int:
     if report is not None:
         d = report["max_rel_diff"]
         lines.append(f"  cvxpy vs closed form, max relative difference: phase1 {d['phase1']:.2e}, "
-                     f"phase3 {d['phase3']:.2e}")
+                     f"phase3 {d['phase3']:.2e}" + (f", chordal {d['chordal']:.2e}" if "chordal" in d else ""))
     if anchors:
         lines.append(f"  anchors {sorted(anchors)}; strained: {payload['strained_anchors'] or 'none'}")
     if args.refine:
@@ -323,6 +327,8 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("info", help="counts of a pose-graph file")
     s.add_argument("file")
     s.add_argument("--spanning-tree", type=_tree_arg, default="bfs", help="bfs (default), odometry, mst")
+    s.add_argument("--regularization", choices=["tree", "chordal"], default="tree", help="2kπ regularization: tree (default, the seed's rounding along the "
+                   "spanning tree) or chordal (round every edge against the chordal relaxation of the rotations)")
     s.add_argument("--json", action="store_true", help="print one JSON object")
     s.set_defaults(func=cmd_info)
 
@@ -331,6 +337,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("-o", "--output", help="write the estimate as g2o to this path")
     s.add_argument("--method", type=_method_arg, default="closed_form", help="closed-form (default) or cvxpy")
     s.add_argument("--spanning-tree", type=_tree_arg, default="bfs", help="bfs (default), odometry, mst")
+    s.add_argument("--regularization", choices=["tree", "chordal"], default="tree", help="2kπ regularization: tree (default, the seed's rounding along the "
+                   "spanning tree) or chordal (round every edge against the chordal relaxation of the rotations)")
     s.add_argument("--anchor", action="append", metavar="ID[:X,Y,THETA]",
                    help="ID alone: the pose held at the origin (default: smallest id); ID:X,Y,THETA "
                         "(repeatable; leave fields empty for partial anchors, e.g. 7:,,1.57): poses known exactly")

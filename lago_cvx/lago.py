@@ -18,7 +18,7 @@ from . import phases as P
 from .cost import chi2
 from .graph import SpanningTree, spanning_tree as build_tree
 from .posegraph import GraphError, PoseGraph, compose
-from .regularization import AMBIGUITY_MARGIN, RegularizationReport, regularize
+from .regularization import AMBIGUITY_MARGIN, REGULARIZATIONS, RegularizationReport, regularize
 
 __all__ = ["LagoResult", "lago", "compare_methods", "METHODS", "relative_difference"]
 
@@ -32,11 +32,12 @@ class LagoResult:
     """Everything LAGO computed.
 
     ``poses`` (n, 3) final estimate (x, y, θ) in the frame given by ``anchor_pose`` (θ unwrapped along
-    the tree; wrap for display); ``tree``; ``regularization`` (the 2kπ report); ``uncertainty``
+    the tree; wrap for display); ``tree``; ``regularization`` (the 2kπ report; its ``regularization``
+    field says "tree" or "chordal"); ``uncertainty``
     (per-edge marginal P_Δ, P_δ); ``phase1``, ``phase2``, ``phase3`` (see ``lago_cvx.phases``; computed in
     the anchor's own frame, anchor at the origin); ``timings`` seconds per step (keys
     ``tree``, ``regularization``, ``phase1``, ``phase2``, ``phase3``, ``total``); ``problems`` the cvxpy
-    problems (method "cvxpy" only)."""
+    problems (method "cvxpy" only: "phase1", "phase3", and "chordal" with the chordal regularization)."""
 
     graph: PoseGraph
     poses: np.ndarray
@@ -84,7 +85,7 @@ def _resolve_anchor(graph: PoseGraph, anchor) -> int:
 
 def lago(graph: PoseGraph, *, method: str = "closed_form", spanning_tree="bfs", anchor: int | None = None,
          anchor_pose=None, margin: float = AMBIGUITY_MARGIN, solver_settings: dict | None = None,
-         backend: str = "auto", anchors=None) -> LagoResult:
+         backend: str = "auto", anchors=None, regularization: str = "tree") -> LagoResult:
     """LAGO: the linear approximation of planar pose-graph optimization (the seed's Section IV).
 
     Parameters (keyword-only):
@@ -96,6 +97,10 @@ def lago(graph: PoseGraph, *, method: str = "closed_form", spanning_tree="bfs", 
       anchor_pose — (x, y, θ) of the anchor in the output frame (default: the origin). LAGO is solved
         with the anchor at the origin and the result is rigidly moved there (exactly equivariant).
       margin — ambiguity margin of the regularization report (radians).
+      regularization — ``"tree"`` (default, the seed's Theorem 3: round each chord's cycle residual
+        along ``spanning_tree``) or ``"chordal"`` (round every edge against the chordal relaxation of
+        the rotations, ``lago_cvx.chordal``; robust to rotation noise accumulated along tree paths).
+        With ``method="cvxpy"`` the chordal relaxation is solved as its cvxpy problem too.
       backend — sparse solver of the closed form: ``"auto"``, ``"superlu"``, ``"cholmod"``.
       anchors — ``{id: (x, y, θ)}`` known poses (None for unknown components); when given (even ``{}``)
         LAGO runs with the known entries moved to the right-hand side, see ``lago_cvx.variants``
@@ -106,9 +111,12 @@ def lago(graph: PoseGraph, *, method: str = "closed_form", spanning_tree="bfs", 
     if anchors is not None:
         from .variants import anchored_lago
         return anchored_lago(graph, anchors=anchors, method=method, spanning_tree=spanning_tree, anchor=anchor,
-                             anchor_pose=anchor_pose, margin=margin, solver_settings=solver_settings, backend=backend)
+                             anchor_pose=anchor_pose, margin=margin, solver_settings=solver_settings, backend=backend,
+                             regularization=regularization)
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; expected one of {METHODS}")
+    if regularization not in REGULARIZATIONS:
+        raise ValueError(f"unknown regularization {regularization!r}; expected one of {REGULARIZATIONS}")
     if graph.n_edges == 0 and graph.n_poses > 1:
         raise GraphError(f"the graph has {graph.n_poses} poses and no edges: nothing links them")
     a = _resolve_anchor(graph, graph.ids[0] if anchor is None else anchor)
@@ -121,11 +129,12 @@ def lago(graph: PoseGraph, *, method: str = "closed_form", spanning_tree="bfs", 
     timings["tree"] = time.perf_counter() - t
 
     t = time.perf_counter()
-    reg = regularize(graph, tree, margin=margin)
+    reg = regularize(graph, tree, regularization=regularization, margin=margin, method=method, backend=backend,
+                     solver_settings=solver_settings)
     unc = P.edge_uncertainty(graph)
     timings["regularization"] = time.perf_counter() - t
 
-    problems = {}
+    problems = {} if reg.problem is None else {"chordal": reg.problem}
     t = time.perf_counter()
     if method == "closed_form":
         ph1 = P.phase1_closed_form(graph, reg.delta_reg, unc, anchor=a, backend=backend)
@@ -147,8 +156,8 @@ def lago(graph: PoseGraph, *, method: str = "closed_form", spanning_tree="bfs", 
 
     poses = compose(np.broadcast_to(anchor_pose, ph3.poses.shape), ph3.poses)
     timings["total"] = time.perf_counter() - t_all
-    log.info("LAGO (%s, %s tree): %d poses, %d edges, %d chords regularized, %.3f s", method, tree.kind,
-             graph.n_poses, graph.n_edges, reg.n_regularized, timings["total"])
+    log.info("LAGO (%s, %s tree, %s regularization): %d poses, %d edges, %d cycles regularized, %.3f s", method,
+             tree.kind, regularization, graph.n_poses, graph.n_edges, reg.n_regularized, timings["total"])
     return LagoResult(graph=graph, poses=poses, anchor=a, anchor_pose=anchor_pose, method=method, tree=tree,
                       regularization=reg, uncertainty=unc, phase1=ph1, phase2=ph2, phase3=ph3, timings=timings,
                       problems=problems)
@@ -168,8 +177,8 @@ def compare_methods(graph: PoseGraph, *, solver_settings: dict | None = None, an
     """Run LAGO in closed form, then solve phases 1 and 3 as cvxpy problems **on the same inputs**
     (phase 3 uses the closed form's z and W, so each phase is compared in isolation).
 
-    Returns (closed-form result, report) where report has ``max_rel_diff`` {phase1, phase3}, the
-    cvxpy timings and the problems. ``anchors`` as in ``lago`` (then
+    Returns (closed-form result, report) where report has ``max_rel_diff`` {phase1, phase3, and chordal
+    (the relaxed rotations) when ``regularization="chordal"``}, the cvxpy timings and the problems. ``anchors`` as in ``lago`` (then
     ``lago_cvx.variants.compare_anchored_methods``)."""
     if anchors is not None:
         from .variants import compare_anchored_methods
@@ -188,4 +197,13 @@ def compare_methods(graph: PoseGraph, *, solver_settings: dict | None = None, an
         "cvxpy_timings": {"phase1": t1, "phase3": t3},
         "problems": {"phase1": prob1, "phase3": prob3},
     }
+    if res.regularization.regularization == "chordal":
+        from .chordal import chordal_from_problem
+
+        t = time.perf_counter()
+        est, prob_c = chordal_from_problem(graph, 1.0 / res.uncertainty.var_delta, anchor=res.tree.root,
+                                           settings=solver_settings)
+        report["cvxpy_timings"]["chordal"] = time.perf_counter() - t
+        report["max_rel_diff"]["chordal"] = relative_difference(est.vectors, res.regularization.chordal.vectors)
+        report["problems"]["chordal"] = prob_c
     return res, report

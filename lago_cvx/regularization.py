@@ -15,6 +15,20 @@ corrected residual always lies in the half-open interval (−π, π] (a tie give
 means the measurement is useless for deciding k; such chords and any chord whose residual lies within
 ``margin`` of ±π are listed in ``RegularizationReport.ambiguous`` (the seed's "noise too large" case:
 the correct k is then not guaranteed, Corollary 3).
+
+``regularization="chordal"`` (issue 8) replaces the tree integration by a global estimate: the chordal
+relaxation of the rotations (``lago_cvx.chordal``, eqs. (C1)–(C3)) gives orientations φ (n,) that use every
+measurement with its weight, and **every** edge e = (i → j) is rounded against them:
+
+    φ̃ = φ + 2π·round((θ_tree − φ)/2π)           (the same φ, on the tree's branch: a pure gauge),
+    ρ_e = δ_e − (φ̃_j − φ̃_i),   k_e = −ceil(ρ_e/2π − ½),   δ_reg,e = δ_e + 2πk_e,
+    so that δ_reg,e − (φ̃_j − φ̃_i) ∈ (−π, π] for every edge (tree edges included).   (R-C)
+
+Adding 2π(w_j − w_i) (w ∈ ℤⁿ) to all δ_reg changes no cycle sum, so only the cycle integers
+C k ∈ ℤˡ matter (``cycle_k``); choosing φ̃ on the tree's branch keeps k = 0 on most tree edges and the
+phase-1 orientations unwrapped like the tree ones. An edge is *ambiguous* when |δ_reg,e − (φ̃_j − φ̃_i)|
+> π − margin. Chordal and tree rounding agree whenever the tree paths carry < π of accumulated rotation
+error; beyond that only the chordal one keeps finding the right integers (lecture 08).
 """
 
 from __future__ import annotations
@@ -27,7 +41,8 @@ import numpy as np
 from .graph import SpanningTree
 from .posegraph import GraphError, PoseGraph
 
-__all__ = ["RegularizationReport", "regularize", "AMBIGUITY_MARGIN"]
+__all__ = ["RegularizationReport", "regularize", "regularize_tree", "regularize_chordal", "REGULARIZATIONS",
+           "AMBIGUITY_MARGIN", "check_angles"]
 
 log = logging.getLogger(__name__)
 
@@ -40,17 +55,26 @@ AMBIGUITY_MARGIN = 0.5
 #: (ulp(1e6) ≈ 1.2e-10) and k would not fit the arithmetic; such a "measurement" is an input error.
 MAX_ABS_ANGLE = 1e6
 
+#: The regularizers: ``"tree"`` (the seed's Theorem 3) and ``"chordal"`` (rounding against the chordal relaxation).
+REGULARIZATIONS = ("tree", "chordal")
+
 
 @dataclass(frozen=True, eq=False)
 class RegularizationReport:
-    """Result of the 2kπ regularization along a spanning tree.
+    """Result of the 2kπ regularization (tree rounding, or rounding against the chordal relaxation).
 
-    ``delta_reg`` (m,) regularized relative orientations (tree edges unchanged);
-    ``k`` (m,) integer correction per edge (0 on tree edges); ``chords`` (l,) chord edge indices;
+    ``delta_reg`` (m,) regularized relative orientations (tree rounding: tree edges unchanged);
+    ``k`` (m,) integer correction per edge (tree rounding: 0 on tree edges); ``chords`` (l,) chord edge
+    indices of ``tree``;
     ``residual_before`` (l,) r_c = (C δ)_c = δ_c − (θ_tree[j] − θ_tree[i]), the cycle residual before rounding;
-    ``residual`` (l,) (C δ_reg)_c = r_c + 2π k_c ∈ (−π, π], the cycle residual after rounding;
-    ``ambiguous`` chord edge indices whose |residual| > π − margin; ``theta_tree`` (n,) the
-    orientations integrated along the tree (the "odometric" orientations of the tree)."""
+    ``residual`` (l,) (C δ_reg)_c ∈ (−π, π] for the tree rounding (not bounded for the chordal one: there
+    the bound (R-C) holds per edge, see ``edge_residual``);
+    ``ambiguous`` edge indices whose rounding residual is within ``margin`` of ±π (chords for the tree
+    rounding, any edge for the chordal one); ``theta_tree`` (n,) δ_reg integrated along the tree from
+    its root (for the tree rounding: the "odometric" orientations of the tree, δ_reg = δ there);
+    ``regularization`` "tree" or "chordal"; ``reference`` (n,) the orientations each edge was rounded
+    against (θ_tree, or the chordal φ̃); ``edge_residual`` (m,) δ_reg − (reference_j − reference_i);
+    ``chordal`` the ``ChordalEstimate`` (chordal only); ``problem`` its cvxpy problem (method "cvxpy")."""
 
     delta_reg: np.ndarray
     k: np.ndarray
@@ -61,16 +85,29 @@ class RegularizationReport:
     theta_tree: np.ndarray
     margin: float
     tree: SpanningTree
+    regularization: str = "tree"
+    reference: np.ndarray | None = None
+    edge_residual: np.ndarray | None = None
+    chordal: object | None = None
+    problem: object | None = None
 
     @property
     def n_regularized(self) -> int:
-        """Number of chords that needed a non-zero 2kπ correction (the seed's Table I, last row)."""
-        return int(np.count_nonzero(self.k[self.chords]))
+        """Number of fundamental cycles whose sum needed a non-zero 2kπ correction (the seed's Table I, last
+        row: chords with k ≠ 0 for the tree rounding)."""
+        return int(np.count_nonzero(self.cycle_k))
 
     @property
     def k_chords(self) -> np.ndarray:
-        """k per chord, shape (l,)."""
+        """k per chord, shape (l,) (the tree rounding's only non-zero entries)."""
         return self.k[self.chords]
+
+    @property
+    def cycle_k(self) -> np.ndarray:
+        """Integer correction of each fundamental cycle sum, C k (l,): (C δ_reg − C δ)/2π. Two
+        regularizations are equivalent (give the same phase-1 θ up to 2π per pose) iff these coincide;
+        equals ``k_chords`` for the tree rounding."""
+        return np.rint((self.residual - self.residual_before) / (2.0 * np.pi)).astype(np.int64)
 
     def cycle_residual(self, graph: PoseGraph) -> np.ndarray:
         """C·δ_reg evaluated through the tree (no C formed), shape (l,); equals ``residual``."""
@@ -78,6 +115,7 @@ class RegularizationReport:
 
     def summary(self) -> dict:
         return {
+            "regularization": self.regularization,
             "n_chords": int(self.chords.size),
             "n_regularized": self.n_regularized,
             "n_ambiguous": int(self.ambiguous.size),
@@ -85,10 +123,8 @@ class RegularizationReport:
         }
 
 
-def regularize(graph: PoseGraph, tree: SpanningTree, *, margin: float = AMBIGUITY_MARGIN) -> RegularizationReport:
-    """2kπ regularization of the chords of ``tree`` (Theorem 3, eqs. (20)–(23)); vectorized, O(m + n log n).
-
-    Returns a ``RegularizationReport``; logs a warning listing (up to 10) ambiguous chords."""
+def check_angles(graph: PoseGraph) -> None:
+    """Raise ``GraphError`` naming the first edge whose |δ| exceeds ``MAX_ABS_ANGLE``."""
     big = np.flatnonzero(np.abs(graph.delta) > MAX_ABS_ANGLE)
     if big.size:
         k0 = big[0]
@@ -96,21 +132,94 @@ def regularize(graph: PoseGraph, tree: SpanningTree, *, margin: float = AMBIGUIT
             f"edge {graph.ids[graph.tails[k0]]}->{graph.ids[graph.heads[k0]]}: measured relative orientation "
             f"{graph.delta[k0]:.6g} rad is too large to be reduced modulo 2π accurately (|δ| > {MAX_ABS_ANGLE:g} rad"
             f"{f'; {big.size} such edges' if big.size > 1 else ''})")
+
+
+def _round_residual(before: np.ndarray) -> np.ndarray:
+    """k = −ceil(ρ/2π − ½) so that ρ + 2πk ∈ (−π, π] (eq. (22) with the tie rule of the module docstring)."""
+    return -np.ceil(before / (2.0 * np.pi) - 0.5).astype(np.int64)
+
+
+def _warn_ambiguous(graph: PoseGraph, ambiguous: np.ndarray, margin: float, what: str, why: str) -> None:
+    if ambiguous.size:
+        ids = graph.ids
+        listed = ", ".join(f"{ids[graph.tails[e]]}->{ids[graph.heads[e]]}" for e in ambiguous[:10])
+        log.warning("regularization: %d %s(s) have a residual within %.3g rad of ±π, so their 2kπ correction is "
+                    "ambiguous (%s): %s%s", ambiguous.size, what, margin, why, listed,
+                    " ..." if ambiguous.size > 10 else "")
+
+
+def regularize(graph: PoseGraph, tree: SpanningTree, *, regularization: str = "tree",
+               margin: float = AMBIGUITY_MARGIN, method: str = "closed_form", backend: str = "auto",
+               solver_settings: dict | None = None) -> RegularizationReport:
+    """2kπ regularization of the relative orientations.
+
+    regularization — ``"tree"`` (the seed's Theorem 3: round each chord against the tree, see
+      ``regularize_tree``) or ``"chordal"`` (round every edge against the chordal relaxation, see
+      ``regularize_chordal``). ``method`` ("closed_form" | "cvxpy"), ``backend`` and ``solver_settings``
+      only concern the chordal relaxation. margin — ambiguity margin (rad)."""
+    if regularization == "tree":
+        return regularize_tree(graph, tree, margin=margin)
+    if regularization == "chordal":
+        return regularize_chordal(graph, tree, margin=margin, method=method, backend=backend,
+                                  solver_settings=solver_settings)
+    raise ValueError(f"unknown regularization {regularization!r}; expected one of {REGULARIZATIONS}")
+
+
+def regularize_tree(graph: PoseGraph, tree: SpanningTree, *, margin: float = AMBIGUITY_MARGIN) -> RegularizationReport:
+    """2kπ regularization of the chords of ``tree`` (Theorem 3, eqs. (20)–(23)); vectorized, O(m + n log n).
+
+    Returns a ``RegularizationReport``; logs a warning listing (up to 10) ambiguous chords."""
+    check_angles(graph)
     theta_tree = tree.integrate(graph)
     path = theta_tree[graph.heads] - theta_tree[graph.tails]  # (m,), equals δ on tree edges
     c = tree.chords
     before = graph.delta[c] - path[c]  # r = C δ
-    k_c = -np.ceil(before / (2.0 * np.pi) - 0.5).astype(np.int64)  # tie rule: residual in (−π, π]
     k = np.zeros(graph.n_edges, np.int64)
-    k[c] = k_c
+    k[c] = _round_residual(before)
     delta_reg = graph.delta + 2.0 * np.pi * k
-    residual = delta_reg[c] - path[c]  # C δ_reg
+    edge_residual = delta_reg - path  # 0 on tree edges, C δ_reg on chords
+    residual = edge_residual[c]
     ambiguous = c[np.abs(residual) > np.pi - margin]
-    if ambiguous.size:
-        ids = graph.ids
-        listed = ", ".join(f"{ids[graph.tails[e]]}->{ids[graph.heads[e]]}" for e in ambiguous[:10])
-        log.warning("regularization: %d chord(s) have a cycle residual within %.3g rad of ±π, so their 2kπ "
-                    "correction is ambiguous (rotation noise too large along the tree path): %s%s",
-                    ambiguous.size, margin, listed, " ..." if ambiguous.size > 10 else "")
+    _warn_ambiguous(graph, ambiguous, margin, "chord", "rotation noise too large along the tree path")
     return RegularizationReport(delta_reg=delta_reg, k=k, chords=c, residual_before=before, residual=residual,
-                                ambiguous=ambiguous, theta_tree=theta_tree, margin=float(margin), tree=tree)
+                                ambiguous=ambiguous, theta_tree=theta_tree, margin=float(margin), tree=tree,
+                                regularization="tree", reference=theta_tree, edge_residual=edge_residual)
+
+
+def regularize_chordal(graph: PoseGraph, tree: SpanningTree, *, margin: float = AMBIGUITY_MARGIN,
+                       method: str = "closed_form", backend: str = "auto",
+                       solver_settings: dict | None = None) -> RegularizationReport:
+    """2kπ regularization of every edge against the chordal relaxation (module docstring, (R-C)).
+
+    The relaxation (``lago_cvx.chordal``, eq. (C2)) is anchored at ``tree.root`` and solved in closed
+    form (``method="closed_form"``, sparse ``backend``) or as its cvxpy problem with Clarabel
+    (``method="cvxpy"``; the problem is kept in ``report.problem``). O(m + n log n) plus one sparse
+    factorization of the 2(n−1) × 2(n−1) connection Laplacian."""
+    from .chordal import chordal_closed_form, chordal_from_problem
+
+    check_angles(graph)
+    var = graph.covariance[:, 2, 2]  # P_δ (marginal), as phase 1 uses (lago_cvx.phases.edge_uncertainty)
+    info = 1.0 / var
+    problem = None
+    if method == "closed_form":
+        est = chordal_closed_form(graph, info, anchor=tree.root, backend=backend)
+    elif method == "cvxpy":
+        est, problem = chordal_from_problem(graph, info, anchor=tree.root, settings=solver_settings)
+    else:
+        raise ValueError(f"unknown method {method!r}; expected 'closed_form' or 'cvxpy'")
+    theta_raw = tree.integrate(graph)
+    ref = est.theta + 2.0 * np.pi * np.rint((theta_raw - est.theta) / (2.0 * np.pi))  # φ̃: φ on the tree's branch
+    target = ref[graph.heads] - ref[graph.tails]
+    k = _round_residual(graph.delta - target)
+    delta_reg = graph.delta + 2.0 * np.pi * k
+    edge_residual = delta_reg - target
+    c = tree.chords
+    path_raw = theta_raw[graph.heads] - theta_raw[graph.tails]
+    theta_tree = tree.integrate(graph, delta_reg)
+    path_reg = theta_tree[graph.heads] - theta_tree[graph.tails]
+    ambiguous = np.flatnonzero(np.abs(edge_residual) > np.pi - margin)
+    _warn_ambiguous(graph, ambiguous, margin, "edge", "the measurement contradicts the chordal estimate by ≈ π")
+    return RegularizationReport(delta_reg=delta_reg, k=k, chords=c, residual_before=graph.delta[c] - path_raw[c],
+                                residual=delta_reg[c] - path_reg[c], ambiguous=ambiguous, theta_tree=theta_tree,
+                                margin=float(margin), tree=tree, regularization="chordal", reference=ref,
+                                edge_residual=edge_residual, chordal=est, problem=problem)

@@ -997,7 +997,7 @@ def lago_variant(graph: PoseGraph, *, anchors=None, priors=None, constraints_fn:
                  method: str = "closed_form", spanning_tree="bfs", anchor=None, anchor_pose=None,
                  margin: float = AMBIGUITY_MARGIN, reround: bool = False, reround_rounds: int = 5,
                  strain_level: float = STRAIN_LEVEL, solver_settings: dict | None = None,
-                 backend: str = "auto") -> VariantResult:
+                 backend: str = "auto", regularization: str = "tree") -> VariantResult:
     """The general engine behind ``anchored_lago``, ``constrained_lago`` and ``robust_lago`` (module
     docstring, V1–V10). All options keyword-only:
 
@@ -1014,6 +1014,8 @@ def lago_variant(graph: PoseGraph, *, anchors=None, priors=None, constraints_fn:
       anchor — id of the reference pose (see the module docstring); anchor_pose — gauge values for
         what no anchor or prior fixes (default the origin).
       margin — ambiguity margin of the regularization (rad).
+      regularization — ``"tree"`` or ``"chordal"`` (as in ``lago``; the chordal relaxation is anchored at
+        the reference pose and ignores anchors and priors: it only chooses the integers).
       reround — re-round every edge against the phase-1 estimate and re-solve phase 1 until no k
         changes (at most ``reround_rounds`` rounds; V10).
       strain_level — significance of the anchor strain test (V3).
@@ -1047,7 +1049,8 @@ def lago_variant(graph: PoseGraph, *, anchors=None, priors=None, constraints_fn:
         prov = lago_variant(graph, anchors={int(graph.ids[ref]): (0.0, 0.0, 0.0)}, loss=loss, threshold=threshold,
                             grouping=grouping, method=method, spanning_tree=spanning_tree, anchor=None,
                             margin=margin, reround=reround, reround_rounds=reround_rounds,
-                            solver_settings=solver_settings, backend=backend, strain_level=strain_level)
+                            solver_settings=solver_settings, backend=backend, strain_level=strain_level,
+                            regularization=regularization)
         idx = np.array([a.index for a in pos_anc])
         theta_gauge = _kabsch_angle(prov.poses[idx, :2], np.array([a.position for a in pos_anc]))
         frame["orientation"] = f"procrustes: provisional LAGO rotated by {theta_gauge:.6g} rad onto {len(pos_anc)} position anchors"
@@ -1065,9 +1068,9 @@ def lago_variant(graph: PoseGraph, *, anchors=None, priors=None, constraints_fn:
     timings["tree"] = time.perf_counter() - t
 
     t = time.perf_counter()
-    reg = regularize(graph, tree, margin=margin)
+    reg = regularize(graph, tree, regularization=regularization, margin=margin, backend=backend)
     unc = P.edge_uncertainty(graph)
-    tt0 = reg.theta_tree  # 0 at the root
+    tt0 = reg.reference  # 0 at the root: θ_tree (tree rounding) or the chordal φ̃, the branch δ_reg follows
     # offset: the reference's own anchor/prior if any, else the first one
     first = sorted(th_anc, key=lambda a: a.index != ref)
     firstp = sorted(pri, key=lambda p: p.index != ref)
@@ -1225,13 +1228,13 @@ def _strain_report(graph, anc, sys1, sol1, sys3, sol3, level) -> list:
 def anchored_lago(graph: PoseGraph, *, anchors=None, priors=None, method: str = "closed_form", spanning_tree="bfs",
                   anchor=None, anchor_pose=None, margin: float = AMBIGUITY_MARGIN,
                   strain_level: float = STRAIN_LEVEL, solver_settings: dict | None = None,
-                  backend: str = "auto") -> VariantResult:
+                  backend: str = "auto", regularization: str = "tree") -> VariantResult:
     """LAGO with hard anchors and/or priors (V1–V8), closed form or cvxpy (``method``); what
     ``lago(graph, anchors=...)`` runs. See ``lago_variant`` for the options and the module docstring
     for the frame decision. ``result.strain`` holds the per-anchor Lagrange-multiplier test (V3)."""
     return lago_variant(graph, anchors=anchors, priors=priors, method=method, spanning_tree=spanning_tree,
                         anchor=anchor, anchor_pose=anchor_pose, margin=margin, strain_level=strain_level,
-                        solver_settings=solver_settings, backend=backend)
+                        solver_settings=solver_settings, backend=backend, regularization=regularization)
 
 
 def constrained_lago(graph: PoseGraph, constraints_fn: Callable, *, anchors=None, priors=None, loss: str = "l2",

@@ -33,6 +33,15 @@ DATASET_TABLE = [
 ]
 DATASET_FILES = [row[0] for row in DATASET_TABLE]
 
+#: χ² minima of the datasets README, section 4.2 (g2o convention).
+REFERENCE_CHI2 = {
+    "se-sync/intel.g2o": 44.4178, "se-sync/CSAIL.g2o": 61.143, "carlone/CSAIL_P_toro.graph": 61.143,
+    "se-sync/MIT.g2o": 39.6013, "se-sync/manhattan.g2o": 3533.46, "carlone/M3500_P_toro.graph": 3533.46,
+    "se-sync/city10000.g2o": 511.985, "carlone/input_INTEL_g2o.g2o": 214.171,
+    "carlone/INTEL_P_toro.graph": 213.212, "carlone/input_M3500_g2o.g2o": 137.913,
+    "carlone/input_M3500a_g2o.g2o": 912.115, "carlone/FR079_P_toro.graph": 36.4248,
+}
+
 
 @pytest.fixture(scope="session")
 def datasets_dir() -> Path:

@@ -59,7 +59,7 @@ def test_solve_cvxpy_method_and_text_output(capsys, tmp_path):
     out = tmp_path / "c.g2o"
     run(capsys, "generate", "--world", "circle", "--laps", "3", "--poses", "90", "-o", str(out))
     code, text, _ = run(capsys, "solve", str(out), "--method", "cvxpy", "--spanning-tree", "odometry")
-    assert code == 0 and "LAGO (cvxpy, odometry spanning tree)" in text and "chi2 =" in text
+    assert code == 0 and "LAGO (cvxpy, odometry spanning tree, tree regularization)" in text and "chi2 =" in text
 
 
 def test_solve_refuses_to_overwrite_input(capsys, tmp_path):

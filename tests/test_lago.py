@@ -8,7 +8,7 @@ from lago_cvx.io import read_graph
 from lago_cvx.posegraph import GraphError, PoseGraph, compose
 from lago_cvx.synthetic import circle_world, manhattan_world, random_graph
 
-from conftest import DATASET_TABLE, dataset_path
+from conftest import DATASET_TABLE, REFERENCE_CHI2, dataset_path
 from helpers import graph_from_truth, pose_error
 
 TREES = ["bfs", "odometry", "mst"]
@@ -106,14 +106,6 @@ def test_gtsam_simple_lago_square():
 
 
 # ----------------------------------------------------------------------------- real datasets
-#: χ² minima of the datasets README, section 4.2 (g2o convention).
-REFERENCE_CHI2 = {
-    "se-sync/intel.g2o": 44.4178, "se-sync/CSAIL.g2o": 61.143, "carlone/CSAIL_P_toro.graph": 61.143,
-    "se-sync/MIT.g2o": 39.6013, "se-sync/manhattan.g2o": 3533.46, "carlone/M3500_P_toro.graph": 3533.46,
-    "se-sync/city10000.g2o": 511.985, "carlone/input_INTEL_g2o.g2o": 214.171,
-    "carlone/INTEL_P_toro.graph": 213.212, "carlone/input_M3500_g2o.g2o": 137.913,
-    "carlone/input_M3500a_g2o.g2o": 912.115, "carlone/FR079_P_toro.graph": 36.4248,
-}
 #: Files where a faithful LAGO is expected within 5 % of the minimum (issue: M3500 both, M3500a, FR079,
 #: intel-1728, city10000).
 WITHIN_5_PERCENT = {"se-sync/manhattan.g2o", "carlone/M3500_P_toro.graph", "carlone/input_M3500_g2o.g2o",

@@ -1,0 +1,153 @@
+r"""Chordal relaxation of the planar rotations: a global orientation estimate with no spanning tree.
+
+Why. The seed's regularization (``lago_cvx.regularization``, Theorem 3) integrates δ along a spanning
+tree and rounds every chord's cycle residual to the nearest multiple of 2π. The rounding is right only
+while the rotation noise accumulated along each chord's tree path stays below π; on long paths with
+large rotation noise it picks the wrong 2kπ and LAGO lands in a wrong basin. The chordal relaxation
+estimates all orientations *at once*, using every measurement with its weight, and needs no integers.
+
+The relaxation. Write each rotation by the first column of its matrix, r_i = (cos θ_i, sin θ_i) ∈ ℝ²
+(R_i = [r_i, S r_i], S = [[0, −1], [1, 0]]). Edge e = (i → j) measures R_j = R_i R(δ_e), whose first
+column reads
+
+    r_j = R(δ_e) r_i                                    (linear in r_i, r_j),             (C1)
+
+and ‖R_j − R_i R(δ_e)‖_F² = 2 ‖r_j − R(δ_e) r_i‖² = 4(1 − cos(θ_j − θ_i − δ_e)) ≈ 2 (θ_j − θ_i − δ_e)².
+Dropping the constraint ‖r_i‖ = 1 (SO(2) → ℝ²) leaves a linear weighted least-squares problem
+
+    minimise_r  Σ_e ω_e ‖r_j − R(δ_e) r_i‖²,    r_anchor = (1, 0),    ω_e = 1 / P_δ,e       (C2)
+
+(ω_e is the same rotational information phase 1 uses, so for small residuals (C2) is phase 1's cost
+written on the circle). Stacking r over the d = n − 1 free poses (x ∈ ℝ^{2d}, interleaved cos, sin) and
+the 2m edge rows, (C2) is ‖M x − b‖² with the sparse whitened design
+
+    M = Ω^{1/2} (A_j − A_i^δ)  (2m × 2d):  rows 2e, 2e+1 hold √ω_e I₂ at the head's columns and
+        −√ω_e R(δ_e) at the tail's columns;  b (2m,) moves the anchor's known r_anchor to the right.  (C3)
+
+Its normal matrix MᵀM is the "connection Laplacian" of the graph (Ω-weighted), positive definite for a
+connected graph with one anchored pose. The estimate is projected back to SO(2) by θ_i = atan2(r_i):
+since δ enters only through cos δ and sin δ, the result does not depend on any 2π wrapping of the data.
+``norms`` = ‖r_i‖ is a diagnostic: near 1 everywhere when the measurements are consistent (exactly 1 on
+noiseless data, where the relaxation is tight), small where they disagree.
+
+This is the initialization used by SE-Sync and by Carlone et al.'s ICRA 2015 survey ("chordal
+relaxation"); here it only decides the integers of the seed's regularization (see
+``lago_cvx.regularization.regularize_chordal``); LAGO's three phases then run unchanged.
+
+Both forms are provided side by side: ``chordal_problem`` (cvxpy, ``cp.sum_squares(M @ x − b)``) and
+``chordal_closed_form`` (sparse normal equations with corrected semi-normal refinement).
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import cvxpy as cp
+import numpy as np
+import scipy.sparse as sp
+
+from .graph import free_poses
+from .linalg import solve_least_squares
+from .posegraph import PoseGraph
+
+__all__ = ["ChordalEstimate", "chordal_system", "chordal_problem", "chordal_closed_form", "chordal_from_problem"]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True, eq=False)
+class ChordalEstimate:
+    """Solution of the chordal relaxation (C2).
+
+    ``vectors`` (n, 2) the relaxed first columns r_i (anchor = (1, 0)); ``theta`` (n,) the projection
+    atan2(r_i) ∈ (−π, π] (anchor 0); ``norms`` (n,) ‖r_i‖ (1 = consistent, → 0 = contradicted);
+    ``cost`` the optimal value of (C2); ``anchor``; ``stats`` the least-squares solver's report
+    (closed form only)."""
+
+    vectors: np.ndarray
+    theta: np.ndarray
+    norms: np.ndarray
+    cost: float
+    anchor: int
+    stats: dict | None = None
+
+
+def chordal_system(graph: PoseGraph, info_delta, *, anchor: int = 0) -> tuple[sp.csc_matrix, np.ndarray]:
+    """The whitened linear system (C3) of the chordal relaxation: ``(M, b)`` with M (2m × 2d) sparse
+    and b (2m,), so that (C2) is ‖M x − b‖², x (2d,) = the free poses' (cos, sin), interleaved, in the
+    order of ``lago_cvx.graph.free_poses``. ``info_delta`` (m,) is ω_e = 1/P_δ,e."""
+    n, m = graph.n_poses, graph.n_edges
+    w = np.sqrt(np.asarray(info_delta, dtype=float))
+    if w.shape != (m,):
+        raise ValueError(f"info_delta must have shape ({m},), got {w.shape}")
+    col = np.full(n, -1, dtype=np.int64)
+    col[free_poses(n, anchor)] = np.arange(n - 1)
+    c, s = np.cos(graph.delta), np.sin(graph.delta)
+    e = np.arange(m)
+    # head block: +√ω I₂ ; tail block: −√ω R(δ) = −√ω [[c, −s], [s, c]]
+    rows, cols, vals = [], [], []
+    b = np.zeros(2 * m)
+    for r in (0, 1):  # output row within the edge's 2-row block
+        for q in (0, 1):  # component of r_i / r_j (cos, sin)
+            head_val = w * (1.0 if r == q else 0.0)
+            rot = (c if r == q else (-s if (r, q) == (0, 1) else s))
+            tail_val = -w * rot
+            for node, val in ((graph.heads, head_val), (graph.tails, tail_val)):
+                free = col[node] >= 0
+                rows.append(2 * e[free] + r)
+                cols.append(2 * col[node[free]] + q)
+                vals.append(val[free])
+                # the anchor's r = (1, 0): its q = 0 column goes to the right-hand side
+                if q == 0:
+                    fixed = ~free
+                    np.subtract.at(b, 2 * e[fixed] + r, val[fixed])
+    M = sp.csc_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                      shape=(2 * m, 2 * (n - 1)))
+    return M, b
+
+
+def _estimate(n: int, anchor: int, x: np.ndarray, cost: float, stats=None) -> ChordalEstimate:
+    vec = np.empty((n, 2))
+    vec[anchor] = (1.0, 0.0)
+    vec[free_poses(n, anchor)] = x.reshape(-1, 2)
+    norms = np.hypot(vec[:, 0], vec[:, 1])
+    theta = np.arctan2(vec[:, 1], vec[:, 0])
+    theta[anchor] = 0.0
+    weak = np.flatnonzero(norms < 1e-8)
+    if weak.size:
+        log.warning("chordal relaxation: %d pose(s) have ‖r_i‖ < 1e-8 (their orientation is undetermined by "
+                    "the relaxation; contradicting measurements)", weak.size)
+    return ChordalEstimate(vectors=vec, theta=theta, norms=norms, cost=float(cost), anchor=anchor, stats=stats)
+
+
+def chordal_problem(graph: PoseGraph, info_delta, *, anchor: int = 0) -> tuple[cp.Problem, cp.Variable]:
+    """The chordal relaxation (C2) as a cvxpy problem: minimise ‖M x − b‖² (``cp.sum_squares``, M whitened).
+
+    Returns ``(problem, x)`` with x (2d,) the free poses' (cos θ, sin θ) interleaved; add constraints
+    with ``cp.Problem(problem.objective, [...])`` (e.g. ``cp.norm(x[2*i:2*i+2]) <= 1``)."""
+    M, b = chordal_system(graph, info_delta, anchor=anchor)
+    x = cp.Variable(M.shape[1], name="r")
+    return cp.Problem(cp.Minimize(cp.sum_squares(M @ x - b))), x
+
+
+def chordal_closed_form(graph: PoseGraph, info_delta, *, anchor: int = 0, backend: str = "auto") -> ChordalEstimate:
+    """The chordal relaxation (C2) in closed form: x = (MᵀM)⁻¹Mᵀb by a sparse factorization with corrected
+    semi-normal refinement (``lago_cvx.linalg.solve_least_squares``); projected to angles."""
+    M, b = chordal_system(graph, info_delta, anchor=anchor)
+    x, _, _, stats = solve_least_squares(M, b, backend=backend)
+    r = M @ x - b
+    return _estimate(graph.n_poses, anchor, x, float(r @ r), stats)
+
+
+def chordal_from_problem(graph: PoseGraph, info_delta, *, anchor: int = 0,
+                         settings: dict | None = None) -> tuple[ChordalEstimate, cp.Problem]:
+    """Build and solve the cvxpy form with Clarabel (``lago_cvx.phases.CLARABEL_SETTINGS``); returns
+    (ChordalEstimate, problem)."""
+    from .phases import solve_problem
+
+    problem, x = chordal_problem(graph, info_delta, anchor=anchor)
+    if x.size == 0:  # a single pose: nothing to estimate
+        return _estimate(graph.n_poses, anchor, np.zeros(0), 0.0), problem
+    value = solve_problem(problem, settings=settings)
+    return _estimate(graph.n_poses, anchor, np.asarray(x.value, dtype=float), value), problem
