@@ -121,7 +121,7 @@ from .posegraph import PoseGraph
 from .regularization import regularize
 
 __all__ = [
-    "MIP_EXTRA", "MissingSolverError", "CycleData", "cycle_data", "exact_box",
+    "MIP_EXTRA", "MissingSolverError", "SearchLimitError", "CycleData", "cycle_data", "exact_box",
     "cycle_integers", "true_edge_integers", "weighted_cycle_cost", "rounding_cost",
     "cycle_form_problem", "phase1_form_problem", "enumerate_integers",
     "IntegerRegularization", "integer_regularization", "compare_with_rounding",
@@ -145,6 +145,10 @@ TIE_RTOL = 1e-10
 
 class MissingSolverError(ImportError):
     """The requested mixed-integer solver is not installed; the message names the pip extra."""
+
+
+class SearchLimitError(RuntimeError):
+    """The exact enumeration exceeded ``max_nodes`` (too many uncertain integers); the message says what to do."""
 
 
 def _require_solver(solver: str) -> str:
@@ -417,8 +421,10 @@ def enumerate_integers(data: CycleData, *, max_shift: int | None = None, exact: 
             continue
         nodes += 1
         if nodes > max_nodes:
-            raise RuntimeError(f"enumeration stopped after max_nodes={max_nodes} nodes (l={l} chords); use "
-                               f"the MIP solver ({MIP_EXTRA}) or pass a larger max_nodes / a max_shift")
+            raise SearchLimitError(f"enumeration stopped after max_nodes={max_nodes} nodes (l={l} chords): too "
+                                   f"many integers are uncertain (large rotation noise); use the MIP solver "
+                                   f"({MIP_EXTRA}), a larger max_nodes or a max_shift, or "
+                                   f"regularization='chordal'")
         tried[i] += 1
         ui = (zi - centre[i]) / diag_l[i]
         cost = partial[i] + ui * ui

@@ -101,6 +101,10 @@ def lago(graph: PoseGraph, *, method: str = "closed_form", spanning_tree="bfs", 
         along ``spanning_tree``) or ``"chordal"`` (round every edge against the chordal relaxation of
         the rotations, ``lago_cvx.chordal``; robust to rotation noise accumulated along tree paths).
         With ``method="cvxpy"`` the chordal relaxation is solved as its cvxpy problem too.
+        ``"integer"``: the weighted integer least-squares problem of the cycle integers that the tree
+        rounding approximates (``lago_cvx.integer``; exact enumeration, or with ``method="cvxpy"`` the
+        mixed-integer cvxpy problem solved by SCIP, ``pip install "lago-cvx[mip]"``); at most
+        ``MAX_INTEGER_CHORDS`` chords.
       backend — sparse solver of the closed form: ``"auto"``, ``"superlu"``, ``"cholmod"``.
       anchors — ``{id: (x, y, θ)}`` known poses (None for unknown components); when given (even ``{}``)
         LAGO runs with the known entries moved to the right-hand side, see ``lago_cvx.variants``
@@ -134,7 +138,7 @@ def lago(graph: PoseGraph, *, method: str = "closed_form", spanning_tree="bfs", 
     unc = P.edge_uncertainty(graph)
     timings["regularization"] = time.perf_counter() - t
 
-    problems = {} if reg.problem is None else {"chordal": reg.problem}
+    problems = {} if reg.problem is None else {reg.regularization: reg.problem}  # "chordal" or "integer"
     t = time.perf_counter()
     if method == "closed_form":
         ph1 = P.phase1_closed_form(graph, reg.delta_reg, unc, anchor=a, backend=backend)

@@ -29,6 +29,12 @@ C k ∈ ℤˡ matter (``cycle_k``); choosing φ̃ on the tree's branch keeps k =
 phase-1 orientations unwrapped like the tree ones. An edge is *ambiguous* when |δ_reg,e − (φ̃_j − φ̃_i)|
 > π − margin. Chordal and tree rounding agree whenever the tree paths carry < π of accumulated rotation
 error; beyond that only the chordal one keeps finding the right integers (lecture 08).
+
+``regularization="integer"`` (issue 8) solves the problem the rounding approximates: the cycle integers
+q = Ck ∈ ℤˡ minimising phase 1's own cost, J(q) = ‖L⁻¹(Cδ + 2πq)‖² with C P_δ Cᵀ = L Lᵀ
+(``lago_cvx.integer``, eq. (3)); k is put on the chords (tree edges keep k = 0, no loss: only Ck matters).
+The tree rounding is its exact solution when C P_δ Cᵀ is diagonal, and in practice at low noise; with
+rising rotation noise the two part (lecture 08, section 3). Dense in the l chords: small and medium graphs.
 """
 
 from __future__ import annotations
@@ -41,7 +47,8 @@ import numpy as np
 from .graph import SpanningTree
 from .posegraph import GraphError, PoseGraph
 
-__all__ = ["RegularizationReport", "regularize", "regularize_tree", "regularize_chordal", "REGULARIZATIONS",
+__all__ = ["RegularizationReport", "regularize", "regularize_tree", "regularize_chordal", "regularize_integer",
+           "REGULARIZATIONS", "MAX_INTEGER_CHORDS",
            "AMBIGUITY_MARGIN", "check_angles"]
 
 log = logging.getLogger(__name__)
@@ -55,8 +62,13 @@ AMBIGUITY_MARGIN = 0.5
 #: (ulp(1e6) ≈ 1.2e-10) and k would not fit the arithmetic; such a "measurement" is an input error.
 MAX_ABS_ANGLE = 1e6
 
-#: The regularizers: ``"tree"`` (the seed's Theorem 3) and ``"chordal"`` (rounding against the chordal relaxation).
-REGULARIZATIONS = ("tree", "chordal")
+#: The regularizers: ``"tree"`` (the seed's Theorem 3), ``"chordal"`` (rounding against the chordal
+#: relaxation) and ``"integer"`` (the weighted integer least-squares problem the rounding approximates).
+REGULARIZATIONS = ("tree", "chordal", "integer")
+
+#: Largest number of chords (l) ``regularization="integer"`` accepts: it works with the dense l × l cycle
+#: covariance C P_δ Cᵀ and its Cholesky factor (l = 3000: 72 MB per matrix, ~1 s to factor).
+MAX_INTEGER_CHORDS = 3000
 
 
 @dataclass(frozen=True, eq=False)
@@ -74,7 +86,9 @@ class RegularizationReport:
     its root (for the tree rounding: the "odometric" orientations of the tree, δ_reg = δ there);
     ``regularization`` "tree" or "chordal"; ``reference`` (n,) the orientations each edge was rounded
     against (θ_tree, or the chordal φ̃); ``edge_residual`` (m,) δ_reg − (reference_j − reference_i);
-    ``chordal`` the ``ChordalEstimate`` (chordal only); ``problem`` its cvxpy problem (method "cvxpy")."""
+    ``chordal`` the ``ChordalEstimate`` (chordal only); ``problem`` its cvxpy problem (method "cvxpy"; for
+    the integer regularization the mixed-integer cvxpy problem); ``integer`` the
+    ``lago_cvx.integer.IntegerRegularization`` (integer only: objective, rounding's objective, solver)."""
 
     delta_reg: np.ndarray
     k: np.ndarray
@@ -90,6 +104,7 @@ class RegularizationReport:
     edge_residual: np.ndarray | None = None
     chordal: object | None = None
     problem: object | None = None
+    integer: object | None = None
 
     @property
     def n_regularized(self) -> int:
@@ -150,18 +165,23 @@ def _warn_ambiguous(graph: PoseGraph, ambiguous: np.ndarray, margin: float, what
 
 def regularize(graph: PoseGraph, tree: SpanningTree, *, regularization: str = "tree",
                margin: float = AMBIGUITY_MARGIN, method: str = "closed_form", backend: str = "auto",
-               solver_settings: dict | None = None) -> RegularizationReport:
+               solver_settings: dict | None = None, integer_options: dict | None = None) -> RegularizationReport:
     """2kπ regularization of the relative orientations.
 
     regularization — ``"tree"`` (the seed's Theorem 3: round each chord against the tree, see
       ``regularize_tree``) or ``"chordal"`` (round every edge against the chordal relaxation, see
-      ``regularize_chordal``). ``method`` ("closed_form" | "cvxpy"), ``backend`` and ``solver_settings``
-      only concern the chordal relaxation. margin — ambiguity margin (rad)."""
+      ``regularize_chordal``) or ``"integer"`` (the weighted integer program, see ``regularize_integer``).
+      ``method`` ("closed_form" | "cvxpy"), ``backend`` and ``solver_settings`` concern the chordal
+      relaxation; for ``"integer"`` ``method`` picks the solver (exact enumeration | SCIP through cvxpy)
+      and ``integer_options`` go to ``lago_cvx.integer.integer_regularization``. margin — ambiguity
+      margin (rad)."""
     if regularization == "tree":
         return regularize_tree(graph, tree, margin=margin)
     if regularization == "chordal":
         return regularize_chordal(graph, tree, margin=margin, method=method, backend=backend,
                                   solver_settings=solver_settings)
+    if regularization == "integer":
+        return regularize_integer(graph, tree, margin=margin, method=method, integer_options=integer_options)
     raise ValueError(f"unknown regularization {regularization!r}; expected one of {REGULARIZATIONS}")
 
 
@@ -223,3 +243,44 @@ def regularize_chordal(graph: PoseGraph, tree: SpanningTree, *, margin: float = 
                                 residual=delta_reg[c] - path_reg[c], ambiguous=ambiguous, theta_tree=theta_tree,
                                 margin=float(margin), tree=tree, regularization="chordal", reference=ref,
                                 edge_residual=edge_residual, chordal=est, problem=problem)
+
+
+def regularize_integer(graph: PoseGraph, tree: SpanningTree, *, margin: float = AMBIGUITY_MARGIN,
+                       method: str = "closed_form", integer_options: dict | None = None) -> RegularizationReport:
+    """2kπ regularization by the weighted integer program (``lago_cvx.integer``, eq. (3)): the cycle
+    integers q ∈ ℤˡ minimising J(q) = ‖L⁻¹(Cδ + 2πq)‖², placed on the chords of ``tree`` (k = 0 on tree
+    edges), so that δ_reg = δ + 2πk is what phase 1 (eq. (13)) fits best.
+
+    method — ``"closed_form"``: exact sphere-decoding enumeration (no dependency; raises if it needs more
+      than ``max_nodes`` nodes — very noisy graphs); ``"cvxpy"``: the mixed-integer cvxpy problem solved
+      by SCIP (``pip install "lago-cvx[mip]"``; kept in ``report.problem``).
+    integer_options — keyword arguments for ``integer_regularization`` (``solver``, ``time_limit``,
+      ``max_nodes``, ``max_shift``, ``form``), overriding the method's choice of solver.
+    Chords whose corrected cycle sum (Cδ_reg)_c lies within ``margin`` of ±π — or beyond: unlike the
+    rounding, the weighted optimum may move a cycle sum past ±π — are reported as ambiguous.
+    Raises ``ValueError`` for more than ``MAX_INTEGER_CHORDS`` chords (the problem is dense in l)."""
+    from .integer import integer_regularization
+
+    if method not in ("closed_form", "cvxpy"):
+        raise ValueError(f"unknown method {method!r}; expected 'closed_form' or 'cvxpy'")
+    check_angles(graph)
+    c = tree.chords
+    if c.size > MAX_INTEGER_CHORDS:
+        raise ValueError(f"regularization='integer' works with the dense {c.size} x {c.size} cycle covariance; "
+                         f"this graph has {c.size} chords (> MAX_INTEGER_CHORDS = {MAX_INTEGER_CHORDS}): use "
+                         f"regularization='chordal' (sparse) or lago_cvx.integer.integer_regularization directly")
+    opts = {"solver": "enumerate" if method == "closed_form" else "SCIP", **(integer_options or {})}
+    ip = integer_regularization(graph, tree, **opts)
+    theta_tree = tree.integrate(graph)  # k = 0 on tree edges: the tree integration is unchanged
+    path = theta_tree[graph.heads] - theta_tree[graph.tails]
+    before = graph.delta[c] - path[c]  # r = C δ
+    delta_reg = ip.delta_reg
+    edge_residual = delta_reg - path  # 0 on tree edges, C δ_reg on chords
+    residual = edge_residual[c]
+    ambiguous = c[np.abs(residual) > np.pi - margin]
+    _warn_ambiguous(graph, ambiguous, margin, "chord",
+                    "the weighted integer optimum puts these cycle sums near or beyond ±π: large rotation noise")
+    return RegularizationReport(delta_reg=delta_reg, k=ip.k, chords=c, residual_before=before, residual=residual,
+                                ambiguous=ambiguous, theta_tree=theta_tree, margin=float(margin), tree=tree,
+                                regularization="integer", reference=theta_tree, edge_residual=edge_residual,
+                                problem=ip.problem, integer=ip)

@@ -1014,7 +1014,7 @@ def lago_variant(graph: PoseGraph, *, anchors=None, priors=None, constraints_fn:
       anchor — id of the reference pose (see the module docstring); anchor_pose — gauge values for
         what no anchor or prior fixes (default the origin).
       margin — ambiguity margin of the regularization (rad).
-      regularization — ``"tree"`` or ``"chordal"`` (as in ``lago``; the chordal relaxation is anchored at
+      regularization — ``"tree"``, ``"chordal"`` or ``"integer"`` (as in ``lago``; the chordal relaxation is anchored at
         the reference pose and ignores anchors and priors: it only chooses the integers).
       reround — re-round every edge against the phase-1 estimate and re-solve phase 1 until no k
         changes (at most ``reround_rounds`` rounds; V10).

@@ -375,3 +375,78 @@ def test_noise_sweep_rows():
     assert high["ip_better"] > 0 and high["J_round"] > high["J_ip"]
     table = I.format_sweep(rows)
     assert table.count("\n") == 3 and "IP = round" in table
+
+
+# ----------------------------------------------------------------------------- lago(regularization="integer")
+def test_lago_integer_equals_tree_rounding_at_low_noise():
+    g = manhattan_world(80, seed=3, sigma_theta=0.05).graph
+    tree_res = lago(g, regularization="tree")
+    int_res = lago(g, regularization="integer")
+    assert int_res.regularization.regularization == "integer"
+    assert int_res.regularization.integer.n_differ == 0
+    np.testing.assert_array_equal(int_res.regularization.cycle_k, tree_res.regularization.cycle_k)
+    np.testing.assert_allclose(int_res.poses, tree_res.poses, rtol=0, atol=1e-12)
+
+
+def test_lago_integer_minimises_phase1_cost_where_rounding_does_not():
+    # Manhattan, 100 poses, σθ = 0.4, seed 2: the weighted optimum moves 2 chords away from the rounding.
+    w = manhattan_world(100, seed=2, sigma_theta=0.4)
+    g = w.graph
+    tree_res = lago(g, regularization="tree")
+    int_res = lago(g, regularization="integer")
+    ip = int_res.regularization.integer
+    assert ip.n_differ > 0 and ip.status == cp.OPTIMAL
+    # the phase-1 cost at the integer program's δ_reg is the optimum J, strictly below the rounding's
+    def phase1_cost(res):
+        d = res.regularization.delta_reg
+        th = res.phase1.theta
+        return float(np.sum((th[g.heads] - th[g.tails] - d) ** 2 / res.uncertainty.var_delta))
+    assert phase1_cost(int_res) == pytest.approx(ip.objective, rel=1e-9)
+    assert phase1_cost(tree_res) == pytest.approx(ip.rounding_objective, rel=1e-9)
+    assert ip.objective < 0.99 * ip.rounding_objective
+    # and here it is also the right answer: the truth's cycle integers, and GN from it reaches the
+    # minimum GN reaches from the ground truth, which the tree rounding misses
+    t = int_res.tree
+    np.testing.assert_array_equal(int_res.regularization.cycle_k, _true_q(w, g, t))
+    from lago_cvx.refine import refine
+    best = refine(g, w.truth).chi2
+    assert refine(g, int_res.poses).chi2 == pytest.approx(best, rel=1e-6)
+    assert refine(g, tree_res.poses).chi2 > 1.2 * best
+
+
+@needs_scip
+def test_lago_integer_cvxpy_scip_equals_enumeration():
+    g = manhattan_world(100, seed=2, sigma_theta=0.4).graph
+    a = lago(g, regularization="integer")
+    b = lago(g, regularization="integer", method="cvxpy")
+    assert set(b.problems) == {"integer", "phase1", "phase3"}
+    assert b.problems["integer"].status == cp.OPTIMAL
+    np.testing.assert_array_equal(a.regularization.k, b.regularization.k)
+    np.testing.assert_allclose(b.poses, a.poses, rtol=0, atol=1e-6)
+
+
+def test_lago_integer_rejects_too_many_chords(monkeypatch):
+    from lago_cvx import regularization as R
+    monkeypatch.setattr(R, "MAX_INTEGER_CHORDS", 3)
+    g = manhattan_world(60, seed=0, sigma_theta=0.05).graph
+    with pytest.raises(ValueError, match="chords .*regularization='chordal'"):
+        lago(g, regularization="integer")
+
+
+def test_lago_integer_bad_method():
+    from lago_cvx.regularization import regularize_integer
+    g = manhattan_world(30, seed=0).graph
+    with pytest.raises(ValueError, match="unknown method"):
+        regularize_integer(g, spanning_tree(g, "bfs"), method="branch")
+
+
+def test_lago_integer_repairs_odometric_tree_on_mit():
+    from conftest import REFERENCE_CHI2, dataset_path  # noqa: I001
+    from lago_cvx.io import read_graph
+    from lago_cvx.refine import refine
+    g = read_graph(dataset_path("se-sync/MIT.g2o"))
+    tree_gn = refine(g, lago(g, spanning_tree="odometry").poses).chi2
+    res = lago(g, spanning_tree="odometry", regularization="integer")
+    assert res.regularization.integer.n_differ == 2
+    assert refine(g, res.poses).chi2 == pytest.approx(REFERENCE_CHI2["se-sync/MIT.g2o"], rel=1e-5)
+    assert tree_gn > 10 * REFERENCE_CHI2["se-sync/MIT.g2o"]
