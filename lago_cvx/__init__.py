@@ -6,10 +6,18 @@ Public API::
     result = lago(graph)                    # closed form; method="cvxpy" for the cvxpy problems
     result.poses, result.chi2               # (n, 3) estimate and its χ² (g2o convention)
     write_graph("out.g2o", graph, result.poses)
+
+    lago(graph, regularization="chordal")   # 2kπ integers from the chordal relaxation (robust to rotation noise)
+    lago(graph, regularization="integer")   # ... from the weighted integer program the rounding approximates
+    cert = certify(graph, refine_sesync(graph, refine(graph, result.poses).poses).poses)
+    cert.certified, cert.cost              # SE-Sync optimality certificate (Lagrangian dual, sparse LDLᵀ)
 """
 
+from .certify import certify, refine_sesync, sesync_cost, solve_sdp
+from .chordal import chordal_closed_form, chordal_problem
 from .cost import chi2, chi2_parts, edge_errors, whitened_errors
 from .io import ParseError, read_graph, write_graph
+from .integer import integer_regularization
 from .graph import (connected_components, cycle_basis, cyclomatic_number, incidence_matrix,
                     reduced_incidence, spanning_tree)
 from .lago import LagoResult, compare_methods, lago
@@ -28,5 +36,7 @@ __all__ = [
     "lago", "compare_methods", "LagoResult",
     "chi2", "chi2_parts", "edge_errors", "whitened_errors", "refine", "odometry_guess",
     "manhattan_world", "circle_world", "random_graph",
+    "chordal_closed_form", "chordal_problem", "integer_regularization",
+    "sesync_cost", "refine_sesync", "certify", "solve_sdp",
 ]
 

@@ -1,8 +1,9 @@
 """Command-line interface ``lago-cvx`` (also ``python -m lago_cvx``).
 
-Sub-commands: ``info``, ``solve``, ``generate``, ``demo``. Exit status: 0 success, 2 bad input
-(unreadable or malformed file, unusable graph, bad option), 1 internal error. Errors are printed as one
-line ``lago-cvx: error: …`` on stderr, never as a traceback (set ``LAGO_CVX_DEBUG=1`` to see one).
+Sub-commands: ``info``, ``solve``, ``certify``, ``generate``, ``demo``. Exit status: 0 success, 2 bad input
+(unreadable or malformed file, unusable graph, bad option), 1 internal error, 3 (``certify`` only) the
+estimate was computed but is **not** certified globally optimal. Errors are printed as one line
+``lago-cvx: error: …`` on stderr, never as a traceback (set ``LAGO_CVX_DEBUG=1`` to see one).
 """
 
 from __future__ import annotations
@@ -12,14 +13,22 @@ import json
 import logging
 import os
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
 
 from . import __version__
 from .posegraph import GraphError
+from .regularization import MAX_INTEGER_CHORDS, REGULARIZATIONS
 
 EXIT_OK, EXIT_INTERNAL, EXIT_BAD_INPUT = 0, 1, 2
+#: ``certify``: the refined estimate is not certified globally optimal (the report is still printed).
+EXIT_NOT_CERTIFIED = 3
+
+REGULARIZATION_HELP = ("2kπ regularization: tree (default, the seed's rounding along the spanning tree), "
+                       "chordal (round every edge against the chordal relaxation), integer (weighted integer "
+                       "least squares of the cycle integers, exact; small/medium graphs)")
 
 log = logging.getLogger("lago_cvx")
 
@@ -53,6 +62,21 @@ def _strict(obj):
     return obj
 
 
+def _check_regularization(graph, regularization: str) -> None:
+    """Refuse ``integer`` on graphs with more than ``MAX_INTEGER_CHORDS`` independent cycles (its cycle
+    covariance is dense in their number) with a usage error instead of an internal one."""
+    if regularization != "integer":
+        return
+    from .graph import connected_components
+
+    k, _ = connected_components(graph)
+    n_cycles = graph.n_edges - graph.n_poses + k
+    if n_cycles > MAX_INTEGER_CHORDS:
+        raise UsageError(f"--regularization integer works with a dense {n_cycles} x {n_cycles} cycle covariance; "
+                         f"this graph has {n_cycles} independent cycles (more than {MAX_INTEGER_CHORDS}): "
+                         "use --regularization chordal")
+
+
 def _emit(args, payload: dict, lines: list[str]) -> None:
     if getattr(args, "json", False):
         print(json.dumps(_strict(payload), allow_nan=False))
@@ -80,11 +104,12 @@ def cmd_info(args) -> int:
     note = ""
     if k == 1:
         try:
+            _check_regularization(graph, args.regularization)
             reg = regularize(graph, spanning_tree(graph, args.spanning_tree, anchor=0),
                              regularization=args.regularization)
             payload["n_regularized"] = reg.n_regularized
             payload["n_ambiguous"] = int(reg.ambiguous.size)
-        except GraphError as exc:  # e.g. broken odometric chain: report, don't fail the whole info
+        except (GraphError, UsageError) as exc:  # e.g. broken odometric chain: report, don't fail the whole info
             note = str(exc)
             payload["note"] = note
     else:
@@ -146,6 +171,7 @@ def cmd_solve(args) -> int:
     out = _check_output(args)
     anchor, anchors = _parse_anchors(args.anchor)
     graph = read_graph(args.file)
+    _check_regularization(graph, args.regularization)
     kw = dict(spanning_tree=args.spanning_tree, anchor=anchor, regularization=args.regularization)
     if anchors:
         kw["anchors"] = anchors
@@ -211,6 +237,137 @@ def cmd_solve(args) -> int:
         lines.append(f"  {'refined ' if args.refine else ''}estimate written to {out}")
     _emit(args, payload, lines)
     return EXIT_OK
+
+
+# -------------------------------------------------------------------------- certify
+#: One line stating which cost ``certify`` reports (lago_cvx.certify, eqs. (1)–(2)).
+SESYNC_COST_CONVENTION = ("SE-Sync cost f = Σ κ‖R_j−R_iR̃‖²_F + τ‖t_j−t_i−R_i t̃‖² (no ½; κ = Ω_θθ, "
+                          "τ = 2/tr(Ω_tt⁻¹)), not the g2o χ²")
+
+
+def _tol_arg(value: str) -> float:
+    try:
+        tol = float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--tol must be a number, got {value!r}") from None
+    if not (np.isfinite(tol) and tol > 0):
+        raise argparse.ArgumentTypeError(f"--tol must be a finite number > 0, got {value!r}")
+    return tol
+
+
+def _certificate_fields(cert) -> dict:
+    """The JSON fields of one ``lago_cvx.certify.Certificate`` (see its docstring)."""
+    return {
+        "certified": bool(cert.certified), "verdict": cert.verdict,
+        "f": cert.cost, "f_input": cert.cost_input,  # f with translations re-optimised / at the poses as given
+        "lambda_min": cert.lambda_min, "eigenvalues": [float(v) for v in cert.eigenvalues],
+        "eta": cert.eta, "norm_M": cert.norm_M, "n_negative": int(cert.n_negative),
+        "residual_rel": cert.residual_rel, "lower_bound": cert.lower_bound,
+        "suboptimality_bound": cert.suboptimality_bound,
+        "relative_suboptimality_bound": cert.relative_suboptimality_bound,
+    }
+
+
+def certify_estimate(graph, *, spanning_tree: str = "bfs", regularization: str = "tree", tol: float = 1e-12,
+                     max_iterations: int = 50):
+    """The ``certify`` pipeline on a read graph: LAGO → χ² Gauss–Newton (``refine``) → Gauss–Newton on the
+    SE-Sync cost f (``certify.refine_sesync``) → SE-Sync's optimality certificate (``certify.certify``) of
+    the refined estimate and, for comparison, of the raw LAGO estimate.
+
+    Returns ``(payload, cert)``: the JSON-ready report and the refined estimate's ``Certificate``
+    (``cert.poses`` are the certified poses, translations re-optimised for the certified rotations).
+    Raises ``GraphError`` for a graph without edges or not connected."""
+    from .certify import certify, refine_sesync, sesync_cost
+    from .lago import lago
+    from .refine import refine
+
+    if graph.n_edges == 0:
+        raise GraphError(f"the graph has {graph.n_poses} pose(s) and no edges: nothing to certify")
+    _check_regularization(graph, regularization)
+    times = {}
+    t = time.perf_counter()
+    res = lago(graph, spanning_tree=spanning_tree, regularization=regularization)
+    times["lago"] = time.perf_counter() - t
+    t = time.perf_counter()
+    ref = refine(graph, res.poses, max_iterations=max_iterations)
+    times["refine"] = time.perf_counter() - t
+    t = time.perf_counter()
+    ses = refine_sesync(graph, ref.poses, max_iterations=max_iterations)
+    times["refine_sesync"] = time.perf_counter() - t
+    t = time.perf_counter()
+    cert = certify(graph, ses.poses, tol=tol)
+    times["certify"] = time.perf_counter() - t
+    t = time.perf_counter()
+    cert_lago = certify(graph, res.poses, tol=tol)
+    times["certify_lago"] = time.perf_counter() - t
+    reg = res.regularization
+    payload = {
+        "n_poses": graph.n_poses, "n_edges": graph.n_edges, "spanning_tree": res.tree.kind,
+        "regularization": reg.regularization, "n_regularized": reg.n_regularized,
+        "n_ambiguous": int(reg.ambiguous.size), "tol": tol, "cost_convention": SESYNC_COST_CONVENTION,
+        "chi2_lago": res.chi2, "chi2_refined": ref.chi2, "refine_iterations": ref.iterations,
+        "refine_converged": bool(ref.converged),
+        "f_lago": sesync_cost(graph, res.poses), "f_chi2_refined": ses.cost_initial,
+        "sesync_iterations": ses.iterations, "sesync_converged": bool(ses.converged), "sesync_reason": ses.reason,
+        **_certificate_fields(cert),
+        "lago_certificate": _certificate_fields(cert_lago),
+        "timings": times,
+    }
+    return payload, cert
+
+
+def _bound_text(bound: float, digits: int) -> str:
+    return f"{bound:.{digits}g}" + (" (vacuous: f ≥ 0 always)" if bound <= 0 else "")
+
+
+def _certify_lines(file, payload: dict) -> list[str]:
+    p, lc = payload, payload["lago_certificate"]
+    return [
+        f"certify: LAGO ({p['spanning_tree']} spanning tree, {p['regularization']} regularization) → χ² "
+        f"Gauss–Newton → SE-Sync Gauss–Newton → SE-Sync certificate, on {file}",
+        f"  poses {p['n_poses']}, edges {p['n_edges']}",
+        f"  chi2 (g2o convention, sum e'Ωe): LAGO {p['chi2_lago']:.6g}, refined {p['chi2_refined']:.6g} "
+        f"({p['refine_iterations']} GN iterations{'' if p['refine_converged'] else ', not converged'})",
+        f"  {p['cost_convention']}:",
+        f"    LAGO estimate        f = {p['f_lago']:.10g}",
+        f"    χ²-refined           f = {p['f_chi2_refined']:.10g}",
+        f"    SE-Sync-refined      f = {p['f']:.12g}  ({p['sesync_iterations']} GN iterations, "
+        + ("converged)" if p["sesync_converged"] else f"not converged: {p['sesync_reason']})"),
+        f"  LAGO estimate alone: {'certified' if lc['certified'] else 'NOT certified'}, "
+        f"proven f* ≥ {_bound_text(lc['lower_bound'], 10)}",
+        f"  SE-Sync-refined:     {'CERTIFIED globally optimal' if p['certified'] else 'NOT certified'}",
+        f"    λ_min(S_Q) = {p['lambda_min']:.3g}, η = {p['eta']:.3g} (tol {p['tol']:.3g} × ‖M‖₂ {p['norm_M']:.4g}); "
+        "certified iff λ_min(S_Q) ≥ −η",
+        f"    proven lower bound f* ≥ {_bound_text(p['lower_bound'], 12)}; relative suboptimality (f − bound)/f ≤ "
+        f"{p['relative_suboptimality_bound']:.3g}",
+        f"    verdict: {p['verdict']}",
+    ]
+
+
+def cmd_certify(args) -> int:
+    from .io import read_graph, write_graph
+
+    if args.max_iterations < 0:
+        raise UsageError("--max-iterations must be >= 0")
+    out = _check_output(args)
+    graph = read_graph(args.file)
+    if graph.n_edges == 0:
+        raise GraphError(f"{args.file}: the graph has {graph.n_poses} pose(s) and no edges: nothing to certify")
+    payload, cert = certify_estimate(graph, spanning_tree=args.spanning_tree, regularization=args.regularization,
+                                     tol=args.tol, max_iterations=args.max_iterations)
+    payload = {"file": str(args.file), **payload}
+    lines = _certify_lines(args.file, payload)
+    if out is not None:
+        write_graph(out, graph, cert.poses)
+        payload["output"] = str(out)
+        lines.append(f"  {'certified' if cert.certified else 'refined (NOT certified)'} estimate written to {out}")
+    status = EXIT_OK if cert.certified else EXIT_NOT_CERTIFIED
+    if status != EXIT_OK:
+        lines.append(f"  exit status {status}: not certified (a local minimum, an unconverged refinement, or a "
+                     "relaxation that is not tight)")
+    payload["exit_status"] = status
+    _emit(args, payload, lines)
+    return status
 
 
 # ------------------------------------------------------------------------- generate
@@ -327,8 +484,7 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("info", help="counts of a pose-graph file")
     s.add_argument("file")
     s.add_argument("--spanning-tree", type=_tree_arg, default="bfs", help="bfs (default), odometry, mst")
-    s.add_argument("--regularization", choices=["tree", "chordal"], default="tree", help="2kπ regularization: tree (default, the seed's rounding along the "
-                   "spanning tree) or chordal (round every edge against the chordal relaxation of the rotations)")
+    s.add_argument("--regularization", choices=list(REGULARIZATIONS), default="tree", help=REGULARIZATION_HELP)
     s.add_argument("--json", action="store_true", help="print one JSON object")
     s.set_defaults(func=cmd_info)
 
@@ -337,8 +493,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("-o", "--output", help="write the estimate as g2o to this path")
     s.add_argument("--method", type=_method_arg, default="closed_form", help="closed-form (default) or cvxpy")
     s.add_argument("--spanning-tree", type=_tree_arg, default="bfs", help="bfs (default), odometry, mst")
-    s.add_argument("--regularization", choices=["tree", "chordal"], default="tree", help="2kπ regularization: tree (default, the seed's rounding along the "
-                   "spanning tree) or chordal (round every edge against the chordal relaxation of the rotations)")
+    s.add_argument("--regularization", choices=list(REGULARIZATIONS), default="tree", help=REGULARIZATION_HELP)
     s.add_argument("--anchor", action="append", metavar="ID[:X,Y,THETA]",
                    help="ID alone: the pose held at the origin (default: smallest id); ID:X,Y,THETA "
                         "(repeatable; leave fields empty for partial anchors, e.g. 7:,,1.57): poses known exactly")
@@ -350,6 +505,29 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--overwrite-input", action="store_true", help="allow -o to name the input file")
     s.add_argument("--json", action="store_true", help="print one JSON object")
     s.set_defaults(func=cmd_solve)
+
+    s = sub.add_parser(
+        "certify", help="LAGO, refinement and SE-Sync's global-optimality certificate",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Run LAGO on FILE, refine it (Gauss-Newton on the g2o chi2, then on the SE-Sync cost f), and\n"
+                    "verify global optimality with SE-Sync's Lagrangian-dual certificate (lago_cvx.certify).\n"
+                    f"{SESYNC_COST_CONVENTION}.\nThe raw LAGO estimate is certified too, for comparison.",
+        epilog=f"exit status: {EXIT_OK} certified globally optimal; {EXIT_NOT_CERTIFIED} NOT certified (the report is "
+               f"still printed\nand -o still written); {EXIT_BAD_INPUT} bad input (malformed file, no edges, "
+               f"graph not connected,\nbad option); {EXIT_INTERNAL} internal error.")
+    s.add_argument("file")
+    s.add_argument("-o", "--output", help="write the SE-Sync-refined estimate (the poses the certificate is "
+                                          "about) as g2o to this path")
+    s.add_argument("--spanning-tree", type=_tree_arg, default="bfs", help="bfs (default), odometry, mst")
+    s.add_argument("--regularization", choices=list(REGULARIZATIONS), default="tree", help=REGULARIZATION_HELP)
+    s.add_argument("--tol", type=_tol_arg, default=1e-12, metavar="TOL",
+                   help="relative PSD tolerance: certified iff λ_min(S_Q) ≥ −η, η = TOL·‖M‖₂ "
+                        "(default 1e-12 = lago_cvx.certify.CERTIFY_TOL)")
+    s.add_argument("--max-iterations", type=int, default=50,
+                   help="iterations of each refinement, chi2 and SE-Sync (default 50)")
+    s.add_argument("--overwrite-input", action="store_true", help="allow -o to name the input file")
+    s.add_argument("--json", action="store_true", help="print one JSON object")
+    s.set_defaults(func=cmd_certify)
 
     s = sub.add_parser("generate", help="write a seeded synthetic world (g2o) and its ground truth")
     s.add_argument("--world", choices=["manhattan", "circle"], default="manhattan")
@@ -378,11 +556,12 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     logging.basicConfig(level=[logging.WARNING, logging.INFO, logging.DEBUG][min(args.verbose, 2)],
                         format="lago-cvx: %(levelname)s: %(message)s")
+    from .integer import MissingSolverError, SearchLimitError
     from .io import ParseError
 
     try:
         return args.func(args)
-    except (ParseError, GraphError, UsageError) as exc:
+    except (ParseError, GraphError, UsageError, SearchLimitError, MissingSolverError) as exc:
         print(f"lago-cvx: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
