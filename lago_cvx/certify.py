@@ -38,7 +38,9 @@ Gauss–Newton on (x, y, θ) per pose (the anchor fixed), with residuals whose s
 ∂r_R/∂θ_j = −∂r_R/∂θ_i = √(2κ) cos(e/2). Eight entries per edge, one sparse J (3m × 3(n−1)),
 normal equations JᵀJ dx = −Jᵀr by ``lago_cvx.linalg.factorize``; a backtracking line search makes f
 monotone. Reached from the χ²-refined LAGO estimate: manhattan 6431.39, city10000 638.625, CSAIL
-31.7037, intel 52.3482 (SE-Sync's Table 1 to all printed digits).
+31.7037, intel 52.3482 — SE-Sync's Table 1 (4 digits) for city10000, CSAIL and intel; manhattan's
+6431.39 prints as 6.431e3 against Table 1's 6.432e3 (one unit of the last digit, 9e-5 relative; certified
+optimal for eq. (1) on the file, see benchmarks/certify_datasets.md).
 
 GN converges only linearly here when the neglected curvature Σ r∇²r is not small (intel: rate ≈ 0.74,
 25 iterations to a relative decrease of 1e-12). ``method="newton"`` adds it — it has only θ–θ entries::
@@ -791,7 +793,7 @@ def certify(graph: PoseGraph, poses, *, tol: float = CERTIFY_TOL, optimize_trans
         verdict = (f"globally optimal (certified): λ_min(S_Q) = {lambda_min:.3g} ≥ −η = {-eta:.3g}, "
                    f"f − f* ≤ {sub_bound:.3g} ({sub_bound / max(cost, np.finfo(float).tiny):.2g} relative)")
     else:
-        kind = ("not a critical point" if residual_rel > np.sqrt(tol) else "a critical point")
+        kind = ("not a critical point" if residual_rel > np.sqrt(tol) else "approximately a critical point")
         verdict = (f"NOT certified ({kind}, ‖SYᵀ‖ = {residual:.3g}): {n_negative} eigenvalue(s) of S_Q below "
                    f"−η = {-eta:.3g}, λ_min = {lambda_min:.4g}; f* ≥ {lower_bound:.6g}")
     times["total"] = time.perf_counter() - t_all
@@ -1055,8 +1057,11 @@ class SdpResult:
 
 def _dual_lower_bound(graph: PoseGraph, lam: np.ndarray, anchor: int) -> float:
     """Σ tr Λ_i + 2n·min(0, σ) with σ ≤ λ_min(S_Q(Λ)) proven by an LDLᵀ inertia count (eq. (8); σ = −η
-    with η = CERTIFY_TOL·‖M‖₂ when S_Q(Λ) ⪰ −ηI, else just below the Lanczos λ_min)."""
+    with η = CERTIFY_TOL·‖M‖₂ when S_Q(Λ) ⪰ −ηI, else just below the Lanczos λ_min). A graph without
+    edges (e.g. the 2-core of a tree: the anchor alone) has f ≡ 0, so its bound is 0."""
     n = graph.n_poses
+    if graph.n_edges == 0:
+        return 0.0
     M = data_matrix(graph)
     S = (M - _lambda_hat(lam)).tocsr()
     keep = _grounded_index(n, anchor)
@@ -1159,7 +1164,8 @@ def solve_sdp(graph: PoseGraph, *, form: str = "dual", settings: dict | None = N
     lb = _dual_lower_bound(graph, lam, a) if lower_bound else float("nan")
     times["bound"] = time.perf_counter() - t
     value = float(problem.value)
-    gap = (cost_rounded - value) / max(abs(value), np.finfo(float).tiny)
+    den = max(abs(value), abs(cost_rounded))
+    gap = (cost_rounded - value) / den if den > 1e-12 else 0.0  # both ≈ 0 (e.g. a tree): no gap
     Mg = data_matrix(graph)[var["index"]][:, var["index"]]
     primal_value = float(np.sum(Mg.multiply(Z)))
     blocks = Z[np.ix_(rr, rr)].reshape(n, 2, n, 2)[np.arange(n), :, np.arange(n), :]

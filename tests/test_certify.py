@@ -325,3 +325,13 @@ def test_sdp_on_a_csail_subgraph_with_a_dangling_tail():
     # measured 8e-7 (Clarabel's default faer backend; 2e-5 with qdldl; 5e-3 without pruning the tail)
     assert abs(sdp.gap) < 1e-4 and sdp.value == pytest.approx(local.cost, rel=1e-4)
     assert sdp.lower_bound <= local.cost <= sdp.cost_rounded
+
+
+def test_sdp_on_a_tree_is_trivially_tight():
+    # no loops: the 2-core is the anchor alone, f* = f_SDP = 0, every pose placed exactly by its edge
+    g = manhattan_world(12, seed=1, sigma_theta=0.05, p_loop_closure=1.0, min_loop_separation=4).graph
+    assert g.n_edges == g.n_poses - 1
+    res = C.solve_sdp(g, polish=True)
+    assert res.n_core == 1 and res.lower_bound == 0.0 and res.gap == 0.0
+    assert abs(res.value) < 1e-9 and res.cost_rounded < 1e-20
+    assert res.certificate.certified
