@@ -9,15 +9,15 @@ Public API::
 
     lago(graph, regularization="chordal")   # 2kπ integers from the chordal relaxation (robust to rotation noise)
     lago(graph, regularization="integer")   # ... from the weighted integer program the rounding approximates
+    from lago_cvx.certify import certify
     cert = certify(graph, refine_sesync(graph, refine(graph, result.poses).poses).poses)
     cert.certified, cert.cost              # SE-Sync optimality certificate (Lagrangian dual, sparse LDLᵀ)
 """
 
-from .certify import certify, refine_sesync, sesync_cost, solve_sdp
+from .certify import refine_sesync, sesync_cost, solve_sdp  # certify(): lago_cvx.certify.certify (module name)
 from .chordal import chordal_closed_form, chordal_problem
 from .cost import chi2, chi2_parts, edge_errors, whitened_errors
 from .io import ParseError, read_graph, write_graph
-from .integer import integer_regularization
 from .graph import (connected_components, cycle_basis, cyclomatic_number, incidence_matrix,
                     reduced_incidence, spanning_tree)
 from .lago import LagoResult, compare_methods, lago
@@ -36,7 +36,7 @@ __all__ = [
     "lago", "compare_methods", "LagoResult",
     "chi2", "chi2_parts", "edge_errors", "whitened_errors", "refine", "odometry_guess",
     "manhattan_world", "circle_world", "random_graph",
-    "chordal_closed_form", "chordal_problem", "integer_regularization",
-    "sesync_cost", "refine_sesync", "certify", "solve_sdp",
+    "chordal_closed_form", "chordal_problem",
+    "sesync_cost", "refine_sesync", "solve_sdp",
 ]
 

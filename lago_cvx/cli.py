@@ -270,7 +270,7 @@ def _certificate_fields(cert) -> dict:
 
 def certify_estimate(graph, *, spanning_tree: str = "bfs", regularization: str = "tree", tol: float = 1e-12,
                      max_iterations: int = 50):
-    """The ``certify`` pipeline on a read graph: LAGO → χ² Gauss–Newton (``refine``) → Gauss–Newton on the
+    """The ``certify`` pipeline on a read graph: LAGO → χ² Gauss–Newton (``refine``) → Newton (GN where Newton does not descend) on the
     SE-Sync cost f (``certify.refine_sesync``) → SE-Sync's optimality certificate (``certify.certify``) of
     the refined estimate and, for comparison, of the raw LAGO estimate.
 
@@ -292,7 +292,7 @@ def certify_estimate(graph, *, spanning_tree: str = "bfs", regularization: str =
     ref = refine(graph, res.poses, max_iterations=max_iterations)
     times["refine"] = time.perf_counter() - t
     t = time.perf_counter()
-    ses = refine_sesync(graph, ref.poses, max_iterations=max_iterations)
+    ses = refine_sesync(graph, ref.poses, max_iterations=max_iterations, method="newton")
     times["refine_sesync"] = time.perf_counter() - t
     t = time.perf_counter()
     cert = certify(graph, ses.poses, tol=tol)
@@ -324,14 +324,14 @@ def _certify_lines(file, payload: dict) -> list[str]:
     p, lc = payload, payload["lago_certificate"]
     return [
         f"certify: LAGO ({p['spanning_tree']} spanning tree, {p['regularization']} regularization) → χ² "
-        f"Gauss–Newton → SE-Sync Gauss–Newton → SE-Sync certificate, on {file}",
+        f"Gauss–Newton → SE-Sync Newton → SE-Sync certificate, on {file}",
         f"  poses {p['n_poses']}, edges {p['n_edges']}",
         f"  chi2 (g2o convention, sum e'Ωe): LAGO {p['chi2_lago']:.6g}, refined {p['chi2_refined']:.6g} "
         f"({p['refine_iterations']} GN iterations{'' if p['refine_converged'] else ', not converged'})",
         f"  {p['cost_convention']}:",
         f"    LAGO estimate        f = {p['f_lago']:.10g}",
         f"    χ²-refined           f = {p['f_chi2_refined']:.10g}",
-        f"    SE-Sync-refined      f = {p['f']:.12g}  ({p['sesync_iterations']} GN iterations, "
+        f"    SE-Sync-refined      f = {p['f']:.12g}  ({p['sesync_iterations']} Newton iterations, "
         + ("converged)" if p["sesync_converged"] else f"not converged: {p['sesync_reason']})"),
         f"  LAGO estimate alone: {'certified' if lc['certified'] else 'NOT certified'}, "
         f"proven f* ≥ {_bound_text(lc['lower_bound'], 10)}",
@@ -509,7 +509,7 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser(
         "certify", help="LAGO, refinement and SE-Sync's global-optimality certificate",
         formatter_class=argparse.RawDescriptionHelpFormatter,
-        description="Run LAGO on FILE, refine it (Gauss-Newton on the g2o chi2, then on the SE-Sync cost f), and\n"
+        description="Run LAGO on FILE, refine it (Gauss-Newton on the g2o chi2, then Newton on the SE-Sync cost f), and\n"
                     "verify global optimality with SE-Sync's Lagrangian-dual certificate (lago_cvx.certify).\n"
                     f"{SESYNC_COST_CONVENTION}.\nThe raw LAGO estimate is certified too, for comparison.",
         epilog=f"exit status: {EXIT_OK} certified globally optimal; {EXIT_NOT_CERTIFIED} NOT certified (the report is "

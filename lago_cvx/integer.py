@@ -132,6 +132,9 @@ log = logging.getLogger(__name__)
 
 TWO_PI = 2.0 * np.pi
 
+#: The enumeration logs its progress every this many nodes (≈ 5–10 s on M3500-sized problems).
+PROGRESS_NODES = 200_000
+
 #: pip requirement that installs the default mixed-integer solver (SCIP through pyscipopt).
 MIP_EXTRA = 'pip install "lago-cvx[mip]"'
 
@@ -420,6 +423,8 @@ def enumerate_integers(data: CycleData, *, max_shift: int | None = None, exact: 
             advance(i)
             continue
         nodes += 1
+        if nodes % PROGRESS_NODES == 0:  # long searches show progress (lago-cvx -v)
+            log.info("integer enumeration: %d nodes (max_nodes %d), %d chords", nodes, max_nodes, l)
         if nodes > max_nodes:
             raise SearchLimitError(f"enumeration stopped after max_nodes={max_nodes} nodes (l={l} chords): too "
                                    f"many integers are uncertain (large rotation noise); use the MIP solver "

@@ -33,11 +33,11 @@ class LagoResult:
 
     ``poses`` (n, 3) final estimate (x, y, θ) in the frame given by ``anchor_pose`` (θ unwrapped along
     the tree; wrap for display); ``tree``; ``regularization`` (the 2kπ report; its ``regularization``
-    field says "tree" or "chordal"); ``uncertainty``
+    field says "tree", "chordal" or "integer"); ``uncertainty``
     (per-edge marginal P_Δ, P_δ); ``phase1``, ``phase2``, ``phase3`` (see ``lago_cvx.phases``; computed in
     the anchor's own frame, anchor at the origin); ``timings`` seconds per step (keys
     ``tree``, ``regularization``, ``phase1``, ``phase2``, ``phase3``, ``total``); ``problems`` the cvxpy
-    problems (method "cvxpy" only: "phase1", "phase3", and "chordal" with the chordal regularization)."""
+    problems (method "cvxpy" only: "phase1", "phase3", and "chordal" / "integer" with those regularizations)."""
 
     graph: PoseGraph
     poses: np.ndarray
