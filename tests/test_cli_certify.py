@@ -97,7 +97,7 @@ def test_certify_csail_reaches_sesync_optimum(capsys):
 
 # --------------------------------------------------------------------------- not certified → 3
 def test_certify_local_minimum_exit_3(capsys, tmp_path):
-    # σ_θ = 0.3 rad: LAGO → χ² GN → SE-Sync GN ends at a critical point of f (‖SYᵀ‖ ≈ 0) whose
+    # σ_θ = 0.3 rad: LAGO → χ² GN → SE-Sync Newton ends at a critical point of f (‖SYᵀ‖ ≈ 0) whose
     # certificate matrix has clearly negative eigenvalues (λ_min ≈ −0.68 ≫ η ≈ 3e-9): not certified.
     world = _world(capsys, tmp_path, "--poses", "100", "--seed", "0", "--sigma-theta", "0.3")
     out = tmp_path / "est.g2o"
