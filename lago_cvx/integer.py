@@ -98,8 +98,10 @@ Solvers
 
 Results are always re-evaluated exactly in NumPy at the returned integers (``objective``); the solver's
 own value is kept in ``solver_value``. A solver stopped by its time limit returns its incumbent with
-status ``optimal_inaccurate`` (SCIP's own status is in ``solver_status``) — never silently replaced by
-the rounding.
+status ``optimal_inaccurate`` (SCIP's own status is in ``solver_status``); if that incumbent costs more
+than the rounding (SCIP starts without it: cvxpy cannot warm-start SCIP), the rounding — feasible and
+cheaper — is returned instead, with the same status and a warning (``solver_status`` says so). Never a
+point worse than the rounding, never an unproven point reported as optimal.
 """
 
 from __future__ import annotations
@@ -582,25 +584,45 @@ def integer_regularization(graph: PoseGraph, tree: SpanningTree | str = "bfs", *
             params.update(opts.pop("scip_params", {}))
             opts["scip_params"] = params
         # other solvers: pass their own time-limit option through ``solver_options``
+        t = time.perf_counter()
+        no_incumbent = fallback = False
         with warnings.catch_warnings(), np.errstate(invalid="ignore"):
             warnings.filterwarnings("ignore", message="Solution may be inaccurate")
             try:
                 value = problem.solve(solver=name, verbose=verbose, **opts)
             except cp.error.SolverError as exc:
-                raise RuntimeError(f"{name} failed on the {form}-form integer program ({l} integers, "
-                                   f"time limit {time_limit} s): {exc}") from exc
-        status = problem.status
-        stats = problem.solver_stats
-        extra = stats.extra_stats if stats is not None and isinstance(stats.extra_stats, dict) else {}
-        raw = str(extra.get("scip_status", status))
-        t_solve = float(stats.solve_time) if stats is not None and stats.solve_time is not None else float("nan")
-        if kv.value is None:
-            raise RuntimeError(f"{name} returned no integer solution (status {status!r}, {raw})")
-        q = np.rint(kv.value).astype(np.int64)
-        if status != cp.OPTIMAL:
-            log.warning("integer regularization: %s stopped with status %s (%s); the incumbent is returned "
-                        "and may not be optimal", name, status, raw)
-        if form == "phase1":
+                elapsed = time.perf_counter() - t
+                if name != "SCIP" or elapsed < 0.8 * float(time_limit):
+                    raise RuntimeError(f"{name} failed on the {form}-form integer program ({l} integers, "
+                                       f"time limit {time_limit} s): {exc}") from exc
+                no_incumbent = True  # SCIP hit its time limit before finding any integer point
+        if no_incumbent:
+            status, raw, t_solve, value = cp.OPTIMAL_INACCURATE, "time limit without an incumbent", elapsed, None
+            log.warning("integer regularization: %s reached its time limit (%g s) without an integer point; the "
+                        "rounding is returned — not proven optimal", name, time_limit)
+            q, fallback = data.k_round.copy(), True
+            raw += ": rounding returned"
+        else:
+            status = problem.status
+            stats = problem.solver_stats
+            extra = stats.extra_stats if stats is not None and isinstance(stats.extra_stats, dict) else {}
+            raw = str(extra.get("scip_status", status))
+            t_solve = float(stats.solve_time) if stats is not None and stats.solve_time is not None else float("nan")
+            if kv.value is None:
+                raise RuntimeError(f"{name} returned no integer solution (status {status!r}, {raw})")
+            q = np.rint(kv.value).astype(np.int64)
+        if status != cp.OPTIMAL and not no_incumbent:
+            if data.cost(q) > J_round:
+                # the rounding is feasible and cheaper: it is the best point known (cvxpy cannot warm-start SCIP)
+                log.warning("integer regularization: %s stopped with status %s (%s) at an incumbent worse than "
+                            "the rounding (J = %.6g > %.6g); the rounding is returned — not proven optimal",
+                            name, status, raw, data.cost(q), J_round)
+                q, fallback = data.k_round.copy(), True
+                raw += "; incumbent worse than the rounding: rounding returned"
+            else:
+                log.warning("integer regularization: %s stopped with status %s (%s); the incumbent is returned "
+                            "and may not be optimal", name, status, raw)
+        if form == "phase1" and not fallback:  # θ of the solver's point (the rounding has none here)
             theta = np.zeros(graph.n_poses)
             theta[np.delete(np.arange(graph.n_poses), tree.root)] = th.value
         value = float(value) if value is not None else float("nan")
