@@ -156,6 +156,7 @@ import scipy.sparse.linalg as spla
 from .graph import check_connected
 from .linalg import factorize
 from .posegraph import PoseGraph, rot2, wrap_angle
+from .refine import _check_iteration_args, _check_poses, _resolve_anchor, _small_step
 
 __all__ = [
     "sesync_weights", "sesync_cost", "stacked_variable", "poses_from_stacked", "data_matrix",
@@ -178,15 +179,6 @@ def sesync_weights(graph: PoseGraph) -> tuple[np.ndarray, np.ndarray]:
     tau = 2.0 * (a * c - b * b) / (a + c)
     kappa = info[:, 2, 2].copy()
     return kappa, tau
-
-
-def _check_poses(graph: PoseGraph, poses) -> np.ndarray:
-    poses = np.array(poses, dtype=float)
-    if poses.shape != (graph.n_poses, 3):
-        raise ValueError(f"poses must have shape ({graph.n_poses}, 3), got {poses.shape}")
-    if not np.isfinite(poses).all():
-        raise ValueError("poses must be finite")
-    return poses
 
 
 def _edge_residuals(graph: PoseGraph, poses: np.ndarray):
@@ -271,8 +263,7 @@ def _rotation_index(n: int) -> np.ndarray:
 # ======================================================================= 2. the local solver
 #: Maximum number of step halvings of the backtracking line search of ``refine_sesync``.
 MAX_HALVINGS = 20
-#: A step with ‖dx‖∞ ≤ STEP_TOLERANCE·(1 + ‖x‖∞) counts as converged.
-STEP_TOLERANCE = 1e-12
+# A step with ‖dx‖∞ ≤ refine.STEP_TOLERANCE·(1 + ‖x‖∞) counts as converged (``_small_step``, shared with ``refine``).
 
 
 @dataclass(eq=False)
@@ -362,12 +353,6 @@ class _SesyncProblem:
         return new
 
 
-def _resolve_anchor(graph: PoseGraph, anchor) -> int:
-    if anchor is None:
-        return int(np.argmin(graph.ids))
-    return graph.index_of(anchor)
-
-
 def _newton_step(H: sp.spmatrix, g: np.ndarray, backend: str):
     """Newton step −H⁻¹g with the exact (½-scaled) Hessian H, or None when H cannot be factored or the
     step is not a descent direction (H indefinite away from a minimum)."""
@@ -397,10 +382,7 @@ def refine_sesync(graph: PoseGraph, poses, *, max_iterations: int = 50, toleranc
     times), so f never increases. Raises ``GraphError`` for a disconnected graph."""
     if method not in SESYNC_METHODS:
         raise ValueError(f"unknown method {method!r}; expected one of {SESYNC_METHODS}")
-    if max_iterations < 0:
-        raise ValueError(f"max_iterations must be >= 0, got {max_iterations}")
-    if not tolerance >= 0:
-        raise ValueError(f"tolerance must be >= 0, got {tolerance}")
+    _check_iteration_args(max_iterations, tolerance)
     x = _check_poses(graph, poses)
     a = _resolve_anchor(graph, anchor)
     check_connected(graph)
@@ -433,7 +415,7 @@ def refine_sesync(graph: PoseGraph, poses, *, max_iterations: int = 50, toleranc
             res.reason = "non-finite Gauss-Newton step (singular normal equations)"
             break
         step = float(np.max(np.abs(dx)))
-        if step <= STEP_TOLERANCE * (1.0 + float(np.max(np.abs(x)))):
+        if _small_step(dx, x):
             res.converged, res.reason = True, f"step norm {step:.3g} below tolerance"
             break
         predicted = -float(g @ dx)  # ‖r‖² − ‖r + J dx‖² = −gᵀdx for the GN step

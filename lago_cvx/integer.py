@@ -120,7 +120,7 @@ import scipy.sparse as sp
 from .graph import SpanningTree, cycle_basis, reduced_incidence, spanning_tree as build_tree
 from .phases import EdgeUncertainty, edge_uncertainty
 from .posegraph import PoseGraph
-from .regularization import regularize
+from .regularization import _round_residual, check_angles, tree_cycle_residuals
 
 __all__ = [
     "MIP_EXTRA", "MissingSolverError", "SearchLimitError", "CycleData", "cycle_data", "exact_box",
@@ -185,7 +185,7 @@ class CycleData:
 
     ``chords`` (l,) chord edge indices; ``C`` sparse (l, m) cycle basis; ``r`` (l,) r = Cδ;
     ``S`` (l, l) C P_δ Cᵀ; ``L`` (l, l) lower Cholesky factor of S; ``W`` (l, l) = L⁻¹ (whitening);
-    ``k_round`` (l,) the seed's rounding k_c = −round(r_c/2π) as cycle integers (from ``regularize``);
+    ``k_round`` (l,) the seed's rounding k_c = −round(r_c/2π) as cycle integers (as ``regularize_tree``);
     ``rounding_edges`` (m,) the rounding's per-edge k."""
 
     tree: SpanningTree
@@ -212,18 +212,19 @@ class CycleData:
 
 def cycle_data(graph: PoseGraph, tree: SpanningTree, *, unc: EdgeUncertainty | None = None) -> CycleData:
     """Build ``CycleData`` (eq. (3)): r = Cδ through the tree's path sums, S = C P_δ Cᵀ, L, W = L⁻¹."""
+    check_angles(graph)
     unc = edge_uncertainty(graph) if unc is None else unc
     c = tree.chords
-    r = graph.delta[c] - tree.path_sums(graph)[c]
+    r = tree_cycle_residuals(graph, tree)
     C = cycle_basis(graph, tree).tocsr()
     S = (C.multiply(unc.var_delta[None, :]) @ C.T).toarray() if c.size else np.zeros((0, 0))
     S = 0.5 * (S + S.T)
     L = np.linalg.cholesky(S) if c.size else S
     W = sla.solve_triangular(L, np.eye(c.size), lower=True) if c.size else S
-    reg = regularize(graph, tree)
-    k_edges = np.asarray(reg.k, dtype=np.int64)
-    return CycleData(tree=tree, chords=c, C=C, r=r, S=S, L=L, W=W,
-                     k_round=cycle_integers(graph, tree, k_edges), rounding_edges=k_edges)
+    k_edges = np.zeros(graph.n_edges, np.int64)  # the seed's rounding (regularize_tree), without its warnings
+    k_edges[c] = _round_residual(r)
+    return CycleData(tree=tree, chords=c, C=C, r=r, S=S, L=L, W=W, k_round=k_edges[c].copy(),
+                     rounding_edges=k_edges)
 
 
 def exact_box(data: CycleData, *, max_shift: int | None = None, exact: bool = True

@@ -210,6 +210,14 @@ def _resolve_anchor(graph: PoseGraph, anchor) -> int:
     return graph.index_of(anchor)
 
 
+def _check_iteration_args(max_iterations: int, tolerance: float) -> None:
+    """ValueError for a negative iteration count or a negative / NaN tolerance (shared with refine_sesync)."""
+    if max_iterations < 0:
+        raise ValueError(f"max_iterations must be >= 0, got {max_iterations}")
+    if not tolerance >= 0:
+        raise ValueError(f"tolerance must be >= 0, got {tolerance}")
+
+
 def _check_poses(graph: PoseGraph, poses) -> np.ndarray:
     poses = np.array(poses, dtype=float)
     if poses.shape != (graph.n_poses, 3):
@@ -251,10 +259,7 @@ def refine(graph: PoseGraph, poses, *, method: str = "gauss-newton", max_iterati
         raise ValueError(f"unknown method {method!r}; expected one of {REFINE_METHODS}")
     if backend not in SOLVER_BACKENDS:
         raise ValueError(f"unknown backend {backend!r}; expected one of {SOLVER_BACKENDS}")
-    if max_iterations < 0:
-        raise ValueError(f"max_iterations must be >= 0, got {max_iterations}")
-    if not tolerance >= 0:
-        raise ValueError(f"tolerance must be >= 0, got {tolerance}")
+    _check_iteration_args(max_iterations, tolerance)
     x = _check_poses(graph, poses)
     a = _resolve_anchor(graph, anchor)
     check_connected(graph)

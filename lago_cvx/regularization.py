@@ -48,6 +48,7 @@ from .graph import SpanningTree
 from .posegraph import GraphError, PoseGraph
 
 __all__ = ["RegularizationReport", "regularize", "regularize_tree", "regularize_chordal", "regularize_integer",
+           "tree_cycle_residuals",
            "REGULARIZATIONS", "MAX_INTEGER_CHORDS",
            "AMBIGUITY_MARGIN", "check_angles"]
 
@@ -190,20 +191,36 @@ def regularize_tree(graph: PoseGraph, tree: SpanningTree, *, margin: float = AMB
 
     Returns a ``RegularizationReport``; logs a warning listing (up to 10) ambiguous chords."""
     check_angles(graph)
+    before = tree_cycle_residuals(graph, tree)
+    k = np.zeros(graph.n_edges, np.int64)
+    k[tree.chords] = _round_residual(before)
+    return _chord_report(graph, tree, k, margin=margin, regularization="tree",
+                         why="rotation noise too large along the tree path")
+
+
+def tree_cycle_residuals(graph: PoseGraph, tree: SpanningTree) -> np.ndarray:
+    """r = C δ (l,): each chord's δ minus the tree path between its ends (eq. (20))."""
+    c = tree.chords
+    return graph.delta[c] - tree.path_sums(graph)[c]
+
+
+def _chord_report(graph: PoseGraph, tree: SpanningTree, k: np.ndarray, *, margin: float, regularization: str,
+                  why: str, **extra) -> RegularizationReport:
+    """The report of a regularization whose integers k (m,) sit on the chords only (tree edges keep δ):
+    the tree integration is unchanged, (C δ_reg)_c is the chord's residual, ambiguous chords are those
+    within ``margin`` of ±π (or beyond), warned with ``why``."""
     theta_tree = tree.integrate(graph)
     path = theta_tree[graph.heads] - theta_tree[graph.tails]  # (m,), equals δ on tree edges
     c = tree.chords
-    before = graph.delta[c] - path[c]  # r = C δ
-    k = np.zeros(graph.n_edges, np.int64)
-    k[c] = _round_residual(before)
     delta_reg = graph.delta + 2.0 * np.pi * k
     edge_residual = delta_reg - path  # 0 on tree edges, C δ_reg on chords
     residual = edge_residual[c]
     ambiguous = c[np.abs(residual) > np.pi - margin]
-    _warn_ambiguous(graph, ambiguous, margin, "chord", "rotation noise too large along the tree path")
-    return RegularizationReport(delta_reg=delta_reg, k=k, chords=c, residual_before=before, residual=residual,
-                                ambiguous=ambiguous, theta_tree=theta_tree, margin=float(margin), tree=tree,
-                                regularization="tree", reference=theta_tree, edge_residual=edge_residual)
+    _warn_ambiguous(graph, ambiguous, margin, "chord", why)
+    return RegularizationReport(delta_reg=delta_reg, k=k, chords=c, residual_before=graph.delta[c] - path[c],
+                                residual=residual, ambiguous=ambiguous, theta_tree=theta_tree, margin=float(margin),
+                                tree=tree, regularization=regularization, reference=theta_tree,
+                                edge_residual=edge_residual, **extra)
 
 
 def regularize_chordal(graph: PoseGraph, tree: SpanningTree, *, margin: float = AMBIGUITY_MARGIN,
@@ -271,16 +288,6 @@ def regularize_integer(graph: PoseGraph, tree: SpanningTree, *, margin: float = 
                          f"regularization='chordal' (sparse) or lago_cvx.integer.integer_regularization directly")
     opts = {"solver": "enumerate" if method == "closed_form" else "SCIP", **(integer_options or {})}
     ip = integer_regularization(graph, tree, **opts)
-    theta_tree = tree.integrate(graph)  # k = 0 on tree edges: the tree integration is unchanged
-    path = theta_tree[graph.heads] - theta_tree[graph.tails]
-    before = graph.delta[c] - path[c]  # r = C δ
-    delta_reg = ip.delta_reg
-    edge_residual = delta_reg - path  # 0 on tree edges, C δ_reg on chords
-    residual = edge_residual[c]
-    ambiguous = c[np.abs(residual) > np.pi - margin]
-    _warn_ambiguous(graph, ambiguous, margin, "chord",
-                    "the weighted integer optimum puts these cycle sums near or beyond ±π: large rotation noise")
-    return RegularizationReport(delta_reg=delta_reg, k=ip.k, chords=c, residual_before=before, residual=residual,
-                                ambiguous=ambiguous, theta_tree=theta_tree, margin=float(margin), tree=tree,
-                                regularization="integer", reference=theta_tree, edge_residual=edge_residual,
-                                problem=ip.problem, integer=ip)
+    return _chord_report(graph, tree, ip.k, margin=margin, regularization="integer",
+                         why="the weighted integer optimum puts these cycle sums near or beyond ±π: large rotation "
+                             "noise", problem=ip.problem, integer=ip)
