@@ -9,34 +9,57 @@ Public API::
 
     lago(graph, regularization="chordal")   # 2kπ integers from the chordal relaxation (robust to rotation noise)
     lago(graph, regularization="integer")   # ... from the weighted integer program the rounding approximates
-    from lago_cvx.certify import certify
     cert = certify(graph, refine_sesync(graph, refine(graph, result.poses).poses).poses)
     cert.certified, cert.cost              # SE-Sync optimality certificate (Lagrangian dual, sparse LDLᵀ)
+
+The names below are loaded on first use (PEP 562), so ``import lago_cvx`` is cheap, and cvxpy is
+imported only by the routes that build a cvxpy problem. The layers of the package and where each step
+of the paper lives: ``docs/ARCHITECTURE.md``.
 """
 
-from .certify import refine_sesync, sesync_cost, solve_sdp  # certify(): lago_cvx.certify.certify (module name)
-from .chordal import chordal_closed_form, chordal_problem
-from .cost import chi2, chi2_parts, edge_errors, whitened_errors
-from .io import ParseError, read_graph, write_graph
-from .graph import (connected_components, cycle_basis, cyclomatic_number, incidence_matrix,
-                    reduced_incidence, spanning_tree)
-from .lago import LagoResult, compare_methods, lago
-from .posegraph import GraphError, PoseGraph, between, compose, wrap_angle
-from .refine import odometry_guess, refine
-from .regularization import regularize
-from .synthetic import circle_world, manhattan_world, random_graph
+from __future__ import annotations
 
-__version__ = "0.1.0"
+import importlib
 
-__all__ = [
-    "PoseGraph", "GraphError", "compose", "between", "wrap_angle",
-    "read_graph", "write_graph", "ParseError",
-    "incidence_matrix", "reduced_incidence", "connected_components", "cyclomatic_number",
-    "spanning_tree", "cycle_basis", "regularize",
-    "lago", "compare_methods", "LagoResult",
-    "chi2", "chi2_parts", "edge_errors", "whitened_errors", "refine", "odometry_guess",
-    "manhattan_world", "circle_world", "random_graph",
-    "chordal_closed_form", "chordal_problem",
-    "sesync_cost", "refine_sesync", "solve_sdp",
-]
+from ._version import __version__
+
+#: public name → the module that defines it
+_EXPORTS = {
+    "errors": ["LagoError", "ParseError", "GraphError", "NumericalError", "OptionError", "SolverError",
+               "InfeasibleConstraintsError", "MissingSolverError", "ResourceLimitError", "SearchLimitError",
+               "DatasetNotFound"],
+    "solvers": ["ClarabelSettings", "IntegerSearch"],
+    "posegraph": ["PoseGraph", "compose", "between", "wrap_angle"],
+    "io": ["read_graph", "write_graph"],
+    "graph": ["incidence_matrix", "reduced_incidence", "connected_components", "cyclomatic_number",
+              "spanning_tree", "cycle_basis"],
+    "metrics": ["chi2", "chi2_parts", "edge_errors", "whitened_errors", "ate", "rotation_error"],
+    "regularization": ["regularize"],
+    "regularization.chordal": ["chordal_closed_form", "chordal_problem"],
+    "result": ["LagoResult"],
+    "pipeline": ["lago", "compare_methods"],
+    "refinement": ["refine", "odometry_guess"],
+    "variants": ["anchored_lago", "constrained_lago", "robust_lago"],
+    "certification": ["certify", "refine_sesync", "sesync_cost", "solve_sdp", "certify_estimate"],
+    "synthetic": ["manhattan_world", "circle_world", "random_graph"],
+}
+_WHERE = {name: module for module, names in _EXPORTS.items() for name in names}
+
+__all__ = ["__version__", *_WHERE]
+
+
+def __getattr__(name: str):
+    module = _WHERE.get(name)
+    if module is None:
+        try:  # a submodule asked for as an attribute (``lago_cvx.phases``)
+            return importlib.import_module(f"{__name__}.{name}")
+        except ModuleNotFoundError:
+            raise AttributeError(f"module {__name__!r} has no attribute {name!r}") from None
+    value = getattr(importlib.import_module(f"{__name__}.{module}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(__all__))
 

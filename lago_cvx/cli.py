@@ -11,15 +11,17 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import math
 import os
+import re
 import sys
-import time
+
 from pathlib import Path
 
 import numpy as np
 
-from . import __version__
-from .posegraph import GraphError
+from ._version import __version__
+from .errors import LagoError, OptionError
 from .regularization import MAX_INTEGER_CHORDS, REGULARIZATIONS
 
 EXIT_OK, EXIT_INTERNAL, EXIT_BAD_INPUT = 0, 1, 2
@@ -33,8 +35,39 @@ REGULARIZATION_HELP = ("2kπ regularization: tree (default, the seed's rounding 
 log = logging.getLogger("lago_cvx")
 
 
-class UsageError(Exception):
+class UsageError(OptionError):
     """A bad option value or a refused action (exit status 2)."""
+
+
+_FIELD = r"\s*([^,]*)\s*"
+_SPEC = re.compile(r"^\s*([+-]?\d+)\s*:" + _FIELD + "," + _FIELD + "," + _FIELD + "$")
+
+
+def parse_anchor_spec(spec: str) -> tuple[int, tuple]:
+    """Parse ``"ID:X,Y,THETA"`` → ``(id, (x, y, θ))``; empty fields give None (partial anchors):
+    ``"5:,,1.57"`` orientation only, ``"5:1,2,"`` position only. Raises ``UsageError`` naming the
+    spec when it is malformed, when only one of X, Y is given, or when all three are empty."""
+    m = _SPEC.match(spec)
+    if not m:
+        raise UsageError(f"bad anchor {spec!r}: expected ID:X,Y,THETA (empty fields allowed, e.g. 5:,,1.57)")
+    vals = []
+    for name, text in zip("x y theta".split(), m.groups()[1:]):
+        text = text.strip()
+        if text == "":
+            vals.append(None)
+            continue
+        try:
+            v = float(text)
+        except ValueError:
+            raise UsageError(f"bad anchor {spec!r}: {name} = {text!r} is not a number") from None
+        if not math.isfinite(v):
+            raise UsageError(f"bad anchor {spec!r}: {name} must be finite")
+        vals.append(v)
+    if (vals[0] is None) != (vals[1] is None):
+        raise UsageError(f"bad anchor {spec!r}: give both X and Y, or neither")
+    if all(v is None for v in vals):
+        raise UsageError(f"bad anchor {spec!r}: at least the position or the orientation must be given")
+    return int(m.group(1)), tuple(vals)
 
 
 def _tree_arg(value: str) -> str:
@@ -105,11 +138,11 @@ def cmd_info(args) -> int:
     if k == 1:
         try:
             _check_regularization(graph, args.regularization)
-            reg = regularize(graph, spanning_tree(graph, args.spanning_tree, anchor=0),
+            reg = regularize(graph, spanning_tree(graph, args.spanning_tree),
                              regularization=args.regularization)
             payload["n_regularized"] = reg.n_regularized
             payload["n_ambiguous"] = int(reg.ambiguous.size)
-        except (GraphError, UsageError) as exc:  # e.g. broken odometric chain: report, don't fail the whole info
+        except LagoError as exc:  # e.g. broken odometric chain: report, don't fail the whole info
             note = str(exc)
             payload["note"] = note
     else:
@@ -139,13 +172,11 @@ def _parse_anchors(specs) -> tuple[int | None, dict]:
         return None, {}
     if len(specs) == 1 and specs[0].strip().lstrip("-").isdigit():
         return int(specs[0]), {}
-    from .variants import parse_anchor_spec
-
     anchors = {}
     for spec in specs:
         try:
             pid, value = parse_anchor_spec(spec)
-        except ValueError as exc:
+        except UsageError as exc:
             raise UsageError(f"{exc} (a bare ID is accepted only alone)") from None
         if pid in anchors:
             raise UsageError(f"anchor {pid} given twice")
@@ -166,7 +197,7 @@ def _check_output(args) -> Path | None:
 
 def cmd_solve(args) -> int:
     from .io import read_graph, write_graph
-    from .lago import compare_methods, lago
+    from .pipeline import compare_methods, lago
 
     out = _check_output(args)
     anchor, anchors = _parse_anchors(args.anchor)
@@ -190,7 +221,7 @@ def cmd_solve(args) -> int:
     }
     payload["timings"]["regularization"] += res.timings["tree"]
     if graph.initial is not None:
-        from .cost import chi2
+        from .metrics import chi2
         payload["chi2_initial"] = chi2(graph, graph.initial)
     strained = getattr(res, "strained", None)
     if anchors:
@@ -201,7 +232,7 @@ def cmd_solve(args) -> int:
         payload["cvxpy_timings"] = report["cvxpy_timings"]
     final = res.poses
     if args.refine:
-        from .refine import refine
+        from .refinement import refine
 
         ref = refine(graph, res.poses, method=args.refine_method, max_iterations=args.max_iterations)
         final = ref.poses
@@ -240,11 +271,6 @@ def cmd_solve(args) -> int:
 
 
 # -------------------------------------------------------------------------- certify
-#: One line stating which cost ``certify`` reports (lago_cvx.certify, eqs. (1)–(2)).
-SESYNC_COST_CONVENTION = ("SE-Sync cost f = Σ κ‖R_j−R_iR̃‖²_F + τ‖t_j−t_i−R_i t̃‖² (no ½; κ = Ω_θθ, "
-                          "τ = 2/tr(Ω_tt⁻¹)), not the g2o χ²")
-
-
 def _tol_arg(value: str) -> float:
     try:
         tol = float(value)
@@ -253,67 +279,6 @@ def _tol_arg(value: str) -> float:
     if not (np.isfinite(tol) and tol > 0):
         raise argparse.ArgumentTypeError(f"--tol must be a finite number > 0, got {value!r}")
     return tol
-
-
-def _certificate_fields(cert) -> dict:
-    """The JSON fields of one ``lago_cvx.certify.Certificate`` (see its docstring)."""
-    return {
-        "certified": bool(cert.certified), "verdict": cert.verdict,
-        "f": cert.cost, "f_input": cert.cost_input,  # f with translations re-optimised / at the poses as given
-        "lambda_min": cert.lambda_min, "eigenvalues": [float(v) for v in cert.eigenvalues],
-        "eta": cert.eta, "norm_M": cert.norm_M, "n_negative": int(cert.n_negative),
-        "residual_rel": cert.residual_rel, "lower_bound": cert.lower_bound,
-        "suboptimality_bound": cert.suboptimality_bound,
-        "relative_suboptimality_bound": cert.relative_suboptimality_bound,
-    }
-
-
-def certify_estimate(graph, *, spanning_tree: str = "bfs", regularization: str = "tree", tol: float = 1e-12,
-                     max_iterations: int = 50):
-    """The ``certify`` pipeline on a read graph: LAGO → χ² Gauss–Newton (``refine``) → Newton (GN where Newton does not descend) on the
-    SE-Sync cost f (``certify.refine_sesync``) → SE-Sync's optimality certificate (``certify.certify``) of
-    the refined estimate and, for comparison, of the raw LAGO estimate.
-
-    Returns ``(payload, cert)``: the JSON-ready report and the refined estimate's ``Certificate``
-    (``cert.poses`` are the certified poses, translations re-optimised for the certified rotations).
-    Raises ``GraphError`` for a graph without edges or not connected."""
-    from .certify import certify, refine_sesync, sesync_cost
-    from .lago import lago
-    from .refine import refine
-
-    if graph.n_edges == 0:
-        raise GraphError(f"the graph has {graph.n_poses} pose(s) and no edges: nothing to certify")
-    _check_regularization(graph, regularization)
-    times = {}
-    t = time.perf_counter()
-    res = lago(graph, spanning_tree=spanning_tree, regularization=regularization)
-    times["lago"] = time.perf_counter() - t
-    t = time.perf_counter()
-    ref = refine(graph, res.poses, max_iterations=max_iterations)
-    times["refine"] = time.perf_counter() - t
-    t = time.perf_counter()
-    ses = refine_sesync(graph, ref.poses, max_iterations=max_iterations, method="newton")
-    times["refine_sesync"] = time.perf_counter() - t
-    t = time.perf_counter()
-    cert = certify(graph, ses.poses, tol=tol)
-    times["certify"] = time.perf_counter() - t
-    t = time.perf_counter()
-    cert_lago = certify(graph, res.poses, tol=tol)
-    times["certify_lago"] = time.perf_counter() - t
-    reg = res.regularization
-    payload = {
-        "n_poses": graph.n_poses, "n_edges": graph.n_edges, "spanning_tree": res.tree.kind,
-        "regularization": reg.regularization, "n_regularized": reg.n_regularized,
-        "n_ambiguous": int(reg.ambiguous.size), "tol": tol, "cost_convention": SESYNC_COST_CONVENTION,
-        "chi2_lago": res.chi2, "chi2_refined": ref.chi2, "refine_iterations": ref.iterations,
-        "refine_converged": bool(ref.converged),
-        "f_lago": sesync_cost(graph, res.poses), "f_chi2_refined": ses.cost_initial,
-        "sesync_iterations": ses.iterations, "sesync_converged": bool(ses.converged), "sesync_reason": ses.reason,
-        **_certificate_fields(cert),
-        "lago_certificate": _certificate_fields(cert_lago),
-        "timings": times,
-    }
-    return payload, cert
 
 
 def _bound_text(bound: float, digits: int) -> str:
@@ -345,6 +310,8 @@ def _certify_lines(file, payload: dict) -> list[str]:
 
 
 def cmd_certify(args) -> int:
+    from .certification import certify_estimate
+    from .errors import GraphError
     from .io import read_graph, write_graph
 
     if args.max_iterations < 0:
@@ -353,6 +320,7 @@ def cmd_certify(args) -> int:
     graph = read_graph(args.file)
     if graph.n_edges == 0:
         raise GraphError(f"{args.file}: the graph has {graph.n_poses} pose(s) and no edges: nothing to certify")
+    _check_regularization(graph, args.regularization)
     payload, cert = certify_estimate(graph, spanning_tree=args.spanning_tree, regularization=args.regularization,
                                      tol=args.tol, max_iterations=args.max_iterations)
     payload = {"file": str(args.file), **payload}
@@ -404,14 +372,9 @@ def cmd_generate(args) -> int:
 
 
 # ----------------------------------------------------------------------------- demo
-def _ate(est: np.ndarray, truth: np.ndarray) -> float:
-    """Absolute trajectory error: RMS position error (both trajectories share the anchor pose)."""
-    return float(np.sqrt(np.mean(np.sum((est[:, :2] - truth[:, :2]) ** 2, axis=1))))
-
-
 def cmd_demo(args) -> int:
-    from .cost import chi2
-    from .lago import compare_methods
+    from .metrics import ate, chi2
+    from .pipeline import compare_methods
 
     world = _world("manhattan", args.poses, args.seed, None, None, 1.0)
     g, truth = world.graph, world.truth
@@ -421,7 +384,7 @@ def cmd_demo(args) -> int:
         "n_poses": g.n_poses, "n_edges": g.n_edges, "seed": args.seed,
         "n_regularized": res.regularization.n_regularized,
         "chi2": {"lago": res.chi2, "truth": chi2(g, truth), "odometry": chi2(g, g.initial)},
-        "ate": {"lago": _ate(res.poses, truth), "odometry": _ate(g.initial, truth)},
+        "ate": {"lago": ate(res.poses, truth, align=False), "odometry": ate(g.initial, truth, align=False)},
         "max_rel_diff": d, "timings": res.timings, "cvxpy_timings": report["cvxpy_timings"],
     }
     lines = [
@@ -476,6 +439,8 @@ def _demo_figure(graph, truth, est, out_dir: Path) -> Path:
 
 # ----------------------------------------------------------------------------- main
 def build_parser() -> argparse.ArgumentParser:
+    from .certification.estimate import SESYNC_COST_CONVENTION
+
     p = argparse.ArgumentParser(prog="lago-cvx", description="LAGO for planar pose graphs (g2o / TORO files).")
     p.add_argument("--version", action="version", version=f"lago-cvx {__version__}")
     p.add_argument("-v", "--verbose", action="count", default=0, help="log progress (-vv for debug)")
@@ -510,7 +475,7 @@ def build_parser() -> argparse.ArgumentParser:
         "certify", help="LAGO, refinement and SE-Sync's global-optimality certificate",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         description="Run LAGO on FILE, refine it (Gauss-Newton on the g2o chi2, then Newton on the SE-Sync cost f), and\n"
-                    "verify global optimality with SE-Sync's Lagrangian-dual certificate (lago_cvx.certify).\n"
+                    "verify global optimality with SE-Sync's Lagrangian-dual certificate (lago_cvx.certification).\n"
                     f"{SESYNC_COST_CONVENTION}.\nThe raw LAGO estimate is certified too, for comparison.",
         epilog=f"exit status: {EXIT_OK} certified globally optimal; {EXIT_NOT_CERTIFIED} NOT certified (the report is "
                f"still printed\nand -o still written); {EXIT_BAD_INPUT} bad input (malformed file, no edges, "
@@ -522,7 +487,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--regularization", choices=list(REGULARIZATIONS), default="tree", help=REGULARIZATION_HELP)
     s.add_argument("--tol", type=_tol_arg, default=1e-12, metavar="TOL",
                    help="relative PSD tolerance: certified iff λ_min(S_Q) ≥ −η, η = TOL·‖M‖₂ "
-                        "(default 1e-12 = lago_cvx.certify.CERTIFY_TOL)")
+                        "(default 1e-12 = lago_cvx.certification.CERTIFY_TOL)")
     s.add_argument("--max-iterations", type=int, default=50,
                    help="iterations of each refinement, chi2 and SE-Sync (default 50)")
     s.add_argument("--overwrite-input", action="store_true", help="allow -o to name the input file")
@@ -556,14 +521,13 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     logging.basicConfig(level=[logging.WARNING, logging.INFO, logging.DEBUG][min(args.verbose, 2)],
                         format="lago-cvx: %(levelname)s: %(message)s")
-    from .integer import MissingSolverError, SearchLimitError
-    from .io import ParseError
-
     try:
         return args.func(args)
-    except (ParseError, GraphError, UsageError, SearchLimitError, MissingSolverError) as exc:
-        print(f"lago-cvx: error: {exc}", file=sys.stderr)
-        return EXIT_BAD_INPUT
+    except LagoError as exc:  # everything the package reports on purpose; the class carries the status
+        if exc.exit_status == EXIT_INTERNAL and os.environ.get("LAGO_CVX_DEBUG"):
+            raise
+        print(f"lago-cvx: {'internal ' if exc.exit_status == EXIT_INTERNAL else ''}error: {exc}", file=sys.stderr)
+        return exc.exit_status
     except KeyboardInterrupt:
         print("lago-cvx: interrupted", file=sys.stderr)
         return 130

@@ -1,8 +1,20 @@
-"""Where the real benchmark graphs are: ``../shared/datasets`` beside the project checkout.
+"""The public benchmark graphs: where they are, what they contain, and the reference optima.
 
-They are never copied into the project (licences vary). Set ``LAGO_CVX_DATASETS`` to use another
-folder. Code that needs them calls ``dataset("carlone/INTEL_P_toro.graph")`` and handles
-``DatasetNotFound`` (the lectures say so clearly and fall back to a synthetic world).
+The graphs are never copied into the project (licences vary). ``dataset("se-sync/MIT.g2o")`` finds a
+file by looking, in this order, in ``$LAGO_CVX_DATASETS``, in ``../shared/datasets`` beside the project
+checkout, and in ``../shared/datasets`` beside (or two levels above) the working directory; it raises
+``DatasetNotFound`` naming the places tried. Code that can run without them (lectures, tests,
+benchmarks) catches it and says so.
+
+Reference values (from ``../shared/datasets/README.md``; every table in the project takes them from
+here):
+
+* ``DATASET_TABLE`` — file, poses, edges, odometric edges (consecutive ids), loop closures;
+* ``REFERENCE_CHI2`` — the χ² minimum (g2o convention, Σ eᵀΩe) reached by Gauss–Newton from the chordal
+  / SE-Sync point (README §4.2: best found, not certified);
+* ``REFERENCE_SESYNC`` — the minimum of the SE-Sync cost f (README §4.2; all certified by
+  ``lago_cvx.certification.certify``, see benchmarks/);
+* ``PUBLISHED_SESYNC`` — SE-Sync's Table 1 (Rosen et al., IJRR 2019), as printed (4 digits).
 """
 
 from __future__ import annotations
@@ -10,11 +22,57 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-__all__ = ["datasets_dir", "dataset", "DatasetNotFound"]
+from .errors import DatasetNotFound
 
+__all__ = ["datasets_dir", "dataset", "DatasetNotFound", "DATASET_TABLE", "DATASET_FILES", "REFERENCE_CHI2",
+           "REFERENCE_SESYNC", "PUBLISHED_SESYNC"]
 
-class DatasetNotFound(FileNotFoundError):
-    """The datasets folder or a file in it is absent."""
+#: Every pose-graph file of the datasets folder: (file, n_poses, n_edges, n_odometric, n_loop_closures).
+DATASET_TABLE = (
+    ("se-sync/intel.g2o", 1728, 2512, 1727, 785),
+    ("se-sync/CSAIL.g2o", 1045, 1172, 1044, 128),
+    ("se-sync/MIT.g2o", 808, 827, 807, 20),
+    ("se-sync/manhattan.g2o", 3500, 5453, 3499, 1954),
+    ("se-sync/city10000.g2o", 10000, 20687, 9999, 10688),
+    ("carlone/input_INTEL_g2o.g2o", 1228, 1483, 1227, 256),
+    ("carlone/INTEL_P_toro.graph", 1228, 1505, 1227, 278),
+    ("carlone/input_M3500_g2o.g2o", 3500, 5453, 3499, 1954),
+    ("carlone/input_M3500a_g2o.g2o", 3500, 5453, 3499, 1954),
+    ("carlone/M3500_P_toro.graph", 3500, 5453, 3499, 1954),
+    ("carlone/CSAIL_P_toro.graph", 1045, 1172, 1044, 128),
+    ("carlone/FR079_P_toro.graph", 989, 1217, 988, 229),
+    ("gtsam/noisyToyGraph.txt", 4, 5, 3, 2),
+    ("gtsam/orientationsNoisyToyGraph.txt", 4, 5, 3, 2),
+    ("gtsam/optimizedNoisyToyGraph.txt", 4, 5, 3, 2),
+)
+#: The files of ``DATASET_TABLE``.
+DATASET_FILES = tuple(row[0] for row in DATASET_TABLE)
+
+#: file → (χ² minimum in the g2o convention, minimum of the SE-Sync cost f), README §4.2.
+_MINIMA = {
+    "se-sync/intel.g2o": (44.4178, 52.3482),
+    "se-sync/CSAIL.g2o": (61.143, 31.7037),
+    "carlone/CSAIL_P_toro.graph": (61.143, 31.7037),
+    "se-sync/MIT.g2o": (39.6013, 61.1541),
+    "se-sync/manhattan.g2o": (3533.46, 6431.39),
+    "carlone/M3500_P_toro.graph": (3533.46, 6431.39),
+    "se-sync/city10000.g2o": (511.985, 638.625),
+    "carlone/input_INTEL_g2o.g2o": (214.171, 393.653),
+    "carlone/INTEL_P_toro.graph": (213.212, 391.721),
+    "carlone/input_M3500_g2o.g2o": (137.913, 193.862),
+    "carlone/input_M3500a_g2o.g2o": (912.115, 1597.64),
+    "carlone/FR079_P_toro.graph": (36.4248, 28.5858),
+}
+#: χ² minima, g2o convention (README §4.2).
+REFERENCE_CHI2 = {rel: chi2 for rel, (chi2, _) in _MINIMA.items()}
+#: Minima of the SE-Sync cost f (README §4.2).
+REFERENCE_SESYNC = {rel: f for rel, (_, f) in _MINIMA.items()}
+
+#: SE-Sync's Table 1 (IJRR 2019), as printed.
+PUBLISHED_SESYNC = {
+    "se-sync/manhattan.g2o": "6.432e3", "se-sync/city10000.g2o": "6.386e2", "se-sync/CSAIL.g2o": "3.170e1",
+    "se-sync/intel.g2o": "5.235e1",
+}
 
 
 def _candidates() -> list[Path]:

@@ -23,17 +23,19 @@ O(n log depth) vectorized work, so a 100 000-pose chain takes milliseconds.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse import csgraph
 
-from .posegraph import GraphError, PoseGraph
+from .errors import GraphError, OptionError
+from .posegraph import PoseGraph, rot2
 
 __all__ = [
-    "incidence_matrix", "reduced_incidence", "connected_components", "check_connected",
-    "SpanningTree", "spanning_tree", "SPANNING_TREES", "cycle_basis", "cyclomatic_number",
+    "incidence_matrix", "reduced_incidence", "free_poses", "connected_components", "check_connected",
+    "SpanningTree", "spanning_tree", "SPANNING_TREES", "minimum_spanning_edges", "cycle_basis", "cyclomatic_number",
+    "subgraph", "LeafPruning", "prune_leaves", "accumulate_to_root",
 ]
 
 log = logging.getLogger(__name__)
@@ -52,20 +54,25 @@ def incidence_matrix(graph: PoseGraph) -> sp.csr_matrix:
     return sp.csr_matrix((vals, (rows, cols)), shape=(graph.n_poses, m))
 
 
-def reduced_incidence(graph: PoseGraph, anchor: int = 0) -> sp.csr_matrix:
+def reduced_incidence(graph: PoseGraph, anchor=None) -> sp.csr_matrix:
     """Reduced incidence matrix A2 of eq. (7): A without the anchor's row, shape (n_poses−1, m).
 
-    Row r of A2 belongs to pose ``free_poses(n_poses, anchor)[r]``."""
-    A = incidence_matrix(graph)
-    keep = free_poses(graph.n_poses, anchor)
-    return A[keep]
+    ``anchor`` is a pose id (default the smallest). Row r of A2 belongs to pose
+    ``free_poses(n_poses, graph.anchor_index(anchor))[r]``."""
+    return _reduced_incidence(graph, graph.anchor_index(anchor))
 
 
-def free_poses(n_poses: int, anchor: int) -> np.ndarray:
-    """Indices of the non-anchor poses, in increasing order — the row order of A2, shape (n_poses−1,)."""
-    if not 0 <= anchor < n_poses:
-        raise GraphError(f"anchor index {anchor} is outside 0..{n_poses - 1}")
-    return np.delete(np.arange(n_poses), anchor)
+def _reduced_incidence(graph: PoseGraph, a: int) -> sp.csr_matrix:
+    """A2 with the row of the pose of *index* ``a`` deleted."""
+    return incidence_matrix(graph)[free_poses(graph.n_poses, a)]
+
+
+def free_poses(n_poses: int, anchor_index: int) -> np.ndarray:
+    """Indices of the non-anchor poses, in increasing order — the row order of A2, shape (n_poses−1,).
+    ``anchor_index`` is an index (0 … n_poses−1), not an id."""
+    if not 0 <= anchor_index < n_poses:
+        raise GraphError(f"anchor index {anchor_index} is outside 0..{n_poses - 1}")
+    return np.delete(np.arange(n_poses), anchor_index)
 
 
 # ------------------------------------------------------------------------- connectivity
@@ -139,7 +146,7 @@ class SpanningTree:
         nonroot = self.parent >= 0
         e = self.parent_edge[nonroot]
         step[nonroot] = np.where(self.forward[nonroot], d[e], -d[e])
-        return _accumulate_to_root(self.parent, step)
+        return accumulate_to_root(self.parent, step)
 
     def path_sums(self, graph: PoseGraph, values=None) -> np.ndarray:
         """For every edge k: (integral to head − integral to tail) along the tree, shape (m,).
@@ -150,7 +157,7 @@ class SpanningTree:
         return pot[graph.heads] - pot[graph.tails]
 
 
-def _accumulate_to_root(parent: np.ndarray, step: np.ndarray) -> np.ndarray:
+def accumulate_to_root(parent: np.ndarray, step: np.ndarray) -> np.ndarray:
     """Sum of ``step`` over the path from every node up to (excluding) the root, by pointer jumping.
 
     ``parent`` (n,) with −1 at the root. After t rounds, acc[v] holds the sum over the 2ᵗ nearest
@@ -169,7 +176,7 @@ def _accumulate_to_root(parent: np.ndarray, step: np.ndarray) -> np.ndarray:
 
 
 def _depth(parent: np.ndarray) -> np.ndarray:
-    return _accumulate_to_root(parent, np.where(parent < 0, 0.0, 1.0)).astype(np.int64)
+    return accumulate_to_root(parent, np.where(parent < 0, 0.0, 1.0)).astype(np.int64)
 
 
 def _pair_keys(graph: PoseGraph, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -177,16 +184,32 @@ def _pair_keys(graph: PoseGraph, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return lo.astype(np.int64) * graph.n_poses + hi
 
 
-def _best_edge_per_pair(graph: PoseGraph, candidates: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Among parallel edges, keep for every unordered pose pair the most informative one about δ
-    (smallest marginal variance of δ, ties to the lowest index). Returns (sorted keys, edge index)."""
-    var = graph.covariance[candidates, 2, 2]
+def _best_edge_per_pair(graph: PoseGraph, candidates: np.ndarray, weight: np.ndarray | None = None
+                        ) -> tuple[np.ndarray, np.ndarray]:
+    """Among parallel edges, keep for every unordered pose pair the one of smallest ``weight`` (m,)
+    (default: the marginal variance of δ, i.e. the most informative about the orientation; ties to the
+    lowest index). Returns (sorted keys, edge index)."""
+    w = graph.covariance[candidates, 2, 2] if weight is None else np.asarray(weight, dtype=float)[candidates]
     keys = _pair_keys(graph, graph.tails[candidates], graph.heads[candidates])
-    order = np.lexsort((candidates, var, keys))
+    order = np.lexsort((candidates, w, keys))
     keys_sorted = keys[order]
     first = np.ones(order.size, bool)
     first[1:] = keys_sorted[1:] != keys_sorted[:-1]
     return keys_sorted[first], candidates[order[first]]
+
+
+def minimum_spanning_edges(graph: PoseGraph, weight: np.ndarray | None = None) -> np.ndarray:
+    """Edge indices (n_poses−1,) of a minimum spanning tree for the edge ``weight`` (m,) (default: the
+    marginal variance of δ); among parallel edges the lightest. Vectorized (``scipy.sparse.csgraph``)."""
+    n = graph.n_poses
+    keys, best = _best_edge_per_pair(graph, np.arange(graph.n_edges), weight)
+    w = graph.covariance[best, 2, 2] if weight is None else np.asarray(weight, dtype=float)[best]
+    # csgraph treats explicit zeros as missing edges: a monotone map to [1, 2] keeps the tree and the zeros
+    top = float(w.max()) if w.size else 0.0
+    w = (w / top if top > 0 else np.zeros_like(w)) + 1.0
+    W = sp.csr_matrix((w, (graph.tails[best], graph.heads[best])), shape=(n, n))
+    T = csgraph.minimum_spanning_tree(W + W.T).tocoo()
+    return best[np.searchsorted(keys, _pair_keys(graph, T.row, T.col))]
 
 
 def _tree_from_parent(graph: PoseGraph, root: int, parent: np.ndarray, kind: str) -> SpanningTree:
@@ -216,8 +239,9 @@ def _parent_from_edges(graph: PoseGraph, root: int, edges: np.ndarray) -> np.nda
     return parent
 
 
-def spanning_tree(graph: PoseGraph, kind="bfs", *, anchor: int = 0) -> SpanningTree:
-    """Spanning tree of a connected graph, rooted at the anchor (pose index).
+def spanning_tree(graph: PoseGraph, kind="bfs", *, anchor=None) -> SpanningTree:
+    """Spanning tree of a connected graph, rooted at the anchor (a pose id, default the smallest;
+    ``SpanningTree.root`` is its index).
 
     ``kind``:
       * ``"bfs"`` (default) — shortest-depth tree: breadth-first from the anchor, so every pose is
@@ -231,10 +255,9 @@ def spanning_tree(graph: PoseGraph, kind="bfs", *, anchor: int = 0) -> SpanningT
       * an array of edge indices (or a boolean mask over edges) — a user-given tree; checked.
     Among parallel edges the one with the smallest variance of δ is used.
     """
+    anchor = graph.anchor_index(anchor)  # from here on an index
     check_connected(graph)
     n = graph.n_poses
-    if not 0 <= anchor < n:
-        raise GraphError(f"anchor index {anchor} is outside 0..{n - 1}")
     if n == 1:
         return SpanningTree(anchor, np.zeros(0, np.int64), np.arange(graph.n_edges), np.array([-1]),
                             np.array([-1]), np.zeros(1, bool), np.zeros(1, np.int64), str(kind))
@@ -259,23 +282,16 @@ def spanning_tree(graph: PoseGraph, kind="bfs", *, anchor: int = 0) -> SpanningT
                 raise GraphError(
                     f"the odometric chain is broken: no edge between poses {ids[first]} and {ids[first] + 1}"
                     f" ({n - 1 - keys.size} of {n - 1} consecutive links missing); "
-                    "use spanning_tree='bfs' or 'mst'")
+                    "use the bfs or mst spanning tree")
             return _tree_from_parent(graph, anchor, _parent_from_edges(graph, anchor, best), "odometry")
         if kind == "mst":
-            keys, best = _best_edge_per_pair(graph, np.arange(graph.n_edges))
-            w = graph.covariance[best, 2, 2]
-            # csgraph treats explicit zeros as missing edges: shift weights to be strictly positive.
-            w = w / w.max() + 1.0
-            W = sp.csr_matrix((w, (graph.tails[best], graph.heads[best])), shape=(n, n))
-            T = csgraph.minimum_spanning_tree(W + W.T).tocoo()
-            pairs = _pair_keys(graph, T.row, T.col)
-            edges = best[np.searchsorted(keys, pairs)]
+            edges = minimum_spanning_edges(graph)
             return _tree_from_parent(graph, anchor, _parent_from_edges(graph, anchor, edges), "mst")
-        raise ValueError(f"unknown spanning tree {kind!r}; expected one of {SPANNING_TREES} or edge indices")
+        raise OptionError(f"unknown spanning tree {kind!r}; expected one of {SPANNING_TREES} or edge indices")
     edges = np.asarray(kind)
     if edges.dtype == bool:
         if edges.shape != (graph.n_edges,):
-            raise ValueError(f"a boolean tree mask must have shape ({graph.n_edges},)")
+            raise OptionError(f"a boolean tree mask must have shape ({graph.n_edges},)")
         edges = np.flatnonzero(edges)
     edges = np.unique(edges.astype(np.int64))
     if edges.size != n - 1 or edges.min() < 0 or edges.max() >= graph.n_edges:
@@ -312,7 +328,7 @@ def cycle_basis(graph: PoseGraph, tree: SpanningTree) -> sp.csr_matrix:
     fundamental cycles, which can be large (≈ l × n for an odometric tree on a long trajectory); LAGO
     itself never forms C (regularization uses ``SpanningTree.path_sums``), this is for inspection
     and checks."""
-    A2 = reduced_incidence(graph, tree.root).tocsc()
+    A2 = _reduced_incidence(graph, tree.root).tocsc()
     A2_T = A2[:, tree.tree_edges]
     A2_C = A2[:, tree.chords]
     if tree.n_chords == 0:
@@ -338,3 +354,87 @@ def cycle_basis(graph: PoseGraph, tree: SpanningTree) -> sp.csr_matrix:
     C = sp.csr_matrix((vals, (rows, cols)), shape=(l, m))
     C.eliminate_zeros()
     return C
+
+
+# --------------------------------------------------------------------------- subgraphs
+def subgraph(graph: PoseGraph, n_first: int) -> PoseGraph:
+    """The subgraph induced by the first ``n_first`` poses (indices 0 … n_first−1): those poses and the
+    edges between them; ids and initial guess are cut to match. The result may be disconnected if the
+    file's odometry chain is broken."""
+    n_first = int(n_first)
+    if not 1 <= n_first <= graph.n_poses:
+        raise OptionError(f"n_first must lie in 1..{graph.n_poses}, got {n_first}")
+    inner = (graph.tails < n_first) & (graph.heads < n_first)
+    g = graph.subgraph_edges(inner)
+    initial = None if graph.initial is None else graph.initial[:n_first]
+    name = f"{graph.name}[:{n_first}]" if graph.name else f"[:{n_first}]"
+    return replace(g, n_poses=n_first, ids=graph.ids[:n_first], initial=initial, name=name)
+
+
+@dataclass(eq=False)
+class LeafPruning:
+    """The 2-core of a pose graph (``prune_leaves``): ``core`` the core graph, ``index`` (n_core,) the
+    original indices of its poses, ``rounds`` the peeled (leaf, edge, leaf_is_head) arrays, outermost
+    last; ``extend(core_poses)`` rebuilds all n poses with zero residual on every peeled edge."""
+
+    graph: PoseGraph
+    core: PoseGraph
+    index: np.ndarray
+    rounds: list
+
+    @property
+    def n_removed(self) -> int:
+        return self.graph.n_poses - self.core.n_poses
+
+    def extend(self, core_poses) -> np.ndarray:
+        """Poses (n, 3) of the whole graph from ``core_poses`` (n_core, 3): each peeled leaf ℓ is put
+        where its one edge says — head ℓ of i → ℓ: θ_ℓ = θ_i + δ, t_ℓ = t_i + R_i t̃; tail ℓ of ℓ → i:
+        θ_ℓ = θ_i − δ, t_ℓ = t_i − R_ℓ t̃ — processing the rounds innermost first (vectorized per round)."""
+        g = self.graph
+        out = np.zeros((g.n_poses, 3))
+        out[self.index] = np.asarray(core_poses, dtype=float)
+        for leaf, edge, is_head in reversed(self.rounds):
+            other = np.where(is_head, g.tails[edge], g.heads[edge])
+            theta = out[other, 2] + np.where(is_head, g.delta[edge], -g.delta[edge])
+            Rt = np.einsum("kab,kb->ka", rot2(np.where(is_head, out[other, 2], theta)), g.delta_l[edge])
+            out[leaf, 2] = theta
+            out[leaf, :2] = out[other, :2] + np.where(is_head[:, None], Rt, -Rt)
+        return out
+
+
+def prune_leaves(graph: PoseGraph, *, anchor=None) -> LeafPruning:
+    """Remove degree-1 poses (one edge) repeatedly, never the anchor (id, default the smallest), down to
+    the 2-core. One vectorized pass per peeling round. Used by the SDP relaxation, where it is exact
+    (``lago_cvx.certification.sdp``): a leaf can always be placed with zero residual on its one edge."""
+    a = graph.anchor_index(anchor)
+    n, m = graph.n_poses, graph.n_edges
+    alive_pose = np.ones(n, bool)
+    alive_edge = np.ones(m, bool)
+    rounds = []
+    while True:
+        t, h = graph.tails[alive_edge], graph.heads[alive_edge]
+        deg = np.bincount(t, minlength=n) + np.bincount(h, minlength=n)
+        is_leaf = (deg == 1) & alive_pose
+        is_leaf[a] = False
+        if not is_leaf.any():
+            break
+        edges = np.flatnonzero(alive_edge)
+        head_leaf = is_leaf[graph.heads[edges]]
+        tail_leaf = is_leaf[graph.tails[edges]] & ~head_leaf  # an edge with two leaves: peel its head only
+        sel = head_leaf | tail_leaf
+        edge = edges[sel]
+        is_head = head_leaf[sel]
+        leaf = np.where(is_head, graph.heads[edge], graph.tails[edge])
+        alive_pose[leaf] = False
+        alive_edge[edge] = False
+        rounds.append((leaf, edge, is_head))
+    index = np.flatnonzero(alive_pose)
+    if index.size == n:
+        return LeafPruning(graph=graph, core=graph, index=index, rounds=[])
+    relabel = np.full(n, -1, dtype=np.int64)
+    relabel[index] = np.arange(index.size)
+    g = graph.subgraph_edges(alive_edge)
+    core = replace(g, n_poses=index.size, tails=relabel[g.tails], heads=relabel[g.heads], ids=graph.ids[index],
+                   initial=None if graph.initial is None else graph.initial[index],
+                   name=f"{graph.name} (2-core)")
+    return LeafPruning(graph=graph, core=core, index=index, rounds=rounds)

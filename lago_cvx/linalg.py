@@ -25,9 +25,9 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .posegraph import GraphError
+from .errors import NumericalError, OptionError
 
-__all__ = ["Factor", "factorize", "solve_least_squares", "REFINEMENT_STEPS", "TRUST_TOLERANCE", "NumericalError", "whitening_2x2", "block_diagonal_inverse", "SOLVER_BACKENDS"]
+__all__ = ["Factor", "factorize", "solve_least_squares", "REFINEMENT_STEPS", "TRUST_TOLERANCE", "whitening_2x2", "block_diagonal_inverse", "SOLVER_BACKENDS"]
 
 log = logging.getLogger(__name__)
 
@@ -64,7 +64,7 @@ def factorize(N: sp.spmatrix, *, backend: str = "auto") -> Factor:
     ``backend``: ``"auto"`` (QDLDL if importable, else SuperLU), ``"qdldl"``,
     ``"superlu"``, ``"cholmod"`` (raises ImportError naming the extra if missing)."""
     if backend not in SOLVER_BACKENDS:
-        raise ValueError(f"unknown backend {backend!r}; expected one of {SOLVER_BACKENDS}")
+        raise OptionError(f"unknown backend {backend!r}; expected one of {SOLVER_BACKENDS}")
     N = sp.csc_matrix(N)
     d = N.shape[0]
     if backend == "cholmod":
@@ -95,10 +95,6 @@ REFINEMENT_STEPS = 5
 #: After refinement, a last correction larger than this (relative to ‖x‖∞) means the normal equations
 #: are too ill-conditioned to trust: the augmented system is solved instead.
 TRUST_TOLERANCE = 1e-8
-
-
-class NumericalError(GraphError):
-    """The least-squares system is numerically singular (e.g. information spanning > 1e16)."""
 
 
 def _augmented_solve(M: sp.csc_matrix, b: np.ndarray) -> np.ndarray:

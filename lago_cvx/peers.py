@@ -27,6 +27,7 @@ import time
 
 import numpy as np
 
+from .errors import MissingSolverError
 from .posegraph import PoseGraph
 
 __all__ = ["have_gtsam", "gtsam_factor_graph", "gtsam_lago"]
@@ -47,14 +48,15 @@ def _gtsam():
     try:
         import gtsam
     except ImportError as exc:
-        raise ImportError("GTSAM comparisons need the optional extra: pip install 'lago-cvx[gtsam]'") from exc
+        raise MissingSolverError("GTSAM comparisons need the optional extra: pip install 'lago-cvx[gtsam]'") from exc
     return gtsam
 
 
-def gtsam_factor_graph(graph: PoseGraph, *, anchor: int = 0):
+def gtsam_factor_graph(graph: PoseGraph, *, anchor=None):
     """GTSAM ``NonlinearFactorGraph`` of ``graph`` with diagonal noise models (marginal sigmas) and a
-    prior on the anchor index. Keys are pose indices."""
+    prior on the anchor (a pose id, default the smallest). Keys are pose indices."""
     gtsam = _gtsam()
+    a = graph.anchor_index(anchor)
     cov = graph.covariance
     sig = np.sqrt(np.stack([cov[:, 0, 0], cov[:, 1, 1], cov[:, 2, 2]], axis=1))
     fg = gtsam.NonlinearFactorGraph()
@@ -63,12 +65,12 @@ def gtsam_factor_graph(graph: PoseGraph, *, anchor: int = 0):
                                         gtsam.Pose2(float(graph.delta_l[k, 0]), float(graph.delta_l[k, 1]),
                                                     float(graph.delta[k])),
                                         gtsam.noiseModel.Diagonal.Sigmas(sig[k])))
-    fg.add(gtsam.PriorFactorPose2(int(anchor), gtsam.Pose2(),
+    fg.add(gtsam.PriorFactorPose2(a, gtsam.Pose2(),
                                   gtsam.noiseModel.Diagonal.Variances(np.array(GTSAM_PRIOR_VARIANCES))))
     return fg
 
 
-def gtsam_lago(graph: PoseGraph, *, odometric_path: bool = True, anchor: int = 0, repeat: int = 1,
+def gtsam_lago(graph: PoseGraph, *, odometric_path: bool = True, anchor=None, repeat: int = 1,
                factor_graph=None) -> tuple[np.ndarray, float]:
     """Run ``gtsam.lago.initialize`` ``repeat`` times; return (poses (n, 3), median seconds)."""
     gtsam = _gtsam()

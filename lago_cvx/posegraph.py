@@ -23,13 +23,9 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-__all__ = ["PoseGraph", "GraphError", "wrap_angle", "rot2", "compose", "between"]
+from .errors import GraphError, OptionError
 
-
-class GraphError(ValueError):
-    """A graph that is well-formed as data but unusable for the requested operation
-
-    (disconnected, broken odometric chain, invalid anchor, ...). The message says what and where."""
+__all__ = ["PoseGraph", "wrap_angle", "rot2", "compose", "between", "is_spd"]
 
 
 def wrap_angle(a):
@@ -93,15 +89,15 @@ class PoseGraph:
     def __post_init__(self):
         n = int(self.n_poses)
         if n < 1:
-            raise ValueError(f"a pose graph needs at least one pose, got n_poses={n}")
+            raise GraphError(f"a pose graph needs at least one pose, got n_poses={n}")
         object.__setattr__(self, "n_poses", n)
         tails = np.asarray(self.tails)
         heads = np.asarray(self.heads)
         if tails.ndim != 1 or heads.shape != tails.shape:
-            raise ValueError(f"tails and heads must be 1-D of equal length, got {tails.shape} and {heads.shape}")
+            raise GraphError(f"tails and heads must be 1-D of equal length, got {tails.shape} and {heads.shape}")
         m = tails.shape[0]
         if m and not (np.issubdtype(tails.dtype, np.integer) and np.issubdtype(heads.dtype, np.integer)):
-            raise ValueError("tails and heads must be integer pose indices")
+            raise GraphError("tails and heads must be integer pose indices")
         tails = tails.astype(np.int64)
         heads = heads.astype(np.int64)
         delta_l = np.asarray(self.delta_l, dtype=float).reshape(m, 2)
@@ -109,30 +105,30 @@ class PoseGraph:
         info = np.asarray(self.information, dtype=float).reshape(m, 3, 3)
         if m:
             if tails.min() < 0 or heads.min() < 0 or tails.max() >= n or heads.max() >= n:
-                raise ValueError(f"edge endpoints must lie in 0..{n - 1}")
+                raise GraphError(f"edge endpoints must lie in 0..{n - 1}")
             loops = np.flatnonzero(tails == heads)
             if loops.size:
-                raise ValueError(f"self-loop edge(s) at index {loops[:5].tolist()}: an edge must join two different poses")
+                raise GraphError(f"self-loop edge(s) at index {loops[:5].tolist()}: an edge must join two different poses")
         bad = ~(np.isfinite(delta_l).all(1) & np.isfinite(delta) & np.isfinite(info).all((1, 2)))
         if bad.any():
-            raise ValueError(f"non-finite measurement or information in edge(s) {np.flatnonzero(bad)[:5].tolist()}")
+            raise GraphError(f"non-finite measurement or information in edge(s) {np.flatnonzero(bad)[:5].tolist()}")
         bad = np.flatnonzero(~is_spd(info))
         if bad.size:
-            raise ValueError(
+            raise GraphError(
                 f"information matrix of edge(s) {bad[:5].tolist()} is not symmetric positive definite")
         initial = self.initial
         if initial is not None:
             initial = np.asarray(initial, dtype=float)
             if initial.shape != (n, 3):
-                raise ValueError(f"initial poses must have shape ({n}, 3), got {initial.shape}")
+                raise GraphError(f"initial poses must have shape ({n}, 3), got {initial.shape}")
             if not np.isfinite(initial).all():
-                raise ValueError("initial poses must be finite")
+                raise GraphError("initial poses must be finite")
             initial = _readonly(initial)
         ids = np.arange(n, dtype=np.int64) if self.ids is None else np.asarray(self.ids, dtype=np.int64)
         if ids.shape != (n,):
-            raise ValueError(f"ids must have shape ({n},), got {ids.shape}")
+            raise GraphError(f"ids must have shape ({n},), got {ids.shape}")
         if np.unique(ids).size != n:
-            raise ValueError("pose ids must be unique")
+            raise GraphError("pose ids must be unique")
         for name, val in [("tails", tails), ("heads", heads), ("delta_l", delta_l), ("delta", delta),
                           ("information", info), ("ids", ids)]:
             object.__setattr__(self, name, _readonly(val))
@@ -168,6 +164,23 @@ class PoseGraph:
         if hit.size == 0:
             raise GraphError(f"no pose with id {pose_id} (ids range {self.ids.min()}..{self.ids.max()})")
         return int(hit[0])
+
+    def anchor_index(self, anchor=None) -> int:
+        """Index of the anchor pose. Everywhere in lago_cvx an anchor is given as a pose **id** (as in
+        the file); ``None`` means the smallest id. Raises ``GraphError`` for an id the graph lacks."""
+        if anchor is None:
+            return int(np.argmin(self.ids))
+        return self.index_of(anchor)
+
+    def check_poses(self, poses) -> np.ndarray:
+        """``poses`` as a new float array of shape (n, 3); ``OptionError`` (a ValueError) if the shape is
+        wrong or a value is not finite."""
+        poses = np.array(poses, dtype=float)
+        if poses.shape != (self.n_poses, 3):
+            raise OptionError(f"poses must have shape ({self.n_poses}, 3), got {poses.shape}")
+        if not np.isfinite(poses).all():
+            raise OptionError("poses must be finite")
+        return poses
 
     # ------------------------------------------------------------ covariances
     @property

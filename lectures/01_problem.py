@@ -23,35 +23,24 @@
 # %%
 import time
 
-import matplotlib
-
-matplotlib.use("Agg")
-from pathlib import Path
 
 import matplotlib.pyplot as plt
 import numpy as np
 import scipy.sparse.linalg as spla
 from scipy.stats import multivariate_normal
 
+from _lecture import figure_saver
 import lago_cvx as lc
 from lago_cvx import plotting
 from lago_cvx.datasets import DatasetNotFound, dataset
 from lago_cvx.phases import design_matrix
 from lago_cvx.posegraph import between, compose, rot2, wrap_angle
-from lago_cvx.refine import jacobian, odometry_guess, refine, whitened_residuals
+from lago_cvx.refinement import jacobian, odometry_guess, refine, whitened_residuals
 from lago_cvx.synthetic import add_noise
 
+save = figure_saver("01_problem")
+
 T_START = time.perf_counter()
-FIG = Path("../figures")
-FIG.mkdir(exist_ok=True)
-
-
-def save(fig, name):
-    """Write ../figures/01_problem_<name>.png and .svg."""
-    for ext in ("png", "svg"):
-        fig.savefig(FIG / f"01_problem_{name}.{ext}", dpi=120, bbox_inches="tight")
-    print("figure written:", [str(FIG / f"01_problem_{name}.{ext}") for ext in ("png", "svg")])
-
 
 # %% [markdown]
 # ## 1. Pose compounding, eq. (1)

@@ -21,10 +21,6 @@
 # %%
 import time
 
-import matplotlib
-
-matplotlib.use("Agg")
-from pathlib import Path
 
 import matplotlib.pyplot as plt
 import numpy as np
@@ -32,25 +28,21 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.sparse import csgraph
 
+from _lecture import figure_saver
 import lago_cvx as lc
 from lago_cvx import phases as P
 from lago_cvx.datasets import DatasetNotFound, dataset
+from lago_cvx.solvers import solve
+from lago_cvx.uncertainty import edge_uncertainty
 from lago_cvx.graph import check_connected, connected_components, spanning_tree
-from lago_cvx.lago import relative_difference
-from lago_cvx.posegraph import GraphError, wrap_angle
+from lago_cvx.metrics import relative_difference
+from lago_cvx.errors import GraphError
+from lago_cvx.posegraph import wrap_angle
 from lago_cvx.regularization import regularize
 
+save = figure_saver("02_phase1")
+
 T_START = time.perf_counter()
-FIG = Path("../figures")
-FIG.mkdir(exist_ok=True)
-
-
-def save(fig, name):
-    """Write ../figures/02_phase1_<name>.png and .svg."""
-    for ext in ("png", "svg"):
-        fig.savefig(FIG / f"02_phase1_{name}.{ext}", dpi=120, bbox_inches="tight")
-    print("figure written:", [str(FIG / f"02_phase1_{name}.{ext}") for ext in ("png", "svg")])
-
 
 try:
     INTEL = lc.read_graph(dataset("carlone/INTEL_P_toro.graph"))
@@ -90,7 +82,7 @@ w0 = lc.circle_world(60, laps=3, seed=0, sigma_xy=0.0, sigma_theta=0.0)
 g0 = w0.graph
 tree0 = spanning_tree(g0, "odometry")
 reg0 = regularize(g0, tree0)
-unc0 = P.edge_uncertainty(g0)
+unc0 = edge_uncertainty(g0)
 ph0 = P.phase1_closed_form(g0, reg0.delta_reg, unc0)
 A2_0 = lc.reduced_incidence(g0).toarray()
 th_rel = w0.truth[:, 2] - w0.truth[0, 2]
@@ -110,7 +102,7 @@ assert np.abs(ph0.theta - th_rel).max() < 1e-9
 w1 = lc.circle_world(300, laps=4, seed=1, sigma_xy=0.05, sigma_theta=0.02)
 g1 = w1.graph
 reg1 = regularize(g1, spanning_tree(g1, "bfs"))
-unc1 = P.edge_uncertainty(g1)
+unc1 = edge_uncertainty(g1)
 A1 = lc.incidence_matrix(g1)
 th_true = w1.truth[:, 2] - w1.truth[0, 2]
 th_star = th_true + 2 * np.pi * np.rint((reg1.theta_tree - th_true) / (2 * np.pi))   # lifted truth
@@ -217,7 +209,7 @@ prob_tiny, theta_var = P.phase1_problem(tiny, res_tiny.regularization.delta_reg,
 print("cvxpy problem of phase 1 (6 poses, 9 edges; theta has", theta_var.shape[0], "entries):")
 print(prob_tiny)
 print("\nclosed form θ̂ =", np.round(res_tiny.phase1.theta_free, 6))
-P.solve_problem(prob_tiny)
+solve(prob_tiny)
 print("cvxpy       θ̂ =", np.round(theta_var.value, 6))
 
 
@@ -386,7 +378,7 @@ def graph_with(delta):
 
 g_base = graph_with(wrap_angle(d_true))
 tree_mc = spanning_tree(g_base, "bfs")
-unc_mc = P.edge_uncertainty(g_base)
+unc_mc = edge_uncertainty(g_base)
 ph_base = P.phase1_closed_form(g_base, regularize(g_base, tree_mc).delta_reg, unc_mc)
 theta_star = ph_base.theta_free                                   # noiseless phase 1 = lifted truth
 assert np.abs(wrap_angle(ph_base.theta - (truth[:, 2] - truth[0, 2]))).max() < 1e-9

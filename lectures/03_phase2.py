@@ -22,36 +22,26 @@
 # %%
 import time
 
-import matplotlib
-
-matplotlib.use("Agg")
-from pathlib import Path
 
 import matplotlib.pyplot as plt
 import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
+from _lecture import figure_saver
 import lago_cvx as lc
 from lago_cvx import phases as P
 from lago_cvx import plotting
 from lago_cvx.datasets import DatasetNotFound, dataset
-from lago_cvx.graph import free_poses, spanning_tree
+from lago_cvx.uncertainty import edge_uncertainty
+from lago_cvx.graph import spanning_tree
 from lago_cvx.posegraph import between, rot2, wrap_angle
 from lago_cvx.regularization import regularize
 
+save = figure_saver("03_phase2")
+
 T_START = time.perf_counter()
-FIG = Path("../figures")
-FIG.mkdir(exist_ok=True)
 S = np.array([[0.0, -1.0], [1.0, 0.0]])
-
-
-def save(fig, name):
-    """Write ../figures/03_phase2_<name>.png and .svg."""
-    for ext in ("png", "svg"):
-        fig.savefig(FIG / f"03_phase2_{name}.{ext}", dpi=120, bbox_inches="tight")
-    print("figure written:", [str(FIG / f"03_phase2_{name}.{ext}") for ext in ("png", "svg")])
-
 
 # %% [markdown]
 # ## 1. Eqs. (9)–(11): $z$ and its Jacobian
@@ -323,7 +313,7 @@ def graph_at(meas, sxy, sth):
 def monte_carlo(sxy, sth):
     g_true = graph_at(true_rel, sxy, sth)
     tree = spanning_tree(g_true, "bfs")
-    unc = P.edge_uncertainty(g_true)
+    unc = edge_uncertainty(g_true)
     ph1_t = P.phase1_closed_form(g_true, regularize(g_true, tree).delta_reg, unc)
     ph2_t = P.phase2(g_true, ph1_t.theta, unc)
     Pz = ph2_t.covariance_z()

@@ -31,40 +31,27 @@ _t_start = time.perf_counter()
 
 import logging
 from dataclasses import replace
-from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from _lecture import figure_saver, real
 import lago_cvx as lc
 from lago_cvx import phases as P
-from lago_cvx.datasets import DatasetNotFound, dataset
+from lago_cvx.uncertainty import edge_uncertainty
 from lago_cvx.graph import reduced_incidence
-from lago_cvx.lago import relative_difference
+from lago_cvx.metrics import relative_difference
 from lago_cvx.plotting import plot_covariances, plot_trajectory
 from lago_cvx.posegraph import rot2
 
+save = figure_saver("04_phase3")
+
 logging.getLogger("lago_cvx").setLevel(logging.ERROR)  # keep regularization warnings out of the output
-FIG = Path("../figures")
-FIG.mkdir(exist_ok=True)
 S = np.array([[0.0, -1.0], [1.0, 0.0]])
 np.set_printoptions(precision=4, suppress=True, linewidth=110)
-
-
-def real(rel):
-    """Read a real benchmark graph, or return None (and say so) when the datasets are absent."""
-    try:
-        return lc.read_graph(dataset(rel))
-    except DatasetNotFound as exc:
-        print(f"real datasets not found: skipping the {rel} check ({exc})")
-        return None
-
 
 # Small graphs used for the dense checks (fixed seeds). θ of random_graph spans ±3π, so the 2kπ
 # regularization is exercised; "full" gives every edge a 3×3 information with x–θ / y–θ cross terms.
@@ -513,10 +500,8 @@ ax.set_title(f"LAGO on a Manhattan world ({wm.graph.n_poses} poses, {wm.graph.n_
              "with 3σ ellipses of the phase-3 marginal covariances")
 ax.legend(loc="best", fontsize=8)
 fig.tight_layout()
-for ext in ("png", "svg"):
-    fig.savefig(FIG / f"04_phase3_covariances.{ext}", dpi=130)
+save(fig, "covariances")
 plt.close(fig)
-print("wrote ../figures/04_phase3_covariances.png and .svg")
 
 e_pos = rm.poses[1:, :2] - wm.truth[1:, :2]
 maha = np.einsum("ka,kab,kb->k", e_pos, np.linalg.inv(cov_m[1:, :2, :2]), e_pos)
@@ -606,7 +591,7 @@ for name in ["random 25/45 full info (seed 1)", "random 25/45 full info (seed 2)
     for label, gg in (("marginal", g), ("dropped", drop_cross_terms(g))):
         ph1 = lc.lago(gg).phase1
         reported = np.linalg.inv(ph1.info.toarray())
-        Pw = np.diag(1.0 / P.edge_uncertainty(gg).var_delta)       # the weights that reduction uses
+        Pw = np.diag(1.0 / edge_uncertainty(gg).var_delta)       # the weights that reduction uses
         K = np.linalg.solve(A2 @ Pw @ A2.T, A2 @ Pw)
         true = K @ np.diag(var_true) @ K.T
         e = np.abs(reported - true).max() / np.abs(true).max()

@@ -29,38 +29,24 @@ import time
 _t_start = time.perf_counter()
 
 import logging
-from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
+from _lecture import figure_saver, real
 import lago_cvx as lc
 from lago_cvx import phases as P
-from lago_cvx.datasets import DatasetNotFound, dataset
-from lago_cvx.graph import (cycle_basis, cyclomatic_number, incidence_matrix, reduced_incidence,
-                            spanning_tree)
+from lago_cvx.uncertainty import edge_uncertainty
+from lago_cvx.graph import (cycle_basis, cyclomatic_number, incidence_matrix, spanning_tree)
 from lago_cvx.plotting import plot_trajectory
 from lago_cvx.posegraph import PoseGraph
 from lago_cvx.regularization import regularize
 
+save = figure_saver("05_regularization")
+
 logging.getLogger("lago_cvx").setLevel(logging.ERROR)  # ambiguity warnings are counted, not logged, here
-FIG = Path("../figures")
-FIG.mkdir(exist_ok=True)
 TWO_PI = 2.0 * np.pi
 np.set_printoptions(linewidth=120)
-
-
-def real(rel):
-    """Read a real benchmark graph, or return None (and say so) when the datasets are absent."""
-    try:
-        return lc.read_graph(dataset(rel))
-    except DatasetNotFound as exc:
-        print(f"real datasets not found: skipping the {rel} check ({exc})")
-        return None
-
 
 # %% [markdown]
 # ## 1. Cycles, circuits and the fundamental cycle basis
@@ -335,10 +321,8 @@ for ax in axes:
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=9)
 fig.tight_layout()
-for ext in ("png", "svg"):
-    fig.savefig(FIG / f"05_regularization_noise_sweep.{ext}", dpi=130)
+save(fig, "noise_sweep")
 plt.close(fig)
-print("wrote ../figures/05_regularization_noise_sweep.png and .svg")
 
 # %% [markdown]
 # Below a threshold of $\sigma_\theta$ every $k$ is right for both trees; beyond it the odometric tree — whose
@@ -361,7 +345,7 @@ print("wrote ../figures/05_regularization_noise_sweep.png and .svg")
 # %%
 wc = lc.circle_world(120, laps=4, seed=0, sigma_xy=0.0, sigma_theta=0.0)
 gc = wc.graph
-unc = P.edge_uncertainty(gc)
+unc = edge_uncertainty(gc)
 ph1_raw = P.phase1_closed_form(gc, gc.delta, unc)
 ph3_raw = P.phase3_closed_form(gc, P.phase2(gc, ph1_raw.theta, unc))
 res_c = lc.lago(gc)
@@ -399,10 +383,8 @@ inset.tick_params(labelsize=7)
 inset.set_xlabel("x [m]", fontsize=7)
 inset.set_ylabel("y [m]", fontsize=7)
 fig.tight_layout()
-for ext in ("png", "svg"):
-    fig.savefig(FIG / f"05_regularization_wraparound.{ext}", dpi=130)
+save(fig, "wraparound")
 plt.close(fig)
-print("wrote ../figures/05_regularization_wraparound.png and .svg")
 
 # %% [markdown]
 # Without the correction phase 1 tries to satisfy "four turns of $2\pi$" and "zero turn" at once and
@@ -444,10 +426,8 @@ if m3500a is not None:
                      f"{out[kind].regularization.ambiguous.size} ambiguous chords, χ² = {out[kind].chi2:.0f} "
                      f"(min 912.1)")
     fig.tight_layout()
-    for ext in ("png", "svg"):
-        fig.savefig(FIG / f"05_regularization_m3500a.{ext}", dpi=130)
+    save(fig, "m3500a")
     plt.close(fig)
-    print("wrote ../figures/05_regularization_m3500a.png and .svg")
 else:
     print("real datasets not found: skipping the M3500a comparison (odometric tree: 58 ambiguous chords, "
           "χ² ≈ 15750.6; BFS tree: χ² ≈ 926.1, minimum 912.115) and its figure")

@@ -31,37 +31,26 @@
 import logging
 import time
 from dataclasses import replace
-from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
+from _lecture import figure_saver
 import lago_cvx as lc
 from lago_cvx import peers, plotting
-from lago_cvx.datasets import DatasetNotFound, dataset
+from lago_cvx.datasets import REFERENCE_CHI2, DatasetNotFound, dataset
 from lago_cvx.posegraph import wrap_angle
-from lago_cvx.refine import ate, odometry_guess, refine
+from lago_cvx.metrics import ate
+from lago_cvx.refinement import odometry_guess, refine
+
+save = figure_saver("06")
 
 T_START = time.perf_counter()
-FIG = Path("../figures")
-FIG.mkdir(exist_ok=True)
 
 # The regularization logs a warning for every ambiguous chord (cycle residual near ±π). On MIT and
 # M3500a with the odometric tree there are 4 and 58 of them; the tables below report their number,
 # so the log lines are silenced here.
 logging.getLogger("lago_cvx").setLevel(logging.ERROR)
-
-
-def save(fig, name):
-    """Write ../figures/06_<name>.png and .svg."""
-    paths = [FIG / f"06_{name}.{ext}" for ext in ("png", "svg")]
-    for p in paths:
-        fig.savefig(p, dpi=130, bbox_inches="tight")
-    print("figure written:", ", ".join(str(p) for p in paths))
-
 
 def show_markdown(text):
     """Render a Markdown table in Jupyter; print it as text elsewhere."""
@@ -113,18 +102,11 @@ INTEL = load(INTEL_REL)
 # file's initial guess; two of them are local minima.
 
 # %%
-# datasets README §4.2, column "χ² min (from chordal/SE-Sync point)"
-CHI2_MIN = {
-    "se-sync/MIT.g2o": 39.6013,
-    "carlone/FR079_P_toro.graph": 36.4248,
-    "carlone/CSAIL_P_toro.graph": 61.143,
-    "se-sync/intel.g2o": 44.4178,
-    "carlone/INTEL_P_toro.graph": 213.212,
-    "carlone/input_M3500_g2o.g2o": 137.913,
-    "carlone/input_M3500a_g2o.g2o": 912.115,
-    "carlone/M3500_P_toro.graph": 3533.46,
-    "se-sync/city10000.g2o": 511.985,
-}
+# datasets README §4.2, column "χ² min (from chordal/SE-Sync point)", as the package keeps it
+CHI2_MIN = {rel: REFERENCE_CHI2[rel] for rel in (
+    "se-sync/MIT.g2o", "carlone/FR079_P_toro.graph", "carlone/CSAIL_P_toro.graph", "se-sync/intel.g2o",
+    "carlone/INTEL_P_toro.graph", "carlone/input_M3500_g2o.g2o", "carlone/input_M3500a_g2o.g2o",
+    "carlone/M3500_P_toro.graph", "se-sync/city10000.g2o")}
 # datasets README §4.2, column "χ² reached by GN from file init", where it is a local minimum
 CHI2_GN_FROM_FILE_INIT_LOCAL = {"se-sync/MIT.g2o": 769.707, "carlone/input_M3500a_g2o.g2o": 6673.12}
 

@@ -31,36 +31,25 @@ import time
 _t_start = time.perf_counter()
 
 import logging
-from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
 import cvxpy as cp
 import matplotlib.pyplot as plt
 import numpy as np
 
+from _lecture import figure_saver
 import lago_cvx as lc
 from lago_cvx import variants as V
 from lago_cvx.datasets import DatasetNotFound, dataset
 from lago_cvx.graph import spanning_tree
-from lago_cvx.lago import relative_difference
+from lago_cvx.metrics import relative_difference
 from lago_cvx.plotting import plot_edges, plot_trajectory
-from lago_cvx.refine import ate, refine
+from lago_cvx.metrics import ate
+from lago_cvx.refinement import refine
+
+save = figure_saver("07_variants")
 
 logging.getLogger("lago_cvx").setLevel(logging.ERROR)  # warnings are shown explicitly below
-FIG = Path("../figures")
-FIG.mkdir(exist_ok=True)
 np.set_printoptions(linewidth=120, precision=4)
-
-
-def save(fig, name):
-    """Write ../figures/07_variants_<name>.png and .svg."""
-    for ext in ("png", "svg"):
-        fig.savefig(FIG / f"07_variants_{name}.{ext}", dpi=120, bbox_inches="tight")
-    plt.close(fig)
-    print("figure written:", [str(FIG / f"07_variants_{name}.{ext}") for ext in ("png", "svg")])
-
 
 # %% [markdown]
 # ## 1. Anchors: known coordinates
@@ -252,12 +241,12 @@ save(fig, "constraints")
 # `(problem, x, anchor_constraint)` for a phase's weighted system; add any cvxpy constraint and solve.
 
 # %%
-from lago_cvx.phases import solve_problem
+from lago_cvx.solvers import solve
 
 problem, x, anchor_c = V.system_problem(boxed.phase3.system)
 pv = V.PoseVariables(wr.graph, 3, x, boxed.regularization.theta_tree)
 by_hand = cp.Problem(problem.objective, problem.constraints + room(pv)[0].constraints)
-solve_problem(by_hand)
+solve(by_hand)
 print("minimize sum_squares(W @ (z − Bᵀ @ x)) subject to",
       [f"{type(c).__name__} {c.shape}" for c in by_hand.constraints], "(anchors, room)")
 print(f"by hand vs constrained_lago, phase 3: max |Δx| = {np.abs(x.value - boxed.phase3.x).max():.1e}")
@@ -280,7 +269,7 @@ for label, fn in cases.items():
     try:
         V.constrained_lago(wr.graph, fn, anchors=start)
         raise AssertionError("should have been infeasible")
-    except V.InfeasibleConstraintsError as exc:
+    except lc.InfeasibleConstraintsError as exc:
         print(f"{label:8s}: {exc}  → names {exc.names}")
 
 # %% [markdown]

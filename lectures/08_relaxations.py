@@ -31,49 +31,25 @@ import time
 _t_start = time.perf_counter()
 
 import logging
-from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
-import cvxpy as cp
 import matplotlib.pyplot as plt
 import numpy as np
 
+from _lecture import figure_saver, real
 import lago_cvx as lc
-from lago_cvx.chordal import chordal_closed_form, chordal_from_problem, chordal_problem, chordal_system
-from lago_cvx.datasets import DatasetNotFound, dataset
+from lago_cvx.regularization.chordal import chordal_closed_form, chordal_from_problem, chordal_problem, chordal_system
 from lago_cvx.experiments import format_sweep, rotation_noise_sweep, true_cycle_integers
 from lago_cvx.graph import spanning_tree
-from lago_cvx.lago import relative_difference
-from lago_cvx.phases import edge_uncertainty
+from lago_cvx.metrics import relative_difference
+from lago_cvx.uncertainty import edge_uncertainty
 from lago_cvx.posegraph import wrap_angle
-from lago_cvx.refine import refine
+from lago_cvx.refinement import refine
 from lago_cvx.regularization import regularize
 
+save = figure_saver("08_relaxations")
+
 logging.getLogger("lago_cvx").setLevel(logging.ERROR)  # ambiguity warnings are counted, not logged, here
-FIG = Path("../figures")
-FIG.mkdir(exist_ok=True)
 np.set_printoptions(linewidth=120, precision=4)
-
-
-def save(fig, name):
-    """Write ../figures/08_relaxations_<name>.png and .svg."""
-    paths = [FIG / f"08_relaxations_{name}.{ext}" for ext in ("png", "svg")]
-    for p in paths:
-        fig.savefig(p, dpi=120, bbox_inches="tight")
-    plt.close(fig)
-    print("figure written:", ", ".join(str(p) for p in paths))
-
-
-def real(rel):
-    """Read a real benchmark graph, or return None (and say so) when the datasets are absent."""
-    try:
-        return lc.read_graph(dataset(rel))
-    except DatasetNotFound as exc:
-        print(f"real datasets not found: skipping ({exc})")
-        return None
-
 
 # %% [markdown]
 # ## 1. Why rotations make SLAM hard
@@ -283,11 +259,13 @@ for rel, ref in (("se-sync/MIT.g2o", 39.6013), ("carlone/input_M3500a_g2o.g2o", 
 # cross-checks it (and is the default of `lago(..., regularization="integer")`).
 
 # %%
-from lago_cvx.integer import (MissingSolverError, cycle_data, cycle_form_problem, exact_box,
-                              integer_regularization, noise_sweep)
+from lago_cvx.errors import MissingSolverError
+from lago_cvx.experiments import integer_noise_sweep
+from lago_cvx.regularization.integer import cycle_data, cycle_form_problem, exact_box, integer_regularization
+from lago_cvx.solvers import IntegerSearch
 
 try:
-    integer_regularization(lc.manhattan_world(20, seed=0).graph, "bfs", solver="SCIP")
+    integer_regularization(lc.manhattan_world(20, seed=0).graph, "bfs", search=IntegerSearch(solver="SCIP"))
     MIP_SOLVER = "SCIP"
 except MissingSolverError as exc:  # the optional extra is absent: the exact enumeration answers instead
     print(exc)
@@ -303,8 +281,8 @@ print(f"cvxpy: minimize sum_squares(W @ (r + 2π q)), W = L⁻¹ ({data.n_chords
       f"DCP {prob.is_dcp()}, mixed-integer {prob.is_mixed_integer()}")
 lo, hi, _ = exact_box(data)
 print(f"box (exact, contains every optimum): {int(np.sum(hi > lo))} of {data.n_chords} integers are free")
-ip = integer_regularization(g, t_bfs, solver=MIP_SOLVER, data=data)
-ex = integer_regularization(g, t_bfs, solver="enumerate", data=data)
+ip = integer_regularization(g, t_bfs, search=IntegerSearch(solver=MIP_SOLVER), data=data)
+ex = integer_regularization(g, t_bfs, search=IntegerSearch(solver="enumerate"), data=data)
 q_true = true_cycle_integers(g, t_bfs, w.truth)
 print(f"{MIP_SOLVER}: status {ip.status}, J = {ip.objective:.6f} in {ip.solve_time:.2f} s; enumeration J = "
       f"{ex.objective:.6f} ({ex.nodes} nodes); rounding J = {ip.rounding_objective:.6f}")
@@ -344,8 +322,8 @@ for c in sel:
 
 # %%
 sweep_ip_sigmas = (0.05, 0.1, 0.2, 0.3, 0.4, 0.5)
-ip_rows = {tree_kind: noise_sweep(sigmas=sweep_ip_sigmas, seeds=range(8), n_poses=100, tree=tree_kind,
-                                  solver=MIP_SOLVER, time_limit=30)
+ip_rows = {tree_kind: integer_noise_sweep(sigmas=sweep_ip_sigmas, seeds=range(8), n_poses=100, tree=tree_kind,
+                                          search=IntegerSearch(solver=MIP_SOLVER, time_limit=30))
            for tree_kind in ("bfs", "odometry")}
 print("| σ_θ | IP = rounding (bfs) | IP = rounding (odometry) | rounding = truth (bfs / odometry) | "
       "IP = truth | J(truth) > J(IP) | mean J(round)/J(IP) − 1 (odometry) | IP solve [s] |")
@@ -426,8 +404,8 @@ for s in sweep_ip_sigmas:
 # First the relaxation as an explicit cvxpy problem on a small synthetic world, in both forms:
 
 # %%
-from lago_cvx.certify import (certify, refine_sesync, sdp_relaxation, sesync_cost, solve_sdp,
-                              subgraph)
+from lago_cvx.certification import certify, refine_sesync, sdp_relaxation, sesync_cost, solve_sdp
+from lago_cvx.graph import subgraph
 
 ws = lc.manhattan_world(14, seed=2, sigma_theta=0.05, sigma_xy=0.1, p_loop_closure=1.0, min_loop_separation=4,
                         loop_closure_radius=1.0)

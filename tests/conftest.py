@@ -4,43 +4,16 @@ with the reason printed, when the folder is absent; everything else runs on synt
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import pytest
 
+from lago_cvx import datasets as _datasets
+
 ROOT = Path(__file__).resolve().parents[1]
-DATASETS = Path(os.environ.get("LAGO_CVX_DATASETS", ROOT.parent / "shared" / "datasets"))
-
-#: Every pose-graph file in the datasets folder (relative paths), with the counts of its README.
-#: (file, n_poses, n_edges, n_odometric, n_loop_closures)
-DATASET_TABLE = [
-    ("se-sync/intel.g2o", 1728, 2512, 1727, 785),
-    ("se-sync/CSAIL.g2o", 1045, 1172, 1044, 128),
-    ("se-sync/MIT.g2o", 808, 827, 807, 20),
-    ("se-sync/manhattan.g2o", 3500, 5453, 3499, 1954),
-    ("se-sync/city10000.g2o", 10000, 20687, 9999, 10688),
-    ("carlone/input_INTEL_g2o.g2o", 1228, 1483, 1227, 256),
-    ("carlone/INTEL_P_toro.graph", 1228, 1505, 1227, 278),
-    ("carlone/input_M3500_g2o.g2o", 3500, 5453, 3499, 1954),
-    ("carlone/input_M3500a_g2o.g2o", 3500, 5453, 3499, 1954),
-    ("carlone/M3500_P_toro.graph", 3500, 5453, 3499, 1954),
-    ("carlone/CSAIL_P_toro.graph", 1045, 1172, 1044, 128),
-    ("carlone/FR079_P_toro.graph", 989, 1217, 988, 229),
-    ("gtsam/noisyToyGraph.txt", 4, 5, 3, 2),
-    ("gtsam/orientationsNoisyToyGraph.txt", 4, 5, 3, 2),
-    ("gtsam/optimizedNoisyToyGraph.txt", 4, 5, 3, 2),
-]
-DATASET_FILES = [row[0] for row in DATASET_TABLE]
-
-#: χ² minima of the datasets README, section 4.2 (g2o convention).
-REFERENCE_CHI2 = {
-    "se-sync/intel.g2o": 44.4178, "se-sync/CSAIL.g2o": 61.143, "carlone/CSAIL_P_toro.graph": 61.143,
-    "se-sync/MIT.g2o": 39.6013, "se-sync/manhattan.g2o": 3533.46, "carlone/M3500_P_toro.graph": 3533.46,
-    "se-sync/city10000.g2o": 511.985, "carlone/input_INTEL_g2o.g2o": 214.171,
-    "carlone/INTEL_P_toro.graph": 213.212, "carlone/input_M3500_g2o.g2o": 137.913,
-    "carlone/input_M3500a_g2o.g2o": 912.115, "carlone/FR079_P_toro.graph": 36.4248,
-}
+#: The datasets folder as the package finds it ($LAGO_CVX_DATASETS, then ../shared/datasets), or a
+#: path that does not exist.
+DATASETS = _datasets.datasets_dir() or ROOT.parent / "shared" / "datasets"
 
 
 @pytest.fixture(scope="session")

@@ -10,15 +10,19 @@ import numpy as np
 import pytest
 
 from lago_cvx import PoseGraph, lago, read_graph, refine
-from lago_cvx import certify as C
-from lago_cvx.cost import chi2_parts
+from lago_cvx import certification as C
+from lago_cvx.certification.local import _SesyncProblem
+from lago_cvx.certification.sesync import edge_residuals
+from lago_cvx.graph import prune_leaves, subgraph
+from lago_cvx.metrics import chi2_parts
 from lago_cvx.posegraph import compose, rot2
 from lago_cvx.synthetic import circle_world, manhattan_world, random_graph
 
 from conftest import dataset_path
+from lago_cvx.datasets import REFERENCE_SESYNC
 
 #: SE-Sync's published optimum for CSAIL (IJRR 2019, Table 1: 3.170e1; datasets README 4.1: 31.7037).
-CSAIL_OPTIMUM = 31.7037
+CSAIL_OPTIMUM = REFERENCE_SESYNC["se-sync/CSAIL.g2o"]
 
 
 @lru_cache(maxsize=None)
@@ -74,7 +78,7 @@ def test_relation_to_chi2_isotropic_small_residual():
     poses = np.array([[0.0, 0.0, 0.3], [1.0, 0.5, 0.3 + 0.05 + 1e-3]])
     parts = chi2_parts(g, poses)
     kappa, tau = C.sesync_weights(g)
-    d, _, e = C._edge_residuals(g, poses)
+    d, _, e = edge_residuals(g, poses)
     assert tau[0] * np.sum(d ** 2) == pytest.approx(parts["translation"], rel=1e-12)
     rot = C.sesync_cost(g, poses) - tau[0] * np.sum(d ** 2)
     assert rot == pytest.approx(2.0 * parts["rotation"], rel=1e-6)
@@ -103,7 +107,7 @@ def test_residual_jacobian_and_exact_hessian_by_finite_differences():
     w = random_graph(8, 14, seed=2, sigma_xy=0.3, sigma_theta=0.2)
     g = w.graph
     x = w.truth + np.random.default_rng(1).normal(0.0, 0.2, w.truth.shape)
-    prob = C._SesyncProblem(g, 0)
+    prob = _SesyncProblem(g, 0)
     r, J = prob.linearize(x)
     assert float(r @ r) == pytest.approx(C.sesync_cost(g, x), rel=1e-12)
     h, d = 1e-6, prob.dim
@@ -180,10 +184,11 @@ def test_certificate_fails_in_the_wrong_basin_mit_from_its_file_guess():
     local = C.refine_sesync(g, g.initial, method="newton", max_iterations=100)
     cert = C.certify(g, local.poses)
     print(f"\nMIT from the file's guess: f = {local.cost:.6g} ({local.reason}); {cert.verdict}")
-    assert local.cost > 100 * 61.1541  # a local minimum far above f* = 61.1541 (README 4.2)
+    f_star = REFERENCE_SESYNC["se-sync/MIT.g2o"]
+    assert local.cost > 100 * f_star  # a local minimum far above f* = 61.1541 (README 4.2)
     assert cert.residual_rel < 1e-9  # a critical point ...
     assert not cert.certified and cert.n_negative >= 1 and cert.lambda_min < -1.0  # ... but not a global one
-    assert cert.lower_bound <= 61.1541
+    assert cert.lower_bound <= f_star
 
 
 def test_sparse_certificate_agrees_with_dense_eigvalsh():
@@ -224,7 +229,7 @@ def test_sdp_dual_on_small_synthetic_is_tight():
 
 
 def test_sdp_on_a_real_subgraph_is_tight():
-    g = C.subgraph(_graph("se-sync/manhattan.g2o"), 100)
+    g = subgraph(_graph("se-sync/manhattan.g2o"), 100)
     local = _sesync_optimum(g)
     sdp = C.solve_sdp(g, polish=True)
     print(f"\nSDP manhattan[:100]: f_SDP = {sdp.value:.10g}, local {local.cost:.10g}, gap {sdp.gap:.2e}, "
@@ -274,18 +279,18 @@ def test_weak_duality_rounded_cost_above_any_certified_bound():
 def test_subgraph_induced_on_first_poses():
     w = _world(60, 2)
     g = w.graph
-    sub = C.subgraph(g, 25)
+    sub = subgraph(g, 25)
     inner = (g.tails < 25) & (g.heads < 25)
     assert sub.n_poses == 25 and sub.n_edges == int(inner.sum())
     assert np.array_equal(sub.tails, g.tails[inner]) and np.array_equal(sub.delta, g.delta[inner])
     assert np.array_equal(sub.ids, g.ids[:25]) and np.array_equal(sub.initial, g.initial[:25])
-    assert C.subgraph(g, g.n_poses).equals(g)
+    assert subgraph(g, g.n_poses).equals(g)
     with pytest.raises(ValueError):
-        C.subgraph(g, 0)
+        subgraph(g, 0)
 
 
 def test_csail_subgraph_loop_count():
-    sub = C.subgraph(_graph("se-sync/CSAIL.g2o"), 200)
+    sub = subgraph(_graph("se-sync/CSAIL.g2o"), 200)
     assert (sub.n_poses, sub.n_edges) == (200, 212)
 
 
@@ -302,7 +307,7 @@ def test_certificate_is_invariant_to_a_rigid_motion():
 def test_leaf_pruning_is_exact():
     w = random_graph(40, 48, seed=6, sigma_xy=0.1, sigma_theta=0.05)  # a random tree + 9 chords: many leaves
     g = w.graph
-    pr = C.prune_leaves(g)
+    pr = prune_leaves(g)
     assert 1 < pr.core.n_poses < g.n_poses and pr.n_removed == g.n_poses - pr.core.n_poses
     assert pr.core.n_edges == g.n_edges - pr.n_removed  # one edge peeled per leaf
     x = np.random.default_rng(0).normal(0.0, 2.0, (pr.core.n_poses, 3))
@@ -316,7 +321,7 @@ def test_leaf_pruning_is_exact():
 
 
 def test_sdp_on_a_csail_subgraph_with_a_dangling_tail():
-    g = C.subgraph(_graph("se-sync/CSAIL.g2o"), 500)
+    g = subgraph(_graph("se-sync/CSAIL.g2o"), 500)
     sdp = C.solve_sdp(g)
     local = _sesync_optimum(g)
     print(f"\nSDP CSAIL[:500] (2-core {sdp.n_core} poses): f_SDP = {sdp.value:.10g}, local {local.cost:.10g}, "

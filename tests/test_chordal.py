@@ -15,17 +15,18 @@ import numpy as np
 import pytest
 
 from lago_cvx import compare_methods, lago, read_graph, refine
-from lago_cvx.chordal import chordal_closed_form, chordal_from_problem, chordal_system
+from lago_cvx.regularization.chordal import chordal_closed_form, chordal_from_problem, chordal_system
 from lago_cvx.cli import main
 from lago_cvx.experiments import format_sweep, rotation_noise_sweep, true_cycle_integers
 from lago_cvx.graph import spanning_tree
 from lago_cvx.io import write_graph
-from lago_cvx.phases import edge_uncertainty
+from lago_cvx.uncertainty import edge_uncertainty
 from lago_cvx.posegraph import wrap_angle
 from lago_cvx.regularization import regularize
 from lago_cvx.synthetic import circle_world, manhattan_world, random_graph
 
-from conftest import DATASET_TABLE, REFERENCE_CHI2, dataset_path
+from lago_cvx.datasets import DATASET_TABLE, REFERENCE_CHI2
+from conftest import dataset_path
 from helpers import pose_error
 
 NOISELESS = {

@@ -9,7 +9,8 @@ import pytest
 
 from lago_cvx.cli import main
 
-from conftest import DATASET_TABLE, dataset_path
+from lago_cvx.datasets import DATASET_TABLE
+from conftest import dataset_path
 
 
 def run(capsys, *argv):

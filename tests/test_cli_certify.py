@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from lago_cvx import cli, read_graph
-from lago_cvx.certify import CERTIFY_TOL, sesync_cost
+from lago_cvx.certification import CERTIFY_TOL, sesync_cost
 from lago_cvx.cli import EXIT_NOT_CERTIFIED, main
 from lago_cvx.regularization import REGULARIZATIONS
 
@@ -195,13 +195,17 @@ def test_integer_regularization_refused_on_too_many_cycles(capsys, tmp_path, mon
 
 
 def test_integer_search_limit_is_a_clear_error(capsys, tmp_path, monkeypatch):
-    # a noisy world whose exact enumeration needs more nodes than allowed: exit 2, one line, the way out named
-    import lago_cvx.integer as integer
+    # a noisy world whose exact enumeration needs more nodes than allowed: exit 4 (a resource limit on
+    # valid input), one line, the way out named
+    from dataclasses import replace
+
+    import lago_cvx.regularization.integer as integer
 
     world = _world(capsys, tmp_path, "--poses", "100", "--seed", "0", "--sigma-theta", "0.5")
     real = integer.integer_regularization
-    monkeypatch.setattr(integer, "integer_regularization", lambda *a, **kw: real(*a, **{**kw, "max_nodes": 1}))
+    monkeypatch.setattr(integer, "integer_regularization",
+                        lambda *a, search, **kw: real(*a, search=replace(search, max_nodes=1), **kw))
     code, _, err = run(capsys, "solve", str(world), "--regularization", "integer")
-    assert code == 2
+    assert code == 4
     line = _one_error_line(err)
-    assert "max_nodes=1" in line and "regularization='chordal'" in line
+    assert "after 1 nodes" in line and "chordal regularization" in line

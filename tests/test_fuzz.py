@@ -154,7 +154,7 @@ def test_huge_measured_angle_is_rejected_or_regularized(angle):
     k_c = -ceil(r/2π - 1/2).astype(int64) overflowed for |r| ≥ 2⁶³·2π (k = INT64_MIN for either sign)
     and for |r| ≳ 1e16 rounding left residuals like 4.0 (fuzzer: dθ = 1e154, a numpy RuntimeWarning
     and garbage orientations with exit 0). Now: either a GraphError or a residual in range."""
-    from lago_cvx.posegraph import GraphError
+    from lago_cvx.errors import GraphError
 
     g = PoseGraph(3, [0, 1, 0], [1, 2, 2], [[1.0, 0.0], [1.0, 0.0], [2.0, 0.0]], [0.1, 0.2, angle],
                   np.broadcast_to(np.eye(3), (3, 3, 3)))
@@ -173,7 +173,7 @@ def test_stiff_information_is_solved_or_rejected(tmp_path, capsys):
     from helpers import graph_from_truth, pose_error
 
     from lago_cvx.io import write_graph
-    from lago_cvx.posegraph import GraphError
+    from lago_cvx.errors import GraphError
 
     truth = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.5], [1.5, 1.0, 1.2]])
     info = np.broadcast_to(np.eye(3), (3, 3, 3)).copy()
@@ -194,7 +194,7 @@ def test_stiff_information_is_solved_or_rejected(tmp_path, capsys):
 def test_stiff_information_not_silently_wrong():
     """Was: with SuperLU and Ω_θθ = 1e20 on one chain edge of manhattan_world(30), no error but
     χ² 6131 instead of ≈ 15 (the refinement statistics flagged it; nothing acted on them)."""
-    from lago_cvx.posegraph import GraphError
+    from lago_cvx.errors import GraphError
     from lago_cvx.synthetic import manhattan_world
 
     g = manhattan_world(30, seed=1).graph

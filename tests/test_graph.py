@@ -8,7 +8,8 @@ from scipy.sparse import csgraph
 
 from lago_cvx.graph import (check_connected, connected_components, cycle_basis, cyclomatic_number,
                             incidence_matrix, reduced_incidence, spanning_tree)
-from lago_cvx.posegraph import GraphError, PoseGraph
+from lago_cvx.errors import GraphError
+from lago_cvx.posegraph import PoseGraph
 from lago_cvx.synthetic import circle_world, manhattan_world, random_graph
 
 from helpers import graph_from_truth

@@ -1,4 +1,5 @@
-"""Regularization as an integer program (lago_cvx.integer): eqs. (2)/(3) against the seed's rounding.
+"""Regularization as an integer program (lago_cvx.regularization.integer): eqs. (I2)/(I3) against the seed's
+rounding.
 
 Tests that need SCIP are skipped, with the reason printed, when pyscipopt is absent
 (``pip install -e ".[mip]"``); the dependency-free enumeration is tested everywhere."""
@@ -11,13 +12,19 @@ import cvxpy as cp
 import numpy as np
 import pytest
 
-from lago_cvx import integer as I
 from lago_cvx import phases as P
-from lago_cvx.cost import chi2
+from lago_cvx.errors import MissingSolverError, OptionError, SearchLimitError
+from lago_cvx.experiments import format_integer_sweep, integer_noise_sweep, true_cycle_integers
 from lago_cvx.graph import cycle_basis, reduced_incidence, spanning_tree
-from lago_cvx.lago import lago
+from lago_cvx.metrics import chi2
+from lago_cvx.pipeline import lago
 from lago_cvx.posegraph import PoseGraph, wrap_angle
+from lago_cvx.regularization import integer as I
+from lago_cvx.regularization.sphere import enumerate_integers
+from lago_cvx.rounding import edge_integers
+from lago_cvx.solvers import IntegerSearch
 from lago_cvx.synthetic import circle_world, manhattan_world, random_graph
+from lago_cvx.uncertainty import edge_uncertainty
 
 try:
     import pyscipopt  # noqa: F401
@@ -43,7 +50,21 @@ def _world(kind, n, sigma, seed):
 
 
 def _true_q(w, g, t):
-    return I.cycle_integers(g, t, I.true_edge_integers(g, w.truth[:, 2]))
+    return true_cycle_integers(g, t, w.truth)
+
+
+_SEARCH = {"solver", "form", "time_limit", "max_nodes", "max_shift", "exact", "solver_options"}
+
+
+def _ip(g, t, **kw):
+    """``integer_regularization`` with the search options given as keywords (``IntegerSearch`` fields)."""
+    search = IntegerSearch(**{k: v for k, v in kw.items() if k in _SEARCH})
+    return I.integer_regularization(g, t, search=search, **{k: v for k, v in kw.items() if k not in _SEARCH})
+
+
+def _enumerate(data, *, max_shift=None, exact=True, max_nodes=2_000_000):
+    lo, hi, _ = I.exact_box(data, max_shift=max_shift, exact=exact)
+    return enumerate_integers(data, (lo, hi), max_nodes=max_nodes)
 
 
 # Noisy cases (σθ = 0.3–0.5) where the weighted optimum and the rounding differ (found with the
@@ -105,12 +126,12 @@ def test_hand_constructed_weighted_optimum_differs_from_rounding():
     np.testing.assert_array_equal(d.k_round, [0, -1])  # the seed's per-chord rounding
     assert I.rounding_cost(g, t, data=d) == pytest.approx(costs[(0, -1)], rel=1e-10)
 
-    res = I.integer_regularization(g, t, solver="enumerate")
+    res = _ip(g, t, solver="enumerate")
     np.testing.assert_array_equal(res.k_chords, [0, 0])
     assert res.objective == pytest.approx(costs[(0, 0)], rel=1e-10)
     assert res.n_differ == 1 and res.differing_chords.tolist() == [N + 2]
     # the truth (all orientations 0) agrees with the weighted optimum, not with the rounding
-    q_true = I.cycle_integers(g, t, I.true_edge_integers(g, np.zeros(g.n_poses)))
+    q_true = I.cycle_integers(g, t, edge_integers(g, np.zeros(g.n_poses)))
     np.testing.assert_array_equal(q_true, [0, 0])
 
 
@@ -118,12 +139,12 @@ def test_hand_constructed_weighted_optimum_differs_from_rounding():
 @pytest.mark.parametrize("form", ["cycle", "phase1"])
 def test_hand_constructed_with_scip(form):
     g, t = _two_cycles_graph()
-    res = I.integer_regularization(g, t, form=form, exact=False, max_shift=3)
+    res = _ip(g, t, form=form, exact=False, max_shift=3)
     assert res.status == cp.OPTIMAL
     np.testing.assert_array_equal(res.k_chords, [0, 0])
     assert res.objective == pytest.approx(0.3976 / 0.0866, rel=1e-10)
     assert res.solver_value == pytest.approx(res.objective, rel=1e-5)
-    cmp = I.compare_with_rounding(g, t, form=form)
+    cmp = I.compare_with_rounding(g, t, search=IntegerSearch(solver="SCIP", form=form))
     assert not cmp["equal"] and cmp["n_differ"] == 1 and cmp["improvement"] > 1000
 
 
@@ -139,14 +160,14 @@ def test_cycle_and_phase1_forms_have_the_same_optimum(kind, n, sigma, seed):
     d = I.cycle_data(g, t)
     assert d.n_chords >= 4
     # a plain box |k − k_round| ≤ 2 (5^l candidates), so the solver really searches
-    a = I.integer_regularization(g, t, form="cycle", exact=False, max_shift=2, data=d)
-    b = I.integer_regularization(g, t, form="phase1", exact=False, max_shift=2, data=d)
+    a = _ip(g, t, form="cycle", exact=False, max_shift=2, data=d)
+    b = _ip(g, t, form="phase1", exact=False, max_shift=2, data=d)
     assert a.status == b.status == cp.OPTIMAL
     np.testing.assert_array_equal(a.k, b.k)
     assert a.solver_value == pytest.approx(b.solver_value, rel=1e-5)
     assert a.objective == pytest.approx(b.objective, rel=1e-12)
     # eq. (2)'s θ is LAGO's phase 1 on δ_reg (to SCIP's cone feasibility tolerance, ~1e-4 rad here)
-    ph1 = P.phase1_closed_form(g, b.delta_reg, P.edge_uncertainty(g), anchor=t.root)
+    ph1 = P.phase1_closed_form(g, b.delta_reg, edge_uncertainty(g), anchor=int(g.ids[t.root]))
     np.testing.assert_allclose(b.theta, ph1.theta, atol=2e-3)
     # the problems are explicit cvxpy objects one can print and extend
     assert "k" in a.variables and {"theta", "k"} <= set(b.variables)
@@ -158,14 +179,14 @@ def test_phase1_cost_equals_cycle_cost():
     w = manhattan_world(60, seed=1, sigma_theta=0.3)
     g = w.graph
     t = spanning_tree(g, "odometry")
-    unc = P.edge_uncertainty(g)
+    unc = edge_uncertainty(g)
     d = I.cycle_data(g, t, unc=unc)
     rng = np.random.default_rng(0)
     for _ in range(5):
         k = rng.integers(-2, 3, g.n_edges)  # integers on tree edges too
         dreg = g.delta + 2 * np.pi * k
-        ph1 = P.phase1_closed_form(g, dreg, unc, anchor=t.root)
-        A2 = reduced_incidence(g, t.root)
+        ph1 = P.phase1_closed_form(g, dreg, unc, anchor=int(g.ids[t.root]))
+        A2 = reduced_incidence(g, int(g.ids[t.root]))
         res = unc.sqrt_info_delta * (A2.T @ ph1.theta_free - dreg)
         assert res @ res == pytest.approx(I.weighted_cycle_cost(g, t, k, data=d), rel=1e-9)
 
@@ -179,13 +200,13 @@ def test_ip_equals_rounding_and_truth_at_low_noise(kind, n, tree):
         w = _world(kind, n, 0.02, seed)
         g = w.graph
         t = spanning_tree(g, tree)
-        res = I.integer_regularization(g, t)
+        res = _ip(g, t)
         assert res.chords.size > 0 and res.status == cp.OPTIMAL
         np.testing.assert_array_equal(res.k_chords, res.rounding_k_chords)
         np.testing.assert_array_equal(res.k_chords, _true_q(w, g, t))
         assert res.objective == pytest.approx(res.rounding_objective, rel=1e-12)
         # with the box (6) off the solver searches |k − k_round| ≤ 1 and still returns the rounding
-        plain = I.integer_regularization(g, t, exact=False, max_shift=1)
+        plain = _ip(g, t, exact=False, max_shift=1)
         np.testing.assert_array_equal(plain.k, res.k)
 
 
@@ -195,7 +216,7 @@ def test_enumeration_equals_rounding_at_low_noise_many_seeds():
             w = manhattan_world(100, seed=seed, sigma_theta=0.05)
             g = w.graph
             t = spanning_tree(g, tree)
-            cmp = I.compare_with_rounding(g, t, solver="enumerate")
+            cmp = I.compare_with_rounding(g, t, search=IntegerSearch(solver="enumerate"))
             assert cmp["equal"] and cmp["improvement"] == 0.0
 
 
@@ -206,13 +227,13 @@ def test_ip_never_costs_more_than_rounding_and_sometimes_less():
         w = manhattan_world(n, seed=seed, sigma_theta=sigma)
         g = w.graph
         t = spanning_tree(g, tree)
-        res = I.integer_regularization(g, t, solver="enumerate")
+        res = _ip(g, t, solver="enumerate")
         assert res.objective <= res.rounding_objective * (1 + 1e-12)
         strictly += res.objective < res.rounding_objective * (1 - 1e-9)
     for seed in range(6):  # random graphs (random edge directions, random true orientations)
         w = random_graph(30, 55, seed=seed, sigma_theta=0.4)
         g = w.graph
-        res = I.integer_regularization(g, spanning_tree(g, "bfs"), solver="enumerate")
+        res = _ip(g, spanning_tree(g, "bfs"), solver="enumerate")
         assert res.objective <= res.rounding_objective * (1 + 1e-12)
     assert strictly >= len(DIFFERING)
 
@@ -224,8 +245,8 @@ def test_enumeration_equals_scip_where_they_part_from_rounding(n, sigma, seed, t
     g = w.graph
     t = spanning_tree(g, tree)
     d = I.cycle_data(g, t)
-    scip = I.integer_regularization(g, t, data=d)
-    enum = I.integer_regularization(g, t, data=d, solver="enumerate")
+    scip = _ip(g, t, data=d)
+    enum = _ip(g, t, data=d, solver="enumerate")
     assert scip.status == cp.OPTIMAL
     assert scip.n_differ > 0  # the case really parts from the rounding
     np.testing.assert_array_equal(scip.k, enum.k)
@@ -240,8 +261,8 @@ def test_exact_box_loses_nothing():
         g = w.graph
         t = spanning_tree(g, tree)
         d = I.cycle_data(g, t)
-        q, J, _ = I.enumerate_integers(d)
-        q_wide, J_wide, _ = I.enumerate_integers(d, exact=False, max_shift=3)
+        q, J, _ = _enumerate(d)
+        q_wide, J_wide, _ = _enumerate(d, exact=False, max_shift=3)
         np.testing.assert_array_equal(q, q_wide)
         lo, hi, restricted = I.exact_box(d)
         assert not restricted and np.all((lo <= q) & (q <= hi))
@@ -259,8 +280,8 @@ def test_ip_answer_does_not_depend_on_the_tree():
     """J is phase 1's cost, which has no tree: every tree gives the same optimum (up to the gauge)."""
     w = manhattan_world(60, seed=1, sigma_theta=0.4)
     g = w.graph
-    unc = P.edge_uncertainty(g)
-    results = [I.integer_regularization(g, spanning_tree(g, kind), solver="enumerate", unc=unc)
+    unc = edge_uncertainty(g)
+    results = [_ip(g, spanning_tree(g, kind), solver="enumerate", unc=unc)
                for kind in ("bfs", "odometry", "mst")]
     thetas = [P.phase1_closed_form(g, r.delta_reg, unc, anchor=0).theta for r in results]
     for r, th in zip(results[1:], thetas[1:]):
@@ -291,7 +312,7 @@ def test_cycle_integers_are_gauge_invariant_and_match_the_cycle_basis():
     with pytest.raises(ValueError, match="integer"):
         I.cycle_integers(g, t, k + 0.5)
     # the ground-truth integers reproduce the true orientation differences
-    kt = I.true_edge_integers(g, w.truth[:, 2])
+    kt = edge_integers(g, w.truth[:, 2])
     err = g.delta + 2 * np.pi * kt - (w.truth[g.heads, 2] - w.truth[g.tails, 2])
     assert np.abs(err).max() < 0.6
 
@@ -302,13 +323,13 @@ def test_delta_reg_plugs_into_the_phases(solver):
     w = manhattan_world(60, seed=1, sigma_theta=0.3)
     g = w.graph
     t = spanning_tree(g, "odometry")
-    unc = P.edge_uncertainty(g)
-    res = I.integer_regularization(g, t, solver=solver, unc=unc)
+    unc = edge_uncertainty(g)
+    res = _ip(g, t, solver=solver, unc=unc)
     assert res.n_differ > 0
-    a = t.root
+    a = int(g.ids[t.root])
     ph1 = P.phase1_closed_form(g, res.delta_reg, unc, anchor=a)
     ph2 = P.phase2(g, ph1.theta, unc, anchor=a)
-    ph3 = P.phase3_closed_form(g, ph2, anchor=a)
+    ph3 = P.phase3_closed_form(g, ph2)
     assert np.all(np.isfinite(ph3.poses)) and ph3.poses.shape == (g.n_poses, 3)
     # phase 1's residual cost on δ_reg is the IP's objective (eq. (1) = eq. (3))
     r1 = unc.sqrt_info_delta * (reduced_incidence(g, a).T @ ph1.theta_free - res.delta_reg)
@@ -335,45 +356,46 @@ def test_delta_reg_plugs_into_the_phases(solver):
 def test_missing_solver_names_the_extra(monkeypatch):
     monkeypatch.setitem(sys.modules, "pyscipopt", None)  # makes `import pyscipopt` raise ImportError
     g, t = _two_cycles_graph()
-    with pytest.raises(I.MissingSolverError, match=r'pip install "lago-cvx\[mip\]"') as info:
-        I.integer_regularization(g, t, solver="SCIP")
+    with pytest.raises(MissingSolverError, match=r'pip install "lago-cvx\[mip\]"') as info:
+        _ip(g, t, solver="SCIP")
     assert isinstance(info.value, ImportError)
     # the dependency-free path still works
-    assert I.integer_regularization(g, t, solver="enumerate").k_chords.tolist() == [0, 0]
+    assert _ip(g, t, solver="enumerate").k_chords.tolist() == [0, 0]
 
 
 def test_unknown_solver_and_bad_options():
     g, t = _two_cycles_graph()
-    with pytest.raises(I.MissingSolverError, match="not installed"):
-        I.integer_regularization(g, t, solver="NO_SUCH_SOLVER")
+    with pytest.raises(MissingSolverError, match="not installed"):
+        _ip(g, t, solver="NO_SUCH_SOLVER")
     with pytest.raises(ValueError, match="form"):
-        I.integer_regularization(g, t, solver="enumerate", form="magic")
+        _ip(g, t, solver="enumerate", form="magic")
     with pytest.raises(ValueError, match="max_shift"):
-        I.integer_regularization(g, t, solver="enumerate", exact=False)
+        _ip(g, t, solver="enumerate", exact=False)
 
 
 def test_enumeration_node_budget():
     w = manhattan_world(80, seed=2, sigma_theta=0.5)
     d = I.cycle_data(w.graph, spanning_tree(w.graph, "odometry"))
-    with pytest.raises(RuntimeError, match="max_nodes"):
-        I.enumerate_integers(d, exact=False, max_shift=3, max_nodes=5)
+    with pytest.raises(SearchLimitError, match="after 5 nodes.*raise max_nodes") as info:
+        _enumerate(d, exact=False, max_shift=3, max_nodes=5)
+    assert isinstance(info.value, RuntimeError) and info.value.exit_status == 4
 
 
 def test_tree_graph_has_nothing_to_decide():
     truth = np.array([[0, 0, 0], [1, 0, 3.0], [2, 0, -3.0]])
     from helpers import graph_from_truth
     g = graph_from_truth(truth, [0, 1], [1, 2])
-    res = I.integer_regularization(g, spanning_tree(g, "bfs"), solver="enumerate")
+    res = _ip(g, spanning_tree(g, "bfs"), solver="enumerate")
     assert res.chords.size == 0 and res.objective == 0.0 and np.all(res.k == 0)
 
 
 def test_noise_sweep_rows():
-    rows = I.noise_sweep(sigmas=(0.02, 0.5), seeds=range(3), n_poses=60, solver="enumerate")
+    rows = integer_noise_sweep(sigmas=(0.02, 0.5), seeds=range(3), n_poses=60)
     assert [r["sigma_theta"] for r in rows] == [0.02, 0.5]
     low, high = rows
     assert low["cases"] == 3 and low["ip_eq_round"] == 1.0 and low["ip_eq_true"] == 1.0
     assert high["ip_better"] > 0 and high["J_round"] > high["J_ip"]
-    table = I.format_sweep(rows)
+    table = format_integer_sweep(rows)
     assert table.count("\n") == 3 and "IP = round" in table
 
 
@@ -408,7 +430,7 @@ def test_lago_integer_minimises_phase1_cost_where_rounding_does_not():
     # minimum GN reaches from the ground truth, which the tree rounding misses
     t = int_res.tree
     np.testing.assert_array_equal(int_res.regularization.cycle_k, _true_q(w, g, t))
-    from lago_cvx.refine import refine
+    from lago_cvx.refinement import refine
     best = refine(g, w.truth).chi2
     assert refine(g, int_res.poses).chi2 == pytest.approx(best, rel=1e-6)
     assert refine(g, tree_res.poses).chi2 > 1.2 * best
@@ -426,10 +448,9 @@ def test_lago_integer_cvxpy_scip_equals_enumeration():
 
 
 def test_lago_integer_rejects_too_many_chords(monkeypatch):
-    from lago_cvx import regularization as R
-    monkeypatch.setattr(R, "MAX_INTEGER_CHORDS", 3)
+    monkeypatch.setattr(I, "MAX_INTEGER_CHORDS", 3)
     g = manhattan_world(60, seed=0, sigma_theta=0.05).graph
-    with pytest.raises(ValueError, match="chords .*regularization='chordal'"):
+    with pytest.raises(OptionError, match="chords .*chordal regularization"):
         lago(g, regularization="integer")
 
 
@@ -441,9 +462,10 @@ def test_lago_integer_bad_method():
 
 
 def test_lago_integer_repairs_odometric_tree_on_mit():
-    from conftest import REFERENCE_CHI2, dataset_path  # noqa: I001
+    from conftest import dataset_path
+    from lago_cvx.datasets import REFERENCE_CHI2
     from lago_cvx.io import read_graph
-    from lago_cvx.refine import refine
+    from lago_cvx.refinement import refine
     g = read_graph(dataset_path("se-sync/MIT.g2o"))
     tree_gn = refine(g, lago(g, spanning_tree="odometry").poses).chi2
     res = lago(g, spanning_tree="odometry", regularization="integer")
@@ -461,9 +483,9 @@ def test_scip_time_limit_never_returns_worse_than_rounding(time_limit, caplog):
     g = manhattan_world(400, seed=1, sigma_theta=0.1).graph
     t = spanning_tree(g, "bfs")
     data = I.cycle_data(g, t)
-    best = I.integer_regularization(g, t, solver="enumerate", data=data)
-    with caplog.at_level(logging.WARNING, logger="lago_cvx.integer"):
-        res = I.integer_regularization(g, t, solver="SCIP", data=data, time_limit=time_limit)
+    best = _ip(g, t, solver="enumerate", data=data)
+    with caplog.at_level(logging.WARNING, logger="lago_cvx.regularization.integer"):
+        res = _ip(g, t, solver="SCIP", data=data, time_limit=time_limit)
     assert res.objective <= res.rounding_objective * (1 + 1e-12)
     assert res.objective >= best.objective * (1 - 1e-9)
     if res.status != cp.OPTIMAL:

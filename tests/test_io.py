@@ -11,7 +11,8 @@ import time
 
 import numpy as np
 import pytest
-from conftest import DATASET_TABLE, dataset_path
+from lago_cvx.datasets import DATASET_TABLE
+from conftest import dataset_path
 
 import lago_cvx.io as lio
 from lago_cvx.io import ParseError, detect_format, read_graph, write_graph
@@ -441,7 +442,7 @@ def test_write_failure_leaves_old_file(tmp_path, monkeypatch):
     def boom(src, dst):
         raise OSError("disk full")
 
-    monkeypatch.setattr(lio.os, "replace", boom)
+    monkeypatch.setattr(lio.writer.os, "replace", boom)
     with pytest.raises(OSError):
         write_graph(target, g)
     assert target.read_text() == "old\n"
@@ -498,7 +499,7 @@ def test_fast_path_matches_token_by_token(tmp_path, monkeypatch):
         p = _write(tmp_path, "\n".join(" ".join(t) for t in lines) + "\n", f"f{trial}.g2o")
         fast = outcome(p)
         with monkeypatch.context() as mp:
-            mp.setattr(lio, "_convert_fast", lambda rec, spec: None)
+            mp.setattr(lio.reader, "_convert_fast", lambda rec, spec: None)
             slow = outcome(p)
         assert fast[0] == slow[0], (p.read_text(), fast, slow)
         if fast[0] == "ok":

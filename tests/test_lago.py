@@ -5,10 +5,12 @@ import pytest
 
 from lago_cvx import chi2, compare_methods, lago
 from lago_cvx.io import read_graph
-from lago_cvx.posegraph import GraphError, PoseGraph, compose
+from lago_cvx.errors import GraphError
+from lago_cvx.posegraph import PoseGraph, compose
 from lago_cvx.synthetic import circle_world, manhattan_world, random_graph
 
-from conftest import DATASET_TABLE, REFERENCE_CHI2, dataset_path
+from lago_cvx.datasets import DATASET_TABLE, REFERENCE_CHI2
+from conftest import dataset_path
 from helpers import graph_from_truth, pose_error
 
 TREES = ["bfs", "odometry", "mst"]

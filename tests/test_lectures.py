@@ -32,8 +32,9 @@ def test_pair_in_sync(src):
 
 
 @pytest.mark.parametrize("src", SOURCES, ids=[s.stem for s in SOURCES])
-def test_lecture_executes(src, monkeypatch):
+def test_lecture_executes(src, monkeypatch, tmp_path):
     monkeypatch.setenv("SOURCE_DATE_EPOCH", "0")  # reproducible figure metadata (the kernel inherits it)
+    monkeypatch.setenv("LAGO_CVX_FIGURES", str(tmp_path))  # running the tests changes no tracked file
     nb = jupytext.read(src)
     client = nbclient.NotebookClient(nb, timeout=600, kernel_name="python3",
                                      resources={"metadata": {"path": str(LECTURES)}})

@@ -8,9 +8,10 @@ import scipy.linalg as sla
 from lago_cvx import lago
 from lago_cvx import phases as P
 from lago_cvx.graph import free_poses, reduced_incidence
-from lago_cvx.lago import relative_difference
+from lago_cvx.metrics import relative_difference
 from lago_cvx.posegraph import rot2
 from lago_cvx.synthetic import manhattan_world, random_graph
+from lago_cvx.uncertainty import edge_uncertainty
 
 S = np.array([[0.0, -1.0], [1.0, 0.0]])
 
@@ -113,7 +114,7 @@ def test_pose_covariances_are_blocks_of_the_dense_inverse(small):
 
 def test_edge_uncertainty_is_marginal_covariance():
     g = random_graph(10, 20, seed=1, information="full").graph
-    unc = P.edge_uncertainty(g)
+    unc = edge_uncertainty(g)
     cov = np.linalg.inv(g.information)
     np.testing.assert_allclose(unc.cov_delta_l, cov[:, :2, :2])
     np.testing.assert_allclose(unc.var_delta, cov[:, 2, 2])

@@ -255,7 +255,7 @@ def test_relabelling_poses_permutes_the_estimate(case, tree):
     anchor_id = int(g.ids[0])  # the original anchor, now at index perm[0]
     base = lago(g, spanning_tree=tree, anchor=anchor_id, anchor_pose=w.truth[0]).poses
     res = lago(gp, spanning_tree=tree, anchor=anchor_id, anchor_pose=w.truth[0])
-    assert res.anchor == perm[0]
+    assert res.anchor == anchor_id and res.anchor_index == perm[0]
     assert pose_error(res.poses[perm], base) <= tolerance(w.truth)
 
 

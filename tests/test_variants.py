@@ -11,21 +11,25 @@ import pytest
 
 import lago_cvx as lc
 from lago_cvx import variants as V
+from lago_cvx.cli import parse_anchor_spec
+from lago_cvx.errors import InfeasibleConstraintsError
 from lago_cvx.io import read_graph
-from lago_cvx.lago import relative_difference
-from lago_cvx.refine import ate, refine
+from lago_cvx.metrics import relative_difference
+from lago_cvx.metrics import ate
+from lago_cvx.refinement import refine
 from lago_cvx.synthetic import circle_world, manhattan_world, random_graph
 
-from conftest import DATASET_TABLE, dataset_path
+from lago_cvx.datasets import DATASET_TABLE
+from conftest import dataset_path
 from helpers import pose_error
 
 
 # ----------------------------------------------------------------------------- parsing
 def test_parse_anchor_spec_full_and_partial():
-    assert V.parse_anchor_spec("5:1,2,0.5") == (5, (1.0, 2.0, 0.5))
-    assert V.parse_anchor_spec("5:,,1.57") == (5, (None, None, 1.57))
-    assert V.parse_anchor_spec("5:1,2,") == (5, (1.0, 2.0, None))
-    assert V.parse_anchor_spec(" 12 : -1e3 , 2.5 , -3.1 ") == (12, (-1000.0, 2.5, -3.1))
+    assert parse_anchor_spec("5:1,2,0.5") == (5, (1.0, 2.0, 0.5))
+    assert parse_anchor_spec("5:,,1.57") == (5, (None, None, 1.57))
+    assert parse_anchor_spec("5:1,2,") == (5, (1.0, 2.0, None))
+    assert parse_anchor_spec(" 12 : -1e3 , 2.5 , -3.1 ") == (12, (-1000.0, 2.5, -3.1))
 
 
 @pytest.mark.parametrize("spec, msg", [("5", "expected ID:X,Y,THETA"), ("5:1,2", "expected ID:X,Y,THETA"),
@@ -33,7 +37,7 @@ def test_parse_anchor_spec_full_and_partial():
                                        ("5:,,", "at least"), ("5:a,2,3", "not a number"), ("5:inf,2,3", "finite")])
 def test_parse_anchor_spec_errors_name_the_spec(spec, msg):
     with pytest.raises(ValueError, match=msg):
-        V.parse_anchor_spec(spec)
+        parse_anchor_spec(spec)
 
 
 def test_bad_anchors_are_named():
@@ -313,7 +317,7 @@ def test_infeasible_constraints_are_named():
         return [V.box_constraint(pv, xmin=lo[0], xmax=hi[0], ymin=lo[1], ymax=hi[1], name="room"),
                 V.box_constraint(pv, poses=[0], xmin=5.0, name="start east of 5 m")]
 
-    with pytest.raises(V.InfeasibleConstraintsError, match="'start east of 5 m' is infeasible on its own") as e:
+    with pytest.raises(InfeasibleConstraintsError, match="'start east of 5 m' is infeasible on its own") as e:
         V.constrained_lago(w.graph, alone, anchors=anchors)
     assert e.value.names == ["start east of 5 m"] and e.value.phase == "phase3"
 
@@ -323,11 +327,11 @@ def test_infeasible_constraints_are_named():
                 V.orientation_bounds(pv, poses=[7], lower=-10, upper=10, name="loose heading"),
                 V.box_constraint(pv, poses=[50], xmin=1.0, name="east zone")]
 
-    with pytest.raises(V.InfeasibleConstraintsError, match="'west wall', 'east zone' are jointly infeasible") as e:
+    with pytest.raises(InfeasibleConstraintsError, match="'west wall', 'east zone' are jointly infeasible") as e:
         V.constrained_lago(w.graph, jointly, anchors=anchors)
     assert e.value.names == ["west wall", "east zone"]
 
-    with pytest.raises(V.InfeasibleConstraintsError, match="phase1: constraint 'heading' is infeasible") as e:
+    with pytest.raises(InfeasibleConstraintsError, match="phase1: constraint 'heading' is infeasible") as e:
         V.constrained_lago(w.graph, lambda pv: [V.orientation_bounds(pv, poses=[0], lower=1.0, name="heading")],
                            anchors=anchors)
     assert e.value.phase == "phase1"
@@ -401,3 +405,38 @@ def test_robust_variants_against_false_loop_closures():
     assert chi_in["Huber + gating"] <= 1.1 * chi_in["LAGO on the inlier graph (reference)"]
     inl = runs["Huber + gating"].robust["inliers"]
     assert not inl[outliers].any() and inl[~outliers].mean() > 0.99
+
+
+def test_variant_result_is_a_full_lago_result():
+    """Code written for a plain ``LagoResult`` works unchanged on ``lago(g, anchors={})``: every field,
+    property and method, with the same numbers (anchors={} is plain LAGO)."""
+    import dataclasses
+
+    from lago_cvx.result import LagoResult
+
+    g = random_graph(12, 20, seed=3, sigma_xy=0.05, sigma_theta=0.02).graph
+    plain, var = lc.lago(g), lc.lago(g, anchors={})
+    assert isinstance(var, LagoResult)
+    for f in dataclasses.fields(LagoResult):
+        getattr(var, f.name)
+    for phase in ("phase1", "phase2", "phase3"):
+        for f in dataclasses.fields(type(getattr(plain, phase))):
+            getattr(getattr(var, phase), f.name)
+    assert var.anchor == plain.anchor and var.anchor_index == plain.anchor_index
+    np.testing.assert_allclose(var.poses, plain.poses, atol=1e-10)
+    np.testing.assert_allclose(var.orientations, plain.orientations, atol=1e-10)
+    assert var.chi2 == pytest.approx(plain.chi2, rel=1e-10)
+    np.testing.assert_allclose(var.pose_covariances(), plain.pose_covariances(), rtol=1e-8, atol=1e-14)
+    np.testing.assert_allclose(var.phase1.variances(), plain.phase1.variances(), rtol=1e-8, atol=1e-14)
+    np.testing.assert_allclose(var.phase3.pose_covariances(), plain.phase3.pose_covariances(), rtol=1e-8,
+                               atol=1e-14)
+    assert var.phase1.factor is not None and var.phase3.factor is not None
+    Pz = var.phase2.covariance_z()
+    assert Pz.shape[0] == Pz.shape[1] and np.all(np.isfinite(Pz))
+    assert set(var.summary()) == set(plain.summary())
+
+
+def test_gate_threshold_is_the_chi2_quantile():
+    from scipy import stats
+
+    assert V.GATE_THRESHOLD == pytest.approx(np.sqrt(stats.chi2.ppf(1.0 - 1e-6, 3)), rel=1e-12)

@@ -1,9 +1,9 @@
 """Nonlinear refinement of a planar pose graph (Gauss–Newton / Levenberg–Marquardt), dead-reckoning
 initial guesses and trajectory error metrics.
 
-LAGO (``lago_cvx.lago``) gives a linear approximation of the maximum-likelihood estimate. This module
+LAGO (``lago_cvx.pipeline``) gives a linear approximation of the maximum-likelihood estimate. This module
 minimises the **full nonlinear cost of eq. (3)** of the seed, in the g2o χ² convention of
-``lago_cvx.cost`` (no factor ½), starting from any guess — typically LAGO's — so that the two can be
+``lago_cvx.metrics`` (no factor ½), starting from any guess — typically LAGO's — so that the two can be
 compared, and LAGO can be used as an initialization of an iterative solver (the seed's Section V).
 
 Problem
@@ -53,8 +53,8 @@ Stopping: relative χ² decrease below ``tolerance``; step ‖dx‖∞ ≤ ``STE
 ``max_iterations`` (GN: iterations; LM: trials, accepted or not); LM also stops when λ exceeds
 ``MAX_LAMBDA``. The returned χ² is never larger than the starting one.
 
-Also here: ``odometry_guess`` (dead reckoning along a spanning tree, vectorized by pointer jumping)
-and ``ate`` / ``rotation_error`` (trajectory errors after the best rigid 2-D alignment).
+Also here: ``odometry_guess`` (dead reckoning along a spanning tree, vectorized by pointer jumping).
+Trajectory errors (``ate``, ``rotation_error``) are in ``lago_cvx.metrics``.
 """
 
 from __future__ import annotations
@@ -66,12 +66,13 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
-from .graph import _accumulate_to_root, check_connected, spanning_tree as build_tree
+from .errors import OptionError, check_choice
+from .graph import accumulate_to_root, check_connected, spanning_tree as build_tree
 from .linalg import SOLVER_BACKENDS, factorize
 from .posegraph import PoseGraph, rot2, wrap_angle
 
-__all__ = ["RefineResult", "refine", "REFINE_METHODS", "odometry_guess", "ate", "rotation_error",
-           "jacobian", "whitened_residuals"]
+__all__ = ["RefineResult", "refine", "REFINE_METHODS", "odometry_guess", "jacobian", "whitened_residuals",
+           "check_iteration_args", "prepare", "small_step", "STEP_TOLERANCE"]
 
 log = logging.getLogger(__name__)
 
@@ -98,7 +99,7 @@ class RefineResult:
     with keys ``iteration`` (accepted steps so far), ``chi2`` (current χ², after the iteration),
     ``step_norm`` (‖dx‖∞ of the step tried), ``time`` (seconds since the start) and, for LM,
     ``lambda`` (damping used) and ``accepted``; for GN ``halvings`` (line-search halvings);
-    ``method``; ``anchor`` the index of the fixed pose; ``backend`` the sparse solver used."""
+    ``method``; ``anchor`` the id of the fixed pose; ``backend`` the sparse solver used."""
 
     poses: np.ndarray
     chi2: float
@@ -203,40 +204,36 @@ class _Problem:
         return new
 
 
-def _resolve_anchor(graph: PoseGraph, anchor) -> int:
-    """Anchor given as a pose id (as in ``lago``); default the smallest id. Returns its index."""
-    if anchor is None:
-        return int(np.argmin(graph.ids))
-    return graph.index_of(anchor)
-
-
-def _check_iteration_args(max_iterations: int, tolerance: float) -> None:
-    """ValueError for a negative iteration count or a negative / NaN tolerance (shared with refine_sesync)."""
-    if max_iterations < 0:
-        raise ValueError(f"max_iterations must be >= 0, got {max_iterations}")
+def check_iteration_args(max_iterations: int, tolerance: float) -> None:
+    """``OptionError`` for a negative iteration count or a negative / NaN tolerance (shared with
+    ``lago_cvx.certification.refine_sesync``)."""
+    if not int(max_iterations) >= 0:
+        raise OptionError(f"max_iterations must be >= 0, got {max_iterations}")
     if not tolerance >= 0:
-        raise ValueError(f"tolerance must be >= 0, got {tolerance}")
+        raise OptionError(f"tolerance must be >= 0, got {tolerance}")
 
 
-def _check_poses(graph: PoseGraph, poses) -> np.ndarray:
-    poses = np.array(poses, dtype=float)
-    if poses.shape != (graph.n_poses, 3):
-        raise ValueError(f"poses must have shape ({graph.n_poses}, 3), got {poses.shape}")
-    if not np.isfinite(poses).all():
-        raise ValueError("poses must be finite")
-    return poses
+def prepare(graph: PoseGraph, poses, *, anchor, max_iterations: int, tolerance: float) -> tuple[np.ndarray, int]:
+    """What both refinements (χ² here, the SE-Sync cost in ``lago_cvx.certification``) check first: the
+    starting poses as a new (n, 3) array and the anchor's index (``anchor`` a pose id, default the
+    smallest). ``OptionError`` for bad arguments, ``GraphError`` for a disconnected graph."""
+    check_iteration_args(max_iterations, tolerance)
+    x = graph.check_poses(poses)
+    a = graph.anchor_index(anchor)
+    check_connected(graph)
+    return x, a
 
 
 def whitened_residuals(graph: PoseGraph, poses) -> np.ndarray:
     """Whitened residuals r = U e (m, 3), U the upper Cholesky factor of each Ω; Σ‖r‖² = χ²."""
-    return _Problem(graph, 0).residuals(_check_poses(graph, poses))
+    return _Problem(graph, 0).residuals(graph.check_poses(poses))
 
 
 def jacobian(graph: PoseGraph, poses, *, anchor=None) -> sp.csr_matrix:
     """The analytic sparse Jacobian of the whitened residuals (3m, 3(n−1)) at ``poses``; the anchor's
     (a pose id, default the smallest) columns are removed. Row 3k + a is component a of edge k."""
-    prob = _Problem(graph, _resolve_anchor(graph, anchor))
-    return prob.linearize(_check_poses(graph, poses))[1]
+    prob = _Problem(graph, graph.anchor_index(anchor))
+    return prob.linearize(graph.check_poses(poses))[1]
 
 
 # ------------------------------------------------------------------------------ the solvers
@@ -255,14 +252,9 @@ def refine(graph: PoseGraph, poses, *, method: str = "gauss-newton", max_iterati
     Returns a ``RefineResult``. See the module docstring for the maths. Raises ``GraphError`` for a
     disconnected graph (its normal equations are singular), ``ValueError`` for bad arguments.
     """
-    if method not in REFINE_METHODS:
-        raise ValueError(f"unknown method {method!r}; expected one of {REFINE_METHODS}")
-    if backend not in SOLVER_BACKENDS:
-        raise ValueError(f"unknown backend {backend!r}; expected one of {SOLVER_BACKENDS}")
-    _check_iteration_args(max_iterations, tolerance)
-    x = _check_poses(graph, poses)
-    a = _resolve_anchor(graph, anchor)
-    check_connected(graph)
+    check_choice("method", method, REFINE_METHODS)
+    check_choice("backend", backend, SOLVER_BACKENDS)
+    x, a = prepare(graph, poses, anchor=anchor, max_iterations=max_iterations, tolerance=tolerance)
     t0 = time.perf_counter()
     prob = _Problem(graph, a)
     chi = prob.chi2(x)
@@ -271,7 +263,7 @@ def refine(graph: PoseGraph, poses, *, method: str = "gauss-newton", max_iterati
     if method == "levenberg-marquardt":
         entries[0]["lambda"] = None
     result = RefineResult(poses=x, chi2=chi, chi2_initial=chi, iterations=0, converged=False, log=entries,
-                          method=method, anchor=a, backend="")
+                          method=method, anchor=int(graph.ids[a]), backend="")
     if prob.dim == 0 or graph.n_edges == 0:
         result.converged, result.reason = True, "nothing to optimize"
         return result
@@ -284,7 +276,8 @@ def refine(graph: PoseGraph, poses, *, method: str = "gauss-newton", max_iterati
     return result
 
 
-def _small_step(dx: np.ndarray, x: np.ndarray) -> bool:
+def small_step(dx: np.ndarray, x: np.ndarray) -> bool:
+    """The step test shared by both refinements: ‖dx‖∞ ≤ ``STEP_TOLERANCE``·(1 + ‖x‖∞)."""
     return float(np.max(np.abs(dx))) <= STEP_TOLERANCE * (1.0 + float(np.max(np.abs(x))))
 
 
@@ -313,7 +306,7 @@ def _gauss_newton(prob: _Problem, res: RefineResult, max_iterations: int, tol: f
         if not np.isfinite(dx).all():
             res.reason = "non-finite Gauss-Newton step (singular normal equations)"
             break
-        if _small_step(dx, x):
+        if small_step(dx, x):
             res.converged, res.reason = True, f"step norm {step:.3g} below tolerance"
             res.log.append({"iteration": res.iterations, "chi2": chi, "step_norm": step,
                             "time": time.perf_counter() - t0, "halvings": 0})
@@ -380,7 +373,7 @@ def _levenberg_marquardt(prob: _Problem, res: RefineResult, max_iterations: int,
             dx = np.full(prob.dim, np.nan)
         step = float(np.max(np.abs(dx))) if np.isfinite(dx).all() else np.inf
         entry = {"iteration": res.iterations, "chi2": chi, "step_norm": step, "lambda": lam, "accepted": False}
-        if np.isfinite(step) and _small_step(dx, x):
+        if np.isfinite(step) and small_step(dx, x):
             entry["time"] = time.perf_counter() - t0
             res.log.append(entry)
             res.converged, res.reason = True, f"step norm {step:.3g} below tolerance"
@@ -433,8 +426,7 @@ def odometry_guess(graph: PoseGraph, *, spanning_tree="odometry", anchor=None) -
     The orientations come from ``SpanningTree.integrate``; the global position steps above only need
     the (already known) orientations, so positions are their sums along the path to the root,
     accumulated by the same pointer jumping (O(n log depth), no loop over poses)."""
-    a = _resolve_anchor(graph, anchor)
-    tree = build_tree(graph, spanning_tree, anchor=a)
+    tree = build_tree(graph, spanning_tree, anchor=anchor)
     theta = tree.integrate(graph)
     n = graph.n_poses
     steps = np.zeros((n, 2))
@@ -445,49 +437,6 @@ def odometry_guess(graph: PoseGraph, *, spanning_tree="odometry", anchor=None) -
         ang = np.where(fwd, theta[tree.parent[child]], theta[child])
         rotated = np.einsum("kab,kb->ka", rot2(ang), graph.delta_l[k])
         steps[child] = np.where(fwd[:, None], rotated, -rotated)
-    x = _accumulate_to_root(tree.parent, steps[:, 0])
-    y = _accumulate_to_root(tree.parent, steps[:, 1])
+    x = accumulate_to_root(tree.parent, steps[:, 0])
+    y = accumulate_to_root(tree.parent, steps[:, 1])
     return np.column_stack([x, y, theta])
-
-
-# ------------------------------------------------------------------------------ metrics
-def _alignment(estimate: np.ndarray, truth: np.ndarray):
-    """Best rigid 2-D alignment (rotation φ, translation t) with R(φ)·p_est + t ≈ p_truth in the
-    least-squares sense (Kabsch/Umeyama without scale; in 2-D φ = atan2(H₀₁ − H₁₀, H₀₀ + H₁₁) with
-    H = X̄ᵀȲ of the centred positions, which is always a proper rotation)."""
-    X, Y = estimate[:, :2], truth[:, :2]
-    mx, my = X.mean(0), Y.mean(0)
-    Hm = (X - mx).T @ (Y - my)
-    phi = float(np.arctan2(Hm[0, 1] - Hm[1, 0], Hm[0, 0] + Hm[1, 1]))
-    t = my - rot2(phi) @ mx
-    return phi, t
-
-
-def _check_pair(estimate, truth):
-    estimate = np.asarray(estimate, dtype=float)
-    truth = np.asarray(truth, dtype=float)
-    if estimate.ndim != 2 or estimate.shape[1] != 3 or estimate.shape != truth.shape or estimate.shape[0] == 0:
-        raise ValueError(f"estimate and truth must both have shape (n, 3), n ≥ 1; got {estimate.shape} "
-                         f"and {truth.shape}")
-    return estimate, truth
-
-
-def ate(estimate, truth, *, align: bool = True) -> float:
-    """Absolute trajectory error: RMS of the position errors ‖p_est − p_truth‖ over the n poses
-    (both (n, 3)), after the best rigid 2-D alignment of the estimate onto the truth when ``align``
-    (no scale), else raw."""
-    estimate, truth = _check_pair(estimate, truth)
-    p = estimate[:, :2]
-    if align:
-        phi, t = _alignment(estimate, truth)
-        p = p @ rot2(phi).T + t
-    return float(np.sqrt(np.mean(np.sum((p - truth[:, :2]) ** 2, axis=1))))
-
-
-def rotation_error(estimate, truth, align: bool = True) -> float:
-    """RMS wrapped orientation error (radians) over the n poses (both (n, 3)); with ``align`` the
-    estimate is first rotated by the same rigid alignment as in ``ate`` (its rotation angle is added
-    to every θ)."""
-    estimate, truth = _check_pair(estimate, truth)
-    phi = _alignment(estimate, truth)[0] if align else 0.0
-    return float(np.sqrt(np.mean(wrap_angle(estimate[:, 2] + phi - truth[:, 2]) ** 2)))

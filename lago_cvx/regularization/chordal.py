@@ -31,8 +31,20 @@ since δ enters only through cos δ and sin δ, the result does not depend on an
 noiseless data, where the relaxation is tight), small where they disagree.
 
 This is the initialization used by SE-Sync and by Carlone et al.'s ICRA 2015 survey ("chordal
-relaxation"); here it only decides the integers of the seed's regularization (see
-``lago_cvx.regularization.regularize_chordal``); LAGO's three phases then run unchanged.
+relaxation"); here it only decides the integers of the seed's regularization (``regularize_chordal``);
+LAGO's three phases then run unchanged.
+
+Rounding against it (R-C). Every edge e = (i → j) is rounded against the relaxed orientations φ:
+
+    φ̃ = φ + 2π·branch(φ, θ_tree)                 (the same φ, on the tree's branch: a pure gauge),
+    k_e = branch(δ_e, φ̃_j − φ̃_i),   δ_reg,e = δ_e + 2πk_e,
+    so that δ_reg,e − (φ̃_j − φ̃_i) ∈ (−π, π] for every edge (tree edges included).     (R-C)
+
+Adding 2π(w_j − w_i) (w ∈ ℤⁿ) to all δ_reg changes no cycle sum, so only the cycle integers
+C k ∈ ℤˡ matter (``RegularizationReport.cycle_k``); choosing φ̃ on the tree's branch keeps k = 0 on most
+tree edges and the phase-1 orientations unwrapped like the tree ones. An edge is *ambiguous* when
+|δ_reg,e − (φ̃_j − φ̃_i)| > π − margin. Chordal and tree rounding agree whenever the tree paths carry
+< π of accumulated rotation error; beyond that only the chordal one keeps finding the right integers.
 
 Both forms are provided side by side: ``chordal_problem`` (cvxpy, ``cp.sum_squares(M @ x − b)``) and
 ``chordal_closed_form`` (sparse normal equations with corrected semi-normal refinement).
@@ -43,15 +55,20 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass
 
-import cvxpy as cp
 import numpy as np
 import scipy.sparse as sp
 
-from .graph import free_poses
-from .linalg import solve_least_squares
-from .posegraph import PoseGraph
+from ..errors import OptionError
+from ..graph import SpanningTree, free_poses
+from ..linalg import solve_least_squares
+from ..posegraph import PoseGraph
+from ..rounding import AMBIGUITY_MARGIN, TWO_PI, branch, check_angles
+from ..solvers import ClarabelSettings, check_method, solve
+from ..uncertainty import edge_uncertainty
+from .report import RegularizationReport, warn_ambiguous
 
-__all__ = ["ChordalEstimate", "chordal_system", "chordal_problem", "chordal_closed_form", "chordal_from_problem"]
+__all__ = ["ChordalEstimate", "chordal_system", "chordal_problem", "chordal_closed_form", "chordal_from_problem",
+           "regularize_chordal"]
 
 log = logging.getLogger(__name__)
 
@@ -73,14 +90,16 @@ class ChordalEstimate:
     stats: dict | None = None
 
 
-def chordal_system(graph: PoseGraph, info_delta, *, anchor: int = 0) -> tuple[sp.csc_matrix, np.ndarray]:
+def chordal_system(graph: PoseGraph, info_delta, *, anchor=None) -> tuple[sp.csc_matrix, np.ndarray]:
     """The whitened linear system (C3) of the chordal relaxation: ``(M, b)`` with M (2m × 2d) sparse
     and b (2m,), so that (C2) is ‖M x − b‖², x (2d,) = the free poses' (cos, sin), interleaved, in the
-    order of ``lago_cvx.graph.free_poses``. ``info_delta`` (m,) is ω_e = 1/P_δ,e."""
+    order of ``lago_cvx.graph.free_poses``. ``info_delta`` (m,) is ω_e = 1/P_δ,e; ``anchor`` a pose id
+    (default the smallest)."""
+    anchor = graph.anchor_index(anchor)
     n, m = graph.n_poses, graph.n_edges
     w = np.sqrt(np.asarray(info_delta, dtype=float))
     if w.shape != (m,):
-        raise ValueError(f"info_delta must have shape ({m},), got {w.shape}")
+        raise OptionError(f"info_delta must have shape ({m},), got {w.shape}")
     col = np.full(n, -1, dtype=np.int64)
     col[free_poses(n, anchor)] = np.arange(n - 1)
     c, s = np.cos(graph.delta), np.sin(graph.delta)
@@ -121,33 +140,70 @@ def _estimate(n: int, anchor: int, x: np.ndarray, cost: float, stats=None) -> Ch
     return ChordalEstimate(vectors=vec, theta=theta, norms=norms, cost=float(cost), anchor=anchor, stats=stats)
 
 
-def chordal_problem(graph: PoseGraph, info_delta, *, anchor: int = 0) -> tuple[cp.Problem, cp.Variable]:
+def chordal_problem(graph: PoseGraph, info_delta, *, anchor=None):
     """The chordal relaxation (C2) as a cvxpy problem: minimise ‖M x − b‖² (``cp.sum_squares``, M whitened).
 
     Returns ``(problem, x)`` with x (2d,) the free poses' (cos θ, sin θ) interleaved; add constraints
     with ``cp.Problem(problem.objective, [...])`` (e.g. ``cp.norm(x[2*i:2*i+2]) <= 1``)."""
+    import cvxpy as cp
+
     M, b = chordal_system(graph, info_delta, anchor=anchor)
     x = cp.Variable(M.shape[1], name="r")
     return cp.Problem(cp.Minimize(cp.sum_squares(M @ x - b))), x
 
 
-def chordal_closed_form(graph: PoseGraph, info_delta, *, anchor: int = 0, backend: str = "auto") -> ChordalEstimate:
+def chordal_closed_form(graph: PoseGraph, info_delta, *, anchor=None, backend: str = "auto") -> ChordalEstimate:
     """The chordal relaxation (C2) in closed form: x = (MᵀM)⁻¹Mᵀb by a sparse factorization with corrected
     semi-normal refinement (``lago_cvx.linalg.solve_least_squares``); projected to angles."""
     M, b = chordal_system(graph, info_delta, anchor=anchor)
     x, _, _, stats = solve_least_squares(M, b, backend=backend)
     r = M @ x - b
-    return _estimate(graph.n_poses, anchor, x, float(r @ r), stats)
+    return _estimate(graph.n_poses, graph.anchor_index(anchor), x, float(r @ r), stats)
 
 
-def chordal_from_problem(graph: PoseGraph, info_delta, *, anchor: int = 0,
-                         settings: dict | None = None) -> tuple[ChordalEstimate, cp.Problem]:
-    """Build and solve the cvxpy form with Clarabel (``lago_cvx.phases.CLARABEL_SETTINGS``); returns
+def chordal_from_problem(graph: PoseGraph, info_delta, *, anchor=None,
+                         settings: ClarabelSettings | None = None):
+    """Build and solve the cvxpy form with Clarabel (``lago_cvx.solvers.solve``); returns
     (ChordalEstimate, problem)."""
-    from .phases import solve_problem
-
     problem, x = chordal_problem(graph, info_delta, anchor=anchor)
+    a = graph.anchor_index(anchor)
     if x.size == 0:  # a single pose: nothing to estimate
-        return _estimate(graph.n_poses, anchor, np.zeros(0), 0.0), problem
-    value = solve_problem(problem, settings=settings)
-    return _estimate(graph.n_poses, anchor, np.asarray(x.value, dtype=float), value), problem
+        return _estimate(graph.n_poses, a, np.zeros(0), 0.0), problem
+    solve(problem, settings, what="the chordal relaxation")
+    return _estimate(graph.n_poses, a, np.asarray(x.value, dtype=float), float(problem.value)), problem
+
+
+def regularize_chordal(graph: PoseGraph, tree: SpanningTree, *, margin: float = AMBIGUITY_MARGIN,
+                       method: str = "closed_form", backend: str = "auto",
+                       settings: ClarabelSettings | None = None) -> RegularizationReport:
+    """2kπ regularization of every edge against the chordal relaxation (module docstring, (R-C)).
+
+    The relaxation (eq. (C2)) is anchored at ``tree.root`` and solved in closed form
+    (``method="closed_form"``, sparse ``backend``) or as its cvxpy problem with Clarabel
+    (``method="cvxpy"``; the problem is kept in ``report.problem``). O(m + n log n) plus one sparse
+    factorization of the 2(n−1) × 2(n−1) connection Laplacian."""
+    check_method(method)
+    check_angles(graph)
+    info = edge_uncertainty(graph).info_delta  # 1/P_δ, as phase 1 weighs the orientations
+    root = int(graph.ids[tree.root])
+    problem = None
+    if method == "closed_form":
+        est = chordal_closed_form(graph, info, anchor=root, backend=backend)
+    else:
+        est, problem = chordal_from_problem(graph, info, anchor=root, settings=settings)
+    theta_raw = tree.integrate(graph)
+    ref = est.theta + TWO_PI * branch(est.theta, theta_raw)  # φ̃: φ on the tree's branch
+    target = ref[graph.heads] - ref[graph.tails]
+    k = branch(graph.delta, target)
+    delta_reg = graph.delta + TWO_PI * k
+    edge_residual = delta_reg - target
+    c = tree.chords
+    path_raw = theta_raw[graph.heads] - theta_raw[graph.tails]
+    theta_tree = tree.integrate(graph, delta_reg)
+    path_reg = theta_tree[graph.heads] - theta_tree[graph.tails]
+    ambiguous = np.flatnonzero(np.abs(edge_residual) > np.pi - margin)
+    warn_ambiguous(graph, ambiguous, margin, "edge", "the measurement contradicts the chordal estimate by ≈ π")
+    return RegularizationReport(delta_reg=delta_reg, k=k, chords=c, residual_before=graph.delta[c] - path_raw[c],
+                                residual=delta_reg[c] - path_reg[c], ambiguous=ambiguous, theta_tree=theta_tree,
+                                margin=float(margin), tree=tree, regularization="chordal", reference=ref,
+                                edge_residual=edge_residual, chordal=est, problem=problem)

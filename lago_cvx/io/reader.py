@@ -1,47 +1,4 @@
-"""Reading and writing planar pose graphs in the g2o and TORO text formats.
-
-Formats
-=======
-Both formats are line based: one record per line, whitespace-separated tokens (spaces or tabs; LF or
-CRLF line ends). Blank lines and lines whose first non-blank character is ``#`` are skipped. Pose ids
-are integers; they need not be contiguous or start at 0 (``PoseGraph.ids`` keeps them, sorted, and
-edge endpoints become indices into it).
-
-**g2o** (``VERTEX_SE2`` / ``EDGE_SE2``)::
-
-    VERTEX_SE2 id x y θ
-    EDGE_SE2   i j dx dy dθ I11 I12 I13 I22 I23 I33
-
-The edge carries pose j measured in the frame of pose i and the *upper triangle* (row-major, order
-x, y, θ) of the 3×3 information matrix Ω of the error ``e = [R_iᵀ(p_j − p_i) − Δˡ ; θ_j − θ_i − δ]``
-— the convention of :mod:`lago_cvx.posegraph`. ``FIX id [id ...]`` lines are legal g2o; they are
-validated (integer ids), logged at INFO level and otherwise ignored (LAGO picks its own anchor).
-
-**TORO / HOG-Man** (``VERTEX2`` / ``EDGE2``)::
-
-    VERTEX2 id x y θ
-    EDGE2   i j dx dy dθ Ixx Ixy Iyy Iθθ Ixθ Iyθ
-
-Same measurement, but the six information entries come in a different order (HOG-Man's
-``inf_ff inf_fs inf_ss inf_rr inf_fr inf_sr``; in error messages the fields are called
-``Ixx Ixy Iyy Itt Ixt Iyt``, t standing for θ) **and in a different frame**.
-
-TORO → g2o information conversion
----------------------------------
-A TORO information matrix Ω_toro is converted on reading to the g2o convention by
-
-    Ω_g2o = Tᵀ Ω_toro T,    T = blkdiag(R(dθ), 1),
-
-where R(dθ) is the 2-D rotation by the edge's *own* measured angle dθ. This rotates the 2×2
-translational block (R(dθ)ᵀ Ω_tt R(dθ)) and the x-θ / y-θ cross terms consistently; Ω_θθ is unchanged.
-Writing TORO applies the inverse, Ω_toro = T Ω_g2o Tᵀ (T is orthogonal). The rotation and its
-direction are an empirical convention, fixed by the data below rather than derived from TORO's code.
-
-Evidence (datasets README §2.3, re-checked by ``tests/test_io.py``): SE-Sync's ``manhattan.g2o`` and
-``CSAIL.g2o`` were produced from Carlone's ``M3500_P_toro.graph`` and ``CSAIL_P_toro.graph``. The twins
-have the same endpoints and measurements, and after this conversion *every* edge's information agrees
-to 1e-4 relative (the g2o files were printed with 6 decimals); without the rotation, or with the
-rotation the other way (T Ω_toro Tᵀ), they do not agree (relative differences > 1e-2).
+"""Reading g2o and TORO files (formats in ``formats.py``).
 
 Errors
 ======
@@ -74,75 +31,24 @@ from __future__ import annotations
 
 import gc
 import logging
-import os
 import re
-import tempfile
 import warnings
 from dataclasses import dataclass
 from operator import itemgetter
 from pathlib import Path
-from typing import NamedTuple
 
 import numpy as np
 
-from .posegraph import PoseGraph, is_spd, rot2, wrap_angle
+from ..errors import ParseError
+from ..posegraph import PoseGraph, is_spd
+from .formats import (FIX, FORMAT_LABEL, FORMAT_SPECS, G2O_INFO_INDEX, SPECS, TAGS_OF, TORO_INFO_INDEX, Spec,
+                      check_format, toro_to_g2o)
 
-__all__ = ["ParseError", "read_graph", "write_graph", "detect_format"]
+__all__ = ["read_graph", "detect_format"]
 
-logger = logging.getLogger(__name__)
+logger = logging.getLogger("lago_cvx.io")
 
-_FORMATS = ("g2o", "toro")
-_FORMAT_LABEL = {"g2o": "g2o", "toro": "TORO"}
-
-
-class ParseError(ValueError):
-    """A pose-graph file that cannot be read.
-
-    Attributes: ``path`` (str, as given by the caller), ``line`` (1-based int, or None for whole-file
-    problems) and ``problem`` (str). ``str(err)`` is the one-line ``"{path}:{line}: {problem}"``
-    (``"{path}: {problem}"`` when ``line`` is None).
-    """
-
-    def __init__(self, path, line: int | None, problem: str):
-        super().__init__(path, line, problem)
-        self.path = os.fspath(path) if isinstance(path, os.PathLike) else str(path)
-        self.line = None if line is None else int(line)
-        self.problem = " ".join(str(problem).split("\n"))
-
-    def __str__(self) -> str:
-        if self.line is None:
-            return f"{self.path}: {self.problem}"
-        return f"{self.path}:{self.line}: {self.problem}"
-
-
-# ----------------------------------------------------------------------------- record types
-class _Spec(NamedTuple):
-    tag: str
-    fmt: str        # "g2o" or "toro"
-    fields: tuple   # names of the tokens after the tag (for messages)
-    n_ids: int      # how many of the leading fields are integer ids
-    n_tokens: int   # tokens on a well-formed line, tag included
-
-
-_VERTEX_FIELDS = ("id", "x", "y", "theta")
-_G2O_EDGE_FIELDS = ("i", "j", "dx", "dy", "dtheta", "I11", "I12", "I13", "I22", "I23", "I33")
-_TORO_EDGE_FIELDS = ("i", "j", "dx", "dy", "dtheta", "Ixx", "Ixy", "Iyy", "Itt", "Ixt", "Iyt")
-
-_SPECS = {spec.tag: spec for spec in [
-    _Spec("VERTEX_SE2", "g2o", _VERTEX_FIELDS, 1, 5),
-    _Spec("EDGE_SE2", "g2o", _G2O_EDGE_FIELDS, 2, 12),
-    _Spec("VERTEX2", "toro", _VERTEX_FIELDS, 1, 5),
-    _Spec("EDGE2", "toro", _TORO_EDGE_FIELDS, 2, 12),
-]}
-_FORMAT_SPECS = {"g2o": (_SPECS["VERTEX_SE2"], _SPECS["EDGE_SE2"]),   # (vertex, edge) per format
-                 "toro": (_SPECS["VERTEX2"], _SPECS["EDGE2"])}
-_TAGS_OF = {"g2o": "VERTEX_SE2/EDGE_SE2", "toro": "VERTEX2/EDGE2"}
-_FIX = "FIX"
 _UNSET = object()
-
-# Index maps from the six stored information entries to the symmetric 3×3 matrix (order x, y, θ).
-_G2O_INFO_INDEX = np.array([[0, 1, 2], [1, 3, 4], [2, 4, 5]])   # I11 I12 I13 I22 I23 I33
-_TORO_INFO_INDEX = np.array([[0, 1, 4], [1, 2, 5], [4, 5, 3]])  # Ixx Ixy Iyy Itt Ixt Iyt
 
 # Token grammar (ASCII only). The fast path enforces the same grammar with a character-set check
 # followed by np.fromstring, which must consume every token as exactly one number.
@@ -239,8 +145,8 @@ def _unknown_tag(tag: str, fmt_forced: str | None) -> str:
     if _has_undecodable(tag):
         return f"undecodable bytes {_show(tag)} in the tag (the file is not valid UTF-8)"
     if fmt_forced:
-        return f"unknown tag {_show(tag)} (expected {_TAGS_OF[fmt_forced]} for {fmt_forced})"
-    return f"unknown tag {_show(tag)} (expected {_TAGS_OF['g2o']} or {_TAGS_OF['toro']})"
+        return f"unknown tag {_show(tag)} (expected {TAGS_OF[fmt_forced]} for {fmt_forced})"
+    return f"unknown tag {_show(tag)} (expected {TAGS_OF['g2o']} or {TAGS_OF['toro']})"
 
 
 def _scan(text: str, fmt_forced: str | None, path) -> _Scan:
@@ -253,10 +159,10 @@ def _scan(text: str, fmt_forced: str | None, path) -> _Scan:
     e_text, e_lines, e_ids = edges.text.append, edges.lines.append, edges.ids.append
     fmt, fmt_line = fmt_forced, None
     # The current format's specs; a sentinel (never returned by the look-up) until the format is known.
-    vspec, espec = _FORMAT_SPECS[fmt_forced] if fmt_forced else (_UNSET, _UNSET)
+    vspec, espec = FORMAT_SPECS[fmt_forced] if fmt_forced else (_UNSET, _UNSET)
     check_ascii = not text.isascii()
     error = None
-    specs_get = _SPECS.get
+    specs_get = SPECS.get
     gc_was_enabled = gc.isenabled()
     gc.disable()  # the loop allocates one list per line; cyclic GC passes would only slow it down
     try:
@@ -271,7 +177,7 @@ def _scan(text: str, fmt_forced: str | None, path) -> _Scan:
                 if spec is None:
                     if tag[0] == "#":
                         continue
-                    if tag == _FIX:
+                    if tag == FIX:
                         error = _fix_line(toks, lineno, path)
                         if error:
                             break
@@ -280,14 +186,14 @@ def _scan(text: str, fmt_forced: str | None, path) -> _Scan:
                     break
                 if fmt is None:  # auto-detection: the first data tag decides
                     fmt, fmt_line = spec.fmt, lineno
-                    vspec, espec = _FORMAT_SPECS[fmt]
+                    vspec, espec = FORMAT_SPECS[fmt]
                 elif fmt_forced:
-                    error = (lineno, f"{_FORMAT_LABEL[spec.fmt]} tag {tag!r} in a file read as "
-                                     f"{fmt_forced} (expected {_TAGS_OF[fmt_forced]})")
+                    error = (lineno, f"{FORMAT_LABEL[spec.fmt]} tag {tag!r} in a file read as "
+                                     f"{fmt_forced} (expected {TAGS_OF[fmt_forced]})")
                     break
                 else:
-                    error = (lineno, f"mixes g2o and TORO tags ({_FORMAT_LABEL[spec.fmt]} tag {tag!r} "
-                                     f"here, {_FORMAT_LABEL[fmt]} tag seen on line {fmt_line})")
+                    error = (lineno, f"mixes g2o and TORO tags ({FORMAT_LABEL[spec.fmt]} tag {tag!r} "
+                                     f"here, {FORMAT_LABEL[fmt]} tag seen on line {fmt_line})")
                     break
             if len(toks) != spec.n_tokens:
                 error = (lineno, f"{spec.tag} expects {spec.n_tokens - 1} numbers after the tag, "
@@ -329,7 +235,7 @@ def _fix_line(toks: list, lineno: int, path) -> tuple[int, str] | None:
 
 
 # ----------------------------------------------------------------------------- number conversion
-def _convert_fast(rec: _Records, spec: _Spec) -> np.ndarray | None:
+def _convert_fast(rec: _Records, spec: Spec) -> np.ndarray | None:
     """All numbers of the records (ids included) as one (k, n_fields) float array, or None when
     anything is off (then the careful pass finds and names the problem).
 
@@ -360,7 +266,7 @@ def _convert_fast(rec: _Records, spec: _Spec) -> np.ndarray | None:
     return arr
 
 
-def _convert_careful(rec: _Records, spec: _Spec):
+def _convert_careful(rec: _Records, spec: Spec):
     """Token-by-token conversion: ``(ids, values, None)`` or ``(None, None, (line, message))`` for
     the first bad token."""
     n_ids = spec.n_ids
@@ -381,7 +287,7 @@ def _convert_careful(rec: _Records, spec: _Spec):
     return ids, vals, None
 
 
-def _convert(rec: _Records, spec: _Spec):
+def _convert(rec: _Records, spec: Spec):
     """``(ids (k, n_ids) int64, values (k, n_values) float, None)`` or ``(None, None, (line, msg))``."""
     n_ids, n_vals = spec.n_ids, len(spec.fields) - spec.n_ids
     if not rec.text:
@@ -390,28 +296,6 @@ def _convert(rec: _Records, spec: _Spec):
     if arr is not None:
         return arr[:, :n_ids].astype(np.int64), np.ascontiguousarray(arr[:, n_ids:]), None
     return _convert_careful(rec, spec)
-
-
-# ----------------------------------------------------------------------------- information matrices
-def _toro_to_g2o(info_toro: np.ndarray, dtheta: np.ndarray) -> np.ndarray:
-    """Ω_g2o = Tᵀ Ω_toro T with T = blkdiag(R(dθ), 1), for (m, 3, 3) stacks; exactly symmetric."""
-    T = _rotation_block(dtheta)
-    out = np.swapaxes(T, 1, 2) @ info_toro @ T
-    return 0.5 * (out + np.swapaxes(out, 1, 2))
-
-
-def _g2o_to_toro(info_g2o: np.ndarray, dtheta: np.ndarray) -> np.ndarray:
-    """Inverse of :func:`_toro_to_g2o`: Ω_toro = T Ω_g2o Tᵀ."""
-    T = _rotation_block(dtheta)
-    out = T @ info_g2o @ np.swapaxes(T, 1, 2)
-    return 0.5 * (out + np.swapaxes(out, 1, 2))
-
-
-def _rotation_block(dtheta: np.ndarray) -> np.ndarray:
-    T = np.zeros((len(dtheta), 3, 3))
-    T[:, :2, :2] = rot2(dtheta)
-    T[:, 2, 2] = 1.0
-    return T
 
 
 # ----------------------------------------------------------------------------- semantic checks
@@ -474,15 +358,6 @@ def _bad_information(info: np.ndarray, raw: np.ndarray, elines: np.ndarray):
 
 
 # ----------------------------------------------------------------------------- public API
-def _check_format(format):
-    if format is None:
-        return None
-    f = str(format).lower()
-    if f not in _FORMATS:
-        raise ValueError(f"format must be None, 'g2o' or 'toro', got {format!r}")
-    return f
-
-
 def read_graph(path, *, format: str | None = None) -> PoseGraph:
     """Read a g2o or TORO pose-graph file into a :class:`PoseGraph` (``name`` = the file's name).
 
@@ -490,11 +365,11 @@ def read_graph(path, *, format: str | None = None) -> PoseGraph:
     information matrices are converted to the g2o convention (see the module docstring).
     Raises :class:`ParseError` for every unreadable or invalid input.
     """
-    fmt_forced = _check_format(format)
+    fmt_forced = check_format(format)
     text = _read_text(path)
     scan = _scan(text, fmt_forced, path)
-    vspec = _SPECS["VERTEX_SE2" if scan.fmt != "toro" else "VERTEX2"]
-    espec = _SPECS["EDGE_SE2" if scan.fmt != "toro" else "EDGE2"]
+    vspec = SPECS["VERTEX_SE2" if scan.fmt != "toro" else "VERTEX2"]
+    espec = SPECS["EDGE_SE2" if scan.fmt != "toro" else "EDGE2"]
 
     # Lexical problems: the scan stopped at its first structural problem, and every token before it
     # is converted, so the earliest problem wins.
@@ -509,10 +384,10 @@ def read_graph(path, *, format: str | None = None) -> PoseGraph:
     vid = vid[:, 0]
     vlines = np.asarray(scan.vertices.lines, np.int64)
     elines = np.asarray(scan.edges.lines, np.int64)
-    raw = evals[:, 3:][:, _TORO_INFO_INDEX if espec.fmt == "toro" else _G2O_INFO_INDEX]
+    raw = evals[:, 3:][:, TORO_INFO_INDEX if espec.fmt == "toro" else G2O_INFO_INDEX]
     if espec.fmt == "toro":
         with np.errstate(over="ignore", invalid="ignore"):  # overflow is reported per edge below
-            info = _toro_to_g2o(raw, evals[:, 2])
+            info = toro_to_g2o(raw, evals[:, 2])
     else:
         info = raw
 
@@ -540,7 +415,7 @@ def read_graph(path, *, format: str | None = None) -> PoseGraph:
                 ids=ids,
                 name=Path(path).name,
             )
-    except ValueError as exc:
+    except ValueError as exc:  # GraphError from PoseGraph
         problem = _first([_self_loop(eid, elines), _bad_information(info, raw, elines)])
         if problem:
             raise ParseError(path, *problem) from None
@@ -555,101 +430,10 @@ def detect_format(path) -> str:
     text = _read_text(path)
     for lineno, line in enumerate(text.split("\n"), 1):
         toks = line.split(maxsplit=1)
-        if not toks or toks[0][0] == "#" or toks[0] == _FIX:
+        if not toks or toks[0][0] == "#" or toks[0] == FIX:
             continue
-        spec = _SPECS.get(toks[0])
+        spec = SPECS.get(toks[0])
         if spec is None:
             raise ParseError(path, lineno, _unknown_tag(toks[0], None))
         return spec.fmt
     raise ParseError(path, None, "file contains no vertices and no edges")
-
-
-def _wrap_vertex_angles(theta: np.ndarray) -> np.ndarray:
-    """Angles outside [−π, π) wrapped into it; angles already inside are kept bit for bit."""
-    inside = (theta >= -np.pi) & (theta < np.pi)
-    w = wrap_angle(theta)
-    w = np.where(w >= np.pi, w - 2.0 * np.pi, w)  # (a + π) mod 2π can round up to 2π
-    return np.where(inside, theta, w)
-
-
-def _file_mode(path: Path) -> int:
-    """Permissions for the new file: the existing file's, else the usual 0666 & ~umask."""
-    try:
-        return os.stat(path).st_mode & 0o7777
-    except OSError:
-        pass
-    try:  # Linux: read the umask without changing it
-        with open("/proc/self/status") as f:
-            mask = next(int(ln.split()[1], 8) for ln in f if ln.startswith("Umask:"))
-    except (OSError, StopIteration, ValueError, IndexError):
-        mask = os.umask(0)  # elsewhere: the classic (briefly process-wide) set-and-restore
-        os.umask(mask)
-    return 0o666 & ~mask
-
-
-def write_graph(path, graph: PoseGraph, poses=None, *, format: str = "g2o",
-                wrap_angles: bool = True) -> Path:
-    """Write ``graph`` as a g2o (default) or TORO file and return its path.
-
-    Vertex lines come from ``poses`` ((n, 3)) if given, else from ``graph.initial``; with neither the
-    file has edge lines only (poses that appear in no edge are then not represented). Ids are the
-    graph's original ``ids``. Numbers are written with ``repr`` (shortest exact round trip), so
-    read → write → read reproduces the graph bit for bit. Vertex angles outside [−π, π) are wrapped
-    when ``wrap_angles``; edge angles δ are written as stored. TORO output converts the information
-    back to the TORO frame (Ω_toro = T Ω Tᵀ). The file is written to a temporary file in the same
-    directory and moved into place with ``os.replace`` (atomic).
-    """
-    fmt = _check_format(format)
-    if fmt is None:
-        raise ValueError("format must be 'g2o' or 'toro'")
-    path = Path(path)
-    if poses is None:
-        poses = graph.initial
-    if poses is not None:
-        poses = np.asarray(poses, dtype=float)
-        if poses.shape != (graph.n_poses, 3):
-            raise ValueError(f"poses must have shape ({graph.n_poses}, 3), got {poses.shape}")
-        if not np.isfinite(poses).all():
-            raise ValueError("poses must be finite")
-        if wrap_angles:
-            poses = np.column_stack([poses[:, :2], _wrap_vertex_angles(poses[:, 2])])
-    elif graph.n_edges == 0:
-        raise ValueError("nothing to write: the graph has no edges and no poses were given")
-    elif np.unique(np.concatenate([graph.tails, graph.heads])).size < graph.n_poses:
-        logger.warning("%s: writing an edge-only file; poses that appear in no edge are lost", path)
-
-    vtag = "VERTEX_SE2" if fmt == "g2o" else "VERTEX2"
-    etag = "EDGE_SE2" if fmt == "g2o" else "EDGE2"
-    info = graph.information
-    if fmt == "g2o":
-        six = info[:, [0, 0, 0, 1, 1, 2], [0, 1, 2, 1, 2, 2]]
-    else:
-        t = _g2o_to_toro(info, graph.delta)
-        six = t[:, [0, 0, 1, 2, 0, 1], [0, 1, 1, 2, 2, 2]]
-    ids = graph.ids.tolist()
-    parts = []
-    if poses is not None:
-        vfmt = vtag + " %d %r %r %r\n"
-        parts.extend(vfmt % (i, *p) for i, p in zip(ids, poses.tolist()))
-    efmt = etag + " %d %d" + " %r" * 9 + "\n"
-    eids = np.column_stack([graph.ids[graph.tails], graph.ids[graph.heads]]).tolist()
-    evals = np.column_stack([graph.delta_l, graph.delta, six]).tolist()
-    parts.extend(efmt % (*e, *v) for e, v in zip(eids, evals))
-    text = "".join(parts)
-
-    mode = _file_mode(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="ascii", newline="\n") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        os.chmod(tmp, mode)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
-    return path

@@ -1,0 +1,337 @@
+r"""SE-Sync's optimality certificate (Rosen et al. 2019, §4.2) for the cost of eq. (S1), decided by one
+sparse LDLᵀ inertia count.
+
+Problem (S1) is min tr(M YᵀY) over Y with R_i ∈ SO(2). Lagrangian of the constraints R_iᵀR_i = I₂ with
+symmetric multipliers Λ_i (2×2): L = tr(Y M Yᵀ) − Σ tr(Λ_i(R_iᵀR_i − I)); stationarity gives::
+
+    S Yᵀ = 0,   S = M − Λ̂,   Λ̂ = blkdiag(0, Λ_0, 0, Λ_1, …)  (zeros on translations),            (S6)
+    Λ_i = sym( [M YᵀY]_{R_i R_i} ) = sym( (M Yᵀ)_{R_i} R_i )      (SE-Sync's Λ(Y)).                 (S7)
+
+Weak duality: for any Λ with S = M − Λ̂ ⪰ 0 and any feasible Y, f(Y) = tr(S YᵀY) + Σ tr Λ_i ≥ Σ tr Λ_i.
+So if Y is a critical point (S6) and S ⪰ 0, then Σ tr Λ_i = f(Y) (the translation rows of (MYᵀ) vanish)
+and Y is a **global** minimiser (SE-Sync Theorem 7, our S is theirs before translation elimination).
+
+Schur complement. With L_τ = M_tt (the τ-weighted Laplacian, n × n) and
+Q = M_RR − M_Rt L_τ⁺ M_tR (2n × 2n, dense — SE-Sync's translation-free data matrix),
+S ⪰ 0 ⟺ S_Q = Q − Λ ⪰ 0 (Haynsworth: the translation block of S is L_τ ⪰ 0 and M 1_t = 0).
+Grounding the anchor's translation column gives S_g (3n−1) and, for every σ,
+In(S_g − σ Î_R) = In(L_g) + In(S_Q − σI) with L_g ≻ 0 the grounded Laplacian (Î_R = identity on rotation
+indices, 0 on translations). So **one sparse LDLᵀ of S_g + ηÎ_R (QDLDL, AMD ordering) counts the
+eigenvalues of S_Q below −η**: zero negative pivots proves λ_min(S_Q) ≥ −η, i.e. S + ηÎ_R ⪰ 0. The
+spectrum of S_Q near its bottom comes from shift-invert Lanczos on b ↦ [(S_g − σÎ_R)⁻¹(0; b)]_R with σ
+below λ_min (found by inertia bisection, started from the bound λ_min ≥ −max_i λ_max(Λ_i) since Q ⪰ 0).
+At a certified optimum S_Q has exactly the two null vectors Y_Rᵀ (its third eigenvalue is the margin).
+The full S has a third, structural null vector 1_t; its λ_min is computed the same way without grounding.
+
+``certify`` first replaces the translations by the optimal ones for the given rotations (one linear
+solve, as SE-Sync eliminates them), so Σ tr Λ_i = f exactly and the verdict is about the rotations.
+
+Tolerances. η = ``tol``·‖M‖₂ (‖M‖₂ by Lanczos; default tol = 1e-12): floating-point S is known only
+to ~1e-16‖M‖ entrywise and the LDLᵀ is backward stable only to a modest multiple of that, so the
+test is "λ_min(S_Q) ≥ −η", and what it proves is f(x) − f* ≤ 2nη (section 3, eq. (S8) with
+Λ − ηI). The optima of the SE-Sync datasets have λ_min(S_Q) ≈ ±5e-13 (absolute) and still certify at
+tol = 1e-15; the rigorous relative bound 2nη/f at the default is 4e-6 (CSAIL) … 1e-7 (city10000).
+
+Lower bound when the certificate fails. With μ = max(0, −λ_min(S_Q)), Λ' = Λ − μI makes
+Q − Λ' = S_Q + μI ⪰ 0, i.e. Λ' is dual feasible, so
+
+    f* ≥ d(Λ') = Σ tr Λ_i − 2nμ                                                                       (S8)
+
+(made rigorous by using μ + η). At a suboptimal critical point this bound is valid but usually weak
+(2n·μ); the SDP optimum (section 4) is the best such bound.
+
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from ..errors import GraphError, OptionError, SolverError
+from ..graph import check_connected
+from ..posegraph import PoseGraph
+from .sesync import (data_matrix, grounded_index, lambda_hat, multipliers, optimal_translations, sesync_cost,
+                     stacked_variable)
+
+__all__ = ["CERTIFY_TOL", "Certificate", "certify", "dual_lower_bound"]
+
+log = logging.getLogger("lago_cvx.certification")
+
+
+#: Below this dimension the shift-inverted operator is formed densely instead of running Lanczos.
+DENSE_LIMIT = 64
+
+
+class _ShiftedLDL:
+    """K(σ) = K0 − σ·diag(D) (K0 sparse symmetric (N, N), D (N,) of 0/1) factored by QDLDL (AMD
+    ordering, no pivoting) with a fixed pattern: ``inertia(σ)`` returns the number of negative pivots of
+    LDLᵀ, i.e. (Sylvester) the number of negative eigenvalues of K(σ); ``solve`` uses the last factor."""
+
+    def __init__(self, K0: sp.spmatrix, D: np.ndarray):
+        import qdldl
+
+        K0 = sp.csc_matrix(K0)
+        N = K0.shape[0]
+        U = sp.triu(K0 + sp.eye(N, format="csc"), format="csc")  # the +I forces every diagonal entry
+        U.sort_indices()
+        self.diag_pos = U.indptr[1:] - 1  # last entry of each column of an upper-triangular CSC
+        self.diag0 = K0.diagonal()
+        self.D = np.asarray(D, dtype=float)
+        U.data[self.diag_pos] = self.diag0
+        self.U = U
+        self._qdldl = qdldl
+        self._solver = None
+        self.sigma = None
+
+    def inertia(self, sigma: float) -> int:
+        """Number of negative eigenvalues of K(σ) (a zero pivot counts as negative: K(σ) not ≻ 0)."""
+        self.U.data[self.diag_pos] = self.diag0 - sigma * self.D
+        try:
+            if self._solver is None:
+                self._solver = self._qdldl.Solver(self.U, upper=True)
+            else:
+                self._solver.update(self.U, upper=True)
+        except Exception:  # QDLDL stops at an exactly zero pivot
+            self._solver, self.sigma = None, None
+            return 1
+        self.sigma = sigma
+        d = self._solver.factors()[1]
+        return int(np.count_nonzero(~(d > 0)))
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        return self._solver.solve(np.ascontiguousarray(b, dtype=float))
+
+
+def _bottom_eigenvalues(ldl: _ShiftedLDL, sel: np.ndarray, *, lower: float, upper: float, k: int,
+                        negative_at_upper: int, rel_width: float = 0.05, max_bisections: int = 60):
+    """The k smallest eigenvalues of the operator T with (T − σI)⁻¹ b = [K(σ)⁻¹ E b]_sel (E the
+    embedding of ``sel`` into ℝ^N): T = S_Q for the grounded reduced certificate, T = S for the full one.
+
+    ``lower`` is a proven lower bound of λ_min(T); ``upper`` a shift at which ``negative_at_upper``
+    eigenvalues lie below. If that count is positive, the bracket [lower, upper] is bisected with
+    inertia counts until its width is ``rel_width``·|upper| (λ_min is then the dominant eigenvalue of
+    the shift-inverted operator and Lanczos converges in a few steps); otherwise σ = upper − |upper|
+    (= −2η) is used, just below the proven bound λ_min ≥ −η. Returns (eigenvalues ascending (k,), σ used)."""
+    if negative_at_upper > 0:
+        lo, hi = lower, upper
+        for _ in range(max_bisections):
+            if hi - lo <= rel_width * abs(hi):
+                break
+            mid = 0.5 * (lo + hi)
+            if ldl.inertia(mid) == 0:
+                lo = mid
+            else:
+                hi = mid
+        sigma = lo
+    else:
+        sigma = upper - abs(upper)  # upper = −η: σ = −2η < λ_min
+    if ldl.inertia(sigma) != 0:  # should not happen: lower is a proven bound
+        raise SolverError(f"certificate: K(σ) is not positive definite at σ = {sigma:.3g}")
+    N = ldl.U.shape[0]
+    d = sel.size
+    k = max(1, min(k, d - 1))
+
+    def op(b):
+        full = np.zeros(N)
+        full[sel] = np.ravel(b)
+        return ldl.solve(full)[sel]
+
+    if d <= DENSE_LIMIT:  # small: the whole shift-inverted operator, column by column
+        T = np.column_stack([op(e) for e in np.eye(d)])
+        nu = np.linalg.eigvalsh(0.5 * (T + T.T))[::-1][:k]
+    else:
+        A = spla.LinearOperator((d, d), matvec=op, dtype=float)
+        v0 = np.random.default_rng(0).standard_normal(d)
+        nu = spla.eigsh(A, k=k, which="LA", v0=v0, return_eigenvectors=False, tol=1e-12)
+    return np.sort(sigma + 1.0 / nu), sigma
+
+
+@dataclass(eq=False)
+class Certificate:
+    """Outcome of ``certify`` (see the module docstring, section 3).
+
+    ``certified`` — True iff the LDLᵀ inertia of S_g + ηÎ_R has no negative pivot, i.e.
+    λ_min(S_Q) ≥ −η, which proves f(poses) − f* ≤ ``suboptimality_bound`` = 2nη;
+    ``verdict`` — one line saying so or why not.
+    ``cost`` f at the certified point (translations re-optimised for the given rotations when
+    ``optimize_translations``; ``cost_input`` at the poses as given); ``poses`` that point (n, 3).
+    ``dual_value`` Σ tr Λ_i (= ``cost`` when translations are optimal); ``multipliers`` Λ (n, 2, 2).
+    ``lambda_min`` λ_min(S_Q) (SE-Sync's certificate matrix, translations eliminated) by shift-invert
+    Lanczos; ``eigenvalues`` the ``n_eigenvalues`` smallest of S_Q (at an optimum two are ≈ 0, the
+    third is the margin); ``lambda_min_full`` λ_min(S) of the full 3n × 3n S (≤ 0 always: S 1_t = 0;
+    NaN unless ``full``). ``eta`` = tol·‖M‖₂, ``norm_M`` ‖M‖₂; ``n_negative`` eigenvalues of S_Q below
+    −η (inertia count). ``residual`` ‖S Yᵀ‖_F (first-order condition (S6)), ``residual_rel`` =
+    residual/(‖M‖₂ √(2n)). ``lower_bound`` a proven lower bound on f* (eq. (S8) with the shift ``shift``:
+    Λ + shift·I is dual feasible), ``suboptimality_bound`` = cost − lower_bound, and
+    ``suboptimality_estimate`` = 2n·max(0, −λ_min) (to Lanczos accuracy, SE-Sync's number).
+    ``times`` seconds per step."""
+
+    certified: bool
+    verdict: str
+    cost: float
+    cost_input: float
+    dual_value: float
+    lambda_min: float
+    eigenvalues: np.ndarray
+    lambda_min_full: float
+    eta: float
+    norm_M: float
+    n_negative: int
+    residual: float
+    residual_rel: float
+    lower_bound: float
+    shift: float
+    suboptimality_bound: float
+    suboptimality_estimate: float
+    poses: np.ndarray
+    multipliers: np.ndarray
+    times: dict = field(default_factory=dict)
+
+    @property
+    def relative_suboptimality_bound(self) -> float:
+        """(f − lower_bound)/f: relative distance to the global optimum proven by the certificate."""
+        return self.suboptimality_bound / max(abs(self.cost), np.finfo(float).tiny)
+
+
+#: Default relative tolerance of ``certify``: η = CERTIFY_TOL·‖M‖₂. Measured: the optima of the five
+#: SE-Sync datasets still certify at 1e-15 (their computed λ_min(S_Q) is ≈ −5e-13, i.e. ~1e-17‖M‖);
+#: 1e-12 leaves three orders of magnitude for rounding in S and in the factorization.
+CERTIFY_TOL = 1e-12
+
+
+def _norm2(M: sp.spmatrix) -> float:
+    """‖M‖₂ = λ_max(M) for the PSD M (Lanczos, 1e-6 relative; dense for tiny M)."""
+    if M.shape[0] <= DENSE_LIMIT:
+        return float(np.linalg.eigvalsh(M.toarray())[-1])
+    v0 = np.ones(M.shape[0])
+    return float(spla.eigsh(M, k=1, which="LA", v0=v0, tol=1e-6, return_eigenvectors=False)[0])
+
+
+def certify(graph: PoseGraph, poses, *, tol: float = CERTIFY_TOL, optimize_translations: bool = True,
+            anchor=None, n_eigenvalues: int = 3, full: bool = True) -> Certificate:
+    """SE-Sync's verification (Rosen et al. 2019, §4.2) of ``poses`` (n, 3) for the cost of eq. (S1).
+
+    Keyword-only: ``tol`` relative PSD tolerance, η = tol·‖M‖₂ (default ``CERTIFY_TOL`` = 1e-12; the
+    optima of the SE-Sync datasets still pass at 1e-15, rounding shows below ~1e-16); ``optimize_translations`` replace the translations by the optimal
+    ones for the given rotations first (exact linear solve; then Σ tr Λ_i = f and the certificate is on
+    the rotations, as in SE-Sync); ``anchor`` pose id whose translation is grounded (default the
+    smallest id); ``n_eigenvalues`` how many of S_Q's smallest eigenvalues to report; ``full`` also
+    compute λ_min of the full S.
+
+    Cost: one sparse LDLᵀ of S_g + ηÎ_R (3n−1 square) for the verdict, a few more (same pattern) for
+    the spectrum; city10000 (30 000 × 30 000) takes about a second."""
+    if not tol > 0:
+        raise OptionError(f"tol must be > 0, got {tol}")
+    if graph.n_edges == 0:
+        raise GraphError(f"the graph has {graph.n_poses} pose(s) and no edges: nothing to certify")
+    times = {}
+    t_all = time.perf_counter()
+    poses_in = graph.check_poses(poses)
+    check_connected(graph)
+    a = graph.anchor_index(anchor)
+    n = graph.n_poses
+    cost_input = sesync_cost(graph, poses_in)
+    x = poses_in.copy()
+    t = time.perf_counter()
+    if optimize_translations:
+        x[:, :2] = optimal_translations(graph, x[:, 2], anchor=int(graph.ids[a]), anchor_translation=x[a, :2])
+    times["translations"] = time.perf_counter() - t
+    t = time.perf_counter()
+    M = data_matrix(graph)
+    Y = stacked_variable(x)
+    lam = multipliers(M, Y)
+    S = (M - lambda_hat(lam)).tocsr()
+    cost = float(np.sum(Y * (M @ Y.T).T))  # tr(Y M Yᵀ)
+    dual = float(np.trace(lam, axis1=1, axis2=2).sum())
+    residual = float(np.linalg.norm(S @ Y.T))
+    norm_M = _norm2(M)
+    eta = tol * norm_M
+    times["assemble"] = time.perf_counter() - t
+
+    # the verdict: inertia of S_g + ηÎ_R (grounded), = In(L_g) + In(S_Q + ηI)
+    t = time.perf_counter()
+    keep = grounded_index(n, a)
+    Sg = S[keep][:, keep]
+    is_rot = (keep % 3 != 0).astype(float)
+    ldl = _ShiftedLDL(Sg, is_rot)
+    n_negative = ldl.inertia(-eta)
+    times["inertia"] = time.perf_counter() - t
+
+    # the spectrum of S_Q near its bottom; Q ⪰ 0 gives λ_min(S_Q) ≥ −max_i λ_max(Λ_i)
+    t = time.perf_counter()
+    lam_max = float(np.linalg.eigvalsh(lam)[:, -1].max()) if n else 0.0
+    lower = -max(lam_max, 0.0) - eta - 1e-12 * norm_M
+    eigs, _ = _bottom_eigenvalues(ldl, np.flatnonzero(is_rot), lower=lower, upper=-eta, k=n_eigenvalues,
+                                  negative_at_upper=n_negative)
+    lambda_min = float(eigs[0])
+    if n_negative == 0:
+        shift = -eta
+    else:  # a proven shift: largest bisection point below λ_min, verified by inertia
+        shift = lambda_min - eta
+        if ldl.inertia(shift) != 0:
+            shift = lower
+    times["spectrum"] = time.perf_counter() - t
+
+    lambda_min_full = float("nan")
+    if full:
+        t = time.perf_counter()
+        ldl_full = _ShiftedLDL(S, np.ones(3 * n))
+        neg_full = ldl_full.inertia(-eta)
+        eig_full, _ = _bottom_eigenvalues(ldl_full, np.arange(3 * n), lower=lower, upper=-eta, k=1,
+                                          negative_at_upper=neg_full)
+        lambda_min_full = float(eig_full[0])
+        times["spectrum_full"] = time.perf_counter() - t
+
+    lower_bound = dual + 2 * n * shift
+    sub_bound = cost - lower_bound
+    sub_est = 2 * n * max(0.0, -lambda_min)
+    residual_rel = residual / max(norm_M * np.sqrt(2 * n), np.finfo(float).tiny)
+    certified = n_negative == 0
+    if certified:
+        verdict = (f"globally optimal (certified): λ_min(S_Q) = {lambda_min:.3g} ≥ −η = {-eta:.3g}, "
+                   f"f − f* ≤ {sub_bound:.3g} ({sub_bound / max(cost, np.finfo(float).tiny):.2g} relative)")
+    else:
+        kind = ("not a critical point" if residual_rel > np.sqrt(tol) else "approximately a critical point")
+        verdict = (f"NOT certified ({kind}, ‖SYᵀ‖ = {residual:.3g}): {n_negative} eigenvalue(s) of S_Q below "
+                   f"−η = {-eta:.3g}, λ_min = {lambda_min:.4g}; f* ≥ {lower_bound:.6g}")
+    times["total"] = time.perf_counter() - t_all
+    log.info("certify: %s (%.3f s)", verdict, times["total"])
+    return Certificate(certified=certified, verdict=verdict, cost=cost, cost_input=cost_input, dual_value=dual,
+                       lambda_min=lambda_min, eigenvalues=eigs, lambda_min_full=lambda_min_full, eta=eta,
+                       norm_M=norm_M, n_negative=n_negative, residual=residual, residual_rel=residual_rel,
+                       lower_bound=lower_bound, shift=shift, suboptimality_bound=sub_bound,
+                       suboptimality_estimate=sub_est, poses=x, multipliers=lam, times=times)
+
+
+def dual_lower_bound(graph: PoseGraph, lam: np.ndarray, a: int) -> float:
+    """A proven lower bound on f* from any multipliers ``lam`` (n, 2, 2), anchor index ``a``:
+    Σ tr Λ_i + 2n·min(0, σ) with σ ≤ λ_min(S_Q(Λ)) proven by an LDLᵀ inertia count (eq. (S8); σ = −η
+    with η = CERTIFY_TOL·‖M‖₂ when S_Q(Λ) ⪰ −ηI, else just below the Lanczos λ_min). A graph without
+    edges (e.g. the 2-core of a tree: the anchor alone) has f ≡ 0, so its bound is 0."""
+    n = graph.n_poses
+    if graph.n_edges == 0:
+        return 0.0
+    M = data_matrix(graph)
+    S = (M - lambda_hat(lam)).tocsr()
+    keep = grounded_index(n, a)
+    is_rot = (keep % 3 != 0).astype(float)
+    ldl = _ShiftedLDL(S[keep][:, keep], is_rot)
+    norm_M = _norm2(M)
+    eta = CERTIFY_TOL * norm_M
+    neg = ldl.inertia(-eta)
+    dual = float(np.trace(lam, axis1=1, axis2=2).sum())
+    if neg == 0:
+        return dual - 2 * n * eta
+    lam_max = float(np.linalg.eigvalsh(lam)[:, -1].max())
+    lower = -max(lam_max, 0.0) - eta - 1e-12 * norm_M
+    eigs, sigma = _bottom_eigenvalues(ldl, np.flatnonzero(is_rot), lower=lower, upper=-eta, k=1,
+                                      negative_at_upper=neg)
+    shift = float(eigs[0]) - 1e-3 * abs(float(eigs[0])) - eta
+    if ldl.inertia(shift) != 0:
+        shift = sigma
+    return dual + 2 * n * min(shift, 0.0)

@@ -1,0 +1,77 @@
+"""The certified route on a graph: LAGO → Gauss–Newton on χ² → Newton on the SE-Sync cost → SE-Sync's
+certificate of the result (and, for comparison, of the raw LAGO estimate). What ``lago-cvx certify``
+runs."""
+
+from __future__ import annotations
+
+import time
+
+from ..errors import GraphError
+from ..pipeline import lago
+from ..posegraph import PoseGraph
+from ..refinement import refine
+from .certificate import CERTIFY_TOL, Certificate, certify
+from .local import refine_sesync
+from .sesync import sesync_cost
+
+__all__ = ["SESYNC_COST_CONVENTION", "certificate_fields", "certify_estimate"]
+
+#: One line stating which cost the certificate is about (eqs. (S1)–(S2) of ``sesync.py``).
+SESYNC_COST_CONVENTION = ("SE-Sync cost f = Σ κ‖R_j−R_iR̃‖²_F + τ‖t_j−t_i−R_i t̃‖² (no ½; κ = Ω_θθ, "
+                          "τ = 2/tr(Ω_tt⁻¹)), not the g2o χ²")
+
+
+def certificate_fields(cert: Certificate) -> dict:
+    """The JSON-ready fields of one ``Certificate`` (see its docstring)."""
+    return {
+        "certified": bool(cert.certified), "verdict": cert.verdict,
+        "f": cert.cost, "f_input": cert.cost_input,  # f with translations re-optimised / at the poses as given
+        "lambda_min": cert.lambda_min, "eigenvalues": [float(v) for v in cert.eigenvalues],
+        "eta": cert.eta, "norm_M": cert.norm_M, "n_negative": int(cert.n_negative),
+        "residual_rel": cert.residual_rel, "lower_bound": cert.lower_bound,
+        "suboptimality_bound": cert.suboptimality_bound,
+        "relative_suboptimality_bound": cert.relative_suboptimality_bound,
+    }
+
+
+def certify_estimate(graph: PoseGraph, *, spanning_tree: str = "bfs", regularization: str = "tree",
+                     tol: float = CERTIFY_TOL, max_iterations: int = 50) -> tuple[dict, Certificate]:
+    """The certified route on ``graph``: LAGO → χ² Gauss–Newton (``refine``) → Newton (GN where Newton does
+    not descend) on the SE-Sync cost f (``refine_sesync``) → SE-Sync's optimality certificate
+    (``certify``) of the refined estimate and, for comparison, of the raw LAGO estimate.
+
+    Returns ``(report, cert)``: the JSON-ready report and the refined estimate's ``Certificate``
+    (``cert.poses`` are the certified poses, translations re-optimised for the certified rotations).
+    Raises ``GraphError`` for a graph without edges or not connected."""
+    if graph.n_edges == 0:
+        raise GraphError(f"the graph has {graph.n_poses} pose(s) and no edges: nothing to certify")
+    times = {}
+    t = time.perf_counter()
+    res = lago(graph, spanning_tree=spanning_tree, regularization=regularization)
+    times["lago"] = time.perf_counter() - t
+    t = time.perf_counter()
+    ref = refine(graph, res.poses, max_iterations=max_iterations)
+    times["refine"] = time.perf_counter() - t
+    t = time.perf_counter()
+    ses = refine_sesync(graph, ref.poses, max_iterations=max_iterations, method="newton")
+    times["refine_sesync"] = time.perf_counter() - t
+    t = time.perf_counter()
+    cert = certify(graph, ses.poses, tol=tol)
+    times["certify"] = time.perf_counter() - t
+    t = time.perf_counter()
+    cert_lago = certify(graph, res.poses, tol=tol)
+    times["certify_lago"] = time.perf_counter() - t
+    reg = res.regularization
+    report = {
+        "n_poses": graph.n_poses, "n_edges": graph.n_edges, "spanning_tree": res.tree.kind,
+        "regularization": reg.regularization, "n_regularized": reg.n_regularized,
+        "n_ambiguous": int(reg.ambiguous.size), "tol": tol, "cost_convention": SESYNC_COST_CONVENTION,
+        "chi2_lago": res.chi2, "chi2_refined": ref.chi2, "refine_iterations": ref.iterations,
+        "refine_converged": bool(ref.converged),
+        "f_lago": sesync_cost(graph, res.poses), "f_chi2_refined": ses.cost_initial,
+        "sesync_iterations": ses.iterations, "sesync_converged": bool(ses.converged), "sesync_reason": ses.reason,
+        **certificate_fields(cert),
+        "lago_certificate": certificate_fields(cert_lago),
+        "timings": times,
+    }
+    return report, cert

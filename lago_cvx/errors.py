@@ -1,0 +1,113 @@
+"""Every error lago_cvx raises on purpose is a ``LagoError``.
+
+The classes keep the built-in base they always had (``ValueError``, ``RuntimeError``, ``ImportError``,
+``FileNotFoundError``), so ``except ValueError`` in user code still catches a malformed file, and one
+``except LagoError`` catches everything the package reports. Each class carries the exit status the
+command line uses for it (``exit_status``), so the CLI maps errors to statuses in one place:
+
+| class | built-in base | what happened | CLI exit |
+|---|---|---|---|
+| ``ParseError`` | ValueError | a file is malformed; the message starts with ``path:line:`` | 2 |
+| ``GraphError`` | ValueError | the graph is well-formed data but unusable (disconnected, broken odometric chain, unknown pose id) | 2 |
+| ``NumericalError`` | GraphError | the least-squares system is numerically singular | 2 |
+| ``OptionError`` | ValueError | a keyword argument or command-line option has a bad value | 2 |
+| ``InfeasibleConstraintsError`` | ValueError | named convex constraints cannot all hold | 2 |
+| ``DatasetNotFound`` | FileNotFoundError | a benchmark dataset is not where it was looked for | 2 |
+| ``MissingSolverError`` | ImportError | an optional solver is not installed; the message names the pip extra | 2 |
+| ``ResourceLimitError`` | RuntimeError | a search or time limit was reached on valid input | 4 |
+| ``SearchLimitError`` | ResourceLimitError | the exact integer enumeration exceeded its node budget | 4 |
+| ``SolverError`` | RuntimeError | a numerical solver failed (status not optimal) | 1 |
+"""
+
+from __future__ import annotations
+
+import os
+
+__all__ = [
+    "LagoError", "ParseError", "GraphError", "NumericalError", "OptionError", "InfeasibleConstraintsError",
+    "DatasetNotFound", "MissingSolverError", "ResourceLimitError", "SearchLimitError", "SolverError",
+    "check_choice",
+]
+
+
+class LagoError(Exception):
+    """Base class of every error lago_cvx raises on purpose. ``exit_status`` is the CLI's status for it."""
+
+    exit_status = 2
+
+
+class ParseError(LagoError, ValueError):
+    """A pose-graph file that cannot be read.
+
+    Attributes: ``path`` (str, as given by the caller), ``line`` (1-based int, or None for whole-file
+    problems) and ``problem`` (str). ``str(err)`` is the one-line ``"{path}:{line}: {problem}"``
+    (``"{path}: {problem}"`` when ``line`` is None)."""
+
+    def __init__(self, path, line: int | None, problem: str):
+        super().__init__(path, line, problem)
+        self.path = os.fspath(path) if isinstance(path, os.PathLike) else str(path)
+        self.line = None if line is None else int(line)
+        self.problem = " ".join(str(problem).split("\n"))
+
+    def __str__(self) -> str:
+        if self.line is None:
+            return f"{self.path}: {self.problem}"
+        return f"{self.path}:{self.line}: {self.problem}"
+
+
+class GraphError(LagoError, ValueError):
+    """A graph that is well-formed as data but unusable for the requested operation (disconnected,
+    broken odometric chain, unknown pose id, ...). The message says what and where."""
+
+
+class NumericalError(GraphError):
+    """The least-squares system is numerically singular (e.g. information spanning more than 1e16)."""
+
+
+class OptionError(LagoError, ValueError):
+    """A keyword argument (or command-line option) has a value outside its documented choices."""
+
+
+class InfeasibleConstraintsError(LagoError, ValueError):
+    """The named convex constraints cannot all hold. ``names``: the constraints to blame (infeasible on
+    their own, or an irreducible infeasible subset); ``phase``: "phase1" or "phase3"."""
+
+    def __init__(self, message: str, names: list, phase: str):
+        super().__init__(message)
+        self.names = list(names)
+        self.phase = phase
+
+
+class DatasetNotFound(LagoError, FileNotFoundError):
+    """The datasets folder, or a file in it, is absent; the message lists the places tried."""
+
+
+class MissingSolverError(LagoError, ImportError):
+    """An optional solver is not installed; the message names the pip extra that installs it."""
+
+
+class ResourceLimitError(LagoError, RuntimeError):
+    """A search or time limit was reached on valid input; the message names the option that raises it."""
+
+    exit_status = 4
+
+
+class SearchLimitError(ResourceLimitError):
+    """The exact integer enumeration exceeded its node budget (too many uncertain cycle integers)."""
+
+
+class SolverError(LagoError, RuntimeError):
+    """A numerical solver (Clarabel, SCIP) did not reach an optimal status. ``status`` is the status it
+    reported."""
+
+    exit_status = 1
+
+    def __init__(self, message: str, status: str | None = None):
+        super().__init__(message)
+        self.status = status
+
+
+def check_choice(name: str, value, choices) -> None:
+    """Raise ``OptionError`` unless ``value`` is one of ``choices`` (message names the option)."""
+    if value not in choices:
+        raise OptionError(f"unknown {name} {value!r}; expected one of {tuple(choices)}")

@@ -1,0 +1,15 @@
+"""Reading and writing planar pose graphs in the g2o (``VERTEX_SE2`` / ``EDGE_SE2``) and TORO
+(``VERTEX2`` / ``EDGE2``) text formats.
+
+* ``formats.py`` — the record types, the information-matrix orders and the TORO ↔ g2o conversion of the
+  information (with the evidence for its direction);
+* ``reader.py`` — ``read_graph`` and ``detect_format``; every problem with a file raises ``ParseError``
+  naming ``file:line`` and the offending token;
+* ``writer.py`` — ``write_graph``.
+"""
+
+from ..errors import ParseError
+from .reader import detect_format, read_graph
+from .writer import write_graph
+
+__all__ = ["ParseError", "read_graph", "write_graph", "detect_format"]

@@ -1,0 +1,119 @@
+"""How good an estimate is: the cost of eq. (3) in the g2o χ² convention, trajectory errors against a
+ground truth after rigid alignment, and the relative difference the cross-checks report.
+
+For an edge i → j with measurement (Δˡ, δ) and information Ω the error is
+
+    e_ij = [ R(θ_i)ᵀ(p_j − p_i) − Δˡ ;  wrap(θ_j − θ_i − δ) ]   (wrap to [−π, π)),
+
+and the cost is χ² = Σ e_ijᵀ Ω_ij e_ij — **no factor ½**. This is what g2o reports as χ²; GTSAM's
+``NonlinearFactorGraph.error()`` reports half of it (its factors carry ½‖·‖²). The SE-Sync objective
+(``lago_cvx.certification``) is a different function again. Every printed χ² in lago_cvx is this one.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .errors import OptionError
+from .posegraph import PoseGraph, rot2, wrap_angle
+
+__all__ = ["edge_errors", "chi2", "chi2_parts", "whitened_errors", "alignment_angle", "alignment", "ate",
+           "rotation_error", "relative_difference"]
+
+
+def edge_errors(graph: PoseGraph, poses) -> np.ndarray:
+    """Errors e_ij of eq. (3), shape (m, 3), for ``poses`` of shape (n, 3)."""
+    poses = np.asarray(poses, dtype=float)
+    if poses.shape != (graph.n_poses, 3):
+        raise OptionError(f"poses must have shape ({graph.n_poses}, 3), got {poses.shape}")
+    pi, pj = poses[graph.tails], poses[graph.heads]
+    c, s = np.cos(pi[:, 2]), np.sin(pi[:, 2])
+    dx, dy = pj[:, 0] - pi[:, 0], pj[:, 1] - pi[:, 1]
+    e = np.empty((graph.n_edges, 3))
+    e[:, 0] = c * dx + s * dy - graph.delta_l[:, 0]
+    e[:, 1] = -s * dx + c * dy - graph.delta_l[:, 1]
+    e[:, 2] = wrap_angle(pj[:, 2] - pi[:, 2] - graph.delta)
+    return e
+
+
+def chi2(graph: PoseGraph, poses) -> float:
+    """χ² = Σ eᵀΩe over all edges (g2o convention, no ½; twice GTSAM's ``error()``)."""
+    e = edge_errors(graph, poses)
+    return float(np.einsum("ka,kab,kb->", e, graph.information, e))
+
+
+def chi2_parts(graph: PoseGraph, poses) -> dict:
+    """χ² split into its translational part (e_tᵀΩ_tt e_t), rotational part (Ω_θθ e_θ²) and the
+    cross terms (2 e_tᵀΩ_tθ e_θ); the three add up to ``chi2``."""
+    e = edge_errors(graph, poses)
+    Om = graph.information
+    t = float(np.einsum("ka,kab,kb->", e[:, :2], Om[:, :2, :2], e[:, :2]))
+    r = float(np.sum(Om[:, 2, 2] * e[:, 2] ** 2))
+    x = float(2.0 * np.einsum("ka,ka,k->", e[:, :2], Om[:, :2, 2], e[:, 2]))
+    return {"chi2": t + r + x, "translation": t, "rotation": r, "cross": x}
+
+
+def whitened_errors(graph: PoseGraph, poses) -> np.ndarray:
+    """Per-edge √(eᵀΩe), shape (m,): large values flag suspicious (e.g. false) loop closures."""
+    e = edge_errors(graph, poses)
+    return np.sqrt(np.einsum("ka,kab,kb->k", e, graph.information, e))
+
+
+# ------------------------------------------------------------------ trajectory errors
+def alignment_angle(src, dst) -> float:
+    """φ minimising Σ‖R(φ)(s − s̄) − (d − d̄)‖² for 2-D points ``src``, ``dst`` (k, 2), equal weights
+    (Kabsch / Umeyama without scale). In 2-D φ = atan2(H₀₁ − H₁₀, H₀₀ + H₁₁), H = S̄ᵀD̄ of the centred
+    points, which is always a proper rotation."""
+    S = np.asarray(src, dtype=float)
+    D = np.asarray(dst, dtype=float)
+    H = (S - S.mean(0)).T @ (D - D.mean(0))
+    return float(np.arctan2(H[0, 1] - H[1, 0], H[0, 0] + H[1, 1]))
+
+
+def alignment(estimate, truth) -> tuple[float, np.ndarray]:
+    """Best rigid 2-D alignment (rotation φ, translation t (2,)) with R(φ)·p_est + t ≈ p_truth in the
+    least-squares sense, for poses (n, 3)."""
+    estimate, truth = _check_pair(estimate, truth)
+    phi = alignment_angle(estimate[:, :2], truth[:, :2])
+    t = truth[:, :2].mean(0) - rot2(phi) @ estimate[:, :2].mean(0)
+    return phi, t
+
+
+def _check_pair(estimate, truth):
+    estimate = np.asarray(estimate, dtype=float)
+    truth = np.asarray(truth, dtype=float)
+    if estimate.ndim != 2 or estimate.shape[1] != 3 or estimate.shape != truth.shape or estimate.shape[0] == 0:
+        raise OptionError(f"estimate and truth must both have shape (n, 3), n ≥ 1; got {estimate.shape} "
+                          f"and {truth.shape}")
+    return estimate, truth
+
+
+def ate(estimate, truth, *, align: bool = True) -> float:
+    """Absolute trajectory error: RMS of the position errors ‖p_est − p_truth‖ over the n poses
+    (both (n, 3)), after the best rigid 2-D alignment of the estimate onto the truth when ``align``
+    (no scale), else raw."""
+    estimate, truth = _check_pair(estimate, truth)
+    p = estimate[:, :2]
+    if align:
+        phi, t = alignment(estimate, truth)
+        p = p @ rot2(phi).T + t
+    return float(np.sqrt(np.mean(np.sum((p - truth[:, :2]) ** 2, axis=1))))
+
+
+def rotation_error(estimate, truth, *, align: bool = True) -> float:
+    """RMS wrapped orientation error (radians) over the n poses (both (n, 3)); with ``align`` the
+    estimate is first rotated by the same rigid alignment as in ``ate`` (its angle is added to every θ)."""
+    estimate, truth = _check_pair(estimate, truth)
+    phi = alignment(estimate, truth)[0] if align else 0.0
+    return float(np.sqrt(np.mean(wrap_angle(estimate[:, 2] + phi - truth[:, 2]) ** 2)))
+
+
+# ------------------------------------------------------------------ cross-checks
+def relative_difference(a, b) -> float:
+    """‖a − b‖∞ / max(‖b‖∞, tiny): the "relative difference" the cvxpy/closed-form cross-checks report
+    (0 for empty arrays)."""
+    a = np.asarray(a, dtype=float)
+    b = np.asarray(b, dtype=float)
+    if a.size == 0:
+        return 0.0
+    return float(np.max(np.abs(a - b)) / max(np.max(np.abs(b)), np.finfo(float).tiny))

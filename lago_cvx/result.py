@@ -1,0 +1,73 @@
+"""What every LAGO route returns: ``LagoResult``, the poses with every intermediate quantity."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .graph import SpanningTree
+from .metrics import chi2
+from .phases import Phase1, Phase2, Phase3
+from .posegraph import PoseGraph
+from .regularization import RegularizationReport
+from .uncertainty import EdgeUncertainty
+
+__all__ = ["LagoResult"]
+
+
+@dataclass(eq=False)
+class LagoResult:
+    """Everything LAGO computed.
+
+    ``poses`` (n, 3) final estimate (x, y, θ) in the frame given by ``anchor_pose`` (θ unwrapped along
+    the tree; wrap for display); ``anchor`` the id of the pose held fixed and ``anchor_index`` its index;
+    ``method`` "closed_form" or "cvxpy"; ``tree``; ``regularization`` (the 2kπ report; its
+    ``regularization`` field says "tree", "chordal" or "integer"); ``uncertainty`` (per-edge marginal P_Δ,
+    P_δ); ``phase1``, ``phase2``, ``phase3`` (see ``lago_cvx.phases``; plain LAGO computes them in the
+    anchor's own frame, anchor at the origin); ``timings`` seconds per step (keys ``tree``,
+    ``regularization``, ``phase1``, ``phase2``, ``phase3``, ``total``); ``problems`` the cvxpy problems
+    (method "cvxpy" only: "phase1", "phase3", and "chordal" / "integer" with those regularizations)."""
+
+    graph: PoseGraph
+    poses: np.ndarray
+    anchor: int
+    anchor_index: int
+    anchor_pose: np.ndarray
+    method: str
+    tree: SpanningTree
+    regularization: RegularizationReport
+    uncertainty: EdgeUncertainty
+    phase1: Phase1
+    phase2: Phase2
+    phase3: Phase3
+    timings: dict
+    problems: dict = field(default_factory=dict)
+
+    def _frame(self) -> np.ndarray:
+        """T (3, 3): the rotation from the phases' frame to the output frame."""
+        T = np.eye(3)
+        c, s = np.cos(self.anchor_pose[2]), np.sin(self.anchor_pose[2])
+        T[:2, :2] = [[c, -s], [s, c]]
+        return T
+
+    @property
+    def orientations(self) -> np.ndarray:
+        """Phase-1 orientations θ̂ (n,), in the output frame."""
+        return self.phase1.theta + self.anchor_pose[2]
+
+    @property
+    def chi2(self) -> float:
+        """χ² of eq. (3) at ``poses`` (g2o convention, no ½)."""
+        return chi2(self.graph, self.poses)
+
+    def pose_covariances(self) -> np.ndarray:
+        """Marginal covariance (n, 3, 3) of each pose from phase 3's information (zeros at the anchor),
+        rotated into the output frame."""
+        T = self._frame()
+        return T @ self.phase3.pose_covariances() @ T.T
+
+    def summary(self) -> dict:
+        return {"n_poses": self.graph.n_poses, "n_edges": self.graph.n_edges, "method": self.method,
+                "spanning_tree": self.tree.kind, **self.regularization.summary(), "chi2": self.chi2,
+                "timings": dict(self.timings)}

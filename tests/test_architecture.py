@@ -1,0 +1,154 @@
+"""The package's structure, held to docs/ARCHITECTURE.md: layers point down only (imports inside
+functions included), no import circles, no module over 600 lines, no public name that shadows a
+submodule, and cvxpy loaded only by the routes that build a cvxpy problem."""
+
+from __future__ import annotations
+
+import ast
+import pkgutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import lago_cvx
+
+PKG = Path(lago_cvx.__file__).resolve().parent
+
+#: The layers of docs/ARCHITECTURE.md, bottom first. A module may import from its own layer or below.
+LAYERS = [
+    ["_version", "errors", "solvers", "posegraph"],
+    ["io", "graph", "linalg", "metrics", "synthetic", "datasets"],
+    ["uncertainty", "rounding"],
+    ["regularization"],
+    ["phases"],
+    ["result"],
+    ["variants"],
+    ["pipeline"],
+    ["refinement"],
+    ["certification"],
+    ["experiments", "plotting", "peers"],
+    ["cli", "__main__", "__init__"],
+]
+LAYER = {name: i for i, names in enumerate(LAYERS) for name in names}
+MAX_LINES = 600
+
+
+def _modules() -> dict[str, Path]:
+    """Dotted name inside the package (``regularization.chordal``) → file."""
+    out = {}
+    for path in PKG.rglob("*.py"):
+        rel = path.relative_to(PKG).with_suffix("")
+        parts = list(rel.parts)
+        if parts[-1] == "__init__" and len(parts) > 1:
+            parts = parts[:-1]
+        out[".".join(parts)] = path
+    return out
+
+
+def _imports(name: str, path: Path) -> set[str]:
+    """Package-internal modules imported by ``name`` (anywhere in the file), as dotted names."""
+    is_pkg = path.name == "__init__.py"
+    base = name.split(".") if is_pkg else name.split(".")[:-1]
+    if name == "__init__":
+        base = []
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.ImportFrom):
+            if node.level:
+                parent = base[:len(base) - (node.level - 1)] if node.level > 1 else base
+                mod = ".".join(parent + ([node.module] if node.module else []))
+            elif node.module and node.module.startswith("lago_cvx"):
+                mod = node.module[len("lago_cvx"):].lstrip(".")
+            else:
+                continue
+            for alias in node.names:  # `from . import phases` names a submodule
+                sub = f"{mod}.{alias.name}" if mod else alias.name
+                found.add(sub if sub in MODULES else mod)
+        elif isinstance(node, ast.Import):
+            for alias in node.names:
+                if alias.name.startswith("lago_cvx."):
+                    found.add(alias.name[len("lago_cvx."):])
+    return {m for m in found if m and m != name}
+
+
+MODULES = _modules()
+
+
+def _layer(module: str) -> int:
+    return LAYER[module.split(".")[0]]
+
+
+def test_every_module_has_a_layer():
+    missing = sorted({m.split(".")[0] for m in MODULES} - set(LAYER))
+    assert not missing, f"modules without a layer in docs/ARCHITECTURE.md: {missing}"
+
+
+def test_imports_point_down_only():
+    upward = []
+    for name, path in MODULES.items():
+        for target in _imports(name, path):
+            top = target.split(".")[0]
+            if top in LAYER and _layer(target) > _layer(name):
+                upward.append(f"{name} (layer {_layer(name)}) imports {target} (layer {_layer(target)})")
+    assert not upward, "imports that run up a layer:\n" + "\n".join(upward)
+
+
+def test_no_import_circles():
+    graph = {name: {t for t in _imports(name, path) if t in MODULES} for name, path in MODULES.items()}
+    # a package's __init__ re-exporting its own submodules is not a circle of the design; the edge
+    # submodule → package __init__ would be
+    state, stack, circles = {}, [], []
+
+    def visit(v):
+        state[v] = 1
+        stack.append(v)
+        for w in graph[v]:
+            if state.get(w) == 1:
+                circles.append(stack[stack.index(w):] + [w])
+            elif w not in state:
+                visit(w)
+        stack.pop()
+        state[v] = 2
+
+    for v in graph:
+        if v not in state:
+            visit(v)
+    assert not circles, "import circles: " + "; ".join(" → ".join(c) for c in circles)
+
+
+def test_no_module_exceeds_the_size_limit():
+    big = {str(p.relative_to(PKG)): n for p in PKG.rglob("*.py")
+           if (n := len(p.read_text().splitlines())) > MAX_LINES}
+    assert not big, f"modules over {MAX_LINES} lines: {big}"
+
+
+def test_no_public_name_shadows_a_submodule():
+    submodules = {m.name for m in pkgutil.iter_modules([str(PKG)])}
+    assert not submodules & set(lago_cvx.__all__), submodules & set(lago_cvx.__all__)
+    for name in lago_cvx.__all__:  # every public name resolves
+        assert getattr(lago_cvx, name) is not None
+
+
+def _loaded_after(code: str) -> set[str]:
+    out = subprocess.run([sys.executable, "-c", code + "\nimport sys; print(' '.join(sorted(sys.modules)))"],
+                         capture_output=True, text=True, check=True).stdout.split()
+    return set(out)
+
+
+@pytest.mark.parametrize("code", [
+    "import lago_cvx",
+    "import lago_cvx as lc; lc.lago(lc.manhattan_world(50, seed=0).graph)",
+    "from lago_cvx.cli import main\ntry:\n    main(['--help'])\nexcept SystemExit:\n    pass",
+    "import os, tempfile\nfrom lago_cvx.cli import main\nd = tempfile.mkdtemp()\n"
+    "main(['generate', '--poses', '50', '-o', os.path.join(d, 'w.g2o')])\n"
+    "main(['solve', os.path.join(d, 'w.g2o'), '-o', os.path.join(d, 'out.g2o'), '--json'])",
+], ids=["import", "lago", "cli-help", "cli-solve"])
+def test_closed_form_route_never_imports_cvxpy(code):
+    assert "cvxpy" not in _loaded_after(code)
+
+
+def test_cvxpy_route_imports_it():
+    assert "cvxpy" in _loaded_after("import lago_cvx as lc; lc.lago(lc.manhattan_world(50, seed=0).graph, "
+                                    "method='cvxpy')")
