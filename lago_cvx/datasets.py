@@ -27,46 +27,42 @@ from .errors import DatasetNotFound
 __all__ = ["datasets_dir", "dataset", "DatasetNotFound", "DATASET_TABLE", "DATASET_FILES", "REFERENCE_CHI2",
            "REFERENCE_SESYNC", "PUBLISHED_SESYNC"]
 
-#: Every pose-graph file of the datasets folder: (file, n_poses, n_edges, n_odometric, n_loop_closures).
-DATASET_TABLE = (
-    ("se-sync/intel.g2o", 1728, 2512, 1727, 785),
-    ("se-sync/CSAIL.g2o", 1045, 1172, 1044, 128),
-    ("se-sync/MIT.g2o", 808, 827, 807, 20),
-    ("se-sync/manhattan.g2o", 3500, 5453, 3499, 1954),
-    ("se-sync/city10000.g2o", 10000, 20687, 9999, 10688),
-    ("carlone/input_INTEL_g2o.g2o", 1228, 1483, 1227, 256),
-    ("carlone/INTEL_P_toro.graph", 1228, 1505, 1227, 278),
-    ("carlone/input_M3500_g2o.g2o", 3500, 5453, 3499, 1954),
-    ("carlone/input_M3500a_g2o.g2o", 3500, 5453, 3499, 1954),
-    ("carlone/M3500_P_toro.graph", 3500, 5453, 3499, 1954),
-    ("carlone/CSAIL_P_toro.graph", 1045, 1172, 1044, 128),
-    ("carlone/FR079_P_toro.graph", 989, 1217, 988, 229),
-    ("gtsam/noisyToyGraph.txt", 4, 5, 3, 2),
-    ("gtsam/orientationsNoisyToyGraph.txt", 4, 5, 3, 2),
-    ("gtsam/optimizedNoisyToyGraph.txt", 4, 5, 3, 2),
-)
-#: The files of ``DATASET_TABLE``.
-DATASET_FILES = tuple(row[0] for row in DATASET_TABLE)
+#: Every pose-graph file of the datasets folder with the counts of its README and the reference minima of
+#: its §4.2 ("–" where there is none): χ² minimum in the g2o convention, minimum of the SE-Sync cost f.
+_TABLE_TEXT = """
+file                                   poses  edges  odometric  loop_closures  chi2_min  sesync_min
+se-sync/intel.g2o                       1728   2512       1727            785   44.4178     52.3482
+se-sync/CSAIL.g2o                       1045   1172       1044            128    61.143     31.7037
+se-sync/MIT.g2o                          808    827        807             20   39.6013     61.1541
+se-sync/manhattan.g2o                   3500   5453       3499           1954   3533.46     6431.39
+se-sync/city10000.g2o                  10000  20687       9999          10688   511.985     638.625
+carlone/input_INTEL_g2o.g2o             1228   1483       1227            256   214.171     393.653
+carlone/INTEL_P_toro.graph              1228   1505       1227            278   213.212     391.721
+carlone/input_M3500_g2o.g2o             3500   5453       3499           1954   137.913     193.862
+carlone/input_M3500a_g2o.g2o            3500   5453       3499           1954   912.115     1597.64
+carlone/M3500_P_toro.graph              3500   5453       3499           1954   3533.46     6431.39
+carlone/CSAIL_P_toro.graph              1045   1172       1044            128    61.143     31.7037
+carlone/FR079_P_toro.graph               989   1217        988            229   36.4248     28.5858
+gtsam/noisyToyGraph.txt                    4      5          3              2         –           –
+gtsam/orientationsNoisyToyGraph.txt        4      5          3              2         –           –
+gtsam/optimizedNoisyToyGraph.txt           4      5          3              2         –           –
+"""
 
-#: file → (χ² minimum in the g2o convention, minimum of the SE-Sync cost f), README §4.2.
-_MINIMA = {
-    "se-sync/intel.g2o": (44.4178, 52.3482),
-    "se-sync/CSAIL.g2o": (61.143, 31.7037),
-    "carlone/CSAIL_P_toro.graph": (61.143, 31.7037),
-    "se-sync/MIT.g2o": (39.6013, 61.1541),
-    "se-sync/manhattan.g2o": (3533.46, 6431.39),
-    "carlone/M3500_P_toro.graph": (3533.46, 6431.39),
-    "se-sync/city10000.g2o": (511.985, 638.625),
-    "carlone/input_INTEL_g2o.g2o": (214.171, 393.653),
-    "carlone/INTEL_P_toro.graph": (213.212, 391.721),
-    "carlone/input_M3500_g2o.g2o": (137.913, 193.862),
-    "carlone/input_M3500a_g2o.g2o": (912.115, 1597.64),
-    "carlone/FR079_P_toro.graph": (36.4248, 28.5858),
-}
+
+def _row(line: str) -> tuple:
+    file, *counts, chi2_min, sesync_min = line.split()
+    return (file, *map(int, counts), *(None if v == "–" else float(v) for v in (chi2_min, sesync_min)))
+
+
+_TABLE = tuple(_row(line) for line in _TABLE_TEXT.strip().splitlines()[1:])
+#: (file, n_poses, n_edges, n_odometric, n_loop_closures) of every file.
+DATASET_TABLE = tuple(row[:5] for row in _TABLE)
+#: The files of ``DATASET_TABLE``.
+DATASET_FILES = tuple(row[0] for row in _TABLE)
 #: χ² minima, g2o convention (README §4.2).
-REFERENCE_CHI2 = {rel: chi2 for rel, (chi2, _) in _MINIMA.items()}
+REFERENCE_CHI2 = {row[0]: row[5] for row in _TABLE if row[5] is not None}
 #: Minima of the SE-Sync cost f (README §4.2).
-REFERENCE_SESYNC = {rel: f for rel, (_, f) in _MINIMA.items()}
+REFERENCE_SESYNC = {row[0]: row[6] for row in _TABLE if row[6] is not None}
 
 #: SE-Sync's Table 1 (IJRR 2019), as printed.
 PUBLISHED_SESYNC = {

@@ -13,7 +13,7 @@ Backends:
 
 ``"auto"`` picks QDLDL (else SuperLU). CHOLMOD is used only when asked for: measured here it was not
 faster than QDLDL on these systems (city10000: 0.92 s vs 0.80 s for the whole LAGO step, on a loaded
-machine; benchmarks/results.md has the quiet-machine numbers).
+machine; benchmarks/datasets.md has the side-by-side numbers).
 """
 
 from __future__ import annotations

@@ -504,7 +504,7 @@ for rel, n_sub in (("se-sync/manhattan.g2o", 100), ("se-sync/CSAIL.g2o", 200)):
 # of magnitude — Clarabel resolves $M-\hat\Lambda\succeq0$ only to ~1e-9‖M‖), and the exact certificate
 # ($\lambda_{\min}(S_Q)\approx10^{-13}$) settles the question without the solver's tolerance. On whole real
 # graphs the interior-point SDP becomes slow and memory-hungry (CSAIL, 1045 poses: 36 s, 1.7 GB, gap
-# 7e-4; benchmarks/certify_datasets.md) — which is exactly why SE-Sync (and we) *verify* a local
+# 7e-4; benchmarks/certify.md) — which is exactly why SE-Sync (and we) *verify* a local
 # solution instead of solving the SDP.
 #
 # **What the certificate says about LAGO on each dataset.** For every public file: the SE-Sync cost of
@@ -550,7 +550,7 @@ for rel in FILES:
 # * The certificate is a one-sided test: when it fails at a critical point, that point is *not* globally
 #   optimal or the relaxation is not tight (section 4's high-noise worlds); from the file's initial guess,
 #   Gauss–Newton on MIT stops at a critical point with $f = 8057$ whose $S$ has eigenvalue −352 — rejected
-#   (benchmarks/certify_datasets.md).
+#   (benchmarks/certify.md).
 #
 # ## Summary
 #

@@ -15,10 +15,10 @@ well-formed ``ParseError``); every ``--cli-every``-th also through ``lago-cvx in
 solve`` (exit status 0 or 2). Prints a summary table per mutation and per outcome. Every unexpected
 outcome (any other exception, a broken ``ParseError`` contract, exit status 1, an exception escaping
 ``main``, a call slower than ``--time-limit`` seconds) is saved — mutant bytes plus a ``.txt`` with
-the mutations, the seed file and the traceback — in ``--out`` (at most ``--keep`` per signature). Warnings raised by the library
-(e.g. numpy ``RuntimeWarning``) and "successful" runs printing NaN/Infinity are counted and listed;
-they are not failures. The five slowest calls are listed too. Exit status: 0 if nothing unexpected
-happened, 1 otherwise.
+the mutations, the seed file and the traceback — in ``--out`` (at most ``--keep`` per signature).
+Warnings raised by the library (e.g. numpy ``RuntimeWarning``) and "successful" runs printing
+NaN/Infinity are counted and listed; they are not failures. The five slowest calls are listed too.
+Exit status: 0 if nothing unexpected happened, 1 otherwise.
 
 Bugs it found (regression tests in ``tests/test_fuzz.py``): exit 1 on a one-pose file and on badly
 scaled information, non-JSON output (NaN/Infinity), silent garbage for huge angles, and reads taking

@@ -1,8 +1,7 @@
 """Seeded mutation fuzzer for the pose-graph reader and the CLI.
 
-Shared by ``tests/test_fuzz.py`` (a bounded run in CI) and ``benchmarks/fuzz_long.py`` (long runs for
-developers; it puts this folder on ``sys.path``). Not a test module itself (pytest only collects
-``test_*.py``).
+Shared by ``tests/test_fuzz.py`` (a bounded run in CI) and ``tests/fuzz_long.py`` (long runs for
+developers, ``python tests/fuzz_long.py``). Not a test module itself (pytest only collects ``test_*.py``).
 
 * **Seeds** — :func:`synthetic_seeds` (written by ``write_graph``, so fuzzing needs no dataset) and
   :func:`real_seeds` (small real files, or the first lines of larger ones).

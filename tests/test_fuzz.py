@@ -12,7 +12,7 @@ non-blank line in 1..number of lines and whose one-line message names the file. 
 (60 per corpus) also goes through ``main(["info", f, "--json"])`` and ``main(["solve", f, "--json"])``:
 exit status 0 or 2, never 1, never an escaping exception. Counts are printed (``pytest -s``).
 
-Longer runs: ``python benchmarks/fuzz_long.py --iterations 20000 --seed 1``.
+Longer runs: ``python tests/fuzz_long.py --iterations 20000 --seed 1``.
 """
 
 from __future__ import annotations
@@ -227,7 +227,7 @@ def test_solve_json_output_is_strict_json(tmp_path, capsys):
 
 def test_long_bad_number_token_is_rejected_quickly(tmp_path):
     """Was: quadratic-time regex (io._NUM_RE with '[0-9]+\\.?[0-9]*') on a long digit run followed by
-    any non-number character: 16 000 digits 8.5 s, a 100 kB line ~2 min (benchmarks/fuzz_long.py:
+    any non-number character: 16 000 digits 8.5 s, a 100 kB line ~2 min (tests/fuzz_long.py:
     five such mutants in 20 000, 80–143 s each). A linear-time check takes milliseconds."""
     import time
 

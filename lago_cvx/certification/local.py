@@ -12,7 +12,7 @@ normal equations JᵀJ dx = −Jᵀr by ``lago_cvx.linalg.factorize``; a backtra
 monotone. Reached from the χ²-refined LAGO estimate: manhattan 6431.39, city10000 638.625, CSAIL
 31.7037, intel 52.3482 — SE-Sync's Table 1 (4 digits) for city10000, CSAIL and intel; manhattan's
 6431.39 prints as 6.431e3 against Table 1's 6.432e3 (one unit of the last digit, 9e-5 relative; certified
-optimal for eq. (S1) on the file, see benchmarks/certify_datasets.md).
+optimal for eq. (S1) on the file, see benchmarks/certify.md).
 
 GN converges only linearly here when the neglected curvature Σ r∇²r is not small (intel: rate ≈ 0.74,
 25 iterations to a relative decrease of 1e-12). ``method="newton"`` adds it — it has only θ–θ entries::
