@@ -2,11 +2,11 @@
 
 Per file (``_bench.FILES``), in one pass:
 
-* the regularization — chords l = m − n + 1, fundamental cycles with k ≠ 0 on the odometric tree (the
-  seed's) and on the BFS tree (our default), χ² of LAGO on each tree against the reference minimum
-  (``lago_cvx.datasets.REFERENCE_CHI2``) and the ratio;
-* the time of each step of closed-form LAGO (median of ``--repeat`` runs of ``lago(graph)``, file reading
-  excluded), of the whole pipeline with ``method="cvxpy"`` (median of max(1, repeat/2) runs), and the
+* the regularization — chords l = m − n + 1, fundamental cycles with k ≠ 0 for the seed's route
+  (odometric tree, tree rounding) and for the default route (BFS tree, chordal regularizer), χ² of LAGO by
+  each route against the reference minimum (``lago_cvx.datasets.REFERENCE_CHI2``) and the ratios;
+* the time of each step of closed-form LAGO, default route (median of ``--repeat`` runs of ``lago(graph)``,
+  file reading excluded), of the whole pipeline with ``method="cvxpy"`` (median of max(1, repeat/2) runs), and the
   largest relative difference cvxpy ↔ closed form of phases 1 and 3 on the same inputs
   (``compare_methods``);
 * Gauss–Newton (``lago_cvx.refine``) from LAGO and from odometry: dead reckoning along the odometric
@@ -24,12 +24,13 @@ from lago_cvx.datasets import REFERENCE_CHI2
 from lago_cvx.errors import GraphError
 from lago_cvx.peers import gtsam_factor_graph, gtsam_lago, have_gtsam
 
-STEPS = ("tree", "regularization", "phase1", "phase2", "phase3", "total")
+STEPS = ("tree", "regularization", "phase1", "phase2", "phase3", "positions", "total")
 
-REGULARIZATION_HEAD = ["file", "poses", "edges", "chords", "k≠0 (odometry tree)", "k≠0 (bfs)",
-                       "χ² LAGO odometry tree", "χ² LAGO bfs (default)", "χ² reference min", "ratio (bfs)",
-                       "closed form [ms]", "max rel diff cvxpy (ph1 / ph3)"]
-TIMING_HEAD = ["file", "poses", "edges", "reg [ms]", "ph1 [ms]", "ph2 [ms]", "ph3 [ms]", "LAGO total [ms]",
+REGULARIZATION_HEAD = ["file", "poses", "edges", "chords", "k≠0 (seed)", "k≠0 (default)",
+                       "χ² LAGO seed route", "χ² LAGO default route", "χ² reference min", "ratio (seed)",
+                       "ratio (default)", "closed form [ms]", "max rel diff cvxpy (ph1 / ph3 / positions)"]
+TIMING_HEAD = ["file", "poses", "edges", "reg [ms]", "ph1 [ms]", "ph2 [ms]", "ph3 [ms]", "positions [ms]",
+               "LAGO total [ms]",
                "cvxpy total [ms]", "χ² LAGO", "χ² min", "χ² GN from LAGO (iters)", "χ² GN from odometry (iters)",
                "GTSAM lago [ms]", "ours / GTSAM", "χ² GTSAM"]
 
@@ -57,7 +58,7 @@ def odometry_start(graph):
 def measure(rel: str, graph, repeat: int, gn_iterations: int) -> tuple[list, list]:
     """One row of each table for ``graph`` (read from dataset file ``rel``)."""
     chain = has_odometric_chain(graph)
-    odo = lago(graph, spanning_tree="odometry") if chain else None
+    odo = lago(graph, route="seed") if chain else None
     runs = [lago(graph) for _ in range(repeat)]
     res = runs[-1]
     ms = {k: 1e3 * statistics.median(r.timings[k] for r in runs) for k in STEPS}
@@ -75,10 +76,12 @@ def measure(rel: str, graph, repeat: int, gn_iterations: int) -> tuple[list, lis
     reg_row = [rel, graph.n_poses, graph.n_edges, res.regularization.chords.size,
                odo.regularization.n_regularized if odo else "–", res.regularization.n_regularized,
                _bench.fmt(odo.chi2 if odo else None), f"{res.chi2:.6g}", _bench.fmt(ref),
-               _bench.fmt(res.chi2 / ref if ref else None, ".3f"), f"{ms['total']:.1f}",
-               f"{diff['phase1']:.1e} / {diff['phase3']:.1e}"]
+               _bench.fmt(odo.chi2 / ref if (odo and ref) else None, ".3f"),
+               _bench.fmt(res.chi2 / ref if ref else None, ".4f"), f"{ms['total']:.1f}",
+               f"{diff['phase1']:.1e} / {diff['phase3']:.1e} / {diff['positions']:.1e}"]
     time_row = [rel, graph.n_poses, graph.n_edges, f"{ms['tree'] + ms['regularization']:.1f}",
-                f"{ms['phase1']:.1f}", f"{ms['phase2']:.1f}", f"{ms['phase3']:.1f}", f"{ms['total']:.1f}",
+                f"{ms['phase1']:.1f}", f"{ms['phase2']:.1f}", f"{ms['phase3']:.1f}", f"{ms['positions']:.1f}",
+                f"{ms['total']:.1f}",
                 f"{1e3 * t_cvx:.0f}", f"{res.chi2:.6g}", _bench.fmt(ref),
                 f"{from_lago.chi2:.6g} ({from_lago.iterations})",
                 f"{from_odo.chi2:.6g} ({from_odo.iterations}{how})", *gt]
@@ -94,8 +97,8 @@ def run(args) -> str:
     reg_rows, time_rows = [], []
     for rel, graph in _bench.each_dataset():
         reg_row, time_row = measure(rel, graph, args.repeat, args.gn_iterations)
-        print(f"  {rel}: χ² LAGO {time_row[9]}, GN from LAGO {time_row[11]}, from odometry {time_row[12]}, "
-              f"{time_row[7]} ms", flush=True)
+        print(f"  {rel}: χ² LAGO {time_row[10]}, GN from LAGO {time_row[12]}, from odometry {time_row[13]}, "
+              f"{time_row[8]} ms", flush=True)
         reg_rows.append(reg_row)
         time_rows.append(time_row)
     out += [
@@ -108,17 +111,20 @@ def run(args) -> str:
         "## Regularization, χ² and cvxpy against the closed form",
         "",
         "chords = m − n + 1 loop closures of the spanning tree; k≠0 = fundamental cycles whose sum needed a 2kπ "
-        "correction, on the seed's odometric tree and on the BFS tree (our default); ratio = χ²(LAGO, BFS) / "
+        "correction, by the seed's route (`lago(graph, route=\"seed\")`: odometric tree, tree rounding, "
+        "blkdiag(P_Δ, P_δ), phase-3 poses; – where the odometric chain is broken) and by the default route "
+        "(`lago(graph)`: BFS tree, chordal regularizer, full information, positions re-solved); ratio = χ² / "
         "reference minimum; closed form = median time of `lago(graph)`; max rel diff = ‖a − b‖∞/‖b‖∞ between "
-        "the cvxpy (Clarabel) and closed-form solutions of phases 1 and 3 on the same inputs "
-        "(`compare_methods`).",
+        "the cvxpy (Clarabel) and closed-form solutions of phases 1 and 3 and of the position polish on the "
+        "same inputs (`compare_methods`).",
         "",
         _bench.table(REGULARIZATION_HEAD, reg_rows),
         "",
         "## Time per step, refinement from LAGO and from odometry, GTSAM side by side",
         "",
-        "reg = spanning tree + regularization; cvxpy total = `lago(graph, method=\"cvxpy\")`, phases 1 and 3 "
-        f"as cvxpy problems solved by Clarabel (median of {max(1, args.repeat // 2)} run(s)). Refinement = "
+        "Default route. reg = spanning tree + regularization; positions = the position polish; cvxpy total = "
+        "`lago(graph, method=\"cvxpy\")`, the chordal relaxation, phases 1 and 3 and the polish as cvxpy "
+        f"problems solved by Clarabel (median of {max(1, args.repeat // 2)} run(s)). Refinement = "
         f"`lago_cvx.refine` Gauss–Newton (at most {args.gn_iterations} iterations, tolerance 1e-9 relative χ² "
         "decrease) from the LAGO estimate and from odometry = dead reckoning along the odometric chain "
         "(`lago_cvx.odometry_guess`), which is what the files' own VERTEX lines hold (\", bfs\": along the BFS "

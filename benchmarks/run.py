@@ -20,7 +20,11 @@ date):
 * ``certify``  — SE-Sync cost, local optimum and optimality certificate on every dataset, and the SDP
   relaxation by Clarabel on sub-graphs (each SDP in a child process with a time-out);
 * ``integer``  — the integer program of the cycle integers against the rounding over rising rotation
-  noise, on the BFS and the odometric tree.
+  noise, on the BFS and the odometric tree;
+* ``theorem1`` — Theorem 1 measured on every dataset (the identity of eqs. (16)–(17) holds, the cost
+  claim does not) and the first-order optimality of the full-information phases;
+* ``route``    — tree against chordal rounding and phase-3 against re-solved positions, alone and after
+  Gauss–Newton, on every dataset and on Manhattan worlds with rising rotation noise: the default route.
 
 Datasets are found through ``lago_cvx.datasets`` (``LAGO_CVX_DATASETS=DIR`` to point elsewhere than
 ``../shared/datasets``); a section that needs them says "skipped: datasets not found" without them.
@@ -40,7 +44,7 @@ from pathlib import Path
 
 import _bench
 
-SECTIONS = ("datasets", "scaling", "chordal", "certify", "integer")
+SECTIONS = ("datasets", "scaling", "chordal", "certify", "integer", "theorem1", "route")
 
 
 def parser(modules: dict) -> argparse.ArgumentParser:

@@ -23,14 +23,19 @@ import numpy as np
 from ._version import __version__
 from .errors import LagoError, OptionError
 from .regularization import MAX_INTEGER_CHORDS, REGULARIZATIONS
+from .routes import POSITIONS, ROUTES, resolve_route
+from .uncertainty import INFORMATION_MODES
 
 EXIT_OK, EXIT_INTERNAL, EXIT_BAD_INPUT = 0, 1, 2
 #: ``certify``: the refined estimate is not certified globally optimal (the report is still printed).
 EXIT_NOT_CERTIFIED = 3
 
-REGULARIZATION_HELP = ("2kπ regularization: tree (default, the seed's rounding along the spanning tree), "
-                       "chordal (round every edge against the chordal relaxation), integer (weighted integer "
-                       "least squares of the cycle integers, exact; small/medium graphs)")
+REGULARIZATION_HELP = ("2kπ regularization: tree (the seed's rounding along the spanning tree), chordal (round "
+                       "every edge against the chordal relaxation), integer (weighted integer least squares of "
+                       "the cycle integers, exact; small/medium graphs); default: the route's")
+ROUTE_HELP = ("default (BFS tree, chordal regularization, full information, positions re-solved: chosen by "
+              "measurement, see the README) or seed (exactly the paper's procedure: odometric tree, tree "
+              "rounding, blkdiag(P_Δ, P_δ), phase-3 poses)")
 
 log = logging.getLogger("lago_cvx")
 
@@ -138,8 +143,11 @@ def cmd_info(args) -> int:
     if k == 1:
         try:
             _check_regularization(graph, args.regularization)
-            reg = regularize(graph, spanning_tree(graph, args.spanning_tree),
-                             regularization=args.regularization)
+            choice, _ = resolve_route(args.route, spanning_tree=args.spanning_tree,
+                                      regularization=args.regularization)
+            payload.update(spanning_tree=choice["spanning_tree"], regularization=choice["regularization"])
+            reg = regularize(graph, spanning_tree(graph, choice["spanning_tree"]),
+                             regularization=choice["regularization"])
             payload["n_regularized"] = reg.n_regularized
             payload["n_ambiguous"] = int(reg.ambiguous.size)
         except LagoError as exc:  # e.g. broken odometric chain: report, don't fail the whole info
@@ -197,13 +205,19 @@ def _check_output(args) -> Path | None:
 
 def cmd_solve(args) -> int:
     from .io import read_graph, write_graph
+    from .metrics import chi2
     from .pipeline import compare_methods, lago
+    from .posegraph import compose
+
+    def compose_anchor(res, poses):
+        return compose(np.broadcast_to(res.anchor_pose, poses.shape), poses)
 
     out = _check_output(args)
     anchor, anchors = _parse_anchors(args.anchor)
     graph = read_graph(args.file)
     _check_regularization(graph, args.regularization)
-    kw = dict(spanning_tree=args.spanning_tree, anchor=anchor, regularization=args.regularization)
+    kw = dict(route=args.route, spanning_tree=args.spanning_tree, anchor=anchor, regularization=args.regularization,
+              information=args.information, positions=args.positions)
     if anchors:
         kw["anchors"] = anchors
     if args.check:
@@ -215,13 +229,16 @@ def cmd_solve(args) -> int:
         "file": str(args.file), "n_poses": graph.n_poses, "n_edges": graph.n_edges,
         "method": "closed_form" if args.check else args.method, "spanning_tree": res.tree.kind,
         "regularization": reg.regularization, "n_chords": int(reg.chords.size), "n_regularized": reg.n_regularized,
-        "n_ambiguous": int(reg.ambiguous.size),
-        "chi2": res.chi2, "timings": {k: res.timings[k] for k in ("regularization", "phase1", "phase2",
-                                                                  "phase3", "total")},
+        "n_ambiguous": int(reg.ambiguous.size), "route": res.route, "information": res.information,
+        "positions": res.positions, "chi2": res.chi2,  # χ² of the poses returned (phase 3's, or re-solved)
+        "timings": {k: res.timings[k] for k in ("regularization", "phase1", "phase2", "phase3", "positions",
+                                                "total")},
     }
+    if res.polish is not None:
+        payload["chi2_phase3"] = chi2(graph, compose_anchor(res, res.phase3.poses))
+        payload["positions_alpha"] = res.polish.alpha
     payload["timings"]["regularization"] += res.timings["tree"]
     if graph.initial is not None:
-        from .metrics import chi2
         payload["chi2_initial"] = chi2(graph, graph.initial)
     strained = getattr(res, "strained", None)
     if anchors:
@@ -245,19 +262,21 @@ def cmd_solve(args) -> int:
         payload["output"] = str(out)
     t = payload["timings"]
     lines = [
-        f"LAGO ({payload['method'].replace('_', '-')}, {res.tree.kind} spanning tree, {reg.regularization} "
-        f"regularization) on {args.file}",
+        f"LAGO ({payload['method'].replace('_', '-')}, {res.route} route: {res.tree.kind} spanning tree, "
+        f"{reg.regularization} regularization, {res.information} information, {res.positions} positions) on "
+        f"{args.file}",
         f"  poses {graph.n_poses}, edges {graph.n_edges}, chords {reg.chords.size}, "
         f"regularized {reg.n_regularized}, ambiguous {reg.ambiguous.size}",
         f"  chi2 = {res.chi2:.6g}  (g2o convention: sum e'Ωe, no 1/2)"
+        + (f"; phase 3's poses {payload['chi2_phase3']:.6g}" if "chi2_phase3" in payload else "")
         + (f"; at the file's initial guess {payload['chi2_initial']:.6g}" if "chi2_initial" in payload else ""),
         f"  time [s]: regularization {t['regularization']:.4f}, phase1 {t['phase1']:.4f}, "
-        f"phase2 {t['phase2']:.4f}, phase3 {t['phase3']:.4f}, total {t['total']:.4f}",
+        f"phase2 {t['phase2']:.4f}, phase3 {t['phase3']:.4f}, positions {t['positions']:.4f}, total {t['total']:.4f}",
     ]
     if report is not None:
         d = report["max_rel_diff"]
-        lines.append(f"  cvxpy vs closed form, max relative difference: phase1 {d['phase1']:.2e}, "
-                     f"phase3 {d['phase3']:.2e}" + (f", chordal {d['chordal']:.2e}" if "chordal" in d else ""))
+        lines.append("  cvxpy vs closed form, max relative difference: "
+                     + ", ".join(f"{k} {v:.2e}" for k, v in d.items()))
     if anchors:
         lines.append(f"  anchors {sorted(anchors)}; strained: {payload['strained_anchors'] or 'none'}")
     if args.refine:
@@ -321,7 +340,8 @@ def cmd_certify(args) -> int:
     if graph.n_edges == 0:
         raise GraphError(f"{args.file}: the graph has {graph.n_poses} pose(s) and no edges: nothing to certify")
     _check_regularization(graph, args.regularization)
-    payload, cert = certify_estimate(graph, spanning_tree=args.spanning_tree, regularization=args.regularization,
+    payload, cert = certify_estimate(graph, route=args.route, spanning_tree=args.spanning_tree,
+                                     regularization=args.regularization,
                                      tol=args.tol, max_iterations=args.max_iterations)
     payload = {"file": str(args.file), **payload}
     lines = _certify_lines(args.file, payload)
@@ -438,6 +458,21 @@ def _demo_figure(graph, truth, est, out_dir: Path) -> Path:
 
 
 # ----------------------------------------------------------------------------- main
+def _route_options(s, *, phases: bool = False) -> None:
+    """--route and the choices it makes (left unset: the route's)."""
+    s.add_argument("--route", choices=list(ROUTES), default="default", help=ROUTE_HELP)
+    s.add_argument("--spanning-tree", type=_tree_arg, default=None,
+                   help="bfs, odometry or mst (default: the route's: bfs, or odometry for --route seed)")
+    s.add_argument("--regularization", choices=list(REGULARIZATIONS), default=None, help=REGULARIZATION_HELP)
+    if phases:
+        s.add_argument("--information", choices=list(INFORMATION_MODES), default=None,
+                       help="full (each edge's 3×3 information in phases 2–3) or marginal (the seed's "
+                            "blkdiag(P_Δ, P_δ)); default: the route's")
+        s.add_argument("--positions", choices=list(POSITIONS), default=None,
+                       help="phase3 (the seed's poses) or resolve (positions re-solved exactly for the "
+                            "orientations); default: the route's")
+
+
 def build_parser() -> argparse.ArgumentParser:
     from .certification.estimate import SESYNC_COST_CONVENTION
 
@@ -448,8 +483,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("info", help="counts of a pose-graph file")
     s.add_argument("file")
-    s.add_argument("--spanning-tree", type=_tree_arg, default="bfs", help="bfs (default), odometry, mst")
-    s.add_argument("--regularization", choices=list(REGULARIZATIONS), default="tree", help=REGULARIZATION_HELP)
+    _route_options(s)
     s.add_argument("--json", action="store_true", help="print one JSON object")
     s.set_defaults(func=cmd_info)
 
@@ -457,8 +491,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("file")
     s.add_argument("-o", "--output", help="write the estimate as g2o to this path")
     s.add_argument("--method", type=_method_arg, default="closed_form", help="closed-form (default) or cvxpy")
-    s.add_argument("--spanning-tree", type=_tree_arg, default="bfs", help="bfs (default), odometry, mst")
-    s.add_argument("--regularization", choices=list(REGULARIZATIONS), default="tree", help=REGULARIZATION_HELP)
+    _route_options(s, phases=True)
     s.add_argument("--anchor", action="append", metavar="ID[:X,Y,THETA]",
                    help="ID alone: the pose held at the origin (default: smallest id); ID:X,Y,THETA "
                         "(repeatable; leave fields empty for partial anchors, e.g. 7:,,1.57): poses known exactly")
@@ -483,8 +516,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("file")
     s.add_argument("-o", "--output", help="write the SE-Sync-refined estimate (the poses the certificate is "
                                           "about) as g2o to this path")
-    s.add_argument("--spanning-tree", type=_tree_arg, default="bfs", help="bfs (default), odometry, mst")
-    s.add_argument("--regularization", choices=list(REGULARIZATIONS), default="tree", help=REGULARIZATION_HELP)
+    _route_options(s)
     s.add_argument("--tol", type=_tol_arg, default=1e-12, metavar="TOL",
                    help="relative PSD tolerance: certified iff λ_min(S_Q) ≥ −η, η = TOL·‖M‖₂ "
                         "(default 1e-12 = lago_cvx.certification.CERTIFY_TOL)")

@@ -42,9 +42,9 @@ log = logging.getLogger(__name__)
 
 #: name → keyword arguments of ``lago`` (the regularizers compared by default).
 DEFAULT_REGULARIZERS = {
-    "tree (bfs)": {"spanning_tree": "bfs"},
-    "tree (odometry)": {"spanning_tree": "odometry"},
-    "chordal": {"regularization": "chordal"},
+    "tree (bfs)": {"spanning_tree": "bfs", "regularization": "tree"},
+    "tree (odometry)": {"spanning_tree": "odometry", "regularization": "tree"},
+    "chordal": {"spanning_tree": "bfs", "regularization": "chordal"},
 }
 
 
@@ -128,7 +128,7 @@ def _lago_chi2(graph: PoseGraph, tree, delta_reg: np.ndarray, unc: EdgeUncertain
     after Gauss–Newton refinement (``lago_cvx.refinement.refine``) from that estimate."""
     a = int(graph.ids[tree.root])
     ph1 = phase1_closed_form(graph, delta_reg, unc, anchor=a)
-    ph3 = phase3_closed_form(graph, phase2(graph, ph1.theta, unc, anchor=a))
+    ph3 = phase3_closed_form(graph, phase2(graph, ph1.theta, unc, anchor=a, delta_reg=delta_reg))
     return chi2(graph, ph3.poses), chi2(graph, refine(graph, ph3.poses).poses)
 
 

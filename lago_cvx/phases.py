@@ -4,9 +4,9 @@ closed form, side by side so a reader sees they are the same least-squares probl
 Sizes: n = ``graph.n_poses`` poses (one of them the anchor, fixed at the origin of its own frame),
 m edges, d = n − 1 free poses. Free poses are ordered as the rows of A2 (``graph.free_poses``).
 
-Edge uncertainty: ``lago_cvx.uncertainty`` (the marginal P_Δ, P_δ of each edge's information; P_Δ is
-expressed in the frame of the tail, as Δˡ is, and rotated into the global frame by R(θ̂_i) exactly as
-eq. (10) says).
+Edge uncertainty: ``lago_cvx.uncertainty`` (the marginal P_Δ, P_δ of each edge's information and its full
+square root; P_Δ is expressed in the frame of the tail, as Δˡ is, and rotated into the global frame by
+R(θ̂_i) exactly as eq. (10) says).
 
 Phase 1 — eqs. (8), (13). Orientations: minimise ‖P_δ^{-1/2}(A2ᵀθ − δ_reg)‖², θ ∈ ℝ^d.
     θ̂ = (A2 P_δ⁻¹ A2ᵀ)⁻¹ A2 P_δ⁻¹ δ_reg,    information Ω_θ = P_θ⁻¹ = A2 P_δ⁻¹ A2ᵀ (d × d, sparse).
@@ -25,13 +25,27 @@ P_Δ^{-1/2} is any square root with (P_Δ^{-1/2})ᵀP_Δ^{-1/2} = P_Δ⁻¹ (upp
 Phase 3 — eqs. (12), (15). Joint WLS for x = [p; θ] ∈ ℝ^{3d} (p interleaved x₁, y₁, x₂, y₂, …):
     z = Bᵀx + noise,   Bᵀ = blkdiag(A2ᵀ ⊗ I₂, I_d)   ((2m+d) × 3d),
     x* = (B P_z⁻¹ Bᵀ)⁻¹ B P_z⁻¹ z = argmin ‖W (z − Bᵀx)‖²,     information Ω* = B P_z⁻¹ Bᵀ.
-Written out, the first 2m rows of W(z − Bᵀx) are P_Δ^{-1/2}R(θ̂_i)ᵀ[R(θ̂_i)Δˡ − (p_j − p_i) − SR(θ̂_i)Δˡ(θ̂_i − θ_i)]:
+Written out, the first 2m rows of W(z − Bᵀx) are −P_Δ^{-1/2}R(θ̂_i)ᵀ d_k with
+    d_k = p_j − p_i − R(θ̂_i)Δˡ − SR(θ̂_i)Δˡ(θ_i − θ̂_i),                                             (L)
 the *global-frame* relative-position error p_j − p_i − R(θ_i)Δˡ linearised in θ at θ̂ and weighted by
-(R(θ̂_i)P_ΔR(θ̂_i)ᵀ)⁻¹. Phase 3 is therefore exactly one Gauss–Newton step, from (any p, θ̂), of the cost
-written with that global-frame residual (plus the phase-1 orientation term); it is linear in p, so the
-starting p does not matter (Remark 1, verified in lecture 04). With the local-frame residual
-R(θ_i)ᵀ(p_j − p_i) − Δˡ of ``lago_cvx.cost`` (equivalent at the solution, not in its linearization) a
-GN step depends on the starting p.
+(R(θ̂_i)P_ΔR(θ̂_i)ᵀ)⁻¹; the last d rows are ‖P_δ^{-1/2}A2ᵀ(θ − θ̂)‖², which differs from phase 1's cost
+‖P_δ^{-1/2}(A2ᵀθ − δ_reg)‖² by a constant (θ̂ is its minimiser). Phase 3 is therefore exactly one
+Gauss–Newton step, from (any p, θ̂), of the cost written with the global-frame residual — the
+first-order expansion of eq. (18) whose minimiser gives the corrections of eqs. (16)–(17) — and it is
+linear in p, so the starting p does not matter.
+
+Full information (``information="full"``, beyond the seed). The split above weighs positions and
+orientations separately, which is exact only for block-diagonal Ω (Remark 2). For any Ω the same
+Gauss–Newton step uses each edge's *joint* residual
+    r_k(x) = [d_k ;  θ_j − θ_i − δ_reg,k]   weighted by   Ω_g,k = T_k Ω_k T_kᵀ,   T_k = blkdiag(R(θ̂_i), 1),
+since eᵀΩe = [d; e_θ]ᵀ T Ω Tᵀ [d; e_θ] with e = Tᵀ[d; e_θ] at θ_i = θ̂_i. In the same form as eq. (15),
+    minimise ‖W_f (B_fᵀx − z_f)‖²,  W_f = blkdiag_k(U_k T_kᵀ)  (3m × 3m, U_kᵀU_k = Ω_k),
+    B_fᵀ: rows of edge k = [[A2ᵀ⊗I₂]_k, −J_k; 0, (A2ᵀ)_k],   z_f,k = [Δᵍ_k − J_k θ̂ ; δ_reg,k]   (3m × 3d).
+With block-diagonal Ω its cost differs from ‖W(z − Bᵀx)‖² by a constant, so x* and Ω* are the seed's
+exactly (tests/test_phases.py); for any Ω it is one Gauss–Newton step of the full cost from a point
+O(σ) away, so x* is O(σ²) from the optimum and χ²(LAGO)/χ²(min) → 1 as the noise vanishes
+(tests/test_properties.py). The seed's form with the marginal P_Δ, P_δ (``information="marginal"``)
+is not: its weights ignore the Δˡ–δ correlation, so its error stays O(σ) relative.
 
 cvxpy objectives are written ``cp.sum_squares(W @ r)`` with sparse whitening W (never ``quad_form``)
 and solved with Clarabel by ``lago_cvx.solvers.solve`` (preset ``LEAST_SQUARES``). cvxpy is imported
@@ -52,12 +66,13 @@ import scipy.sparse as sp
 from .graph import _reduced_incidence, free_poses
 from .linalg import Factor, block_diagonal_inverse, factorize, solve_least_squares
 from .posegraph import PoseGraph, rot2
+from .errors import OptionError, check_choice
 from .solvers import ClarabelSettings, solve
-from .uncertainty import EdgeUncertainty
+from .uncertainty import INFORMATION_MODES, EdgeUncertainty
 
 __all__ = [
     "Phase1", "phase1_problem", "phase1_closed_form", "phase1_from_problem",
-    "Phase2", "phase2", "phase2_blocks",
+    "Phase2", "phase2", "phase2_blocks", "edge_whitening",
     "Phase3", "design_matrix", "phase3_problem", "phase3_closed_form", "phase3_from_problem",
 ]
 
@@ -143,17 +158,25 @@ def phase1_from_problem(graph: PoseGraph, delta_reg, unc: EdgeUncertainty, *, an
 # ------------------------------------------------------------------------------ phase 2
 @dataclass(frozen=True, eq=False)
 class Phase2:
-    """Phase-2 quantities. ``delta_g`` (m, 2) Δᵍ = R(θ̂_i)Δˡ; ``z`` (2m + d,) = [Δᵍ (interleaved); θ̂_free];
-    ``W`` sparse (3m, 2m + d) with WᵀW = P_z⁻¹; ``jac`` sparse (2m, d) J of eq. (11); ``anchor_index``."""
+    """Phase-2 quantities and the system phase 3 solves, argmin ‖W (z − Bᵀx)‖².
+
+    ``delta_g`` (m, 2) Δᵍ = R(θ̂_i)Δˡ (eq. (9)); ``jac`` sparse (2m, d) J of eq. (11); ``anchor_index``;
+    ``information`` ``"marginal"`` — the seed's ``z`` (2m + d,) = [Δᵍ (interleaved); θ̂_free], ``W``
+    sparse (3m, 2m + d) with WᵀW = P_z⁻¹ (eqs. (10)–(11)) and ``Bt`` = Bᵀ of eq. (12) ((2m + d) × 3d);
+    or ``"full"`` — ``z`` (3m,) = [Δᵍ − Jθ̂; δ_reg], ``W`` (3m × 3m) with 3×3 blocks U_k T_kᵀ on the rows
+    (2k, 2k + 1, 2m + k) and ``Bt`` = [[A2ᵀ⊗I₂, −J], [0, A2ᵀ]] (3m × 3d) (module docstring)."""
 
     delta_g: np.ndarray
     z: np.ndarray
     W: sp.csr_matrix
     jac: sp.csr_matrix
     anchor_index: int
+    Bt: sp.csr_matrix = None
+    information: str = "marginal"
 
     def covariance_z(self) -> np.ndarray:
-        """Dense P_z = (WᵀW)⁻¹ — for small-graph checks and lectures only."""
+        """Dense (WᵀW)⁻¹: P_z of eq. (10) for the seed's form, blkdiag(T_k Σ_k T_kᵀ) for the full one —
+        for small-graph checks and lectures only."""
         return np.linalg.inv((self.W.T @ self.W).toarray())
 
 
@@ -162,8 +185,8 @@ def phase2_blocks(graph: PoseGraph, theta: np.ndarray, unc: EdgeUncertainty, tai
     are numbered by ``tail_col`` (n,) (−1 for a known orientation; d free in all):
 
     Δᵍ = R(θ̂_i)Δˡ (m, 2); J (2m × d, sparse) of eq. (11), block of edge k in the column of its tail,
-    S Δᵍ; and the first block row of W, [P_Δ^{-1/2} Rᵀ, −P_Δ^{-1/2} S Δˡ e_iᵀ] (2m × (2m + d), sparse).
-    Used by ``phase2`` and by the anchored variants (``lago_cvx.variants.systems``)."""
+    S Δᵍ; and the first block row of the seed's W, [P_Δ^{-1/2} Rᵀ, −P_Δ^{-1/2} S Δˡ e_iᵀ]
+    (2m × (2m + d), sparse). Used by ``phase2`` and by the anchored variants."""
     m = graph.n_edges
     Ri = rot2(theta[graph.tails])  # (m, 2, 2)
     delta_g = np.einsum("kab,kb->ka", Ri, graph.delta_l)  # eq. (9)
@@ -184,30 +207,55 @@ def phase2_blocks(graph: PoseGraph, theta: np.ndarray, unc: EdgeUncertainty, tai
     return delta_g, jac, top
 
 
-def phase2(graph: PoseGraph, theta: np.ndarray, unc: EdgeUncertainty, *, anchor=None) -> Phase2:
-    """Phase 2 (eqs. (9)–(11)): z and the sparse square-root information W of P_z (module docstring).
+def edge_whitening(graph: PoseGraph, theta: np.ndarray, unc: EdgeUncertainty) -> sp.csr_matrix:
+    """W_f (3m × 3m): on the rows (2k, 2k + 1, 2m + k) of edge k the block U_k T_kᵀ,
+    T_k = blkdiag(R(θ̂_i), 1), so that ‖W_f r‖² = Σ_k r_kᵀ T_k Ω_k T_kᵀ r_k (full information)."""
+    m = graph.n_edges
+    T = np.zeros((m, 3, 3))
+    T[:, :2, :2] = rot2(theta[graph.tails])
+    T[:, 2, 2] = 1.0
+    blocks = unc.sqrt_info @ np.swapaxes(T, 1, 2)  # (m, 3, 3)
+    idx = np.stack([2 * np.arange(m), 2 * np.arange(m) + 1, 2 * m + np.arange(m)], 1)  # (m, 3)
+    rows = np.repeat(idx, 3, axis=1).reshape(-1)
+    cols = np.tile(idx, (1, 3)).reshape(-1)
+    return sp.csr_matrix((blocks.reshape(-1), (rows, cols)), shape=(3 * m, 3 * m))
 
-    ``theta`` (n,) the phase-1 orientations (anchor at 0). No optimisation happens here; the same
-    code serves both the closed form and the cvxpy route."""
+
+def phase2(graph: PoseGraph, theta: np.ndarray, unc: EdgeUncertainty, *, anchor=None, information: str = "full",
+           delta_reg=None) -> Phase2:
+    """Phase 2 (eqs. (9)–(11)): Δᵍ, J, and the system phase 3 solves (module docstring).
+
+    ``theta`` (n,) the phase-1 orientations (anchor at 0). ``information`` ``"full"`` (each edge's whole
+    3×3 information; needs ``delta_reg`` (m,), the regularized δ phase 1 used) or ``"marginal"`` (the
+    seed's z and P_z⁻¹ = WᵀW with the marginal P_Δ, P_δ). No optimisation happens here; the same code
+    serves both the closed form and the cvxpy route."""
+    check_choice("information", information, INFORMATION_MODES)
     a = graph.anchor_index(anchor)
-    n = graph.n_poses
+    n, m = graph.n_poses, graph.n_edges
     free = free_poses(n, a)
     col_of = np.full(n, -1, np.int64)
     col_of[free] = np.arange(n - 1)
     delta_g, jac, top = phase2_blocks(graph, theta, unc, col_of, n - 1)
-    z = np.concatenate([delta_g.reshape(-1), theta[free]])
-    # second block row: [0, P_δ^{-1/2} A2ᵀ]
-    L = sp.diags(unc.sqrt_info_delta) @ _reduced_incidence(graph, a).T
-    W = sp.vstack([top, sp.hstack([sp.csr_matrix((graph.n_edges, 2 * graph.n_edges)), L])], format="csr")
-    return Phase2(delta_g=delta_g, z=z, W=W, jac=jac, anchor_index=a)
+    A2t = _reduced_incidence(graph, a).T  # (m, d)
+    if information == "marginal":
+        z = np.concatenate([delta_g.reshape(-1), theta[free]])
+        # second block row: [0, P_δ^{-1/2} A2ᵀ]
+        L = sp.diags(unc.sqrt_info_delta) @ A2t
+        W = sp.vstack([top, sp.hstack([sp.csr_matrix((m, 2 * m)), L])], format="csr")
+        return Phase2(delta_g, z, W, jac, a, design_matrix(graph, anchor=int(graph.ids[a])), "marginal")
+    if delta_reg is None:
+        raise OptionError("phase2(information='full') needs delta_reg, the regularized δ of phase 1")
+    z = np.concatenate([delta_g.reshape(-1) - jac @ theta[free], np.asarray(delta_reg, dtype=float)])
+    Bt = sp.bmat([[sp.kron(A2t, sp.identity(2)), -jac], [None, A2t]], format="csr")
+    return Phase2(delta_g, z, edge_whitening(graph, theta, unc), jac, a, Bt, "full")
 
 
 # ------------------------------------------------------------------------------ phase 3
 @dataclass(frozen=True, eq=False)
 class Phase3:
     """Phase-3 result. ``x_star`` (3d,) = [p (interleaved); θ]; ``poses`` (n, 3) with the anchor at the
-    origin; ``info`` sparse (3d, 3d) Ω* = B P_z⁻¹ Bᵀ; ``anchor_index``; ``factor`` the factorization of
-    ``info`` and ``stats`` the solver's refinement statistics (closed form only)."""
+    origin; ``info`` sparse (3d, 3d) Ω* = B W ᵀW Bᵀ (= B P_z⁻¹ Bᵀ of eq. (15)); ``anchor_index``; ``factor``
+    the factorization of ``info`` and ``stats`` the solver's refinement statistics (closed form only)."""
 
     x_star: np.ndarray
     poses: np.ndarray
@@ -239,14 +287,13 @@ def design_matrix(graph: PoseGraph, *, anchor=None) -> sp.csr_matrix:
 
 def phase3_problem(graph: PoseGraph, ph2: Phase2):
     """Phase 3 as a cvxpy problem (eq. (15)): minimise ‖W (z − Bᵀx)‖² over x = [p; θ] ∈ ℝ^{3d}
-    (anchored where phase 2 was).
+    (anchored where phase 2 was; W, z, Bᵀ of the seed's or the full-information form, ``ph2.information``).
 
     Returns ``(problem, x)``; positions are ``x[:2d]`` (interleaved), orientations ``x[2d:]``."""
     import cvxpy as cp
 
-    Bt = design_matrix(graph, anchor=int(graph.ids[ph2.anchor_index]))
-    x = cp.Variable(Bt.shape[1], name="x")
-    return cp.Problem(cp.Minimize(cp.sum_squares(ph2.W @ (ph2.z - Bt @ x)))), x
+    x = cp.Variable(ph2.Bt.shape[1], name="x")
+    return cp.Problem(cp.Minimize(cp.sum_squares(ph2.W @ (ph2.z - ph2.Bt @ x)))), x
 
 
 def _poses_from_x(n: int, a: int, x: np.ndarray) -> np.ndarray:
@@ -260,12 +307,12 @@ def _poses_from_x(n: int, a: int, x: np.ndarray) -> np.ndarray:
 
 def phase3_closed_form(graph: PoseGraph, ph2: Phase2, *, backend: str = "auto") -> Phase3:
     """Phase 3 in closed form: x* = (B WᵀW Bᵀ)⁻¹ B WᵀW z, the least-squares solution of
-    M x ≈ W z with M = W Bᵀ (3m × 3d), by a sparse factorization of MᵀM with corrected semi-normal
+    M x ≈ W z with M = W Bᵀ, by a sparse factorization of MᵀM with corrected semi-normal
     refinement (``lago_cvx.linalg.solve_least_squares``). Anchored where phase 2 was."""
-    a = ph2.anchor_index
-    M = (ph2.W @ design_matrix(graph, anchor=int(graph.ids[a]))).tocsc()  # (3m, 3d)
+    M = (ph2.W @ ph2.Bt).tocsc()
     x, info, factor, stats = solve_least_squares(M, ph2.W @ ph2.z, backend=backend)
-    return Phase3(x, _poses_from_x(graph.n_poses, a, x), info.tocsr(), a, factor, stats)
+    return Phase3(x, _poses_from_x(graph.n_poses, ph2.anchor_index, x), info.tocsr(), ph2.anchor_index, factor,
+                  stats)
 
 
 def phase3_from_problem(graph: PoseGraph, ph2: Phase2, *, settings: ClarabelSettings | None = None):
@@ -274,7 +321,7 @@ def phase3_from_problem(graph: PoseGraph, ph2: Phase2, *, settings: ClarabelSett
     if x.size == 0:  # a single pose
         return phase3_closed_form(graph, ph2), problem
     solve(problem, settings, what="phase 3")
-    a = ph2.anchor_index
     xv = np.asarray(x.value, dtype=float)
-    M = ph2.W @ design_matrix(graph, anchor=int(graph.ids[a]))
-    return Phase3(xv, _poses_from_x(graph.n_poses, a, xv), (M.T @ M).tocsr(), a), problem
+    M = ph2.W @ ph2.Bt
+    return Phase3(xv, _poses_from_x(graph.n_poses, ph2.anchor_index, xv), (M.T @ M).tocsr(), ph2.anchor_index), \
+        problem

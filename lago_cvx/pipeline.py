@@ -17,15 +17,17 @@ import time
 import numpy as np
 
 from . import phases as P
-from .errors import GraphError
+from .errors import GraphError, check_choice
 from .graph import spanning_tree as build_tree
 from .metrics import relative_difference
 from .posegraph import PoseGraph, compose
+from .positions import Polish, polish, positions_from_problem, resolve_positions
 from .regularization import REGULARIZATIONS, regularize
 from .result import LagoResult
 from .rounding import AMBIGUITY_MARGIN
+from .routes import POSITIONS, resolve_route
 from .solvers import ClarabelSettings, IntegerSearch, check_method
-from .uncertainty import edge_uncertainty
+from .uncertainty import INFORMATION_MODES, edge_uncertainty
 from .variants import anchored_lago, compare_anchored_methods
 
 __all__ = ["lago", "compare_methods"]
@@ -33,30 +35,39 @@ __all__ = ["lago", "compare_methods"]
 log = logging.getLogger(__name__)
 
 
-def lago(graph: PoseGraph, *, method: str = "closed_form", spanning_tree="bfs", anchor=None,
-         anchor_pose=None, margin: float = AMBIGUITY_MARGIN, solver_settings: ClarabelSettings | None = None,
-         backend: str = "auto", anchors=None, regularization: str = "tree",
+def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form", spanning_tree=None,
+         regularization: str | None = None, information: str | None = None, positions: str | None = None,
+         anchor=None, anchor_pose=None, margin: float = AMBIGUITY_MARGIN,
+         solver_settings: ClarabelSettings | None = None, backend: str = "auto", anchors=None,
          integer_search: IntegerSearch | None = None) -> LagoResult:
     """LAGO: the linear approximation of planar pose-graph optimization (the seed's Section IV).
 
     Parameters (keyword-only):
-      method — ``"closed_form"`` (sparse factorizations) or ``"cvxpy"`` (phases 1 and 3 as cvxpy
-        problems solved by Clarabel with ``solver_settings``, a ``ClarabelSettings`` over the preset
-        ``lago_cvx.solvers.LEAST_SQUARES``).
-      spanning_tree — ``"bfs"`` (default: shortest-depth from the anchor), ``"odometry"`` (the seed's
-        choice), ``"mst"``, or an array of edge indices; see ``lago_cvx.graph.spanning_tree``.
-      anchor — id of the pose held fixed (default: the smallest id).
-      anchor_pose — (x, y, θ) of the anchor in the output frame (default: the origin). LAGO is solved
-        with the anchor at the origin and the result is rigidly moved there (exactly equivariant).
-      margin — ambiguity margin of the regularization report (radians).
-      regularization — ``"tree"`` (default, the seed's Theorem 3: round each chord's cycle residual
-        along ``spanning_tree``), ``"chordal"`` (round every edge against the chordal relaxation of
-        the rotations; robust to rotation noise accumulated along tree paths; with ``method="cvxpy"`` the
+      route — ``"default"`` or ``"seed"`` (``lago_cvx.routes.ROUTES``): the choices of tree, regularization,
+        information and positions below when they are left ``None``. ``route="seed"`` is exactly the
+        paper's procedure.
+      method — ``"closed_form"`` (sparse factorizations) or ``"cvxpy"`` (phases 1 and 3 and the position
+        polish as cvxpy problems solved by Clarabel with ``solver_settings``, a ``ClarabelSettings`` over
+        the preset ``lago_cvx.solvers.LEAST_SQUARES``).
+      spanning_tree — ``"bfs"`` (shortest-depth from the anchor), ``"odometry"`` (the seed's choice),
+        ``"mst"``, or an array of edge indices; see ``lago_cvx.graph.spanning_tree``.
+      regularization — ``"tree"`` (the seed's Theorem 3: round each chord's cycle residual along
+        ``spanning_tree``), ``"chordal"`` (round every edge against the chordal relaxation of the
+        rotations; robust to rotation noise accumulated along tree paths; with ``method="cvxpy"`` the
         relaxation is solved as its cvxpy problem too) or ``"integer"`` (the weighted integer
         least-squares problem the tree rounding approximates: exact enumeration, or with
         ``method="cvxpy"`` the mixed-integer cvxpy problem solved by SCIP, ``pip install
         "lago-cvx[mip]"``; ``integer_search`` an ``IntegerSearch`` to choose otherwise; at most
         ``MAX_INTEGER_CHORDS`` chords).
+      information — ``"full"`` (phases 2–3 from each edge's whole 3×3 information: first-order optimal
+        for any information) or ``"marginal"`` (the seed's blkdiag(P_Δ, P_δ) with the marginal
+        covariances); the two agree exactly for block-diagonal information (``lago_cvx.phases``).
+      positions — ``"phase3"`` (phase 3's poses) or ``"resolve"`` (positions re-solved exactly for the
+        orientations, guarded by phase 1's: ``lago_cvx.positions.polish``; χ² never above phase 3's).
+      anchor — id of the pose held fixed (default: the smallest id).
+      anchor_pose — (x, y, θ) of the anchor in the output frame (default: the origin). LAGO is solved
+        with the anchor at the origin and the result is rigidly moved there (exactly equivariant).
+      margin — ambiguity margin of the regularization report (radians).
       backend — sparse solver of the closed form: ``"auto"``, ``"qdldl"``, ``"superlu"``, ``"cholmod"``.
       anchors — ``{id: (x, y, θ)}`` known poses (None for unknown components); when given (even ``{}``)
         LAGO runs with the known entries moved to the right-hand side (``lago_cvx.variants.anchored_lago``;
@@ -64,34 +75,37 @@ def lago(graph: PoseGraph, *, method: str = "closed_form", spanning_tree="bfs", 
     Raises ``GraphError`` for a disconnected graph (naming component sizes), a broken odometric chain,
     or an unknown anchor; ``OptionError`` for a bad option.
     """
+    choice, route_name = resolve_route(route, spanning_tree=spanning_tree, regularization=regularization,
+                                       information=information, positions=positions)
     if anchors is not None:
-        return anchored_lago(graph, anchors=anchors, method=method, spanning_tree=spanning_tree, anchor=anchor,
-                             anchor_pose=anchor_pose, margin=margin, solver_settings=solver_settings, backend=backend,
-                             regularization=regularization)
+        return anchored_lago(graph, anchors=anchors, method=method, route=route, spanning_tree=spanning_tree,
+                             regularization=regularization, information=information, positions=positions,
+                             anchor=anchor, anchor_pose=anchor_pose, margin=margin, solver_settings=solver_settings,
+                             backend=backend)
     check_method(method)
-    if regularization not in REGULARIZATIONS:
-        from .errors import OptionError
-
-        raise OptionError(f"unknown regularization {regularization!r}; expected one of {REGULARIZATIONS}")
+    check_choice("regularization", choice["regularization"], REGULARIZATIONS)
+    check_choice("information", choice["information"], INFORMATION_MODES)
+    check_choice("positions", choice["positions"], POSITIONS)
     if graph.n_edges == 0 and graph.n_poses > 1:
         raise GraphError(f"the graph has {graph.n_poses} poses and no edges: nothing links them")
     a = graph.anchor_index(anchor)
     aid = int(graph.ids[a])
     anchor_pose = np.zeros(3) if anchor_pose is None else np.asarray(anchor_pose, dtype=float).reshape(3)
-    timings = {}
+    timings, problems = {}, {}
     t_all = time.perf_counter()
 
     t = time.perf_counter()
-    tree = build_tree(graph, spanning_tree, anchor=aid)
+    tree = build_tree(graph, choice["spanning_tree"], anchor=aid)
     timings["tree"] = time.perf_counter() - t
 
     t = time.perf_counter()
-    reg = regularize(graph, tree, regularization=regularization, margin=margin, method=method, backend=backend,
-                     settings=solver_settings, search=integer_search)
+    reg = regularize(graph, tree, regularization=choice["regularization"], margin=margin, method=method,
+                     backend=backend, settings=solver_settings, search=integer_search)
     unc = edge_uncertainty(graph)
     timings["regularization"] = time.perf_counter() - t
+    if reg.problem is not None:
+        problems[reg.regularization] = reg.problem  # "chordal" or "integer"
 
-    problems = {} if reg.problem is None else {reg.regularization: reg.problem}  # "chordal" or "integer"
     t = time.perf_counter()
     if method == "closed_form":
         ph1 = P.phase1_closed_form(graph, reg.delta_reg, unc, anchor=aid, backend=backend)
@@ -101,7 +115,7 @@ def lago(graph: PoseGraph, *, method: str = "closed_form", spanning_tree="bfs", 
     timings["phase1"] = time.perf_counter() - t
 
     t = time.perf_counter()
-    ph2 = P.phase2(graph, ph1.theta, unc, anchor=aid)
+    ph2 = P.phase2(graph, ph1.theta, unc, anchor=aid, information=choice["information"], delta_reg=reg.delta_reg)
     timings["phase2"] = time.perf_counter() - t
 
     t = time.perf_counter()
@@ -111,13 +125,34 @@ def lago(graph: PoseGraph, *, method: str = "closed_form", spanning_tree="bfs", 
         ph3, problems["phase3"] = P.phase3_from_problem(graph, ph2, settings=solver_settings)
     timings["phase3"] = time.perf_counter() - t
 
-    poses = compose(np.broadcast_to(anchor_pose, ph3.poses.shape), ph3.poses)
+    t = time.perf_counter()
+    pol, poses = None, ph3.poses
+    if choice["positions"] == "resolve":
+        pol = _polish(graph, ph1.theta, ph3.poses[:, 2], unc, aid, method, backend, solver_settings, problems)
+        poses = pol.poses
+    timings["positions"] = time.perf_counter() - t
+
+    poses = compose(np.broadcast_to(anchor_pose, poses.shape), poses)
     timings["total"] = time.perf_counter() - t_all
-    log.info("LAGO (%s, %s tree, %s regularization): %d poses, %d edges, %d cycles regularized, %.3f s", method,
-             tree.kind, regularization, graph.n_poses, graph.n_edges, reg.n_regularized, timings["total"])
+    log.info("LAGO (%s route, %s, %s tree, %s regularization, %s information, %s positions): %d poses, %d edges, "
+             "%d cycles regularized, %.3f s", route_name, method, tree.kind, reg.regularization,
+             choice["information"], choice["positions"], graph.n_poses, graph.n_edges, reg.n_regularized,
+             timings["total"])
     return LagoResult(graph=graph, poses=poses, anchor=aid, anchor_index=a, anchor_pose=anchor_pose, method=method,
                       tree=tree, regularization=reg, uncertainty=unc, phase1=ph1, phase2=ph2, phase3=ph3,
-                      timings=timings, problems=problems)
+                      timings=timings, problems=problems, route=route_name, information=choice["information"],
+                      positions=choice["positions"], polish=pol)
+
+
+def _polish(graph, theta_hat, theta_star, unc, aid, method, backend, settings, problems) -> Polish:
+    """The position polish in closed form or as cvxpy problems (the last one solved is kept)."""
+    def solve_positions(theta):
+        if method == "closed_form":
+            return resolve_positions(graph, theta, unc, anchor=aid, backend=backend)
+        pos, problems["positions"] = positions_from_problem(graph, theta, unc, anchor=aid, settings=settings)
+        return pos
+
+    return polish(graph, theta_hat, theta_star, unc, solve_positions=solve_positions)
 
 
 def compare_methods(graph: PoseGraph, *, solver_settings: ClarabelSettings | None = None, anchors=None,
@@ -125,8 +160,9 @@ def compare_methods(graph: PoseGraph, *, solver_settings: ClarabelSettings | Non
     """Run LAGO in closed form, then solve phases 1 and 3 as cvxpy problems **on the same inputs**
     (phase 3 uses the closed form's z and W, so each phase is compared in isolation).
 
-    Returns (closed-form result, report) where report has ``max_rel_diff`` {phase1, phase3, and chordal
-    (the relaxed rotations) when ``regularization="chordal"``}, the cvxpy timings and the problems.
+    Returns (closed-form result, report) where report has ``max_rel_diff`` {phase1, phase3, ``positions``
+    (the polish at the orientations it chose) with ``positions="resolve"``, and ``chordal`` (the relaxed
+    rotations) with ``regularization="chordal"``}, the cvxpy timings and the problems.
     ``anchors`` as in ``lago`` (then ``lago_cvx.variants.compare_anchored_methods``)."""
     if anchors is not None:
         return compare_anchored_methods(graph, anchors=anchors, solver_settings=solver_settings, **kwargs)
@@ -144,6 +180,13 @@ def compare_methods(graph: PoseGraph, *, solver_settings: ClarabelSettings | Non
         "cvxpy_timings": {"phase1": t1, "phase3": t3},
         "problems": {"phase1": prob1, "phase3": prob3},
     }
+    if res.polish is not None:
+        t = time.perf_counter()
+        pos, prob_p = positions_from_problem(graph, res.polish.poses[:, 2], res.uncertainty, anchor=res.anchor,
+                                             settings=solver_settings)
+        report["cvxpy_timings"]["positions"] = time.perf_counter() - t
+        report["max_rel_diff"]["positions"] = relative_difference(pos.poses[:, :2], res.polish.poses[:, :2])
+        report["problems"]["positions"] = prob_p
     if res.regularization.regularization == "chordal":
         from .regularization.chordal import chordal_from_problem
 

@@ -10,6 +10,7 @@ from .graph import SpanningTree
 from .metrics import chi2
 from .phases import Phase1, Phase2, Phase3
 from .posegraph import PoseGraph
+from .positions import Polish
 from .regularization import RegularizationReport
 from .uncertainty import EdgeUncertainty
 
@@ -26,8 +27,17 @@ class LagoResult:
     ``regularization`` field says "tree", "chordal" or "integer"); ``uncertainty`` (per-edge marginal P_Δ,
     P_δ); ``phase1``, ``phase2``, ``phase3`` (see ``lago_cvx.phases``; plain LAGO computes them in the
     anchor's own frame, anchor at the origin); ``timings`` seconds per step (keys ``tree``,
-    ``regularization``, ``phase1``, ``phase2``, ``phase3``, ``total``); ``problems`` the cvxpy problems
-    (method "cvxpy" only: "phase1", "phase3", and "chordal" / "integer" with those regularizations)."""
+    ``regularization``, ``phase1``, ``phase2``, ``phase3``, ``positions``, ``total``); ``problems`` the cvxpy
+    problems (method "cvxpy" only: "phase1", "phase3", "positions", and "chordal" / "integer" with those
+    regularizations); ``route`` the name of the route (``lago_cvx.pipeline.ROUTES``) or "custom";
+    ``information`` "full" or "marginal" (how phases 2–3 used each edge's 3×3 information);
+    ``positions`` "phase3" (the poses are phase 3's) or "resolve" (positions re-solved exactly for the
+    orientations, ``polish``: a ``lago_cvx.positions.Polish``).
+
+    Covariances (``pose_covariances``) are phase 3's, eq. (15), also after the polish: its positions
+    differ from phase 3's by second-order terms, so to first order they share phase 3's covariance. (The
+    polish's own information, ``polish.positions.info``, holds the orientations fixed and would understate
+    the position uncertainty.)"""
 
     graph: PoseGraph
     poses: np.ndarray
@@ -43,6 +53,10 @@ class LagoResult:
     phase3: Phase3
     timings: dict
     problems: dict = field(default_factory=dict)
+    route: str = "custom"
+    information: str = "marginal"
+    positions: str = "phase3"
+    polish: Polish | None = None
 
     def _frame(self) -> np.ndarray:
         """T (3, 3): the rotation from the phases' frame to the output frame."""
@@ -69,5 +83,6 @@ class LagoResult:
 
     def summary(self) -> dict:
         return {"n_poses": self.graph.n_poses, "n_edges": self.graph.n_edges, "method": self.method,
-                "spanning_tree": self.tree.kind, **self.regularization.summary(), "chi2": self.chi2,
+                "route": self.route, "spanning_tree": self.tree.kind, **self.regularization.summary(),
+                "information": self.information, "positions": self.positions, "chi2": self.chi2,
                 "timings": dict(self.timings)}

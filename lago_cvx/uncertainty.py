@@ -1,13 +1,23 @@
-"""Per-edge uncertainty in the form LAGO's phases use it.
+"""Per-edge uncertainty in the forms LAGO's phases use it.
 
-The seed assumes P_ij = blkdiag(P_Δ, P_δ) (its Remark 2); real files carry a full 3×3 information
-Ω_ij with x–θ and y–θ cross terms. ``edge_uncertainty`` returns the **marginal covariances** of the
-full matrix: Σ = Ω⁻¹, P_Δ,ij = Σ[0:2, 0:2], P_δ,ij = Σ[2, 2]. This keeps each measurement's own
-accuracy and drops only the Δˡ–δ correlation, which the seed's phase split does not carry. P_Δ is
-expressed in the frame of the tail (as Δˡ is).
+Each edge carries a 3×3 information Ω = Σ⁻¹ of its error e = [R_iᵀ(p_j − p_i) − Δˡ; θ_j − θ_i − δ]
+(order x, y, θ; positions in the frame of the tail i). The seed assumes Σ = blkdiag(P_Δ, P_δ) (its
+Remark 2); real files often carry x–θ and y–θ cross terms. Three views of the same Ω are needed:
 
-Every step that weights orientations — the spanning trees, the three regularizers, phase 1 — takes
-P_δ from here, so they all agree on what a measurement is worth.
+* the **marginal** covariances P_Δ = Σ[0:2, 0:2] and P_δ = Σ[2, 2] — phase 1 estimates the orientations
+  from δ alone, and the BLUE from δ alone weighs each δ by 1/P_δ, its marginal variance; the seed's
+  phase 2 (eqs. (9)–(11)) propagates P_Δ;
+* the **full** square root U (3×3, upper triangular, UᵀU = Ω) — the full-information phase 3 weighs
+  each edge's joint position-and-orientation residual with it (``lago_cvx.phases``);
+* the **conditional** position information Ω_pp = Ω[0:2, 0:2] and h = Ω_pp⁻¹Ω_pθ — with the
+  orientations fixed, completing the square in e_t gives
+  eᵀΩe = (e_t + h e_θ)ᵀΩ_pp(e_t + h e_θ) + e_θ²/P_δ, so positions are fitted to the shifted target
+  Δˡ − h e_θ with weight Ω_pp (``lago_cvx.positions``).
+
+With block-diagonal Ω the three agree: Ω_pp = P_Δ⁻¹, h = 0, U = blkdiag(P_Δ^{-1/2}, P_δ^{-1/2}).
+
+Every step that weighs orientations — the spanning trees, the three regularizers, phase 1 — takes P_δ
+from here, so they all agree on what a measurement is worth.
 """
 
 from __future__ import annotations
@@ -19,34 +29,60 @@ import numpy as np
 from .linalg import whitening_2x2
 from .posegraph import PoseGraph
 
-__all__ = ["EdgeUncertainty", "edge_uncertainty"]
+__all__ = ["EdgeUncertainty", "edge_uncertainty", "INFORMATION_MODES"]
+
+#: How phases 2–3 use each edge's information: ``"full"`` (the whole 3×3 Ω, first-order optimal for
+#: any Ω) or ``"marginal"`` (the seed's blkdiag(P_Δ, P_δ) with the marginal covariances, eqs. (9)–(15)).
+INFORMATION_MODES = ("full", "marginal")
 
 
 @dataclass(frozen=True, eq=False)
 class EdgeUncertainty:
-    """Per-edge marginal uncertainties (see the module docstring).
+    """Per-edge uncertainties (module docstring). Shapes for m edges:
 
-    ``cov_delta_l`` (m, 2, 2) P_Δ,ij in the tail's frame; ``var_delta`` (m,) P_δ,ij;
-    ``sqrt_info_delta_l`` (m, 2, 2) upper-triangular U with UᵀU = P_Δ,ij⁻¹;
-    ``sqrt_info_delta`` (m,) 1/√P_δ,ij."""
+    marginal — ``cov_delta_l`` (m, 2, 2) P_Δ in the tail's frame; ``var_delta`` (m,) P_δ;
+    ``sqrt_info_delta_l`` (m, 2, 2) upper-triangular with UᵀU = P_Δ⁻¹; ``sqrt_info_delta`` (m,) 1/√P_δ.
+    full — ``sqrt_info`` (m, 3, 3) upper-triangular with UᵀU = Ω.
+    conditional — ``sqrt_info_pp`` (m, 2, 2) upper-triangular with UᵀU = Ω_pp; ``shift`` (m, 2)
+    h = Ω_pp⁻¹Ω_pθ."""
 
     cov_delta_l: np.ndarray
     var_delta: np.ndarray
     sqrt_info_delta_l: np.ndarray
     sqrt_info_delta: np.ndarray
+    sqrt_info: np.ndarray
+    sqrt_info_pp: np.ndarray
+    shift: np.ndarray
 
     @property
     def info_delta(self) -> np.ndarray:
-        """1/P_δ,ij (m,): the rotational weight of each edge."""
+        """1/P_δ (m,): the rotational weight of each edge."""
         return 1.0 / self.var_delta
+
+    @property
+    def block_diagonal(self) -> np.ndarray:
+        """Bool (m,): the edge's Ω has no x–θ / y–θ terms (the seed's assumption holds exactly)."""
+        return np.all(self.shift == 0.0, axis=1)
+
+
+def _sym(a: np.ndarray) -> np.ndarray:
+    return 0.5 * (a + np.swapaxes(a, -1, -2))
 
 
 def edge_uncertainty(graph: PoseGraph) -> EdgeUncertainty:
-    """Marginal covariances of Δˡ and δ from each edge's full information matrix (shapes above)."""
-    cov = graph.covariance
+    """The marginal, full and conditional forms of every edge's information (shapes above)."""
+    info = _sym(graph.information)
+    m = graph.n_edges
+    if m == 0:
+        z2, z3 = np.zeros((0, 2, 2)), np.zeros((0, 3, 3))
+        return EdgeUncertainty(z2, np.zeros(0), z2, np.zeros(0), z3, z2, np.zeros((0, 2)))
+    cov = np.linalg.inv(info)
     cov_l = cov[:, :2, :2]
     var_d = cov[:, 2, 2].copy()
-    info_l = np.linalg.inv(cov_l) if graph.n_edges else np.zeros((0, 2, 2))
-    info_l = 0.5 * (info_l + np.swapaxes(info_l, 1, 2))
+    info_l = _sym(np.linalg.inv(cov_l))
+    info_pp = info[:, :2, :2]
+    shift = np.linalg.solve(info_pp, info[:, :2, 2:3])[..., 0]
+    sqrt_info = np.swapaxes(np.linalg.cholesky(info), 1, 2)  # UᵀU = Ω, U upper triangular
     return EdgeUncertainty(cov_delta_l=cov_l, var_delta=var_d, sqrt_info_delta_l=whitening_2x2(info_l),
-                           sqrt_info_delta=1.0 / np.sqrt(var_d))
+                           sqrt_info_delta=1.0 / np.sqrt(var_d), sqrt_info=sqrt_info,
+                           sqrt_info_pp=whitening_2x2(info_pp), shift=shift)

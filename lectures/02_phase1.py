@@ -28,7 +28,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.sparse import csgraph
 
-from _lecture import figure_saver
+from _lecture import figure_saver, paper_lago
 import lago_cvx as lc
 from lago_cvx import phases as P
 from lago_cvx.datasets import DatasetNotFound, dataset
@@ -204,7 +204,7 @@ else:
 
 # %%
 tiny = lc.random_graph(6, 9, seed=0).graph
-res_tiny = lc.lago(tiny)
+res_tiny = paper_lago(tiny)
 prob_tiny, theta_var = P.phase1_problem(tiny, res_tiny.regularization.delta_reg, res_tiny.uncertainty)
 print("cvxpy problem of phase 1 (6 poses, 9 edges; theta has", theta_var.shape[0], "entries):")
 print(prob_tiny)
@@ -214,7 +214,7 @@ print("cvxpy       θ̂ =", np.round(theta_var.value, 6))
 
 
 def check_blue(g, label):
-    res = lc.lago(g)
+    res = paper_lago(g)
     d_reg, unc = res.regularization.delta_reg, res.uncertainty
     t = time.perf_counter()
     ph_cvx, _ = P.phase1_from_problem(g, d_reg, unc)
@@ -264,7 +264,7 @@ scale = 10.0 ** np.random.default_rng(5).uniform(-1, 1, g_m.n_edges)
 info_het = g_m.information.copy()
 info_het[:, 2, 2] /= scale
 g_het = lc.PoseGraph(g_m.n_poses, g_m.tails, g_m.heads, g_m.delta_l, g_m.delta, info_het)
-res_het = lc.lago(g_het)
+res_het = paper_lago(g_het)
 A2m = lc.reduced_incidence(g_het).toarray()
 Pd = res_het.uncertainty.var_delta
 P_theta = np.linalg.inv(res_het.phase1.info.toarray())

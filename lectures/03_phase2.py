@@ -28,7 +28,7 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
-from _lecture import figure_saver
+from _lecture import figure_saver, paper_lago
 import lago_cvx as lc
 from lago_cvx import phases as P
 from lago_cvx import plotting
@@ -65,7 +65,7 @@ S = np.array([[0.0, -1.0], [1.0, 0.0]])
 # %%
 def setup(world):
     g = world.graph
-    res = lc.lago(g)
+    res = paper_lago(g)
     return g, res
 
 
@@ -85,7 +85,7 @@ for c in range(n):
     tp, tm = th.copy(), th.copy()
     tp[c + 1] += h
     tm[c + 1] -= h
-    J_fd[:, c] = (P.phase2(g_s, tp, res_s.uncertainty).delta_g - P.phase2(g_s, tm, res_s.uncertainty).delta_g).ravel() / (2 * h)
+    J_fd[:, c] = (P.phase2(g_s, tp, res_s.uncertainty, information="marginal").delta_g - P.phase2(g_s, tm, res_s.uncertainty, information="marginal").delta_g).ravel() / (2 * h)
 err_J = np.abs(ph2.jac.toarray() - J_fd).max() / np.abs(J_fd).max()
 print(f"max |J - finite differences| / max |J| = {err_J:.1e}; nnz(J) = {ph2.jac.nnz} "
       f"= 2 × #edges with a non-anchor tail = {2 * np.sum(g_s.tails != 0)}")
@@ -239,7 +239,7 @@ try:
 except DatasetNotFound as exc:
     print(f"real datasets not found: skipping the INTEL check ({exc})")
 else:
-    res_i = lc.lago(intel)
+    res_i = paper_lago(intel)
     ph2_i, unc_i, th_i = res_i.phase2, res_i.uncertainty, res_i.phase1.theta
     m_i, n_i = intel.n_edges, intel.n_poses - 1
     R_i = sp.block_diag([rot2(a) for a in th_i[intel.tails]], format="csr")
@@ -315,7 +315,7 @@ def monte_carlo(sxy, sth):
     tree = spanning_tree(g_true, "bfs")
     unc = edge_uncertainty(g_true)
     ph1_t = P.phase1_closed_form(g_true, regularize(g_true, tree).delta_reg, unc)
-    ph2_t = P.phase2(g_true, ph1_t.theta, unc)
+    ph2_t = P.phase2(g_true, ph1_t.theta, unc, information="marginal")
     Pz = ph2_t.covariance_z()
     Rt = sla.block_diag(*rot2(ph1_t.theta[tails]))
     Jt = ph2_t.jac.toarray()
@@ -325,7 +325,7 @@ def monte_carlo(sxy, sth):
         eps = xi[s] * sig
         g_n = graph_at(true_rel + eps, sxy, sth)
         ph1 = P.phase1_closed_form(g_n, regularize(g_n, tree).delta_reg, unc)
-        ph2 = P.phase2(g_n, ph1.theta, unc)
+        ph2 = P.phase2(g_n, ph1.theta, unc, information="marginal")
         d_th = wrap_angle(ph1.theta_free - ph1_t.theta_free)
         dz[s] = np.concatenate([ph2.z[:2 * m_mc] - ph2_t.z[:2 * m_mc], d_th])
         dz_lin[s] = np.concatenate([Rt @ eps[:, :2].ravel() + Jt @ d_th, d_th])

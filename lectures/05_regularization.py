@@ -33,7 +33,7 @@ import logging
 import matplotlib.pyplot as plt
 import numpy as np
 
-from _lecture import figure_saver, real
+from _lecture import figure_saver, paper_lago, real
 import lago_cvx as lc
 from lago_cvx import phases as P
 from lago_cvx.uncertainty import edge_uncertainty
@@ -347,8 +347,8 @@ wc = lc.circle_world(120, laps=4, seed=0, sigma_xy=0.0, sigma_theta=0.0)
 gc = wc.graph
 unc = edge_uncertainty(gc)
 ph1_raw = P.phase1_closed_form(gc, gc.delta, unc)
-ph3_raw = P.phase3_closed_form(gc, P.phase2(gc, ph1_raw.theta, unc))
-res_c = lc.lago(gc)
+ph3_raw = P.phase3_closed_form(gc, P.phase2(gc, ph1_raw.theta, unc, information="marginal"))
+res_c = paper_lago(gc)
 err_raw = np.abs(ph3_raw.poses[:, :2] - wc.truth[:, :2]).max()
 err_reg = np.abs(res_c.poses[:, :2] - wc.truth[:, :2]).max()
 err_reg_th = np.abs(lc.wrap_angle(res_c.poses[:, 2] - wc.truth[:, 2])).max()
@@ -360,7 +360,7 @@ print(f"with regularization ({res_c.regularization.n_regularized} chords correct
       f"{err_reg:.1e} m, max orientation error {err_reg_th:.1e} rad, χ² = {res_c.chi2:.1e}")
 assert err_raw > 1.0 and err_reg < 1e-9 and err_reg_th < 1e-9
 for kind in ("odometry", "mst"):
-    r_k = lc.lago(gc, spanning_tree=kind)
+    r_k = paper_lago(gc, spanning_tree=kind)
     e_k = np.abs(r_k.poses[:, :2] - wc.truth[:, :2]).max()
     print(f"with regularization, {kind} tree ({r_k.regularization.n_regularized} chords corrected): "
           f"max position error {e_k:.1e} m")
@@ -405,7 +405,7 @@ m3500a = real("carlone/input_M3500a_g2o.g2o")
 if m3500a is not None:
     out = {}
     for kind in ("odometry", "bfs"):
-        out[kind] = lc.lago(m3500a, spanning_tree=kind)
+        out[kind] = paper_lago(m3500a, spanning_tree=kind)
         s = out[kind].regularization.summary()
         print(f"M3500a, {kind:8s} tree: {s['n_chords']} chords, {s['n_regularized']} with k ≠ 0, "
               f"{s['n_ambiguous']} ambiguous, χ² = {out[kind].chi2:.1f} (minimum 912.115, ratio "
@@ -448,7 +448,7 @@ chi2_truth = lc.chi2(gn, wn.truth)
 print(f"{gn!r}; χ² at the ground truth = {chi2_truth:.1f}")
 res_n = {}
 for kind in ("odometry", "bfs"):
-    r_n = res_n[kind] = lc.lago(gn, spanning_tree=kind)
+    r_n = res_n[kind] = paper_lago(gn, spanning_tree=kind)
     reg = r_n.regularization
     wrong = reg.k_chords != np.rint(-(cycle_basis(gn, r_n.tree) @ wrap)).astype(np.int64)
     print(f"{kind:8s} tree: {wrong.sum():4d} of {reg.chords.size} chords with a wrong k, "
@@ -489,7 +489,7 @@ else:
 
 # %%
 if intel_toro is not None:
-    r_odo, r_bfs = lc.lago(intel_toro, spanning_tree="odometry"), lc.lago(intel_toro, spanning_tree="bfs")
+    r_odo, r_bfs = paper_lago(intel_toro, spanning_tree="odometry"), paper_lago(intel_toro, spanning_tree="bfs")
     disagree = np.count_nonzero(np.rint(cycle_basis(intel_toro, r_odo.tree)
                                         @ (r_odo.regularization.delta_reg - r_bfs.regularization.delta_reg) / TWO_PI))
     print(f"INTEL: cycles on which the two regularizations disagree: {disagree}; χ² odometric tree "

@@ -17,7 +17,7 @@ import numpy as np
 import lago_cvx as lc
 from lago_cvx.datasets import DatasetNotFound, dataset
 
-__all__ = ["ROOT", "FIG", "S", "real", "figure_saver", "quiet"]
+__all__ = ["ROOT", "FIG", "S", "real", "figure_saver", "quiet", "paper_lago"]
 
 #: The project checkout, and the folder the lectures write their figures to (``figures/``; the tests point
 #: ``LAGO_CVX_FIGURES`` at a temporary folder, so that running them changes no tracked file).
@@ -30,6 +30,13 @@ S = np.array([[0.0, -1.0], [1.0, 0.0]])
 # Reproducible figures: SVG ids from a fixed salt, no dates or tool versions in any file.
 mpl.rcParams["svg.hashsalt"] = "lago-cvx"
 _METADATA = {"png": {"Software": None}, "svg": {"Date": None, "Creator": None}}
+
+
+def paper_lago(graph, **options):
+    """LAGO with the paper's phases — the tree rounding of Theorem 3, phases 2–3 with blkdiag(P_Δ, P_δ)
+    (eqs. (9)–(15)) and phase 3's poses — on the BFS tree unless ``spanning_tree`` says otherwise
+    (``route="seed"`` also takes the odometric tree, which not every graph has)."""
+    return lc.lago(graph, **{"regularization": "tree", "information": "marginal", "positions": "phase3", **options})
 
 
 def quiet() -> None:

@@ -50,8 +50,8 @@ def test_generate_then_info_and_solve(capsys, tmp_path):
     res = json.loads(text)
     for key in ("n_poses", "n_edges", "n_regularized", "chi2", "timings", "max_rel_diff"):
         assert key in res
-    assert set(res["timings"]) == {"regularization", "phase1", "phase2", "phase3", "total"}
-    assert set(res["max_rel_diff"]) == {"phase1", "phase3"}
+    assert set(res["timings"]) == {"regularization", "phase1", "phase2", "phase3", "positions", "total"}
+    assert set(res["max_rel_diff"]) == {"phase1", "phase3", "positions", "chordal"}
     assert max(res["max_rel_diff"].values()) < 1e-6
     assert est.exists()
 
@@ -59,8 +59,14 @@ def test_generate_then_info_and_solve(capsys, tmp_path):
 def test_solve_cvxpy_method_and_text_output(capsys, tmp_path):
     out = tmp_path / "c.g2o"
     run(capsys, "generate", "--world", "circle", "--laps", "3", "--poses", "90", "-o", str(out))
-    code, text, _ = run(capsys, "solve", str(out), "--method", "cvxpy", "--spanning-tree", "odometry")
-    assert code == 0 and "LAGO (cvxpy, odometry spanning tree, tree regularization)" in text and "chi2 =" in text
+    code, text, _ = run(capsys, "solve", str(out), "--method", "cvxpy", "--route", "seed")
+    assert code == 0 and "chi2 =" in text
+    assert "LAGO (cvxpy, seed route: odometry spanning tree, tree regularization, marginal information, phase3 " \
+           "positions)" in text
+    code, text, _ = run(capsys, "solve", str(out), "--method", "cvxpy", "--spanning-tree", "odometry",
+                        "--positions", "phase3")
+    assert code == 0 and "custom route: odometry spanning tree, chordal regularization, full information, phase3" \
+                         in text
 
 
 def test_solve_refuses_to_overwrite_input(capsys, tmp_path):

@@ -328,7 +328,7 @@ def test_delta_reg_plugs_into_the_phases(solver):
     assert res.n_differ > 0
     a = int(g.ids[t.root])
     ph1 = P.phase1_closed_form(g, res.delta_reg, unc, anchor=a)
-    ph2 = P.phase2(g, ph1.theta, unc, anchor=a)
+    ph2 = P.phase2(g, ph1.theta, unc, anchor=a, delta_reg=res.delta_reg)
     ph3 = P.phase3_closed_form(g, ph2)
     assert np.all(np.isfinite(ph3.poses)) and ph3.poses.shape == (g.n_poses, 3)
     # phase 1's residual cost on δ_reg is the IP's objective (eq. (1) = eq. (3))
@@ -341,7 +341,7 @@ def test_delta_reg_plugs_into_the_phases(solver):
     # here the IP recovers the true cycle integers and the rounding does not; LAGO on the IP's δ_reg
     # is far better than LAGO with the seed's rounding (same tree, same phases)
     np.testing.assert_array_equal(res.k_chords, _true_q(w, g, t))
-    base = lago(g, spanning_tree="odometry")
+    base = lago(g, route="seed")
     assert chi2(g, ph3.poses) < 0.2 * base.chi2
     # and the phase-1 orientations are closer to the truth (modulo 2π) than with the rounding
     ph1r = P.phase1_closed_form(g, g.delta + 2 * np.pi * res.rounding_k, unc, anchor=a)
@@ -441,7 +441,7 @@ def test_lago_integer_cvxpy_scip_equals_enumeration():
     g = manhattan_world(100, seed=2, sigma_theta=0.4).graph
     a = lago(g, regularization="integer")
     b = lago(g, regularization="integer", method="cvxpy")
-    assert set(b.problems) == {"integer", "phase1", "phase3"}
+    assert set(b.problems) == {"integer", "phase1", "phase3", "positions"}
     assert b.problems["integer"].status == cp.OPTIMAL
     np.testing.assert_array_equal(a.regularization.k, b.regularization.k)
     np.testing.assert_allclose(b.poses, a.poses, rtol=0, atol=1e-6)
@@ -467,8 +467,8 @@ def test_lago_integer_repairs_odometric_tree_on_mit():
     from lago_cvx.io import read_graph
     from lago_cvx.refinement import refine
     g = read_graph(dataset_path("se-sync/MIT.g2o"))
-    tree_gn = refine(g, lago(g, spanning_tree="odometry").poses).chi2
-    res = lago(g, spanning_tree="odometry", regularization="integer")
+    tree_gn = refine(g, lago(g, route="seed").poses).chi2
+    res = lago(g, route="seed", regularization="integer")
     assert res.regularization.integer.n_differ == 2
     assert refine(g, res.poses).chi2 == pytest.approx(REFERENCE_CHI2["se-sync/MIT.g2o"], rel=1e-5)
     assert tree_gn > 10 * REFERENCE_CHI2["se-sync/MIT.g2o"]

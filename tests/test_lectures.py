@@ -4,7 +4,6 @@ Notebooks run with lectures/ as the working directory. Real-data cells read ../s
 ``lago_cvx.datasets`` and say so clearly when it is absent.
 """
 
-import os
 from pathlib import Path
 
 import pytest

@@ -20,7 +20,7 @@ S = np.array([[0.0, -1.0], [1.0, 0.0]])
 def small(request):
     info, seed = request.param
     w = random_graph(25, 45, seed=seed, information=info, sigma_xy=0.1, sigma_theta=0.05)
-    return w.graph, lago(w.graph, anchor=0)
+    return w.graph, lago(w.graph, anchor=0, information="marginal", positions="phase3")  # the seed's eqs. (9)–(15)
 
 
 def dense_pz(graph, res):
@@ -77,19 +77,19 @@ def test_phase3_is_the_blue_of_eq15(small):
 
 
 def test_theorem1_suboptimal_estimate_plus_first_order_correction(small):
-    """Theorem 1 (eqs. 15–17): x* = [p̂; θ̂] + correction, with p̂ the positions given θ̂ (eq. 16)
-    and the correction d* = −(P_θ⁻¹ + JᵀQJ)⁻¹JᵀQ r, p* = p̂ + (AᵀP_g⁻¹A)⁻¹AᵀP_g⁻¹J d* (eq. 17),
+    """Theorem 1 (eqs. (15)–(17)): x* = [p̂; θ̂] + correction, with p̂ the positions given θ̂ (eq. (14))
+    and the corrections d* = −(P_θ⁻¹ + JᵀQJ)⁻¹JᵀQ r (eq. (16)), p* = p̂ + (AᵀP_g⁻¹A)⁻¹AᵀP_g⁻¹J d* (eq. (17)),
     where A = A2ᵀ⊗I₂, P_g = R P_Δ Rᵀ, r = Δᵍ − A p̂, Q = P_g⁻¹ − P_g⁻¹A(AᵀP_g⁻¹A)⁻¹AᵀP_g⁻¹."""
     g, res = small
     unc, th = res.uncertainty, res.phase1.theta
-    m, d = g.n_edges, g.n_poses - 1
+    m = g.n_edges
     A = np.kron(reduced_incidence(g, 0).toarray().T, np.eye(2))
     R = sla.block_diag(*[rot2(th[g.tails[k]]) for k in range(m)])
     Pg_inv = np.linalg.inv(R @ sla.block_diag(*unc.cov_delta_l) @ R.T)
     _, J, P_theta = dense_pz(g, res)
     dg = res.phase2.z[:2 * m]
     H = A.T @ Pg_inv @ A
-    p_hat = np.linalg.solve(H, A.T @ Pg_inv @ dg)                       # eq. (16)
+    p_hat = np.linalg.solve(H, A.T @ Pg_inv @ dg)                       # eq. (14)
     r = dg - A @ p_hat
     Q = Pg_inv - Pg_inv @ A @ np.linalg.solve(H, A.T @ Pg_inv)
     d_star = -np.linalg.solve(np.linalg.inv(P_theta) + J.T @ Q @ J, J.T @ Q @ r)
@@ -128,4 +128,4 @@ def test_cvxpy_phases_on_a_larger_world():
     ref = lago(g)
     assert relative_difference(res.phase1.theta_free, ref.phase1.theta_free) < 1e-9
     assert relative_difference(res.phase3.x_star, ref.phase3.x_star) < 1e-9
-    assert set(res.problems) == {"phase1", "phase3"}
+    assert set(res.problems) == {"chordal", "phase1", "phase3", "positions"}

@@ -34,20 +34,22 @@ def certificate_fields(cert: Certificate) -> dict:
     }
 
 
-def certify_estimate(graph: PoseGraph, *, spanning_tree: str = "bfs", regularization: str = "tree",
-                     tol: float = CERTIFY_TOL, max_iterations: int = 50) -> tuple[dict, Certificate]:
+def certify_estimate(graph: PoseGraph, *, route: str = "default", spanning_tree: str | None = None,
+                     regularization: str | None = None, tol: float = CERTIFY_TOL,
+                     max_iterations: int = 50) -> tuple[dict, Certificate]:
     """The certified route on ``graph``: LAGO → χ² Gauss–Newton (``refine``) → Newton (GN where Newton does
     not descend) on the SE-Sync cost f (``refine_sesync``) → SE-Sync's optimality certificate
     (``certify``) of the refined estimate and, for comparison, of the raw LAGO estimate.
 
     Returns ``(report, cert)``: the JSON-ready report and the refined estimate's ``Certificate``
     (``cert.poses`` are the certified poses, translations re-optimised for the certified rotations).
-    Raises ``GraphError`` for a graph without edges or not connected."""
+    ``route``, ``spanning_tree``, ``regularization`` choose LAGO as in ``lago``. Raises ``GraphError`` for a
+    graph without edges or not connected."""
     if graph.n_edges == 0:
         raise GraphError(f"the graph has {graph.n_poses} pose(s) and no edges: nothing to certify")
     times = {}
     t = time.perf_counter()
-    res = lago(graph, spanning_tree=spanning_tree, regularization=regularization)
+    res = lago(graph, route=route, spanning_tree=spanning_tree, regularization=regularization)
     times["lago"] = time.perf_counter() - t
     t = time.perf_counter()
     ref = refine(graph, res.poses, max_iterations=max_iterations)
@@ -63,7 +65,7 @@ def certify_estimate(graph: PoseGraph, *, spanning_tree: str = "bfs", regulariza
     times["certify_lago"] = time.perf_counter() - t
     reg = res.regularization
     report = {
-        "n_poses": graph.n_poses, "n_edges": graph.n_edges, "spanning_tree": res.tree.kind,
+        "n_poses": graph.n_poses, "n_edges": graph.n_edges, "route": res.route, "spanning_tree": res.tree.kind,
         "regularization": reg.regularization, "n_regularized": reg.n_regularized,
         "n_ambiguous": int(reg.ambiguous.size), "tol": tol, "cost_convention": SESYNC_COST_CONVENTION,
         "chi2_lago": res.chi2, "chi2_refined": ref.chi2, "refine_iterations": ref.iterations,

@@ -46,6 +46,7 @@ from collections.abc import Callable
 from ..metrics import relative_difference
 from ..posegraph import PoseGraph
 from ..rounding import AMBIGUITY_MARGIN
+from ..routes import resolve_route
 from ..solvers import ClarabelSettings
 from .anchors import Anchor, AnchorRegularization, Prior, normalize_anchors, normalize_priors
 from .constraints import (NamedConstraint, PoseVariables, box_constraint, halfplane_constraint, orientation_bounds,
@@ -66,32 +67,39 @@ __all__ = [
 ]
 
 
-def anchored_lago(graph: PoseGraph, *, anchors=None, priors=None, method: str = "closed_form", spanning_tree="bfs",
-                  anchor=None, anchor_pose=None, margin: float = AMBIGUITY_MARGIN,
+def anchored_lago(graph: PoseGraph, *, anchors=None, priors=None, method: str = "closed_form", route: str = "default",
+                  spanning_tree=None, regularization: str | None = None, information: str | None = None,
+                  positions: str | None = None, anchor=None, anchor_pose=None, margin: float = AMBIGUITY_MARGIN,
                   strain_level: float = STRAIN_LEVEL, solver_settings: ClarabelSettings | None = None,
-                  backend: str = "auto", regularization: str = "tree") -> VariantResult:
+                  backend: str = "auto") -> VariantResult:
     """LAGO with hard anchors and/or priors (V1–V8), closed form or cvxpy (``method``); what
-    ``lago(graph, anchors=...)`` runs. See ``lago_variant`` for the options and ``engine`` for the frame
-    decision. ``result.strain`` holds the per-anchor Lagrange-multiplier test (V3)."""
-    return lago_variant(graph, anchors=anchors, priors=priors, method=method, spanning_tree=spanning_tree,
-                        anchor=anchor, anchor_pose=anchor_pose, margin=margin, strain_level=strain_level,
-                        solver_settings=solver_settings, backend=backend, regularization=regularization)
+    ``lago(graph, anchors=...)`` runs. ``route`` and the four choices after it as in ``lago``; see
+    ``lago_variant`` for the other options and ``engine`` for the frame decision. ``result.strain`` holds
+    the per-anchor Lagrange-multiplier test (V3)."""
+    choice, name = resolve_route(route, spanning_tree=spanning_tree, regularization=regularization,
+                                 information=information, positions=positions)
+    return lago_variant(graph, anchors=anchors, priors=priors, method=method, anchor=anchor, anchor_pose=anchor_pose,
+                        margin=margin, strain_level=strain_level, solver_settings=solver_settings, backend=backend,
+                        route=name, **choice)
 
 
 def constrained_lago(graph: PoseGraph, constraints_fn: Callable, *, anchors=None, priors=None, loss: str = "l2",
-                     threshold: float = DEFAULT_THRESHOLD, spanning_tree="bfs", anchor=None, anchor_pose=None,
-                     margin: float = AMBIGUITY_MARGIN, solver_settings: ClarabelSettings | None = None,
-                     regularization: str = "tree") -> VariantResult:
+                     threshold: float = DEFAULT_THRESHOLD, route: str = "default", spanning_tree=None,
+                     regularization: str | None = None, information: str | None = None, anchor=None,
+                     anchor_pose=None, margin: float = AMBIGUITY_MARGIN,
+                     solver_settings: ClarabelSettings | None = None) -> VariantResult:
     """LAGO with named convex constraints (V9): phases 1 and 3 as cvxpy problems plus
     ``constraints_fn(pv) -> list[NamedConstraint]`` (called with ``PoseVariables`` of each phase; use
     ``box_constraint``, ``polygon_constraint``, ``halfplane_constraint``, ``orientation_bounds``, or
     ``NamedConstraint(name, [...])`` with any cvxpy constraint on ``pv.x``, ``pv.y``, ``pv.theta``).
-    ``regularization`` as in ``lago``. Raises ``InfeasibleConstraintsError`` naming the constraints when
-    they cannot hold."""
+    ``route``, ``spanning_tree``, ``regularization``, ``information`` as in ``lago``; the poses are phase
+    3's (an unconstrained position polish would leave the feasible set). Raises
+    ``InfeasibleConstraintsError`` naming the constraints when they cannot hold."""
+    choice, name = resolve_route(route, spanning_tree=spanning_tree, regularization=regularization,
+                                 information=information, positions="phase3")
     return lago_variant(graph, anchors=anchors, priors=priors, constraints_fn=constraints_fn, loss=loss,
-                        threshold=threshold, method="cvxpy", spanning_tree=spanning_tree, anchor=anchor,
-                        anchor_pose=anchor_pose, margin=margin, solver_settings=solver_settings,
-                        regularization=regularization)
+                        threshold=threshold, method="cvxpy", anchor=anchor, anchor_pose=anchor_pose, margin=margin,
+                        solver_settings=solver_settings, route=name, **choice)
 
 
 def compare_anchored_methods(graph: PoseGraph, *, anchors=None, priors=None,

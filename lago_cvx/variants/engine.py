@@ -27,23 +27,24 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import scipy.sparse as sp
 
-from ..errors import GraphError, OptionError
+from ..errors import GraphError, OptionError, check_choice
 from ..graph import spanning_tree
 from ..linalg import block_diagonal_inverse
-from ..metrics import alignment_angle
+from ..metrics import alignment_angle, chi2
 from ..phases import Phase1, Phase3
 from ..posegraph import PoseGraph
+from ..positions import Polish, Positions, polish
 from ..regularization import regularize
 from ..result import LagoResult
 from ..rounding import AMBIGUITY_MARGIN, TWO_PI
 from ..solvers import LEAST_SQUARES, ROBUST, ClarabelSettings, check_method
-from ..uncertainty import edge_uncertainty
+from ..uncertainty import INFORMATION_MODES, edge_uncertainty
 from .anchors import (AnchorRegularization, anchor_regularization, choose_reference, normalize_anchors,
                       normalize_priors, prior_arrays, reround_edges)
 from .constraints import PoseVariables
 from .strain import STRAIN_LEVEL, strain_report
 from .systems import (DEFAULT_THRESHOLD, LOSSES, SystemSolution, WeightedSystem, anchored_phase2, phase1_system,
-                      phase3_system, solve_system, solve_system_cvxpy)
+                      phase3_system, position_system, solve_system, solve_system_cvxpy)
 
 __all__ = ["VariantOptions", "VariantPhase1", "VariantPhase3", "VariantResult", "lago_variant", "run_variant"]
 
@@ -70,7 +71,10 @@ class VariantOptions:
     strain_level: float = STRAIN_LEVEL
     solver_settings: ClarabelSettings | None = None
     backend: str = "auto"
-    regularization: str = "tree"
+    regularization: str = "chordal"
+    information: str = "full"
+    positions: str = "phase3"
+    route: str = "custom"
 
     @property
     def use_cvxpy(self) -> bool:
@@ -308,6 +312,32 @@ def _robust_summary(st: _State, systems, rounds: int, k_changed: int) -> dict | 
             "grouping": st.opts.grouping}
 
 
+def _polish(st: _State, theta_hat, theta_star, unc, known_p, vals_p, pr, problems) -> Polish:
+    """The position polish of a least-squares variant: positions re-solved for the orientations with the
+    known positions held and the priors' conditional parts (``systems.position_system``), guarded by
+    phase 1's orientations (``lago_cvx.positions.polish``, objective χ² plus the priors' eᵀΛe)."""
+    g, o = st.graph, st.opts
+    n = g.n_poses
+
+    def objective(poses):
+        e_th = poses[pr.index, 2] - pr.mean[:, 2]
+        e_p = poses[pr.index, :2] - pr.mean[:, :2] + pr.h * e_th[:, None]
+        return chi2(g, poses) + float(np.sum(np.einsum("qab,qb->qa", pr.C, e_p) ** 2) +
+                                      np.sum((e_th / pr.sigma_theta) ** 2))
+
+    def solve_positions(theta):
+        sys_ = position_system(g, theta, unc, known_p, vals_p, pr)
+        if o.method == "cvxpy":
+            sol = solve_system_cvxpy(sys_, settings=o.solver_settings)
+            problems["positions"] = sol.problem
+        else:
+            sol = solve_system(sys_, backend=o.backend)
+        poses = np.column_stack([sol.x[0:2 * n:2], sol.x[1:2 * n:2], theta])
+        return Positions(poses, sol.info, st.ref, sol.factor, sol.stats)
+
+    return polish(g, theta_hat, theta_star, unc, solve_positions=solve_positions, objective=objective)
+
+
 def _resolve_tree(graph: PoseGraph, kind, ref: int):
     """The spanning tree rooted at index ``ref``; ``"auto"``: odometric if the chain is complete, else BFS."""
     ref_id = int(graph.ids[ref])
@@ -326,6 +356,11 @@ def run_variant(graph: PoseGraph, opts: VariantOptions) -> VariantResult:
     check_method(opts.method)
     if opts.loss not in LOSSES:
         raise OptionError(f"unknown loss {opts.loss!r}; expected one of {LOSSES}")
+    check_choice("information", opts.information, INFORMATION_MODES)
+    check_choice("positions", opts.positions, ("phase3", "resolve"))
+    if opts.positions == "resolve" and (opts.loss != "l2" or opts.constraints_fn is not None):
+        raise OptionError("the position polish (positions='resolve') is an unconstrained least-squares step: use "
+                          "positions='phase3' with robust losses or convex constraints")
     if graph.n_edges == 0 and graph.n_poses > 1:
         raise GraphError(f"the graph has {graph.n_poses} poses and no edges: nothing links them")
     t_all = time.perf_counter()
@@ -342,7 +377,8 @@ def run_variant(graph: PoseGraph, opts: VariantOptions) -> VariantResult:
     t = time.perf_counter()
     w1 = sol1.weights if sol1.weights is not None else np.ones(sys1.W.shape[0])
     L = (sp.diags(np.sqrt(w1)) @ sys1.design())[:, free_th]
-    ph2 = anchored_phase2(graph, sol1.x, unc, free_th, L, sys1.groups, st.ref)
+    ph2 = anchored_phase2(graph, sol1.x, unc, free_th, L, sys1.groups, st.ref, information=opts.information,
+                          delta_reg=reg.delta_reg)
     st.timings["phase2"] = time.perf_counter() - t
     t = time.perf_counter()
     known3, vals3 = _phase3_known(st, th_known, th_vals)
@@ -352,12 +388,18 @@ def run_variant(graph: PoseGraph, opts: VariantOptions) -> VariantResult:
     n = graph.n_poses
     poses = np.column_stack([x[0:2 * n:2], x[1:2 * n:2], x[2 * n:]])
     st.timings["phase3"] = time.perf_counter() - t
+    t = time.perf_counter()
+    problems, pol = {}, None
+    if opts.positions == "resolve":
+        pol = _polish(st, sol1.x, poses[:, 2], unc, known3[:2 * n], vals3[:2 * n], pr, problems)
+        poses = pol.poses
+    st.timings["positions"] = time.perf_counter() - t
     ph1 = VariantPhase1(sol1.x, sol1.x[free_th], sol1.info, st.ref, sol1.factor, sol1.stats, free_th, sys1, sol1)
     ph3 = VariantPhase3(x[~known3], poses, sol3.info, st.ref, sol3.factor, sol3.stats, x, sys3, sol3)
     strain = None
     if opts.loss == "l2" and opts.constraints_fn is None and anc:  # the least-squares test (V3)
         strain = strain_report(graph, anc, sys1, sol1, sys3, sol3, opts.strain_level)
-    problems = {name: s.problem for name, s in (("phase1", sol1), ("phase3", sol3)) if s.problem is not None}
+    problems.update({name: s.problem for name, s in (("phase1", sol1), ("phase3", sol3)) if s.problem is not None})
     st.timings["total"] = time.perf_counter() - t_all
     method = "cvxpy" if opts.use_cvxpy else opts.method
     log.info("LAGO variant (%s, loss %s, %s tree): %d anchors, %d priors, %.3f s", method, opts.loss, tree.kind,
@@ -365,6 +407,7 @@ def run_variant(graph: PoseGraph, opts: VariantOptions) -> VariantResult:
     return VariantResult(graph=graph, poses=poses, anchor=int(graph.ids[st.ref]), anchor_index=st.ref,
                          anchor_pose=poses[st.ref].copy(), method=method, tree=tree, regularization=reg,
                          uncertainty=unc, phase1=ph1, phase2=ph2, phase3=ph3, timings=st.timings, problems=problems,
+                         route=opts.route, information=opts.information, positions=opts.positions, polish=pol,
                          anchors=anc, priors=pri, loss=opts.loss, frame=st.frame, anchor_regularization=areg,
                          strain=strain,
                          constraint_names=sorted(set(sol1.constraint_names) | set(sol3.constraint_names)),
@@ -390,6 +433,8 @@ def lago_variant(graph: PoseGraph, **options) -> VariantResult:
       margin — ambiguity margin of the regularization (rad).
       regularization — ``"tree"``, ``"chordal"`` or ``"integer"`` (as in ``lago``; the chordal relaxation
         is anchored at the reference pose and ignores anchors and priors: it only chooses the integers).
+      information — ``"full"`` or ``"marginal"`` (as in ``lago``); positions — ``"phase3"`` or
+        ``"resolve"`` (least squares without constraints only); route — the name recorded in the result.
       reround — re-round every edge against the phase-1 estimate and re-solve phase 1 until no k
         changes (at most ``reround_rounds`` rounds; V10).
       strain_level — significance of the anchor strain test (V3).

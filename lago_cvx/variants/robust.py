@@ -60,7 +60,8 @@ def robust_lago(graph: PoseGraph, *, loss: str = "huber", threshold: float = DEF
                 grouping: str = "edge", spanning_tree="auto", reround: bool = True, reround_rounds: int = 5,
                 gate: float | None = None, gate_rounds: int = 5, anchors=None, priors=None,
                 constraints_fn: Callable | None = None, anchor=None, anchor_pose=None,
-                margin: float = AMBIGUITY_MARGIN, solver_settings: ClarabelSettings | None = None) -> VariantResult:
+                margin: float = AMBIGUITY_MARGIN, information: str = "full",
+                solver_settings: ClarabelSettings | None = None) -> VariantResult:
     """LAGO with a convex robust loss on the edges (V10): ``"huber"`` (default) or ``"l1"``, threshold
     M in whitened units, on the odometric tree when available (``spanning_tree="auto"``) and with every
     edge re-rounded against the robust phase-1 estimate (``reround``). ``result.robust["edge_weights"]``
@@ -88,6 +89,7 @@ def robust_lago(graph: PoseGraph, *, loss: str = "huber", threshold: float = DEF
         raise OptionError(f"gate must be > 0 or None, got {gate}")
     res = lago_variant(graph, anchors=anchors, priors=priors, constraints_fn=constraints_fn, loss=loss,
                        threshold=threshold, grouping=grouping, method="cvxpy", spanning_tree=spanning_tree,
+                       regularization="tree", information=information,
                        anchor=anchor, anchor_pose=anchor_pose, margin=margin, reround=reround,
                        reround_rounds=reround_rounds, solver_settings=solver_settings)
     if gate is None:
@@ -114,7 +116,7 @@ def robust_lago(graph: PoseGraph, *, loss: str = "huber", threshold: float = DEF
         sub_tree = (np.cumsum(keep) - 1)[trusted]
         res = lago_variant(sub, anchors=anchors, priors=priors, constraints_fn=constraints_fn, loss="l2",
                            method="cvxpy" if constraints_fn is not None else "closed_form", spanning_tree=sub_tree,
-                           anchor=convex.anchor, anchor_pose=anchor_pose, margin=margin,
+                           regularization="tree", information=information, anchor=convex.anchor, anchor_pose=anchor_pose, margin=margin,
                            reround=True, reround_rounds=reround_rounds, solver_settings=solver_settings)
         poses = res.poses
         log.info("gating round %d: %d of %d edges rejected (whitened error > %.3g)", rounds,

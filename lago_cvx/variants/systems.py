@@ -19,15 +19,16 @@ import scipy.sparse as sp
 from ..errors import OptionError
 from ..graph import incidence_matrix
 from ..linalg import Factor, factorize, solve_least_squares
-from ..phases import Phase2, phase2_blocks
-from ..posegraph import PoseGraph
+from ..phases import Phase2, edge_whitening, phase2_blocks
+from ..posegraph import PoseGraph, rot2, wrap_angle
 from ..solvers import INFEASIBLE_STATUSES, ClarabelSettings, solve
 from ..uncertainty import EdgeUncertainty
 from .anchors import PriorArrays, prior_arrays
 from .constraints import diagnose
 
 __all__ = ["LOSSES", "DEFAULT_THRESHOLD", "WeightedSystem", "phase1_system", "AnchoredPhase2", "anchored_phase2",
-           "phase3_system", "SystemSolution", "solve_system", "system_problem", "solve_system_cvxpy"]
+           "phase3_system", "position_system", "SystemSolution", "solve_system", "system_problem",
+           "solve_system_cvxpy"]
 
 log = logging.getLogger("lago_cvx.variants")
 
@@ -87,31 +88,48 @@ def phase1_system(graph: PoseGraph, delta_reg, unc: EdgeUncertainty, known: np.n
 
 @dataclass(frozen=True, eq=False)
 class AnchoredPhase2(Phase2):
-    """Phase 2 with known orientations (V6), a ``Phase2``: ``delta_g`` (m, 2); ``z`` (2m + d_θ,) =
-    [Δᵍ; θ̂_U]; ``W`` sparse (2m + r_L, 2m + d_θ) with WᵀW = P_z⁻¹; ``jac`` sparse (2m, d_θ);
-    ``anchor_index`` the reference pose; ``free_theta`` (d_θ,) the poses of unknown orientation;
-    ``groups`` (2m + r_L,) edge of each row (−1: prior)."""
+    """Phase 2 with known orientations (V6), a ``Phase2`` (``anchored_phase2`` for both forms): ``delta_g``
+    (m, 2); ``z``, ``W`` (and for the full form ``Bt``) of the phase-3 system; ``jac``; ``anchor_index`` the
+    reference pose; ``free_theta`` (d_θ,) the poses of unknown orientation; ``groups`` the edge of each
+    row of W (−1: prior)."""
 
     free_theta: np.ndarray = None
     groups: np.ndarray = None
 
 
 def anchored_phase2(graph: PoseGraph, theta: np.ndarray, unc: EdgeUncertainty, free_theta: np.ndarray,
-                    L: sp.spmatrix, L_groups: np.ndarray, reference: int) -> AnchoredPhase2:
-    """Phase 2 (V6): Δᵍ = R(θ̂_i)Δˡ (eq. 9), z = [Δᵍ; θ̂_U], and the sparse square root
+                    L: sp.spmatrix, L_groups: np.ndarray, reference: int, *, information: str = "marginal",
+                    delta_reg=None) -> AnchoredPhase2:
+    """Phase 2 with known orientations (V6). ``theta`` (n,) the phase-1 orientations (global frame).
+
+    ``information="marginal"`` — Δᵍ = R(θ̂_i)Δˡ (eq. 9), z = [Δᵍ; θ̂_U] and the sparse square root
     W = [[P_Δ^{-1/2}Rᵀ, −P_Δ^{-1/2}SΔˡe_iᵀ], [0, L]] of P_z⁻¹, ``L`` (r_L × d_θ) the square root of the
-    phase-1 information (LᵀL = P_θ⁻¹). ``theta`` (n,) the phase-1 orientations (global frame); an edge
-    whose tail has a known orientation has no J block."""
+    phase-1 information (LᵀL = P_θ⁻¹); an edge whose tail has a known orientation has no J block.
+    ``information="full"`` — the edges' joint residuals of ``lago_cvx.phases`` (module docstring) over all
+    coordinates x = [p (2n); θ (n)]: ``Bt`` (3m × 3n) = [[Aᵀ⊗I₂, −J], [0, Aᵀ]], z = [Δᵍ − Jθ̂; δ_reg]
+    (``delta_reg`` (m,) needed), W = the per-edge U_k T_kᵀ blocks; the prior rows are added by
+    ``phase3_system`` (``L`` is not used: the phase-1 rows are the edges' δ rows themselves)."""
     n, m = graph.n_poses, graph.n_edges
-    d = free_theta.size
-    col_of = np.full(n, -1, np.int64)
-    col_of[free_theta] = np.arange(d)
-    delta_g, jac, top = phase2_blocks(graph, theta, unc, col_of, d)
-    z = np.concatenate([delta_g.reshape(-1), theta[free_theta]])
-    bottom = sp.hstack([sp.csr_matrix((L.shape[0], 2 * m)), sp.csr_matrix(L)])
-    W = sp.vstack([top, bottom], format="csr")
-    groups = np.concatenate([np.repeat(np.arange(m), 2), L_groups])
-    return AnchoredPhase2(delta_g=delta_g, z=z, W=W, jac=jac, anchor_index=int(reference), free_theta=free_theta,
+    if information == "marginal":
+        d = free_theta.size
+        col_of = np.full(n, -1, np.int64)
+        col_of[free_theta] = np.arange(d)
+        delta_g, jac, top = phase2_blocks(graph, theta, unc, col_of, d)
+        z = np.concatenate([delta_g.reshape(-1), theta[free_theta]])
+        bottom = sp.hstack([sp.csr_matrix((L.shape[0], 2 * m)), sp.csr_matrix(L)])
+        W = sp.vstack([top, bottom], format="csr")
+        groups = np.concatenate([np.repeat(np.arange(m), 2), L_groups])
+        return AnchoredPhase2(delta_g=delta_g, z=z, W=W, jac=jac, anchor_index=int(reference),
+                              information="marginal", free_theta=free_theta, groups=groups)
+    if delta_reg is None:
+        raise OptionError("anchored_phase2(information='full') needs delta_reg")
+    delta_g, jac, _ = phase2_blocks(graph, theta, unc, np.arange(n), n)  # J over all n orientations
+    At = incidence_matrix(graph).T  # (m, n)
+    Bt = sp.bmat([[sp.kron(At, sp.identity(2)), -jac], [None, At]], format="csr")
+    z = np.concatenate([delta_g.reshape(-1) - jac @ theta, np.asarray(delta_reg, dtype=float)])
+    groups = np.concatenate([np.repeat(np.arange(m), 2), np.arange(m)])
+    return AnchoredPhase2(delta_g=delta_g, z=z, W=edge_whitening(graph, theta, unc), jac=jac,
+                          anchor_index=int(reference), Bt=Bt, information="full", free_theta=free_theta,
                           groups=groups)
 
 
@@ -119,25 +137,63 @@ def phase3_system(graph: PoseGraph, ph2: AnchoredPhase2, known: np.ndarray, valu
                   priors: PriorArrays | None = None) -> WeightedSystem:
     """Phase 3 with known coordinates and priors (V7), over x = [p (interleaved, 2n); θ (n)].
 
-    Bᵀ = [[A ⊗ I₂ᵀ, 0], [0, E_U], [E_Q,p, h E_Q,θ]], z = [Δᵍ; θ̂_U; μ_p + h μ̃_θ],
-    W = blkdiag(phase-2 W, C_q). ``known`` (3n,) bool and ``values`` (3n,) in the same order."""
+    marginal: Bᵀ = [[A ⊗ I₂ᵀ, 0], [0, E_U], [E_Q,p, h E_Q,θ]], z = [Δᵍ; θ̂_U; μ_p + h μ̃_θ],
+    W = blkdiag(phase-2 W, C_q). full: Bᵀ = [phase-2 Bᵀ; E_Q,θ; [E_Q,p, h E_Q,θ]],
+    z = [phase-2 z; μ̃_θ; μ_p + h μ̃_θ], W = blkdiag(phase-2 W, σ_Q⁻¹, C_q) — the prior's marginal θ part
+    (which the seed's form carries inside L) and its conditional part (V8). ``known`` (3n,) bool and
+    ``values`` (3n,) in the same order."""
     n, m = graph.n_poses, graph.n_edges
     pr = priors if priors is not None else prior_arrays([], np.zeros(0))
     q = pr.q
-    d = ph2.free_theta.size
-    Bp = sp.kron(incidence_matrix(graph).T, sp.identity(2), format="csr")  # (2m, 2n)
-    Eu = sp.csr_matrix((np.ones(d), (np.arange(d), 2 * n + ph2.free_theta)), shape=(d, 3 * n))
     rq = np.arange(2 * q)
     qi = np.repeat(pr.index, 2)
     D = sp.csr_matrix((np.concatenate([np.ones(2 * q), pr.h.reshape(-1)]),
                        (np.concatenate([rq, rq]), np.concatenate([2 * qi + np.tile([0, 1], q), 2 * n + qi]))),
                       shape=(2 * q, 3 * n))
-    Bt = sp.vstack([sp.hstack([Bp, sp.csr_matrix((2 * m, n))]), Eu, D], format="csr")
-    z = np.concatenate([ph2.z, (pr.mean[:, :2] + pr.h * pr.mean[:, 2:3]).reshape(-1)])
+    z_cond = (pr.mean[:, :2] + pr.h * pr.mean[:, 2:3]).reshape(-1)
     C = sp.block_diag(list(pr.C), format="csr") if q else sp.csr_matrix((0, 0))
-    W = sp.block_diag([ph2.W, C], format="csr")
-    groups = np.concatenate([ph2.groups, -np.ones(2 * q, np.int64)])
+    if ph2.information == "full":
+        Eq = sp.csr_matrix((np.ones(q), (np.arange(q), 2 * n + pr.index)), shape=(q, 3 * n))
+        Bt = sp.vstack([ph2.Bt, Eq, D], format="csr")
+        z = np.concatenate([ph2.z, pr.mean[:, 2], z_cond])
+        W = sp.block_diag([ph2.W, sp.diags(1.0 / pr.sigma_theta), C], format="csr")
+        groups = np.concatenate([ph2.groups, -np.ones(3 * q, np.int64)])
+    else:
+        d = ph2.free_theta.size
+        Bp = sp.kron(incidence_matrix(graph).T, sp.identity(2), format="csr")  # (2m, 2n)
+        Eu = sp.csr_matrix((np.ones(d), (np.arange(d), 2 * n + ph2.free_theta)), shape=(d, 3 * n))
+        Bt = sp.vstack([sp.hstack([Bp, sp.csr_matrix((2 * m, n))]), Eu, D], format="csr")
+        z = np.concatenate([ph2.z, z_cond])
+        W = sp.block_diag([ph2.W, C], format="csr")
+        groups = np.concatenate([ph2.groups, -np.ones(2 * q, np.int64)])
     return WeightedSystem(Bt, z, W, np.asarray(known, bool).copy(), np.asarray(values, float).copy(), groups, "phase3")
+
+
+def position_system(graph: PoseGraph, theta: np.ndarray, unc: EdgeUncertainty, known: np.ndarray,
+                    values: np.ndarray, priors: PriorArrays | None = None) -> WeightedSystem:
+    """The position polish with known coordinates and priors, over x = [p (interleaved, 2n)] for the
+    orientations ``theta`` (n,) held fixed (``lago_cvx.positions``, eq. (P)): per edge p_j − p_i ≈ R(θ_i)t_k,
+    t_k = Δˡ − h_k ē_k, weight C_kR(θ_i)ᵀ; per prior p_q ≈ μ_p − h_q(θ_q − μ̃_θ,q), weight C_q (the
+    conditional part of V8 with θ fixed). ``known``/``values`` (2n,)."""
+    n, m = graph.n_poses, graph.n_edges
+    pr = priors if priors is not None else prior_arrays([], np.zeros(0))
+    q = pr.q
+    Ri = rot2(theta[graph.tails])
+    e = wrap_angle(theta[graph.heads] - theta[graph.tails] - graph.delta)
+    g = np.einsum("kab,kb->ka", Ri, graph.delta_l - unc.shift * e[:, None]).reshape(-1)
+    blocks = unc.sqrt_info_pp @ np.swapaxes(Ri, 1, 2)
+    Wedges = sp.block_diag(list(blocks), format="csr") if m else sp.csr_matrix((0, 0))
+    Bp = sp.kron(incidence_matrix(graph).T, sp.identity(2), format="csr")  # (2m, 2n)
+    rq = np.arange(2 * q)
+    Eq = sp.csr_matrix((np.ones(2 * q), (rq, 2 * np.repeat(pr.index, 2) + np.tile([0, 1], q))), shape=(2 * q, 2 * n))
+    e_q = theta[pr.index] - pr.mean[:, 2]
+    zq = (pr.mean[:, :2] - pr.h * e_q[:, None]).reshape(-1)
+    C = sp.block_diag(list(pr.C), format="csr") if q else sp.csr_matrix((0, 0))
+    return WeightedSystem(sp.vstack([Bp, Eq], format="csr"), np.concatenate([g, zq]),
+                          sp.block_diag([Wedges, C], format="csr"), np.asarray(known, bool).copy(),
+                          np.asarray(values, float).copy(), np.concatenate([np.repeat(np.arange(m), 2),
+                                                                            -np.ones(2 * q, np.int64)]),
+                          "positions")
 
 
 @dataclass(eq=False)

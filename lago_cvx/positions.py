@@ -1,0 +1,171 @@
+r"""The positions that minimise χ² exactly for given orientations (beyond the seed: the "position polish").
+
+With the orientations θ held fixed, the cost of eq. (3) is exactly quadratic in the positions. Per
+edge k = (i → j), with the orientation error ē_k = wrap(θ_j − θ_i − δ_k) now a constant and the error
+e_t = R(θ_i)ᵀ(p_j − p_i) − Δˡ_k, completing the square with Ω = [[Ω_pp, Ω_pθ], [Ω_θp, Ω_θθ]] gives
+
+    e_kᵀΩ_k e_k = (e_t + h_k ē_k)ᵀ Ω_pp,k (e_t + h_k ē_k) + ē_k² / P_δ,k,     h_k = Ω_pp,k⁻¹ Ω_pθ,k,
+
+so the positions are the weighted least-squares fit of
+
+    p_j − p_i ≈ R(θ_i) t_k,   t_k = Δˡ_k − h_k ē_k,   with information R(θ_i) Ω_pp,k R(θ_i)ᵀ, i.e.
+    minimise Σ_k ‖C_k R(θ_i)ᵀ (p_j − p_i − R(θ_i) t_k)‖²,   C_kᵀC_k = Ω_pp,k,                        (P)
+
+a 2(n−1) × 2(n−1) SPD system with the sparsity of the seed's eq. (14) (A₂ ⊗ I₂ weighted Laplacian).
+Ω_pp is the *conditional* information of Δˡ given δ, not the inverse of the marginal covariance P_Δ
+that the seed's phase 2 uses; with block-diagonal Ω they coincide, h = 0, and (P) at θ = θ̂ is exactly
+eq. (14), the seed's sub-optimal positions p̂ (Theorem 1).
+
+(P) is the exact minimiser of χ² over the positions, so χ²(positions of (P), θ) ≤ χ²(any positions, θ):
+run after phase 3 it can only lower χ² (``lago(..., positions="resolve")``). Both forms: ``position_problem``
+(cvxpy, ``cp.sum_squares(W @ (Bᵀp − g))``) and ``resolve_positions`` (sparse closed form).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from .graph import _reduced_incidence, free_poses
+from .linalg import Factor, solve_least_squares
+from .posegraph import PoseGraph, rot2, wrap_angle
+from .solvers import ClarabelSettings, solve
+from .uncertainty import EdgeUncertainty
+
+__all__ = ["Positions", "position_system", "position_problem", "resolve_positions", "positions_from_problem",
+           "Polish", "polish", "MAX_HALVINGS"]
+
+
+@dataclass(frozen=True, eq=False)
+class Positions:
+    """Positions solving (P): ``poses`` (n, 3) = [positions (anchor at ``anchor_position``); θ as given];
+    ``info`` sparse (2d, 2d) = MᵀM, the information of the free positions (θ fixed); ``anchor_index``;
+    ``factor``/``stats`` of the closed form."""
+
+    poses: np.ndarray
+    info: sp.csr_matrix
+    anchor_index: int
+    factor: Factor | None = None
+    stats: dict | None = None
+
+
+def position_system(graph: PoseGraph, theta, unc: EdgeUncertainty, *, anchor=None, anchor_position=(0.0, 0.0)):
+    """The whitened system of (P): ``(W, Bt, g)`` with W (2m × 2m) block-diagonal C_k R(θ_i)ᵀ, Bt = A2ᵀ ⊗ I₂
+    (2m × 2d) and g (2m,) = R(θ_i) t_k minus the anchor's fixed position moved to the right, so that (P)
+    is ‖W (Bt p − g)‖² over the free positions p (2d,), interleaved in the order of ``free_poses``."""
+    theta = np.asarray(theta, dtype=float)
+    a = graph.anchor_index(anchor)
+    m = graph.n_edges
+    Ri = rot2(theta[graph.tails])  # (m, 2, 2)
+    e = wrap_angle(theta[graph.heads] - theta[graph.tails] - graph.delta)
+    t = graph.delta_l - unc.shift * e[:, None]
+    g = np.einsum("kab,kb->ka", Ri, t)  # (m, 2)
+    p0 = np.asarray(anchor_position, dtype=float).reshape(2)
+    sign = np.where(graph.heads == a, -1.0, 0.0) + np.where(graph.tails == a, 1.0, 0.0)
+    g = g + sign[:, None] * p0  # p_j − p_i with the anchor's known position on the right-hand side
+    blocks = unc.sqrt_info_pp @ np.swapaxes(Ri, 1, 2)  # C_k R(θ_i)ᵀ
+    k2 = np.stack([2 * np.arange(m), 2 * np.arange(m) + 1], 1)
+    W = sp.csr_matrix((blocks.reshape(-1), (np.repeat(k2, 2, axis=1).reshape(-1), np.tile(k2, (1, 2)).reshape(-1))),
+                      shape=(2 * m, 2 * m))
+    Bt = sp.kron(_reduced_incidence(graph, a).T, sp.identity(2), format="csr")
+    return W, Bt, g.reshape(-1)
+
+
+def _poses(graph: PoseGraph, theta, a: int, p_free: np.ndarray, anchor_position) -> np.ndarray:
+    poses = np.zeros((graph.n_poses, 3))
+    poses[:, 2] = theta
+    poses[a, :2] = anchor_position
+    poses[free_poses(graph.n_poses, a), :2] = p_free.reshape(-1, 2)
+    return poses
+
+
+def resolve_positions(graph: PoseGraph, theta, unc: EdgeUncertainty, *, anchor=None, anchor_position=(0.0, 0.0),
+                      backend: str = "auto") -> Positions:
+    """(P) in closed form: the positions minimising χ² for the orientations ``theta`` (n,), the anchor's
+    position fixed at ``anchor_position``; one sparse factorization of the 2d × 2d normal matrix with
+    corrected semi-normal refinement (``lago_cvx.linalg.solve_least_squares``)."""
+    a = graph.anchor_index(anchor)
+    W, Bt, g = position_system(graph, theta, unc, anchor=anchor, anchor_position=anchor_position)
+    p, info, factor, stats = solve_least_squares((W @ Bt).tocsc(), W @ g, backend=backend)
+    return Positions(_poses(graph, theta, a, p, anchor_position), info.tocsr(), a, factor, stats)
+
+
+def position_problem(graph: PoseGraph, theta, unc: EdgeUncertainty, *, anchor=None, anchor_position=(0.0, 0.0)):
+    """(P) as a cvxpy problem: minimise ‖W (Bᵀp − g)‖² over the free positions p (2d,). Returns
+    ``(problem, p)``."""
+    import cvxpy as cp
+
+    W, Bt, g = position_system(graph, theta, unc, anchor=anchor, anchor_position=anchor_position)
+    p = cp.Variable(Bt.shape[1], name="p")
+    return cp.Problem(cp.Minimize(cp.sum_squares(W @ (Bt @ p - g)))), p
+
+
+def positions_from_problem(graph: PoseGraph, theta, unc: EdgeUncertainty, *, anchor=None,
+                           anchor_position=(0.0, 0.0), settings: ClarabelSettings | None = None):
+    """Build and solve (P) as a cvxpy problem with Clarabel; returns (Positions, problem)."""
+    a = graph.anchor_index(anchor)
+    problem, p = position_problem(graph, theta, unc, anchor=anchor, anchor_position=anchor_position)
+    W, Bt, _ = position_system(graph, theta, unc, anchor=anchor, anchor_position=anchor_position)
+    M = W @ Bt
+    if p.size == 0:
+        return Positions(_poses(graph, theta, a, np.zeros(0), anchor_position), (M.T @ M).tocsr(), a), problem
+    solve(problem, settings, what="the position polish")
+    pv = np.asarray(p.value, dtype=float)
+    return Positions(_poses(graph, theta, a, pv, anchor_position), (M.T @ M).tocsr(), a), problem
+
+
+# ------------------------------------------------------------------------ after phase 3
+#: Step halvings the polish tries when the phase-3 orientations are worse than phase 1's.
+MAX_HALVINGS = 3
+
+
+@dataclass(frozen=True, eq=False)
+class Polish:
+    """The position polish after phase 3 (``lago(..., positions="resolve")``).
+
+    ``positions`` the solution of (P) at the orientations chosen, θ = θ̂ + α(θ* − θ̂) with ``alpha``
+    (1: phase 3's θ*, 0: phase 1's θ̂); ``trials`` the (α, χ²) pairs evaluated, in order."""
+
+    positions: Positions
+    alpha: float
+    trials: tuple
+
+    @property
+    def poses(self) -> np.ndarray:
+        return self.positions.poses
+
+
+def polish(graph: PoseGraph, theta_hat, theta_star, unc: EdgeUncertainty, *, solve_positions, objective=None,
+           max_halvings: int = MAX_HALVINGS) -> Polish:
+    """Positions by (P) at phase 3's orientations θ*, guarded by phase 1's θ̂.
+
+    Let F(θ) = χ²(positions of (P) at θ, θ), the cost with the positions eliminated exactly. Phase 3's
+    step θ* − θ̂ is the Gauss–Newton step of eq. (18); far from the optimum it can overshoot, so that
+    F(θ*) > F(θ̂) (measured on CSAIL: the sub-optimal estimate of eq. (14) is *better* than phase 3's
+    orientations). Then the step is halved (at most ``max_halvings`` times) until F drops below F(θ̂),
+    and the best θ seen is kept: F(result) ≤ min(F(θ*), F(θ̂)) ≤ χ²(phase 3) always. Usually F(θ*) ≤
+    F(θ̂) and the cost is two solves of (P). ``solve_positions(theta) -> Positions`` solves (P) (closed
+    form or cvxpy); ``objective(poses)`` is the cost compared (default χ²; the variants add their priors)."""
+    from .metrics import chi2
+
+    cost = (lambda poses: chi2(graph, poses)) if objective is None else objective
+    theta_hat = np.asarray(theta_hat, dtype=float)
+    step = np.asarray(theta_star, dtype=float) - theta_hat
+    best = solve_positions(theta_hat + step)
+    trials = [(1.0, cost(best.poses))]
+    base = solve_positions(theta_hat)
+    trials.append((0.0, cost(base.poses)))
+    alpha = 1.0
+    if trials[0][1] > trials[1][1]:
+        best, alpha = base, 0.0
+        a = 1.0
+        for _ in range(max_halvings):
+            a *= 0.5
+            cand = solve_positions(theta_hat + a * step)
+            trials.append((a, cost(cand.poses)))
+            if trials[-1][1] < trials[1][1]:
+                best, alpha = cand, a
+                break
+    return Polish(best, alpha, tuple(trials))

@@ -1,0 +1,98 @@
+r"""Theorem 1 measured: what the paper claims about phase 3, what holds, and what does not.
+
+Theorem 1 of the seed says that phase 3 is a local correction of the sub-optimal estimate
+x̂ = [p̂; θ̂] — θ̂ from phase 1 (eq. (13)), p̂ the positions with θ̂ held fixed (eq. (14)) — "leading it
+towards a minimum of the cost function". Its proof has two parts:
+
+1. **the identity** x* = x̂ + [ρ̃; δ̃]: by block elimination of phase 3's normal equations (eq. (15)),
+   θ* = θ̂ + δ̃ (eq. (16)) and p* = p̂ + ρ̃ (eq. (17)), and minimising the first-order expansion (18) of
+   the cost around x̂ gives exactly these corrections;
+2. **the claim** that this moves x̂ towards a minimum.
+
+With H = MᵀM and g = MᵀWz the normal equations of phase 3 (M = WBᵀ, split into positions p and
+orientations θ): p̂ = H_pp⁻¹(g_p − H_pθ θ̂) (phase 3's cost is exact at θ = θ̂, so this is eq. (14) — for
+full information the exact positions given θ̂, ``lago_cvx.positions``), and
+
+    δ̃ = S⁻¹ r_θ,   S = H_θθ − H_θp H_pp⁻¹ H_pθ,   r_θ = g_θ − H_θp p̂ − H_θθ θ̂         (eq. (16))
+    ρ̃ = −H_pp⁻¹ H_pθ δ̃                                                               (eq. (17)).
+
+``theorem1`` computes x̂ and the corrections this way — as the least-squares problems they are the
+normal equations of (p̂ = argmin ‖M_p p − (Wz − M_θ θ̂)‖; [·; δ̃] = argmin ‖MΔ − (Wz − M x̂)‖, whose normal
+equations are HΔ = [0; r_θ]; ρ̃ = argmin ‖M_p ρ + M_θ δ̃‖), each solved with corrected semi-normal
+refinement (``lago_cvx.linalg.solve_least_squares``: accurate also for input_INTEL's cond ≈ 1e8) — and
+reports how exactly x* − x̂ = [ρ̃; δ̃] holds (part 1: to rounding), and the χ² of eq. (3) at x̂, at x*, and at the positions re-solved for θ* (part 2: on several
+real graphs χ²(x*) ≫ χ²(x̂): the linearised step overshoots; ``python benchmarks/run.py theorem1``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .linalg import solve_least_squares
+from .metrics import chi2, relative_difference
+from .pipeline import lago
+from .posegraph import PoseGraph
+from .positions import resolve_positions
+from .result import LagoResult
+
+__all__ = ["Theorem1", "theorem1"]
+
+
+@dataclass(frozen=True, eq=False)
+class Theorem1:
+    """Theorem 1 on one graph (module docstring), in the anchor's frame (anchor at the origin).
+
+    ``x_hat`` (3d,) = [p̂; θ̂] (eq. (14), (13)); ``x_star`` (3d,) phase 3's x*; ``theta_correction`` δ̃ (d,)
+    (eq. (16)); ``position_correction`` ρ̃ (2d,) (eq. (17)); ``identity_error`` relative difference of
+    x* − x̂ and [ρ̃; δ̃]; ``eq14_error`` relative difference of p̂ from H and from the position solve
+    (``lago_cvx.positions``) at θ̂; ``chi2_suboptimal`` χ² at x̂, ``chi2_phase3`` at x*,
+    ``chi2_resolved`` at [positions re-solved for θ*; θ*], ``chi2_lago`` at the result's poses (its
+    route); ``result`` the ``LagoResult``."""
+
+    x_hat: np.ndarray
+    x_star: np.ndarray
+    theta_correction: np.ndarray
+    position_correction: np.ndarray
+    identity_error: float
+    eq14_error: float
+    chi2_suboptimal: float
+    chi2_phase3: float
+    chi2_resolved: float
+    chi2_lago: float
+    result: LagoResult
+
+
+def _poses(result: LagoResult, x: np.ndarray) -> np.ndarray:
+    from .phases import _poses_from_x
+
+    return _poses_from_x(result.graph.n_poses, result.anchor_index, x)
+
+
+def theorem1(graph: PoseGraph, result: LagoResult | None = None, **lago_options) -> Theorem1:
+    """Measure Theorem 1 on ``graph`` for ``result`` (default ``lago(graph, **lago_options)``, closed
+    form, no ``anchors``): the identity x* = x̂ + [ρ̃; δ̃] of eqs. (16)–(17) and the χ² at x̂, x* and after
+    re-solving the positions (module docstring). Sparse throughout (three least-squares solves and two
+    position solves besides LAGO's own)."""
+    res = lago(graph, **lago_options) if result is None else result
+    ph2, ph3 = res.phase2, res.phase3
+    d = graph.n_poses - 1
+    M = (ph2.W @ ph2.Bt).tocsc()
+    b = ph2.W @ ph2.z
+    M_p, M_t = M[:, :2 * d], M[:, 2 * d:]
+    theta_hat = res.phase1.theta_free
+    p_hat = solve_least_squares(M_p, b - M_t @ theta_hat)[0]  # eq. (14): phase 3's cost at θ = θ̂
+    x_hat = np.concatenate([p_hat, theta_hat])
+    delta = solve_least_squares(M, b - M @ x_hat)[0][2 * d:]  # eq. (16): S δ̃ = r_θ by block elimination
+    rho = solve_least_squares(M_p, -(M_t @ delta))[0]  # eq. (17): ρ̃ = −H_pp⁻¹ H_pθ δ̃
+    exact_p = resolve_positions(graph, res.phase1.theta, res.uncertainty, anchor=res.anchor).poses[:, :2]
+    p_hat_poses = _poses(res, x_hat)[:, :2]
+    theta_star = _poses(res, ph3.x_star)[:, 2]
+    resolved = resolve_positions(graph, theta_star, res.uncertainty, anchor=res.anchor).poses
+    return Theorem1(
+        x_hat=x_hat, x_star=ph3.x_star, theta_correction=delta, position_correction=rho,
+        identity_error=relative_difference(ph3.x_star - x_hat, np.concatenate([rho, delta])),
+        eq14_error=relative_difference(p_hat_poses, exact_p),
+        chi2_suboptimal=chi2(graph, _poses(res, x_hat)), chi2_phase3=chi2(graph, _poses(res, ph3.x_star)),
+        chi2_resolved=chi2(graph, resolved), chi2_lago=res.chi2, result=res)
