@@ -10,6 +10,7 @@ command line uses for it (``exit_status``), so the CLI maps errors to statuses i
 | ``ParseError`` | ValueError | a file is malformed; the message starts with ``path:line:`` | 2 |
 | ``GraphError`` | ValueError | the graph is well-formed data but unusable (disconnected, broken odometric chain, unknown pose id) | 2 |
 | ``NumericalError`` | GraphError | the least-squares system is numerically singular | 2 |
+| ``NonFiniteError`` | NumericalError | an estimate or its χ² is not finite (the data overflow double precision) | 2 |
 | ``OptionError`` | ValueError | a keyword argument or command-line option has a bad value | 2 |
 | ``InfeasibleConstraintsError`` | ValueError | named convex constraints cannot all hold | 2 |
 | ``DatasetNotFound`` | FileNotFoundError | a benchmark dataset is not where it was looked for | 2 |
@@ -24,7 +25,8 @@ from __future__ import annotations
 import os
 
 __all__ = [
-    "LagoError", "ParseError", "GraphError", "NumericalError", "OptionError", "InfeasibleConstraintsError",
+    "LagoError", "ParseError", "GraphError", "NumericalError", "NonFiniteError", "OptionError",
+    "InfeasibleConstraintsError",
     "DatasetNotFound", "MissingSolverError", "ResourceLimitError", "SearchLimitError", "SolverError",
     "check_choice",
 ]
@@ -62,6 +64,11 @@ class GraphError(LagoError, ValueError):
 
 class NumericalError(GraphError):
     """The least-squares system is numerically singular (e.g. information spanning more than 1e16)."""
+
+
+class NonFiniteError(NumericalError):
+    """An estimate, or its χ², is not finite: the data overflow double precision (e.g. measurements of
+    magnitude 1e200, whose squares are inf). Nothing is written."""
 
 
 class OptionError(LagoError, ValueError):

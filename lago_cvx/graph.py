@@ -239,6 +239,26 @@ def _parent_from_edges(graph: PoseGraph, root: int, edges: np.ndarray) -> np.nda
     return parent
 
 
+def _broken_chain(graph: PoseGraph, odo: np.ndarray) -> str:
+    """Why the odometric chain (edges between consecutive ids, Proposition 2) is not a spanning tree:
+    the first gap in the sorted ids, or the first pair of consecutive ids without an edge."""
+    ids = np.sort(graph.ids)
+    linked = {(int(a), int(b)) for a, b in zip(*np.sort(np.stack([graph.ids[graph.tails[odo]],
+                                                                  graph.ids[graph.heads[odo]]]), axis=0))}
+    gaps = np.flatnonzero(np.diff(ids) != 1)
+    absent = [k for k in range(ids.size - 1) if (int(ids[k]), int(ids[k]) + 1) not in linked]
+    n_missing = len(absent)
+    if gaps.size and (not absent or gaps[0] <= absent[0]):
+        k = int(gaps[0])
+        where = (f"the ids are not consecutive (they jump from {ids[k]} to {ids[k + 1]}: no pose has id "
+                 f"{ids[k] + 1})")
+    else:
+        k = absent[0]
+        where = f"no edge between poses {ids[k]} and {ids[k] + 1}"
+    return (f"the odometric chain is broken: {where}; {n_missing} of {ids.size - 1} consecutive links missing. "
+            'Use another spanning tree: spanning_tree="bfs" or "mst"')
+
+
 def spanning_tree(graph: PoseGraph, kind="bfs", *, anchor=None) -> SpanningTree:
     """Spanning tree of a connected graph, rooted at the anchor (a pose id, default the smallest;
     ``SpanningTree.root`` is its index).
@@ -272,17 +292,7 @@ def spanning_tree(graph: PoseGraph, kind="bfs", *, anchor=None) -> SpanningTree:
             odo = np.flatnonzero(graph.is_odometric)
             keys, best = _best_edge_per_pair(graph, odo)
             if keys.size != n - 1:
-                ids = graph.ids
-                have = np.zeros(n - 1, bool)
-                lo = np.minimum(graph.tails[odo], graph.heads[odo])
-                have[lo[lo < n - 1]] = True
-                # consecutive ids ⇔ consecutive indices when ids are contiguous; name ids in the message
-                missing = np.flatnonzero(~have)
-                first = missing[0] if missing.size else 0
-                raise GraphError(
-                    f"the odometric chain is broken: no edge between poses {ids[first]} and {ids[first] + 1}"
-                    f" ({n - 1 - keys.size} of {n - 1} consecutive links missing); "
-                    "use the bfs or mst spanning tree")
+                raise GraphError(_broken_chain(graph, odo))
             return _tree_from_parent(graph, anchor, _parent_from_edges(graph, anchor, best), "odometry")
         if kind == "mst":
             edges = minimum_spanning_edges(graph)

@@ -67,7 +67,7 @@ from .graph import _reduced_incidence, free_poses
 from .linalg import Factor, block_diagonal_inverse, factorize, solve_least_squares
 from .posegraph import PoseGraph, rot2
 from .errors import OptionError, check_choice
-from .solvers import ClarabelSettings, solve
+from .solvers import ClarabelSettings, named_constant, parameter, solve
 from .uncertainty import INFORMATION_MODES, EdgeUncertainty
 
 __all__ = [
@@ -119,15 +119,21 @@ def _phase1_terms(graph: PoseGraph, delta_reg, unc: EdgeUncertainty, a: int):
 
 
 def phase1_problem(graph: PoseGraph, delta_reg, unc: EdgeUncertainty, *, anchor=None):
-    """Phase 1 as a cvxpy problem (eq. (13)): minimise ‖P_δ^{-1/2}(A2ᵀθ − δ_reg)‖² over θ ∈ ℝ^d.
+    """Phase 1 as a cvxpy problem (eq. (13)): minimise ‖P_δ^(-1/2)(Aᵀθ − δ_reg)‖² over θ ∈ ℝ^d, with A the
+    reduced incidence matrix (d × m, the anchor's row deleted) and P_δ = diag of the δ variances.
 
-    Returns ``(problem, theta)``; add constraints with ``cp.Problem(problem.objective, [...])``."""
+    ``print(problem)`` reads ``minimize quad_over_lin(P_δ^(-1/2) @ (Aᵀ @ θ + -δ_reg), 1.0, …)`` (cvxpy's
+    spelling of ‖·‖²). δ_reg is a ``cp.Parameter`` (``problem.param_dict["δ_reg"]``): set its ``.value``
+    and re-solve without rebuilding. Returns ``(problem, theta)``; add constraints with
+    ``cp.Problem(problem.objective, [...])``."""
     import cvxpy as cp
 
     A2, W, d_reg = _phase1_terms(graph, delta_reg, unc, graph.anchor_index(anchor))
-    theta = cp.Variable(A2.shape[0], name="theta")
-    residual = A2.T @ theta - d_reg
-    return cp.Problem(cp.Minimize(cp.sum_squares(W @ residual))), theta
+    At = named_constant(sp.csc_matrix(A2.T), "Aᵀ")
+    P_inv_sqrt = named_constant(sp.csc_matrix(W), "P_δ^(-1/2)")
+    delta = parameter(d_reg, "δ_reg")
+    theta = cp.Variable(A2.shape[0], name="θ")
+    return cp.Problem(cp.Minimize(cp.sum_squares(P_inv_sqrt @ (At @ theta - delta)))), theta
 
 
 def phase1_closed_form(graph: PoseGraph, delta_reg, unc: EdgeUncertainty, *, anchor=None,
@@ -286,14 +292,20 @@ def design_matrix(graph: PoseGraph, *, anchor=None) -> sp.csr_matrix:
 
 
 def phase3_problem(graph: PoseGraph, ph2: Phase2):
-    """Phase 3 as a cvxpy problem (eq. (15)): minimise ‖W (z − Bᵀx)‖² over x = [p; θ] ∈ ℝ^{3d}
-    (anchored where phase 2 was; W, z, Bᵀ of the seed's or the full-information form, ``ph2.information``).
+    """Phase 3 as a cvxpy problem (eqs. (12), (15)): minimise ‖W (z − Bᵀρ)‖² over ρ = [p; θ] ∈ ℝ^{3d}
+    (anchored where phase 2 was; WᵀW = P_z⁻¹, and W, z, Bᵀ of the paper's or the full-information form,
+    ``ph2.information``).
 
-    Returns ``(problem, x)``; positions are ``x[:2d]`` (interleaved), orientations ``x[2d:]``."""
+    ``print(problem)`` reads ``minimize quad_over_lin(W @ (z + -(Bᵀ @ ρ)), 1.0, …)``. z is a ``cp.Parameter``
+    (``problem.param_dict["z"]``). Returns ``(problem, rho)``; positions are ``rho[:2d]`` (interleaved),
+    orientations ``rho[2d:]``."""
     import cvxpy as cp
 
-    x = cp.Variable(ph2.Bt.shape[1], name="x")
-    return cp.Problem(cp.Minimize(cp.sum_squares(ph2.W @ (ph2.z - ph2.Bt @ x)))), x
+    rho = cp.Variable(ph2.Bt.shape[1], name="ρ")
+    W = named_constant(sp.csc_matrix(ph2.W), "W")
+    Bt = named_constant(sp.csc_matrix(ph2.Bt), "Bᵀ")
+    z = parameter(ph2.z, "z")
+    return cp.Problem(cp.Minimize(cp.sum_squares(W @ (z - Bt @ rho)))), rho
 
 
 def _poses_from_x(n: int, a: int, x: np.ndarray) -> np.ndarray:

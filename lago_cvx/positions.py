@@ -31,7 +31,7 @@ import scipy.sparse as sp
 from .graph import _reduced_incidence, free_poses
 from .linalg import Factor, solve_least_squares
 from .posegraph import PoseGraph, rot2, wrap_angle
-from .solvers import ClarabelSettings, solve
+from .solvers import ClarabelSettings, named_constant, parameter, solve
 from .uncertainty import EdgeUncertainty
 
 __all__ = ["Positions", "position_system", "position_problem", "resolve_positions", "positions_from_problem",
@@ -93,13 +93,19 @@ def resolve_positions(graph: PoseGraph, theta, unc: EdgeUncertainty, *, anchor=N
 
 
 def position_problem(graph: PoseGraph, theta, unc: EdgeUncertainty, *, anchor=None, anchor_position=(0.0, 0.0)):
-    """(P) as a cvxpy problem: minimise ‖W (Bᵀp − g)‖² over the free positions p (2d,). Returns
-    ``(problem, p)``."""
+    """(P) as a cvxpy problem: minimise ‖W (A₂ᵀp − g)‖² over the free positions p (2d,), A₂ = A ⊗ I₂ (A
+    the reduced incidence matrix), g the per-edge targets R(θ_i)(Δˡ − Ω_pp⁻¹Ω_pθ ē_θ) and W the square
+    root of the conditional information R Ω_pp Rᵀ (eq. (14) when Ω is block-diagonal).
+
+    ``print(problem)`` reads ``minimize quad_over_lin(W @ (A₂ᵀ @ p + -g), 1.0, …)``; g is a
+    ``cp.Parameter``. Returns ``(problem, p)``."""
     import cvxpy as cp
 
     W, Bt, g = position_system(graph, theta, unc, anchor=anchor, anchor_position=anchor_position)
     p = cp.Variable(Bt.shape[1], name="p")
-    return cp.Problem(cp.Minimize(cp.sum_squares(W @ (Bt @ p - g)))), p
+    objective = cp.sum_squares(named_constant(sp.csc_matrix(W), "W")
+                               @ (named_constant(sp.csc_matrix(Bt), "A₂ᵀ") @ p - parameter(g, "g")))
+    return cp.Problem(cp.Minimize(objective)), p
 
 
 def positions_from_problem(graph: PoseGraph, theta, unc: EdgeUncertainty, *, anchor=None,

@@ -12,6 +12,7 @@ closed-form route never load it.
 
 from __future__ import annotations
 
+import functools
 import logging
 import warnings
 from collections.abc import Mapping
@@ -20,6 +21,7 @@ from dataclasses import asdict, dataclass, field, fields, replace
 from .errors import OptionError, SolverError
 
 __all__ = [
+    "named_constant", "parameter",
     "METHODS", "ClarabelSettings", "LEAST_SQUARES", "ROBUST", "SDP", "IntegerSearch",
     "OK_STATUSES", "INFEASIBLE_STATUSES", "solve", "check_method",
 ]
@@ -168,3 +170,40 @@ def solve(problem, settings: ClarabelSettings | None = None, *, preset: Clarabel
     if status == "optimal_inaccurate":
         log.warning("Clarabel reports an inaccurate solution for %s (status %s)", what, status)
     return status
+
+
+# --------------------------------------------------------------------- readable cvxpy problems
+@functools.lru_cache(maxsize=1)
+def _named_constant_class():
+    import cvxpy as cp
+
+    class NamedConstant(cp.Constant):
+        """A cvxpy constant that prints as its label (``A``, ``Bᵀ``, ``W``) instead of its entries."""
+
+        def __init__(self, value, label: str):
+            super().__init__(value)
+            self._label = label
+
+        def name(self) -> str:
+            return self._label
+
+    return NamedConstant
+
+
+def named_constant(value, label: str):
+    """A cvxpy constant (dense or scipy.sparse ``value``) that ``print(problem)`` shows as ``label``, so
+    that a problem reads like its equation: ``minimize quad_over_lin(W @ (z + -(Bᵀ @ ρ)), 1.0, …)`` (cvxpy
+    writes ‖v‖² = ``sum_squares(v)`` as ``quad_over_lin(v, 1)``). The value is used as given."""
+    return _named_constant_class()(value, label)
+
+
+def parameter(value, label: str, **attributes):
+    """A named ``cp.Parameter`` holding ``value`` (1-D or 2-D, dense): change ``.value`` and re-solve without
+    rebuilding the problem (the builders keep their problems DPP)."""
+    import cvxpy as cp
+    import numpy as np
+
+    value = np.asarray(value, dtype=float)
+    par = cp.Parameter(value.shape, name=label, **attributes)
+    par.value = value
+    return par

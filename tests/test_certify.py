@@ -4,6 +4,7 @@ Real-data tests are skipped when ../shared/datasets is absent. Run with ``-s`` t
 
 from __future__ import annotations
 
+from dataclasses import replace
 from functools import lru_cache
 
 import numpy as np
@@ -15,7 +16,7 @@ from lago_cvx.certification.local import _SesyncProblem
 from lago_cvx.certification.sesync import edge_residuals
 from lago_cvx.graph import prune_leaves, subgraph
 from lago_cvx.metrics import chi2_parts
-from lago_cvx.posegraph import compose, rot2
+from lago_cvx.posegraph import between, compose, rot2
 from lago_cvx.synthetic import circle_world, manhattan_world, random_graph
 
 from conftest import dataset_path
@@ -156,7 +157,7 @@ def test_csail_reaches_the_published_optimum_and_is_certified():
 
 
 # ---------------------------------------------------------------------------------- 3. certificate
-@pytest.mark.parametrize("sigmas", [(0.0, 0.0), (0.02, 0.01), (0.05, 0.02)])
+@pytest.mark.parametrize("sigmas", [(0.02, 0.01), (0.05, 0.02)])
 def test_certificate_passes_on_low_noise_synthetic(sigmas):
     w = _world(150, 7, *sigmas)
     res = _sesync_optimum(w.graph)
@@ -164,6 +165,47 @@ def test_certificate_passes_on_low_noise_synthetic(sigmas):
     assert cert.certified, cert.verdict
     assert cert.n_negative == 0
     assert cert.lambda_min >= -cert.eta
+
+
+@pytest.mark.parametrize("sigmas", [(0.0, 0.0), (1e-3, 1e-4), (0.02, 0.01), (0.05, 0.02), (0.1, 0.05)])
+def test_certified_means_a_relative_bound_of_at_most_tol(sigmas):
+    """Regression (near-zero-cost graphs): the certificate says "certified" only with a proven relative
+    suboptimality (f − f*_lower)/f ≤ tol. On a noise-free world f* = 0 and f is rounding (≈ 1e-26): the
+    floor 1e-12‖M‖₂ proves nothing relative to that, so it is "not certified: bound too weak", never
+    "certified with a vacuous bound"; at σ_xy = 1e-3, σ_θ = 1e-4 the information is so large that the
+    floor's bound is ~2e-3 relative — not certified either."""
+    w = _world(150, 7, *sigmas)
+    cert = C.certify(w.graph, _sesync_optimum(w.graph).poses)
+    assert cert.relative_suboptimality_bound >= 0
+    if cert.certified:
+        assert cert.relative_suboptimality_bound <= C.CERTIFY_TOL
+    else:
+        assert cert.relative_suboptimality_bound > C.CERTIFY_TOL
+        assert cert.verdict.startswith("not certified: bound too weak"), cert.verdict
+    assert cert.certified == (sigmas[0] >= 0.02), cert.verdict
+
+
+def test_a_point_above_a_known_cost_is_never_certified():
+    w = _world(150, 7, 0.05, 0.02)
+    opt = _sesync_optimum(w.graph)
+    cert = C.certify(w.graph, opt.poses)
+    assert cert.certified
+    again = C.certify(w.graph, opt.poses, known_cost=cert.cost * (1 - 1e-6))
+    assert not again.certified and "above the cost" in again.verdict
+    with pytest.raises(ValueError, match="tol must be in"):
+        C.certify(w.graph, opt.poses, tol=1e-2)
+
+
+def test_fr079_with_exact_measurements_is_not_certified_with_a_vacuous_bound():
+    """FR079's edges with the measurements replaced by the exact ones of an estimate: f* = 0, and the
+    certificate must not call the rounding-level optimum certified."""
+    g = _graph("carlone/FR079_P_toro.graph")
+    poses = lago(g).poses
+    exact = between(poses[g.tails], poses[g.heads])
+    g0 = replace(g, delta_l=exact[:, :2], delta=exact[:, 2])
+    cert = C.certify(g0, poses)
+    assert cert.cost < 1e-12 and not cert.certified
+    assert cert.verdict.startswith("not certified: bound too weak")
 
 
 def test_certificate_fails_on_a_perturbed_estimate():

@@ -113,12 +113,13 @@ def test_certify_local_minimum_exit_3(capsys, tmp_path):
     assert code == 3 and "SE-Sync-refined:     NOT certified" in text and "exit status 3" in text
 
 
-def test_certify_tol_is_the_psd_threshold(capsys, tmp_path):
-    # the same local minimum passes when the tolerance swallows its negative eigenvalues
+def test_certify_tol_is_a_relative_bound_not_a_psd_threshold(capsys, tmp_path):
+    # the local minimum stays uncertified at the loosest tolerance: its proven relative bound is large
     world = _world(capsys, tmp_path, "--poses", "100", "--seed", "0", "--sigma-theta", "0.3")
     code, text, _ = run(capsys, "certify", str(world), "--json", "--tol", "1e-3")
     res = json.loads(text)
-    assert code == 0 and res["certified"] is True and res["eta"] > -res["lambda_min"]
+    assert code == 3 and res["certified"] is False and res["relative_suboptimality_bound"] > 1e-3
+    assert res["tol"] == 1e-3 and res["eta"] < -res["lambda_min"]  # a genuine negative direction, not rounding
 
 
 # ------------------------------------------------------------------------------- bad input → 2
@@ -140,13 +141,14 @@ def test_certify_bad_input_exit_2_one_line(capsys, tmp_path, content, fragment):
 def test_certify_missing_file_and_bad_tol(capsys, tmp_path):
     code, _, err = run(capsys, "certify", str(tmp_path / "nope.g2o"))
     assert code == 2 and "nope.g2o" in _one_error_line(err)
-    for tol in ("0", "-1", "nan", "x"):
+    for tol in ("0", "-1", "nan", "x", "1e-2"):  # above 1e-3 the word "certified" would mean too little
         with pytest.raises(SystemExit) as exc:
             main(["certify", "w.g2o", "--tol", tol])
         assert exc.value.code == 2
         assert "--tol must be" in capsys.readouterr().err
-    code, _, err = run(capsys, "certify", "w.g2o", "--max-iterations", "-1")
-    assert code == 2 and "--max-iterations must be >= 0" in _one_error_line(err)
+    with pytest.raises(SystemExit) as exc:
+        main(["certify", "w.g2o", "--max-iterations", "-1"])
+    assert exc.value.code == 2 and "--max-iterations: the value must be >= 0" in capsys.readouterr().err
 
 
 def test_certify_refuses_to_overwrite_input(capsys, tmp_path):
@@ -185,7 +187,7 @@ def test_regularization_choices_follow_the_library(capsys, tmp_path):
 
 def test_integer_regularization_refused_on_too_many_cycles(capsys, tmp_path, monkeypatch):
     world = _world(capsys, tmp_path, "--poses", "120", "--seed", "2")
-    monkeypatch.setattr(cli, "MAX_INTEGER_CHORDS", 3)
+    monkeypatch.setattr(cli.common, "MAX_INTEGER_CHORDS", 3)
     for cmd in ("solve", "certify"):
         code, _, err = run(capsys, cmd, str(world), "--regularization", "integer")
         assert code == 2 and "use --regularization chordal" in _one_error_line(err)
@@ -209,3 +211,10 @@ def test_integer_search_limit_is_a_clear_error(capsys, tmp_path, monkeypatch):
     assert code == 4
     line = _one_error_line(err)
     assert "after 1 nodes" in line and "chordal regularization" in line
+    assert "--max-nodes" in line and "--max-shift" in line and "max_nodes" not in line  # CLI terms
+    # the options it names exist, and the limit they set is honoured (exit 4 again, not a usage error)
+    monkeypatch.setattr(integer, "integer_regularization", real)
+    code, _, err = run(capsys, "solve", str(world), "--regularization", "integer", "--max-nodes", "1")
+    assert code == 4 and "after 1 nodes" in _one_error_line(err)
+    code, out, _ = run(capsys, "solve", str(world), "--regularization", "integer", "--max-shift", "0", "--json")
+    assert code == 0 and json.loads(out)["regularization"] == "integer"

@@ -441,3 +441,18 @@ def test_gate_threshold_is_the_chi2_quantile():
     from scipy import stats
 
     assert V.GATE_THRESHOLD == pytest.approx(np.sqrt(stats.chi2.ppf(1.0 - 1e-6, 3)), rel=1e-12)
+
+
+@pytest.mark.parametrize("regularization", ["tree", "chordal", "integer"])
+def test_constraints_and_anchors_combine_with_every_regularization(regularization):
+    """``constrained_lago`` and ``lago(anchors=...)`` accept every regularizer (this used to be a TypeError
+    for ``constrained_lago(..., regularization="chordal")``) and report the one that ran; with a constraint
+    that is inactive at the unconstrained optimum the constrained estimate is the anchored one."""
+    w = manhattan_world(120, seed=1)
+    box = lambda pv: [V.box_constraint(pv, xmin=-1e3, xmax=1e3, ymin=-1e3, ymax=1e3)]  # noqa: E731
+    con = V.constrained_lago(w.graph, box, regularization=regularization)
+    anc = V.anchored_lago(w.graph, anchors={0: (0.0, 0.0, 0.0)}, regularization=regularization, positions="phase3")
+    assert con.regularization.regularization == anc.regularization.regularization == regularization
+    np.testing.assert_allclose(con.poses, anc.poses, atol=1e-6)
+    plain = lc.lago(w.graph, anchors={0: (0.0, 0.0, 0.0)}, regularization=regularization)
+    assert plain.regularization.regularization == regularization

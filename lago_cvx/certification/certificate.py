@@ -26,11 +26,21 @@ The full S has a third, structural null vector 1_t; its λ_min is computed the s
 ``certify`` first replaces the translations by the optimal ones for the given rotations (one linear
 solve, as SE-Sync eliminates them), so Σ tr Λ_i = f exactly and the verdict is about the rotations.
 
-Tolerances. η = ``tol``·‖M‖₂ (‖M‖₂ by Lanczos; default tol = 1e-12): floating-point S is known only
-to ~1e-16‖M‖ entrywise and the LDLᵀ is backward stable only to a modest multiple of that, so the
-test is "λ_min(S_Q) ≥ −η", and what it proves is f(x) − f* ≤ 2nη (section 3, eq. (S8) with
-Λ − ηI). The optima of the SE-Sync datasets have λ_min(S_Q) ≈ ±5e-13 (absolute) and still certify at
-tol = 1e-15; the rigorous relative bound 2nη/f at the default is 4e-6 (CSAIL) … 1e-7 (city10000).
+Tolerances. Two numbers, with different jobs.
+
+* The **numerical floor** η = ``NUMERICAL_TOL``·‖M‖₂ (‖M‖₂ by Lanczos; NUMERICAL_TOL = 1e-12):
+  floating-point S is known only to ~1e-16‖M‖ entrywise and the LDLᵀ is backward stable only to a
+  modest multiple of that, so no eigenvalue of S_Q above −η can be told from zero. The inertia count
+  of S_g + ηÎ_R proves λ_min(S_Q) ≥ −η, hence the dual-feasible shift below. The optima of the SE-Sync
+  datasets have λ_min(S_Q) ≈ ±5e-13 (absolute) and pass even at 1e-15.
+* The **decision** is relative to the cost's scale: the point is *certified* only when the proven
+  relative suboptimality (f − f*_lower)/f is at most ``tol`` (default ``CERTIFY_TOL`` = 1e-3), with
+  f*_lower the lower bound of eq. (S8) below. f − f*_lower = (f − Σ tr Λ_i) + 2n·|shift| counts both the
+  distance from a critical point and the floor, so a point whose cost is tiny next to ‖M‖ (a nearly
+  noise-free graph: f ≈ 1e-4 with ‖M‖ ≈ 1e5) is "not certified: bound too weak" rather than certified
+  with a vacuous bound. At the default, the datasets' optima are certified with bounds of 4e-6 (CSAIL)
+  … 1e-7 (city10000). A point whose cost is above a cost known to be reachable (``known_cost``) is
+  never certified.
 
 Lower bound when the certificate fails. With μ = max(0, −λ_min(S_Q)), Λ' = Λ − μI makes
 Q − Λ' = S_Q + μI ⪰ 0, i.e. Λ' is dual feasible, so
@@ -58,13 +68,20 @@ from ..posegraph import PoseGraph
 from .sesync import (data_matrix, grounded_index, lambda_hat, multipliers, optimal_translations, sesync_cost,
                      stacked_variable)
 
-__all__ = ["CERTIFY_TOL", "Certificate", "certify", "dual_lower_bound"]
+__all__ = ["CERTIFY_TOL", "NUMERICAL_TOL", "Certificate", "certify", "dual_lower_bound"]
 
 log = logging.getLogger("lago_cvx.certification")
 
 
 #: Below this dimension the shift-inverted operator is formed densely instead of running Lanczos.
 DENSE_LIMIT = 64
+
+#: The largest relative suboptimality bound (f − f*_lower)/f ``certify`` accepts as "certified" (default).
+CERTIFY_TOL = 1e-3
+#: Numerical floor of the PSD test, relative to ‖M‖₂: η = NUMERICAL_TOL·‖M‖₂. Measured: the optima of the
+#: five SE-Sync datasets still pass at 1e-15 (their computed λ_min(S_Q) is ≈ −5e-13, i.e. ~1e-17‖M‖);
+#: 1e-12 leaves three orders of magnitude for rounding in S and in the factorization.
+NUMERICAL_TOL = 1e-12
 
 
 class _ShiftedLDL:
@@ -155,16 +172,17 @@ def _bottom_eigenvalues(ldl: _ShiftedLDL, sel: np.ndarray, *, lower: float, uppe
 class Certificate:
     """Outcome of ``certify`` (see the module docstring, section 3).
 
-    ``certified`` — True iff the LDLᵀ inertia of S_g + ηÎ_R has no negative pivot, i.e.
-    λ_min(S_Q) ≥ −η, which proves f(poses) − f* ≤ ``suboptimality_bound`` = 2nη;
-    ``verdict`` — one line saying so or why not.
+    ``certified`` — True iff the proven relative suboptimality ``relative_suboptimality_bound`` =
+    (f − ``lower_bound``)/f is at most ``tol`` (and f is not above ``known_cost``);
+    ``verdict`` — one line saying so or why not ("not certified: bound too weak" when S_Q passes the
+    PSD test but the bound it proves is larger than ``tol``). ``tol`` the relative tolerance used.
     ``cost`` f at the certified point (translations re-optimised for the given rotations when
     ``optimize_translations``; ``cost_input`` at the poses as given); ``poses`` that point (n, 3).
     ``dual_value`` Σ tr Λ_i (= ``cost`` when translations are optimal); ``multipliers`` Λ (n, 2, 2).
     ``lambda_min`` λ_min(S_Q) (SE-Sync's certificate matrix, translations eliminated) by shift-invert
     Lanczos; ``eigenvalues`` the ``n_eigenvalues`` smallest of S_Q (at an optimum two are ≈ 0, the
     third is the margin); ``lambda_min_full`` λ_min(S) of the full 3n × 3n S (≤ 0 always: S 1_t = 0;
-    NaN unless ``full``). ``eta`` = tol·‖M‖₂, ``norm_M`` ‖M‖₂; ``n_negative`` eigenvalues of S_Q below
+    NaN unless ``full``). ``eta`` = NUMERICAL_TOL·‖M‖₂, ``norm_M`` ‖M‖₂; ``n_negative`` eigenvalues of S_Q below
     −η (inertia count). ``residual`` ‖S Yᵀ‖_F (first-order condition (S6)), ``residual_rel`` =
     residual/(‖M‖₂ √(2n)). ``lower_bound`` a proven lower bound on f* (eq. (S8) with the shift ``shift``:
     Λ + shift·I is dual feasible), ``suboptimality_bound`` = cost − lower_bound, and
@@ -190,18 +208,22 @@ class Certificate:
     suboptimality_estimate: float
     poses: np.ndarray
     multipliers: np.ndarray
+    tol: float = CERTIFY_TOL
     times: dict = field(default_factory=dict)
 
     @property
     def relative_suboptimality_bound(self) -> float:
         """(f − lower_bound)/f: relative distance to the global optimum proven by the certificate."""
-        return self.suboptimality_bound / max(abs(self.cost), np.finfo(float).tiny)
+        return _relative(self.suboptimality_bound, self.cost)
 
 
-#: Default relative tolerance of ``certify``: η = CERTIFY_TOL·‖M‖₂. Measured: the optima of the five
-#: SE-Sync datasets still certify at 1e-15 (their computed λ_min(S_Q) is ≈ −5e-13, i.e. ~1e-17‖M‖);
-#: 1e-12 leaves three orders of magnitude for rounding in S and in the factorization.
-CERTIFY_TOL = 1e-12
+def _relative(bound: float, cost: float) -> float:
+    """bound / f, with f ≥ 0 (a zero cost gives +inf unless the bound is 0 too)."""
+    if cost > 0:
+        return bound / cost
+    return 0.0 if bound <= 0 else float("inf")
+
+
 
 
 def _norm2(M: sp.spmatrix) -> float:
@@ -213,11 +235,13 @@ def _norm2(M: sp.spmatrix) -> float:
 
 
 def certify(graph: PoseGraph, poses, *, tol: float = CERTIFY_TOL, optimize_translations: bool = True,
-            anchor=None, n_eigenvalues: int = 3, full: bool = True) -> Certificate:
+            anchor=None, n_eigenvalues: int = 3, full: bool = True, known_cost: float | None = None) -> Certificate:
     """SE-Sync's verification (Rosen et al. 2019, §4.2) of ``poses`` (n, 3) for the cost of eq. (S1).
 
-    Keyword-only: ``tol`` relative PSD tolerance, η = tol·‖M‖₂ (default ``CERTIFY_TOL`` = 1e-12; the
-    optima of the SE-Sync datasets still pass at 1e-15, rounding shows below ~1e-16); ``optimize_translations`` replace the translations by the optimal
+    Keyword-only: ``tol`` the largest relative suboptimality bound (f − f*_lower)/f accepted as certified
+    (0 < tol ≤ ``CERTIFY_TOL`` = 1e-3; the PSD test itself uses the floor η = ``NUMERICAL_TOL``·‖M‖₂, see
+    the module docstring); ``known_cost`` a cost known to be reachable (e.g. of a refined estimate): a
+    point above it is never certified; ``optimize_translations`` replace the translations by the optimal
     ones for the given rotations first (exact linear solve; then Σ tr Λ_i = f and the certificate is on
     the rotations, as in SE-Sync); ``anchor`` pose id whose translation is grounded (default the
     smallest id); ``n_eigenvalues`` how many of S_Q's smallest eigenvalues to report; ``full`` also
@@ -225,8 +249,8 @@ def certify(graph: PoseGraph, poses, *, tol: float = CERTIFY_TOL, optimize_trans
 
     Cost: one sparse LDLᵀ of S_g + ηÎ_R (3n−1 square) for the verdict, a few more (same pattern) for
     the spectrum; city10000 (30 000 × 30 000) takes about a second."""
-    if not tol > 0:
-        raise OptionError(f"tol must be > 0, got {tol}")
+    if not (0 < tol <= CERTIFY_TOL):
+        raise OptionError(f"tol must be in (0, {CERTIFY_TOL:g}] (a relative suboptimality bound), got {tol}")
     if graph.n_edges == 0:
         raise GraphError(f"the graph has {graph.n_poses} pose(s) and no edges: nothing to certify")
     times = {}
@@ -246,11 +270,11 @@ def certify(graph: PoseGraph, poses, *, tol: float = CERTIFY_TOL, optimize_trans
     Y = stacked_variable(x)
     lam = multipliers(M, Y)
     S = (M - lambda_hat(lam)).tocsr()
-    cost = float(np.sum(Y * (M @ Y.T).T))  # tr(Y M Yᵀ)
+    cost = sesync_cost(graph, x)  # a sum of squares (≥ 0), not tr(Y M Yᵀ), which cancels to ±1e-11 near 0
     dual = float(np.trace(lam, axis1=1, axis2=2).sum())
     residual = float(np.linalg.norm(S @ Y.T))
     norm_M = _norm2(M)
-    eta = tol * norm_M
+    eta = NUMERICAL_TOL * norm_M
     times["assemble"] = time.perf_counter() - t
 
     # the verdict: inertia of S_g + ηÎ_R (grounded), = In(L_g) + In(S_Q + ηI)
@@ -287,16 +311,24 @@ def certify(graph: PoseGraph, poses, *, tol: float = CERTIFY_TOL, optimize_trans
         lambda_min_full = float(eig_full[0])
         times["spectrum_full"] = time.perf_counter() - t
 
-    lower_bound = dual + 2 * n * shift
+    lower_bound = max(dual + 2 * n * shift, 0.0)  # f ≥ 0: a negative bound says nothing more than 0
     sub_bound = cost - lower_bound
     sub_est = 2 * n * max(0.0, -lambda_min)
     residual_rel = residual / max(norm_M * np.sqrt(2 * n), np.finfo(float).tiny)
-    certified = n_negative == 0
+    rel = _relative(sub_bound, cost)
+    above_known = known_cost is not None and cost > known_cost * (1 + 1e-9) + np.finfo(float).tiny
+    certified = bool(rel <= tol and not above_known)
+    kind = ("not a critical point" if residual_rel > np.sqrt(NUMERICAL_TOL) else "approximately a critical point")
     if certified:
-        verdict = (f"globally optimal (certified): λ_min(S_Q) = {lambda_min:.3g} ≥ −η = {-eta:.3g}, "
-                   f"f − f* ≤ {sub_bound:.3g} ({sub_bound / max(cost, np.finfo(float).tiny):.2g} relative)")
+        verdict = (f"globally optimal (certified): f − f* ≤ {sub_bound:.3g} ({rel:.2g} relative ≤ tol {tol:.2g}); "
+                   f"λ_min(S_Q) = {lambda_min:.3g} ≥ −η = {-eta:.3g}")
+    elif above_known:
+        verdict = (f"not certified: f = {cost:.10g} is above the cost {known_cost:.10g} of a point already found "
+                   f"(proven f* ≥ {lower_bound:.6g})")
+    elif n_negative == 0:
+        verdict = (f"not certified: bound too weak: λ_min(S_Q) ≥ −η = {-eta:.3g} proves only f − f* ≤ "
+                   f"{sub_bound:.3g} ({rel:.2g} relative > tol {tol:.2g}; {kind}, ‖SYᵀ‖ = {residual:.3g})")
     else:
-        kind = ("not a critical point" if residual_rel > np.sqrt(tol) else "approximately a critical point")
         verdict = (f"NOT certified ({kind}, ‖SYᵀ‖ = {residual:.3g}): {n_negative} eigenvalue(s) of S_Q below "
                    f"−η = {-eta:.3g}, λ_min = {lambda_min:.4g}; f* ≥ {lower_bound:.6g}")
     times["total"] = time.perf_counter() - t_all
@@ -305,13 +337,13 @@ def certify(graph: PoseGraph, poses, *, tol: float = CERTIFY_TOL, optimize_trans
                        lambda_min=lambda_min, eigenvalues=eigs, lambda_min_full=lambda_min_full, eta=eta,
                        norm_M=norm_M, n_negative=n_negative, residual=residual, residual_rel=residual_rel,
                        lower_bound=lower_bound, shift=shift, suboptimality_bound=sub_bound,
-                       suboptimality_estimate=sub_est, poses=x, multipliers=lam, times=times)
+                       suboptimality_estimate=sub_est, poses=x, multipliers=lam, tol=tol, times=times)
 
 
 def dual_lower_bound(graph: PoseGraph, lam: np.ndarray, a: int) -> float:
     """A proven lower bound on f* from any multipliers ``lam`` (n, 2, 2), anchor index ``a``:
     Σ tr Λ_i + 2n·min(0, σ) with σ ≤ λ_min(S_Q(Λ)) proven by an LDLᵀ inertia count (eq. (S8); σ = −η
-    with η = CERTIFY_TOL·‖M‖₂ when S_Q(Λ) ⪰ −ηI, else just below the Lanczos λ_min). A graph without
+    with η = NUMERICAL_TOL·‖M‖₂ when S_Q(Λ) ⪰ −ηI, else just below the Lanczos λ_min). A graph without
     edges (e.g. the 2-core of a tree: the anchor alone) has f ≡ 0, so its bound is 0."""
     n = graph.n_poses
     if graph.n_edges == 0:
@@ -322,7 +354,7 @@ def dual_lower_bound(graph: PoseGraph, lam: np.ndarray, a: int) -> float:
     is_rot = (keep % 3 != 0).astype(float)
     ldl = _ShiftedLDL(S[keep][:, keep], is_rot)
     norm_M = _norm2(M)
-    eta = CERTIFY_TOL * norm_M
+    eta = NUMERICAL_TOL * norm_M
     neg = ldl.inertia(-eta)
     dual = float(np.trace(lam, axis1=1, axis2=2).sum())
     if neg == 0:

@@ -6,7 +6,9 @@ from __future__ import annotations
 
 import time
 
-from ..errors import GraphError
+import numpy as np
+
+from ..errors import GraphError, NonFiniteError
 from ..pipeline import lago
 from ..posegraph import PoseGraph
 from ..refinement import refine
@@ -36,20 +38,27 @@ def certificate_fields(cert: Certificate) -> dict:
 
 def certify_estimate(graph: PoseGraph, *, route: str = "default", spanning_tree: str | None = None,
                      regularization: str | None = None, tol: float = CERTIFY_TOL,
-                     max_iterations: int = 50) -> tuple[dict, Certificate]:
+                     max_iterations: int = 50, integer_search=None) -> tuple[dict, Certificate]:
     """The certified route on ``graph``: LAGO → χ² Gauss–Newton (``refine``) → Newton (GN where Newton does
     not descend) on the SE-Sync cost f (``refine_sesync``) → SE-Sync's optimality certificate
-    (``certify``) of the refined estimate and, for comparison, of the raw LAGO estimate.
+    (``certify``) of the refined estimate and, for comparison, of the raw LAGO estimate. ``tol`` is the
+    largest relative suboptimality bound accepted as certified (≤ 1e-3); neither point is certified when
+    its cost is above a cost the route has already reached.
 
     Returns ``(report, cert)``: the JSON-ready report and the refined estimate's ``Certificate``
     (``cert.poses`` are the certified poses, translations re-optimised for the certified rotations).
-    ``route``, ``spanning_tree``, ``regularization`` choose LAGO as in ``lago``. Raises ``GraphError`` for a
-    graph without edges or not connected."""
+    ``route``, ``spanning_tree``, ``regularization``, ``integer_search`` choose LAGO as in ``lago``. Raises
+    ``GraphError`` for a graph without edges or not connected, ``NonFiniteError`` when LAGO's estimate or its
+    χ² is not finite (data that overflow double precision)."""
     if graph.n_edges == 0:
         raise GraphError(f"the graph has {graph.n_poses} pose(s) and no edges: nothing to certify")
     times = {}
     t = time.perf_counter()
-    res = lago(graph, route=route, spanning_tree=spanning_tree, regularization=regularization)
+    res = lago(graph, route=route, spanning_tree=spanning_tree, regularization=regularization,
+               integer_search=integer_search)
+    if not (np.isfinite(res.chi2) and np.isfinite(res.poses).all()):
+        raise NonFiniteError(f"the LAGO estimate is not finite (χ² = {res.chi2}): the measurements or information "
+                             "overflow double precision; nothing to certify")
     times["lago"] = time.perf_counter() - t
     t = time.perf_counter()
     ref = refine(graph, res.poses, max_iterations=max_iterations)
@@ -58,10 +67,13 @@ def certify_estimate(graph: PoseGraph, *, route: str = "default", spanning_tree:
     ses = refine_sesync(graph, ref.poses, max_iterations=max_iterations, method="newton")
     times["refine_sesync"] = time.perf_counter() - t
     t = time.perf_counter()
-    cert = certify(graph, ses.poses, tol=tol)
+    f_lago = sesync_cost(graph, res.poses)
+    # a point above a cost already reached is never certified (the refinement only descends, so the
+    # refined point is below both LAGO's and the χ²-refined one's; if it is not, something went wrong)
+    cert = certify(graph, ses.poses, tol=tol, known_cost=min(f_lago, ses.cost_initial))
     times["certify"] = time.perf_counter() - t
     t = time.perf_counter()
-    cert_lago = certify(graph, res.poses, tol=tol)
+    cert_lago = certify(graph, res.poses, tol=tol, known_cost=cert.cost)
     times["certify_lago"] = time.perf_counter() - t
     reg = res.regularization
     report = {
@@ -70,7 +82,7 @@ def certify_estimate(graph: PoseGraph, *, route: str = "default", spanning_tree:
         "n_ambiguous": int(reg.ambiguous.size), "tol": tol, "cost_convention": SESYNC_COST_CONVENTION,
         "chi2_lago": res.chi2, "chi2_refined": ref.chi2, "refine_iterations": ref.iterations,
         "refine_converged": bool(ref.converged),
-        "f_lago": sesync_cost(graph, res.poses), "f_chi2_refined": ses.cost_initial,
+        "f_lago": f_lago, "f_chi2_refined": ses.cost_initial,
         "sesync_iterations": ses.iterations, "sesync_converged": bool(ses.converged), "sesync_reason": ses.reason,
         **certificate_fields(cert),
         "lago_certificate": certificate_fields(cert_lago),

@@ -10,6 +10,6 @@
 
 from ..errors import ParseError
 from .reader import detect_format, read_graph
-from .writer import write_graph
+from .writer import write_bytes, write_graph
 
-__all__ = ["ParseError", "read_graph", "write_graph", "detect_format"]
+__all__ = ["ParseError", "read_graph", "write_graph", "write_bytes", "detect_format"]

@@ -13,7 +13,7 @@ from ..errors import OptionError
 from ..posegraph import PoseGraph, wrap_angle
 from .formats import check_format, g2o_to_toro
 
-__all__ = ["write_graph"]
+__all__ = ["write_graph", "write_bytes"]
 
 logger = logging.getLogger("lago_cvx.io")
 
@@ -107,3 +107,20 @@ def write_graph(path, graph: PoseGraph, poses=None, *, format: str = "g2o",
             pass
         raise
     return path
+
+
+def write_bytes(path, data: bytes) -> None:
+    """Write ``data`` to ``path`` through a temporary file in the same directory, then an atomic rename."""
+    import tempfile
+
+    path = os.fspath(path)
+    d = os.path.dirname(os.path.abspath(path))
+    fd, tmp = tempfile.mkstemp(dir=d, prefix=".lago-cvx-", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise

@@ -63,7 +63,7 @@ from ..graph import SpanningTree, free_poses
 from ..linalg import solve_least_squares
 from ..posegraph import PoseGraph
 from ..rounding import AMBIGUITY_MARGIN, TWO_PI, branch, check_angles
-from ..solvers import ClarabelSettings, check_method, solve
+from ..solvers import ClarabelSettings, check_method, named_constant, parameter, solve
 from ..uncertainty import edge_uncertainty
 from .report import RegularizationReport, warn_ambiguous
 
@@ -141,15 +141,18 @@ def _estimate(n: int, anchor: int, x: np.ndarray, cost: float, stats=None) -> Ch
 
 
 def chordal_problem(graph: PoseGraph, info_delta, *, anchor=None):
-    """The chordal relaxation (C2) as a cvxpy problem: minimise ‖M x − b‖² (``cp.sum_squares``, M whitened).
+    """The chordal relaxation (C2) as a cvxpy problem: minimise ‖M r − b‖² (``cp.sum_squares``, M whitened)
+    over the free poses' rotation vectors r (2d,), (cos θ, sin θ) interleaved.
 
-    Returns ``(problem, x)`` with x (2d,) the free poses' (cos θ, sin θ) interleaved; add constraints
-    with ``cp.Problem(problem.objective, [...])`` (e.g. ``cp.norm(x[2*i:2*i+2]) <= 1``)."""
+    ``print(problem)`` reads ``minimize quad_over_lin(M @ r + -b, 1.0, …)``; b (the anchor's terms) is a
+    ``cp.Parameter``. Returns ``(problem, r)``; add constraints with ``cp.Problem(problem.objective,
+    [...])`` (e.g. ``cp.norm(r[2*i:2*i+2]) <= 1``)."""
     import cvxpy as cp
 
     M, b = chordal_system(graph, info_delta, anchor=anchor)
     x = cp.Variable(M.shape[1], name="r")
-    return cp.Problem(cp.Minimize(cp.sum_squares(M @ x - b))), x
+    objective = cp.sum_squares(named_constant(sp.csc_matrix(M), "M") @ x - parameter(b, "b"))
+    return cp.Problem(cp.Minimize(objective)), x
 
 
 def chordal_closed_form(graph: PoseGraph, info_delta, *, anchor=None, backend: str = "auto") -> ChordalEstimate:

@@ -39,4 +39,5 @@ def regularize_tree(graph: PoseGraph, tree: SpanningTree, *, margin: float = AMB
     k = np.zeros(graph.n_edges, np.int64)
     k[tree.chords] = round_residual(before)
     return chord_report(graph, tree, k, margin=margin, regularization="tree",
-                        why="rotation noise too large along the tree path")
+                        why="rotation noise too large along the tree path; the chordal regularizer needs no "
+                            'tree path: regularization="chordal"')

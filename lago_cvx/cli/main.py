@@ -1,0 +1,85 @@
+"""``lago-cvx``: the parser and the one place where errors become exit statuses."""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+
+from .._version import __version__
+from ..errors import LagoError
+from . import certify, data, plot, solve, worlds
+from .common import EXIT_INTERNAL, EXIT_TABLE, debug_enabled, speak_cli
+
+log = logging.getLogger("lago_cvx")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="lago-cvx", description="LAGO for planar pose graphs (g2o / TORO files).",
+                                epilog=EXIT_TABLE)
+    p.add_argument("--version", action="version", version=f"lago-cvx {__version__}")
+    p.add_argument("-v", "--verbose", action="count", default=0, help="log progress (-vv for debug)")
+    sub = p.add_subparsers(dest="command", required=True)
+    solve.add_parsers(sub)
+    certify.add_parser(sub)
+    worlds.add_parsers(sub)
+    data.add_parser(sub)
+    plot.add_parser(sub)
+    return p
+
+
+class _CliMessages(logging.Filter):
+    """Log records as a CLI user reads them: library keywords become options (``speak_cli``), and each
+    distinct warning is said once per run (library loops may repeat one)."""
+
+    def __init__(self):
+        super().__init__()
+        self.seen = set()
+
+    def filter(self, record):
+        record.msg, record.args = speak_cli(record.getMessage()), ()
+        if record.levelno < logging.WARNING:
+            return True
+        key = (record.name, record.msg)
+        if key in self.seen:
+            return False
+        self.seen.add(key)
+        return True
+
+
+def _configure_logging(verbose: int) -> None:
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter("lago-cvx: %(levelname)s: %(message)s"))
+    handler.addFilter(_CliMessages())
+    root = logging.getLogger("lago_cvx")
+    root.handlers[:] = [handler]
+    root.propagate = False
+    root.setLevel([logging.WARNING, logging.INFO, logging.DEBUG][min(verbose, 2)])
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    _configure_logging(args.verbose)
+    try:
+        import numpy as np
+
+        with np.errstate(all="ignore"):  # overflow is reported as a non-finite estimate, not a warning
+            return args.func(args)
+    except LagoError as exc:  # everything the package reports on purpose; the class carries the status
+        if exc.exit_status == EXIT_INTERNAL and debug_enabled():
+            raise
+        prefix = "internal error" if exc.exit_status == EXIT_INTERNAL else "error"
+        print(f"lago-cvx: {prefix}: {speak_cli(str(exc))}", file=sys.stderr)
+        return exc.exit_status
+    except KeyboardInterrupt:
+        print("lago-cvx: interrupted", file=sys.stderr)
+        return 130
+    except BrokenPipeError:  # e.g. `lago-cvx solve f -o - | head`: the reader left; not an error of ours
+        return 0
+    except Exception as exc:  # an internal error: one line, exit 1 (traceback with LAGO_CVX_DEBUG=1)
+        if debug_enabled():
+            raise
+        print(f"lago-cvx: internal error: {type(exc).__name__}: {exc} "
+              "(set LAGO_CVX_DEBUG=1 for a traceback)", file=sys.stderr)
+        return EXIT_INTERNAL
