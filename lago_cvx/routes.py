@@ -13,8 +13,12 @@ from __future__ import annotations
 
 from .errors import OptionError
 
-__all__ = ["ROUTES", "POSITIONS", "resolve_route"]
+__all__ = ["ROUTES", "REGULARIZATIONS", "INFORMATION_MODES", "POSITIONS", "resolve_route"]
 
+#: The 2kπ regularizers (``lago_cvx.regularization``).
+REGULARIZATIONS = ("tree", "chordal", "integer")
+#: How phases 2–3 use each edge's information (``lago_cvx.uncertainty``, ``lago_cvx.phases.phase2``).
+INFORMATION_MODES = ("full", "marginal")
 #: What the positions of the result are: phase 3's (the seed) or re-solved exactly for the orientations
 #: (``lago_cvx.positions``).
 POSITIONS = ("phase3", "resolve")

@@ -28,12 +28,12 @@ import numpy as np
 
 from .linalg import whitening_2x2
 from .posegraph import PoseGraph
+from .routes import INFORMATION_MODES
 
 __all__ = ["EdgeUncertainty", "edge_uncertainty", "INFORMATION_MODES"]
 
-#: How phases 2–3 use each edge's information: ``"full"`` (the whole 3×3 Ω, first-order optimal for
-#: any Ω) or ``"marginal"`` (the seed's blkdiag(P_Δ, P_δ) with the marginal covariances, eqs. (9)–(15)).
-INFORMATION_MODES = ("full", "marginal")
+# INFORMATION_MODES (from routes): how phases 2–3 use each edge's information — "full" (the whole 3×3 Ω,
+# first-order optimal for any Ω) or "marginal" (the paper's blkdiag(P_Δ, P_δ), eqs. (9)–(15)).
 
 
 @dataclass(frozen=True, eq=False)

@@ -18,7 +18,7 @@ PKG = Path(lago_cvx.__file__).resolve().parent
 
 #: The layers of docs/ARCHITECTURE.md, bottom first. A module may import from its own layer or below.
 LAYERS = [
-    ["_version", "errors", "solvers", "routes", "posegraph"],
+    ["_version", "errors", "solvers", "routes", "conventions", "posegraph"],
     ["io", "graph", "linalg", "metrics", "synthetic", "datasets"],
     ["uncertainty", "rounding"],
     ["regularization"],

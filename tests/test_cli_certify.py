@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 
+import lago_cvx.regularization
 from lago_cvx import cli, read_graph
 from lago_cvx.certification import CERTIFY_TOL, sesync_cost
 from lago_cvx.cli import EXIT_NOT_CERTIFIED, main
@@ -187,7 +188,7 @@ def test_regularization_choices_follow_the_library(capsys, tmp_path):
 
 def test_integer_regularization_refused_on_too_many_cycles(capsys, tmp_path, monkeypatch):
     world = _world(capsys, tmp_path, "--poses", "120", "--seed", "2")
-    monkeypatch.setattr(cli.common, "MAX_INTEGER_CHORDS", 3)
+    monkeypatch.setattr(lago_cvx.regularization, "MAX_INTEGER_CHORDS", 3)
     for cmd in ("solve", "certify"):
         code, _, err = run(capsys, cmd, str(world), "--regularization", "integer")
         assert code == 2 and "use --regularization chordal" in _one_error_line(err)

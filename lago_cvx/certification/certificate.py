@@ -62,6 +62,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from ..conventions import CERTIFY_TOL
 from ..errors import GraphError, OptionError, SolverError
 from ..graph import check_connected
 from ..posegraph import PoseGraph
@@ -76,8 +77,6 @@ log = logging.getLogger("lago_cvx.certification")
 #: Below this dimension the shift-inverted operator is formed densely instead of running Lanczos.
 DENSE_LIMIT = 64
 
-#: The largest relative suboptimality bound (f − f*_lower)/f ``certify`` accepts as "certified" (default).
-CERTIFY_TOL = 1e-3
 #: Numerical floor of the PSD test, relative to ‖M‖₂: η = NUMERICAL_TOL·‖M‖₂. Measured: the optima of the
 #: five SE-Sync datasets still pass at 1e-15 (their computed λ_min(S_Q) is ≈ −5e-13, i.e. ~1e-17‖M‖);
 #: 1e-12 leaves three orders of magnitude for rounding in S and in the factorization.

@@ -8,6 +8,7 @@ import time
 
 import numpy as np
 
+from ..conventions import SESYNC_COST_CONVENTION
 from ..errors import GraphError, NonFiniteError
 from ..pipeline import lago
 from ..posegraph import PoseGraph
@@ -18,9 +19,7 @@ from .sesync import sesync_cost
 
 __all__ = ["SESYNC_COST_CONVENTION", "certificate_fields", "certify_estimate"]
 
-#: One line stating which cost the certificate is about (eqs. (S1)–(S2) of ``sesync.py``).
-SESYNC_COST_CONVENTION = ("SE-Sync cost f = Σ κ‖R_j−R_iR̃‖²_F + τ‖t_j−t_i−R_i t̃‖² (no ½; κ = Ω_θθ, "
-                          "τ = 2/tr(Ω_tt⁻¹)), not the g2o χ²")
+
 
 
 def certificate_fields(cert: Certificate) -> dict:

@@ -6,13 +6,12 @@ import argparse
 
 import numpy as np
 
+from ..conventions import CERTIFY_TOL, SESYNC_COST_CONVENTION
 from .common import (EXIT_BAD_INPUT, EXIT_INTERNAL, EXIT_NOT_CERTIFIED, EXIT_OK, EXIT_RESOURCE, add_route_options,
                      check_regularization, emit, integer_search, nonneg_int, output_target, write_estimate)
 
 
 def _tol_arg(value: str) -> float:
-    from ..certification import CERTIFY_TOL
-
     try:
         tol = float(value)
     except ValueError:
@@ -87,9 +86,6 @@ def cmd_certify(args) -> int:
 
 
 def add_parser(sub) -> None:
-    from ..certification import CERTIFY_TOL
-    from ..certification.estimate import SESYNC_COST_CONVENTION
-
     s = sub.add_parser(
         "certify", help="LAGO, refinement and SE-Sync's global-optimality certificate",
         formatter_class=argparse.RawDescriptionHelpFormatter,

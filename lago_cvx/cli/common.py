@@ -24,9 +24,7 @@ import sys
 import numpy as np
 
 from ..errors import NonFiniteError, OptionError
-from ..regularization import MAX_INTEGER_CHORDS, REGULARIZATIONS
-from ..routes import POSITIONS, ROUTES
-from ..uncertainty import INFORMATION_MODES
+from ..routes import INFORMATION_MODES, POSITIONS, REGULARIZATIONS, ROUTES
 
 EXIT_OK, EXIT_INTERNAL, EXIT_BAD_INPUT, EXIT_NOT_CERTIFIED, EXIT_RESOURCE = 0, 1, 2, 3, 4
 
@@ -144,6 +142,7 @@ def check_regularization(graph, regularization: str | None) -> None:
     if regularization != "integer":
         return
     from ..graph import connected_components
+    from ..regularization import MAX_INTEGER_CHORDS
 
     k, _ = connected_components(graph)
     n_cycles = graph.n_edges - graph.n_poses + k

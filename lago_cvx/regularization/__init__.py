@@ -18,6 +18,7 @@ from __future__ import annotations
 from ..graph import SpanningTree
 from ..posegraph import PoseGraph
 from ..rounding import AMBIGUITY_MARGIN
+from ..routes import REGULARIZATIONS
 from ..solvers import ClarabelSettings, IntegerSearch
 from .chordal import regularize_chordal
 from .integer import MAX_INTEGER_CHORDS, regularize_integer
@@ -29,7 +30,6 @@ __all__ = ["REGULARIZATIONS", "MAX_INTEGER_CHORDS", "RegularizationReport", "reg
 
 #: The regularizers: ``"tree"`` (the seed's Theorem 3), ``"chordal"`` (rounding against the chordal
 #: relaxation) and ``"integer"`` (the weighted integer least-squares problem the rounding approximates).
-REGULARIZATIONS = ("tree", "chordal", "integer")
 
 
 def regularize(graph: PoseGraph, tree: SpanningTree, *, regularization: str = "tree",
