@@ -148,7 +148,8 @@ def polish(graph: PoseGraph, theta_hat, theta_star, unc: EdgeUncertainty, *, sol
     """Positions by (P) at phase 3's orientations θ*, guarded by phase 1's θ̂.
 
     Let F(θ) = χ²(positions of (P) at θ, θ), the cost with the positions eliminated exactly. Phase 3's
-    step θ* − θ̂ is the Gauss–Newton step of eq. (18); far from the optimum it can overshoot, so that
+    step θ* − θ̂ is the Gauss–Newton step of eq. (18), taken with the position weights frozen at θ̂; on
+    graphs with very anisotropic translational information it can raise the true cost, so that
     F(θ*) > F(θ̂) (measured on CSAIL: the sub-optimal estimate of eq. (14) is *better* than phase 3's
     orientations). Then the step is halved (at most ``max_halvings`` times) until F drops below F(θ̂),
     and the best θ seen is kept: F(result) ≤ min(F(θ*), F(θ̂)) ≤ χ²(phase 3) always. Usually F(θ*) ≤

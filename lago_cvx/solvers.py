@@ -49,9 +49,13 @@ class ClarabelSettings:
     """Clarabel options (names as in Clarabel's ``DefaultSettings``). A field left ``None`` takes the
     value of the preset of the route that solves (``LEAST_SQUARES`` for phases 1 and 3 and the chordal
     relaxation, ``ROBUST`` for robust losses, ``SDP`` for the relaxation), and where the preset leaves
-    it ``None`` too, Clarabel's own default. ``verbose`` prints Clarabel's log."""
+    it ``None`` too, Clarabel's own default. ``verbose`` prints Clarabel's log. ``direct_solve_method``
+    picks Clarabel's KKT factorization (``"qdldl"``, ``"faer"``, …; None = Clarabel's choice): problems with
+    equality constraints on top of a least-squares objective (e.g. a residual written as a constraint)
+    may need ``"qdldl"`` with ``static_regularization_constant=1e-8``."""
 
     static_regularization_constant: float | None = None
+    direct_solve_method: str | None = None
     iterative_refinement_enable: bool | None = None
     iterative_refinement_reltol: float | None = None
     iterative_refinement_abstol: float | None = None

@@ -265,3 +265,38 @@ def speak_cli(message: str) -> str:
 
 def debug_enabled() -> bool:
     return bool(os.environ.get("LAGO_CVX_DEBUG"))
+
+
+# ---------------------------------------------------------------------------------- progress
+class ProgressBar:
+    """Draws the library's progress reports (``progress(stage, fraction)``, ``lago_cvx.progress``) as one
+    self-overwriting line on standard error: ``  phase 3: factorization  [########            ]  42 %``.
+    A stage's line is finished (newline) when it reports 1.0."""
+
+    WIDTH = 24
+
+    def __init__(self, stream=None):
+        self.stream = stream or sys.stderr
+        self.active = None
+
+    def __call__(self, stage: str, fraction: float) -> None:
+        fraction = min(max(float(fraction), 0.0), 1.0)
+        filled = int(round(fraction * self.WIDTH))
+        self.stream.write(f"\r  {stage:<40.40} [{'#' * filled}{' ' * (self.WIDTH - filled)}] {100 * fraction:3.0f} %")
+        self.active = stage
+        if fraction >= 1.0:
+            self.stream.write("\n")
+            self.active = None
+        self.stream.flush()
+
+
+def progress_callback(args):
+    """A ``ProgressBar`` when standard error is a terminal and the output is for humans (no ``--json``,
+    no ``LAGO_CVX_NO_PROGRESS``); otherwise None (the library then only logs, at INFO, with ``-v``)."""
+    if getattr(args, "json", False) or os.environ.get("LAGO_CVX_NO_PROGRESS"):
+        return None
+    try:
+        tty = sys.stderr.isatty()
+    except (AttributeError, ValueError):
+        tty = False
+    return ProgressBar() if tty else None
