@@ -43,6 +43,7 @@ S = np.array([[0.0, -1.0], [1.0, 0.0]])
 mpl.rcParams["svg.hashsalt"] = "lago-cvx"
 mpl.rcParams["svg.fonttype"] = "path"
 _METADATA = {"png": {"Software": None}, "svg": {"Date": None, "Creator": None}}
+_INLINE_DPI = 100  # the resolution of the figures shown inline (and stored in the rendered notebooks)
 
 _PREFIX = ["lecture"]
 
@@ -76,7 +77,7 @@ def _in_notebook() -> bool:
 
 
 def show(fig, name: str) -> None:
-    """Display ``fig`` inline (in Jupyter), write ``<prefix>_<name>.png`` and ``.svg`` when
+    """Display ``fig`` inline (in Jupyter, as a PNG), write ``<prefix>_<name>.png`` and ``.svg`` when
     ``$LAGO_CVX_FIGURES`` is set (identical bytes on every run), then close it."""
     import matplotlib.pyplot as plt
 
@@ -87,9 +88,16 @@ def show(fig, name: str) -> None:
             fig.savefig(target / f"{_PREFIX[0]}_{name}.{ext}", dpi=120, bbox_inches="tight",
                         metadata=_METADATA[ext])
     if _in_notebook():
+        import base64
+        import io
+
         from IPython.display import display
 
-        display(fig)
+        # The PNG bytes are made here, without the "Software" stamp the inline backend adds, so that a
+        # re-rendered notebook changes only where the figure does.
+        buffer = io.BytesIO()
+        fig.savefig(buffer, format="png", dpi=_INLINE_DPI, bbox_inches="tight", metadata=_METADATA["png"])
+        display({"image/png": base64.b64encode(buffer.getvalue()).decode("ascii")}, raw=True)
     plt.close(fig)
 
 
