@@ -1,74 +1,76 @@
 # %% [markdown]
-# # Lecture 1 — The problem: planar pose-graph optimization
+# # Lecture 1 — The problem: planar pose-graph SLAM as a least-squares problem
 #
-# This lecture follows Section III of the seed — Carlone, Aragues, Castellanos, Bona, *A Linear
-# Approximation for Graph-based Simultaneous Localization and Mapping* (RSS 2011) — and checks every
-# statement numerically with the package `lago_cvx`.
+# Section III of Carlone, Aragues, Castellanos, Bona, *A Linear Approximation for Graph-based
+# Simultaneous Localization and Mapping* (RSS 2011), derived step by step and checked numerically with
+# the package `lago_cvx`.
 #
-# **Notation (the seed's, kept throughout the lectures).** Poses $x_i = (p_i, \theta_i)$,
-# $p_i \in \mathbb{R}^2$, $i = 0, \dots, n$, pose $0$ the *anchor*. In the package a graph has
-# `n_poses` $= n+1$ poses indexed `0 … n_poses−1`, and the anchor is index 0 by default.
-# The graph has $m$ edges; edge $k$ goes from its *tail* $i$ to its *head* $j$ and carries the
-# measurement $(\Delta^l_{ij}, \delta_{ij})$: the relative position $\Delta^l_{ij}$ of $j$ expressed in
-# the frame of $i$, and the relative orientation $\delta_{ij}$, with covariances $P_{\Delta}$ and
-# $P_\delta$.
+# **Learning goals.** After this lecture you can
 #
-# Contents:
-# 1. pose compounding, eq. (1);
-# 2. the likelihood and cost, eqs. (2)–(3), and the χ² convention of the package;
-# 3. the graph, its incidence matrix $A$ and the reduced form, eqs. (6)–(7);
-# 4. why the problem is non-convex;
-# 5. why local (Gauss–Newton) methods depend on the initial guess.
+# * compute a relative pose with the compounding of eq. (1), and say what the package's `between` and
+#   `compose` do;
+# * derive the cost eq. (3) from the likelihood eq. (2), and tell the χ² convention of the package (no
+#   factor ½) from others by a computation, not by a footnote;
+# * write the cost with the split residual of eq. (4), with incidence matrices as in eqs. (5)–(6), and
+#   recognise when the block-diagonal noise of eq. (5) is an approximation (Remark 2);
+# * explain why the system eq. (7) *looks* linear and is not;
+# * build the incidence matrices $A$, $A_2 = A \otimes I_2$ and their reduced forms, and map them to the
+#   package;
+# * argue, with Lemma 1, that every single-robot pose graph is connected;
+# * show that the cost is non-convex and that a local solver lands in different minima from different
+#   starts.
+#
+# **Notation (the paper's, used in every lecture).** $n + 1$ poses $p_0, \dots, p_n$,
+# $p_i = [p_i^\top\ \theta_i]^\top$ with $p_i \in \mathbb R^2$; pose $0$ is the reference,
+# $p_0 = [0\ 0\ 0]^\top$. The graph has $m$ edges; edge $k = (i, j)$ carries the measurement
+# $\xi_{ij} = [\Delta^{l\top}_{ij}\ \delta_{ij}]^\top$: $\Delta^l_{ij}$ the position of $j$ seen from $i$
+# (superscript $l$: in the *local* frame of $i$), $\delta_{ij}$ the relative orientation; $\Delta^l$ and
+# $\delta$ stack them over the edges. In the package a graph has `n_poses` $= n + 1$ poses, stored as
+# arrays `tails`, `heads`, `delta_l` ($\Delta^l$), `delta` ($\delta$) and `information` ($P_{ij}^{-1}$,
+# $3\times3$ per edge).
 
 # %%
-import time
-
-
 import matplotlib.pyplot as plt
 import numpy as np
-import scipy.sparse.linalg as spla
+from scipy.stats import chi2 as chi2_law
 from scipy.stats import multivariate_normal
 
-from _lecture import figure_saver
 import lago_cvx as lc
+from _lecture import S, check, real, setup, show
 from lago_cvx import plotting
-from lago_cvx.datasets import DatasetNotFound, dataset
+from lago_cvx.datasets import REFERENCE_CHI2
+from lago_cvx.errors import GraphError
 from lago_cvx.phases import design_matrix
 from lago_cvx.posegraph import between, compose, rot2, wrap_angle
-from lago_cvx.refinement import jacobian, odometry_guess, refine, whitened_residuals
+from lago_cvx.refinement import odometry_guess, refine
 from lago_cvx.synthetic import add_noise
 
-save = figure_saver("01_problem")
-
-T_START = time.perf_counter()
+setup("01_problem")
+rng = np.random.default_rng(0)
 
 # %% [markdown]
 # ## 1. Pose compounding, eq. (1)
 #
-# A pose $x_i = (p_i, \theta_i)$ is a rigid motion of the plane. Composing the pose $x_i$ with a
-# relative pose $t = (t_p, t_\theta)$ expressed in the frame of $x_i$ gives
+# A pose is a rigid motion of the plane. Pose $j$ seen from pose $i$ — what a sensor on the robot at
+# $i$ measures — is the pose compounding of eq. (1):
 #
-# $$x_j = x_i \oplus t = \begin{bmatrix} p_i + R(\theta_i)\, t_p \\ \theta_i + t_\theta \end{bmatrix},
-# \qquad R(\theta) = \begin{bmatrix}\cos\theta & -\sin\theta\\ \sin\theta & \cos\theta\end{bmatrix}
+# $$p_j \ominus p_i = \begin{bmatrix} R_i^\top (p_j - p_i) \\ \theta_j - \theta_i \end{bmatrix},
+# \qquad R_i = R(\theta_i) = \begin{bmatrix}\cos\theta_i & -\sin\theta_i\\ \sin\theta_i & \cos\theta_i\end{bmatrix}.
 # \tag{1}$$
 #
-# and the inverse operation — "pose $j$ seen from pose $i$" — is
+# Its inverse operation puts a relative pose $t = [t_p^\top\ t_\theta]^\top$ back on top of pose $i$:
+# $p_i \oplus t = [p_i + R_i t_p;\ \theta_i + t_\theta]$. In `lago_cvx.posegraph`, `between(a, b)` is
+# $b \ominus a$ and `compose(a, t)` is $a \oplus t$. Angles are real numbers, never wrapped inside these
+# functions, so the identities below hold exactly, not only modulo $2\pi$:
 #
-# $$\ominus x_i \oplus x_j = \begin{bmatrix} R(\theta_i)^\top (p_j - p_i) \\ \theta_j - \theta_i
-# \end{bmatrix}.$$
+# * `between` undoes `compose`: $(p_i \oplus t) \ominus p_i = t$, and $p_i \oplus (p_j \ominus p_i) = p_j$;
+# * relative poses chain: $(p_k \ominus p_i) = (p_j \ominus p_i) \oplus (p_k \ominus p_j)$ — this is
+#   why the measurements along a path can be composed into a trajectory (dead reckoning).
 #
-# In `lago_cvx.posegraph` these are `compose(a, b)` $= a \oplus b$ and `between(a, b)` $= \ominus a
-# \oplus b$. Angles are **not wrapped** (θ is a real number), so the following identities hold
-# exactly, not only modulo $2\pi$:
-#
-# * `between` inverts `compose`: $\ominus a \oplus (a \oplus t) = t$ and $a \oplus (\ominus a \oplus b) = b$;
-# * $\oplus$ is associative: $(a \oplus b) \oplus c = a \oplus (b \oplus c)$ (the composition of rigid motions);
-# * the identity is $0$ and the inverse of $a$ is $\ominus a = $ `between(a, 0)`: $a \oplus (\ominus a) = 0$.
-#
-# We check them on 10 000 random triples of poses with θ far outside $[-\pi, \pi)$.
+# We check eq. (1) against `between` and the identities on 10 000 random triples of poses whose angles
+# range over several turns.
 
 # %%
-rng = np.random.default_rng(0)
 N = 10_000
 
 
@@ -76,99 +78,245 @@ def random_poses(k):
     return np.column_stack([rng.uniform(-50, 50, (k, 2)), rng.uniform(-3 * np.pi, 3 * np.pi, k)])
 
 
-a, b, c, t = random_poses(N), random_poses(N), random_poses(N), random_poses(N)
-checks = {
-    "between(a, compose(a, t)) - t": between(a, compose(a, t)) - t,
-    "compose(a, between(a, b)) - b": compose(a, between(a, b)) - b,
-    "(a+b)+c - a+(b+c)": compose(compose(a, b), c) - compose(a, compose(b, c)),
-    "compose(a, inverse(a))": compose(a, between(a, np.zeros(3))),
-    "between(a, b) - inverse(a)+b": between(a, b) - compose(between(a, np.zeros(3)), b),
+pi_, pj_, pk_, t_ = random_poses(N), random_poses(N), random_poses(N), random_poses(N)
+eq1 = np.column_stack([np.einsum("kba,kb->ka", rot2(pi_[:, 2]), pj_[:, :2] - pi_[:, :2]), pj_[:, 2] - pi_[:, 2]])
+errors = {
+    "between(p_i, p_j) = eq. (1)": between(pi_, pj_) - eq1,
+    "(p_i ⊕ t) ⊖ p_i = t": between(pi_, compose(pi_, t_)) - t_,
+    "p_i ⊕ (p_j ⊖ p_i) = p_j": compose(pi_, between(pi_, pj_)) - pj_,
+    "p_k ⊖ p_i = (p_j ⊖ p_i) ⊕ (p_k ⊖ p_j)": between(pi_, pk_) - compose(between(pi_, pj_), between(pj_, pk_)),
 }
-for name, err in checks.items():
-    print(f"max |{name}| = {np.abs(err).max():.2e}")
-    assert np.abs(err).max() < 1e-10, name
+for claim, err in errors.items():
+    check(np.abs(err).max() < 1e-9, f"{claim}   (max error {np.abs(err).max():.1e} over {N} triples)")
 
 # %% [markdown]
-# ## 2. Measurements, likelihood and cost, eqs. (2)–(3)
+# The figure shows one measurement: pose $j$ (red) seen from pose $i$ (blue). The relative position
+# $\Delta^l_{ij} = R_i^\top (p_j - p_i)$ is the same arrow $p_j - p_i$, written in the axes of $i$.
+
+# %%
+p_i, p_j = np.array([1.0, 0.5, np.deg2rad(35)]), np.array([3.2, 2.4, np.deg2rad(110)])
+rel = between(p_i, p_j)
+fig, ax = plt.subplots(figsize=(6, 4.6))
+for pose, color, name in [(p_i, "tab:blue", "i"), (p_j, "tab:red", "j")]:
+    R = rot2(pose[2])
+    for axis, style in [(R[:, 0], "-"), (R[:, 1], "--")]:
+        ax.annotate("", pose[:2] + 0.9 * axis, pose[:2], arrowprops=dict(arrowstyle="->", color=color, ls=style, lw=1.6))
+    ax.plot(*pose[:2], "o", color=color)
+    ax.annotate(f"pose {name}, θ$_{name}$ = {np.rad2deg(pose[2]):.0f}°", pose[:2], xytext=(10, -18),
+                textcoords="offset points", color=color)
+ax.annotate("", p_j[:2], p_i[:2], arrowprops=dict(arrowstyle="->", color="k", lw=1.2))
+ax.text(-0.3, 3.2, f"$p_j - p_i$ (black) written in the axes of i:\n"
+        f"$\\Delta^l_{{ij}}$ = ({rel[0]:.2f}, {rel[1]:.2f}),  $\\delta_{{ij}}$ = {np.rad2deg(rel[2]):.0f}°")
+ax.set_aspect("equal")
+ax.set_xlim(-0.5, 4.8)
+ax.set_ylim(-0.3, 3.8)
+ax.set_title("Eq. (1): pose j seen from pose i (solid: x axis, dashed: y axis)")
+show(fig, "compounding")
+check(abs(np.linalg.norm(rel[:2]) - np.linalg.norm(p_j[:2] - p_i[:2])) < 1e-12,
+      "a rotation keeps lengths: |Δˡ_ij| = |p_j − p_i|")
+
+# %% [markdown]
+# ## 2. Likelihood and cost, eqs. (2)–(3)
 #
-# Each edge $i \to j$ measures pose $j$ in the frame of pose $i$:
+# The measurements are $\xi_{ij} = (p_j \ominus p_i) + \epsilon_{ij}$ with independent Gaussian noise
+# $\epsilon_{ij} \sim \mathcal N(0, P_{ij})$. Independence makes the log-likelihood of a configuration
+# $P = \{p_0, \dots, p_n\}$ a sum over the edges, eq. (2):
 #
-# $$\Delta^l_{ij} = R(\theta_i)^\top (p_j - p_i) + \epsilon_\Delta, \qquad
-#   \delta_{ij} = \theta_j - \theta_i + \epsilon_\delta \pmod{2\pi},$$
+# $$\ln \mathcal L(P \mid Z) = \sum_{(i,j)} \ln \pi(\xi_{ij} \mid P)
+#   = -\tfrac12 \sum_{(i,j)} (p_j \ominus p_i - \xi_{ij})^\top P_{ij}^{-1} (p_j \ominus p_i - \xi_{ij})
+#     - \tfrac12 \sum_{(i,j)} \ln\det(2\pi P_{ij}),$$
 #
-# with Gaussian noise of covariance $P_{ij}$ (the seed assumes $P_{ij} = \mathrm{blkdiag}(P_\Delta,
-# P_\delta)$; real files give a full $3\times3$ information $\Omega_{ij} = P_{ij}^{-1}$). With the edge
-# error $e_{ij}(x) = \big[R(\theta_i)^\top(p_j - p_i) - \Delta^l_{ij};\ \mathrm{wrap}(\theta_j -
-# \theta_i - \delta_{ij})\big]$ the likelihood (2) is $\prod_{ij} \mathcal N(e_{ij}; 0, P_{ij})$ and
-# maximising it is minimising the cost (3)
+# and maximizing it is minimizing the cost of eq. (3),
 #
-# $$x^\star = \arg\min_x \sum_{(i,j)} e_{ij}(x)^\top P_{ij}^{-1} e_{ij}(x).$$
+# $$f(P) = \sum_{(i,j)} (p_j \ominus p_i - \xi_{ij})^\top P_{ij}^{-1} (p_j \ominus p_i - \xi_{ij}). \tag{3}$$
 #
-# **The package's convention.** `lago_cvx.chi2(graph, poses)` returns
-# $\chi^2 = \sum e^\top \Omega e$ — **no factor ½**. This is the χ² that g2o prints; GTSAM's
-# `NonlinearFactorGraph.error()` is ½χ² (its factors carry ½‖·‖²); the SE-Sync objective is a
-# different function (a chordal distance on rotations), so its optimal values are not comparable with
-# ours. (The GTSAM and SE-Sync statements are conventions quoted from the package documentation; they
-# are not re-derived here because neither library is used.) What we *can* check is the exact relation
-# with the Gaussian log-likelihood:
-#
-# $$-2 \log \prod_{ij} \mathcal N(e_{ij}; 0, \Omega_{ij}^{-1}) = \chi^2 + \sum_{ij} \log\det(2\pi\,
-# \Omega_{ij}^{-1}),$$
-#
-# computed independently with `scipy.stats.multivariate_normal` on a world with *full* information
-# matrices (all cross terms non-zero). At the true poses the errors are the noise itself, so χ² follows
-# a chi-square law with $3m$ degrees of freedom: mean $3m$, standard deviation $\sqrt{6m}$.
+# The full SLAM problem is $\min f$. The angular part of each residual is defined modulo $2\pi$; the
+# package wraps it to $[-\pi, \pi)$. **`lago_cvx.chi2` is $f$ exactly — no factor ½** (the convention of
+# g2o; GTSAM's `error()` is $f/2$). We check $-2\ln\mathcal L = f + \sum \ln\det(2\pi P_{ij})$ against
+# `scipy.stats.multivariate_normal` on a synthetic world with full $3\times3$ covariances, and that adding
+# $2\pi k$ to a measured angle does not change $f$.
 
 # %%
 world = lc.manhattan_world(200, seed=0, information="full", sigma_xy=0.05, sigma_theta=0.02)
 g = world.graph
+m = g.n_edges
 print(g)
 e = lc.edge_errors(g, world.truth)
-chi2_truth = lc.chi2(g, world.truth)
-cov = np.linalg.inv(g.information)
-loglik = sum(multivariate_normal(mean=np.zeros(3), cov=cov[k]).logpdf(e[k]) for k in range(g.n_edges))
-logdet = np.linalg.slogdet(2 * np.pi * cov)[1].sum()
-gap = abs(-2 * loglik - (chi2_truth + logdet))
-print(f"chi2 at the truth = {chi2_truth:.4f}")
-print(f"|-2 log L - (chi2 + sum log det 2πΣ)| = {gap:.2e}  (relative {gap / abs(2 * loglik):.1e})")
-assert gap < 1e-9 * abs(2 * loglik)
-
-parts = lc.chi2_parts(g, world.truth)
-print("chi2 parts:", {k: round(v, 4) for k, v in parts.items()})
-assert abs(parts["translation"] + parts["rotation"] + parts["cross"] - chi2_truth) < 1e-9 * chi2_truth
-
-m = g.n_edges
-print(f"3m = {3 * m}, sqrt(6m) = {np.sqrt(6 * m):.1f}, (chi2 - 3m)/sqrt(6m) = {(chi2_truth - 3 * m) / np.sqrt(6 * m):+.2f}")
-assert abs(chi2_truth - 3 * m) < 4 * np.sqrt(6 * m)   # would fail by ~20σ with a factor ½
-
-# The angular error is wrapped: adding 2πk to any measurement leaves χ² unchanged.
-k_shift = rng.integers(-3, 4, m)
-g_shift = lc.PoseGraph(g.n_poses, g.tails, g.heads, g.delta_l, g.delta + 2 * np.pi * k_shift, g.information)
-d = abs(lc.chi2(g_shift, world.truth) - chi2_truth)
-print(f"|chi2(δ + 2πk) - chi2(δ)| = {d:.2e}")
-assert d < 1e-9 * chi2_truth
+f_truth = lc.chi2(g, world.truth)
+cov = g.covariance
+log_l = sum(multivariate_normal(mean=np.zeros(3), cov=cov[k]).logpdf(e[k]) for k in range(m))
+gap = abs(-2 * log_l - (f_truth + np.linalg.slogdet(2 * np.pi * cov)[1].sum()))
+check(gap < 1e-9 * abs(log_l), f"−2 ln L = f + Σ ln det(2πP_ij)   (difference {gap:.1e}; f at the truth = {f_truth:.2f})")
+shifted = lc.PoseGraph(g.n_poses, g.tails, g.heads, g.delta_l, g.delta + 2 * np.pi * rng.integers(-3, 4, m),
+                       g.information)
+check(abs(lc.chi2(shifted, world.truth) - f_truth) < 1e-9 * f_truth, "f is unchanged by δ + 2πk")
 
 # %% [markdown]
-# ## 3. The graph, the incidence matrix $A$ and the reduced form, eqs. (6)–(7)
+# **Which convention? Let the data decide.** At the true poses the residuals are the noise itself, so
+# $f(\text{truth})$ is a sum of $3m$ squared standard normals: a χ² variable with $3m$ degrees of
+# freedom, mean $3m$ and standard deviation $\sqrt{6m}$. A cost with a factor ½ would have mean $3m/2$
+# instead: it would sit $(3m/2)/\sqrt{6m} = \sqrt{3m/8}$ standard deviations below $3m$. For the world
+# above that is about 10σ — the cell computes it. We redraw the noise 400 times on the same
+# graph (fixed truth and edges, fresh noise and covariances) and compare the histogram of $f(\text{truth})$
+# with the χ² law.
+
+# %%
+sigmas_half = np.sqrt(3 * m / 8)
+z_f = (f_truth - 3 * m) / np.sqrt(6 * m)
+z_half = (f_truth / 2 - 3 * m) / np.sqrt(6 * m)
+print(f"m = {m}: 3m = {3 * m}, √(6m) = {np.sqrt(6 * m):.1f}; f(truth) = {f_truth:.1f} → {z_f:+.2f}σ; "
+      f"f/2 → {z_half:+.2f}σ; predicted offset of a factor ½: −√(3m/8) = {-sigmas_half:.2f}σ")
+check(abs(z_f) < 3, f"f(truth) is within 3σ of 3m ({z_f:+.2f}σ): the package's χ² has no factor ½")
+check(abs(abs(z_half) - 10) < 1.5 and abs(z_half + sigmas_half) < 3,
+      f"a factor-½ convention would miss by about 10σ ({z_half:+.2f}σ; −√(3m/8) = {-sigmas_half:.2f}σ)")
+
+draws = []
+for _ in range(400):
+    meas, info = add_noise(world.truth, g.tails, g.heads, sigma_xy=0.05, sigma_theta=0.02, rng=rng, information="full")
+    draws.append(lc.chi2(lc.PoseGraph(g.n_poses, g.tails, g.heads, meas[:, :2], meas[:, 2], info), world.truth))
+draws = np.array(draws)
+mean_z = (draws.mean() - 3 * m) / (np.sqrt(6 * m) / np.sqrt(draws.size))
+print(f"400 draws: mean f = {draws.mean():.1f} (3m = {3 * m}), std = {draws.std(ddof=1):.1f} (√(6m) = {np.sqrt(6 * m):.1f})")
+check(abs(mean_z) < 4 and abs(draws.std(ddof=1) / np.sqrt(6 * m) - 1) < 0.15,
+      "the mean and spread of f(truth) over 400 draws match the χ²(3m) law")
+
+fig, ax = plt.subplots(figsize=(7.5, 3.8))
+grid = np.linspace(draws.min() / 2 - 60, draws.max() + 60, 400)
+ax.hist(draws, bins=30, density=True, color="tab:blue", alpha=0.5, label="f(truth), 400 noise draws")
+ax.hist(draws / 2, bins=30, density=True, color="tab:red", alpha=0.5, label="f(truth)/2 (a factor-½ convention)")
+ax.plot(grid, chi2_law.pdf(grid, 3 * m), "k", label=f"χ² law with 3m = {3 * m} degrees of freedom")
+ax.set_xlabel("cost at the true poses")
+ax.set_title(f"Eq. (3) at the truth follows χ²(3m); a factor ½ lands {abs(z_half):.0f}σ away")
+ax.legend(fontsize=8)
+show(fig, "chi2_law")
+
+# %% [markdown]
+# ## 3. The split residual, eq. (4), and block-diagonal noise, eq. (5)
 #
-# We draw a small graph: a robot drives twice around a square (8 poses, θ accumulating to
-# $7\pi/2$), with odometric edges $k \to k+1$ and four loop closures $k \to k+4$ between the two laps.
-# Measurements are drawn by the package's own noise model (`lago_cvx.synthetic.add_noise`).
+# A measurement has two parts of different nature: a relative position $\Delta^l_{ij}$ (a vector) and a
+# relative orientation $\delta_{ij}$ (a scalar). Eq. (3) with the residual split accordingly is eq. (4):
 #
-# The **incidence matrix** $A \in \mathbb{R}^{(n+1) \times m}$ (eq. (6)) has, in column $k$ (edge
-# $i\to j$), $-1$ in row $i$ and $+1$ in row $j$. Hence $A^\top \theta$ is the vector of orientation
-# differences $\theta_j - \theta_i$ and $(A^\top \otimes I_2) p$ the vector of position differences
-# $p_j - p_i$. The **reduced incidence matrix** $A_2$ (eq. (7)) deletes the anchor's row. With the
-# anchor at the origin ($p_0 = 0$, $\theta_0 = 0$) the unknowns are the $n$ free poses and the
-# measurement model of Section 2 reads, stacked over edges (as formulated here),
+# $$f = \sum_{(i,j)} \begin{bmatrix} R_i^\top (p_j - p_i) - \Delta^l_{ij} \\ (\theta_j - \theta_i) - \delta_{ij}\end{bmatrix}^\top
+#   P_{ij}^{-1} \begin{bmatrix} R_i^\top (p_j - p_i) - \Delta^l_{ij} \\ (\theta_j - \theta_i) - \delta_{ij}\end{bmatrix}. \tag{4}$$
 #
-# $$\delta = A_2^\top \theta + \epsilon_\delta \pmod{2\pi}, \qquad
-#   \Delta^l = R(\theta)^\top (A_2^\top \otimes I_2)\, p + \epsilon_\Delta,$$
+# The paper then *assumes* that the two parts are independent, $P_{ij} = \mathrm{diag}(P_{\Delta^l,ij},
+# P_{\delta,ij})$. The cost splits into a position term and an orientation term, and with the
+# incidence matrix $A$ ($(n+1) \times m$; column of edge $(i,j)$: $-1$ in row $i$, $+1$ in row $j$),
+# $A_2 = A \otimes I_2$, the stacked poses $p^+ = [p_0^\top \dots p_n^\top]^\top$,
+# $\theta^+ = [\theta_0 \dots \theta_n]^\top$, $P_{\Delta^l} = \mathrm{blkdiag}(P_{\Delta^l,ij})$,
+# $P_\delta = \mathrm{diag}(P_{\delta,ij})$ and $R = R(\theta)$ the block-diagonal matrix whose block
+# $k$ is the rotation of the tail of edge $k$, it reads (eq. (5))
 #
-# with $R(\theta) = \mathrm{blkdiag}_k R(\theta_{i_k})$ the rotations of the tails. We build these
-# matrices densely and check that they reproduce the per-edge errors of `lago_cvx.edge_errors` at random
-# poses. `lago_cvx.phases.design_matrix` (used in phase 3) is $B^\top =
-# \mathrm{blkdiag}(A_2^\top \otimes I_2, I)$; we check its first block too.
+# $$f = (A_2^\top p^+ - R\Delta^l)^\top (R P_{\Delta^l} R^\top)^{-1} (A_2^\top p^+ - R\Delta^l)
+#     + (A^\top \theta^+ - \delta)^\top P_\delta^{-1} (A^\top \theta^+ - \delta). \tag{5}$$
+#
+# The position residual is now in the *global* frame: $R_i^\top(p_j - p_i) - \Delta^l_{ij}$ times $R_i$ is
+# $(p_j - p_i) - R_i\Delta^l_{ij}$, and its covariance rotates with it, to $R_i P_{\Delta^l,ij} R_i^\top$.
+# We evaluate eq. (4) and eq. (5) with explicit dense matrices on a small graph with block-diagonal
+# information and compare with `lago_cvx.chi2`, near the truth (where no angular residual wraps).
+
+# %%
+small_world = lc.random_graph(12, 20, seed=3, sigma_xy=0.05, sigma_theta=0.03)
+gs, truth_s = small_world.graph, small_world.truth
+x = truth_s + 0.05 * rng.standard_normal(truth_s.shape)          # some configuration near the truth
+A_full = lc.incidence_matrix(gs).toarray()
+A2_full = np.kron(A_full, np.eye(2))
+Rblk = np.zeros((2 * gs.n_edges, 2 * gs.n_edges))
+for k, i in enumerate(gs.tails):
+    Rblk[2 * k:2 * k + 2, 2 * k:2 * k + 2] = rot2(x[i, 2])
+cov_s = gs.covariance
+P_dl = np.zeros_like(Rblk)
+for k in range(gs.n_edges):
+    P_dl[2 * k:2 * k + 2, 2 * k:2 * k + 2] = cov_s[k, :2, :2]
+P_delta = np.diag(cov_s[:, 2, 2])
+r_pos = A2_full.T @ x[:, :2].ravel() - Rblk @ gs.delta_l.ravel()
+r_rot = A_full.T @ x[:, 2] - gs.delta
+r_rot -= 2 * np.pi * np.round(r_rot / (2 * np.pi))                  # δ is measured modulo 2π
+f_eq5 = r_pos @ np.linalg.solve(Rblk @ P_dl @ Rblk.T, r_pos) + r_rot @ np.linalg.solve(P_delta, r_rot)
+res4 = np.column_stack([between(x[gs.tails], x[gs.heads])[:, :2] - gs.delta_l, r_rot])
+f_eq4 = np.einsum("ka,kab,kb->", res4, gs.information, res4)
+print(gs, f"| block-diagonal information: {np.abs(gs.information[:, :2, 2]).max() == 0}")
+check(abs(f_eq4 - lc.chi2(gs, x)) < 1e-9 * f_eq4, f"eq. (4) = lago_cvx.chi2 ({f_eq4:.4f})")
+check(abs(f_eq5 - lc.chi2(gs, x)) < 1e-9 * f_eq5, f"eq. (5) with A, A₂ = A ⊗ I₂, R(θ) = lago_cvx.chi2 ({f_eq5:.4f})")
+
+# %% [markdown]
+# **Remark 2 (block-diagonal noise holds for holonomic platforms, only approximately otherwise).** A
+# robot that can move sideways (holonomic) can have independent position and heading errors. A car-like
+# (non-holonomic) robot cannot: its heading error turns into a lateral position error, so its odometry
+# correlates $x$–$\theta$ or $y$–$\theta$. Real data shows it: in the Intel data set as distributed with
+# SE-Sync (`se-sync/intel.g2o`) every edge carries position–orientation cross information, mostly between
+# the heading and the lateral position $y$ (in the robot's frame). We measure the
+# correlations, and what the block-diagonal approximation costs: we replace every covariance by
+# $\mathrm{diag}(P_{\Delta^l,ij}, P_{\delta,ij})$ (same marginals, correlation dropped), minimize *that*
+# cost with Gauss–Newton, and evaluate the true cost eq. (3) at the result.
+
+# %%
+intel_full = real("se-sync/intel.g2o")
+if intel_full is not None:
+    cov_i = intel_full.covariance
+    corr = cov_i[:, :2, 2] / np.sqrt(cov_i[:, [0, 1], [0, 1]] * cov_i[:, 2:3, 2])
+    crossed = np.abs(intel_full.information[:, :2, 2]).max(axis=1) > 0
+    blockdiag = cov_i.copy()
+    blockdiag[:, :2, 2] = blockdiag[:, 2, :2] = 0.0
+    approx = lc.PoseGraph(intel_full.n_poses, intel_full.tails, intel_full.heads, intel_full.delta_l,
+                          intel_full.delta, np.linalg.inv(blockdiag))
+    start = lc.lago(intel_full).poses
+    exact_opt = refine(intel_full, start, max_iterations=50)
+    approx_opt = refine(approx, start, max_iterations=50)
+    f_exact, f_at_approx = exact_opt.chi2, lc.chi2(intel_full, approx_opt.poses)
+    print(intel_full)
+    print(f"edges with x–θ or y–θ cross information: {crossed.sum()} of {intel_full.n_edges}; "
+          f"|correlation| median {np.median(np.abs(corr)):.3f}, largest {np.abs(corr).max():.3f}")
+    print(f"minimum of the true cost: {f_exact:.4f} (reference minimum {REFERENCE_CHI2['se-sync/intel.g2o']}); "
+          f"true cost at the minimum of the block-diagonal cost: {f_at_approx:.4f} "
+          f"(+{100 * (f_at_approx / f_exact - 1):.2f} %), positions moved by {lc.ate(approx_opt.poses, exact_opt.poses):.3f} m RMS")
+    check(crossed.all() and np.abs(corr).max() > 0.5, "every edge of se-sync/intel.g2o has x–θ cross information")
+    lateral, forward = np.median(np.abs(corr[:, 1])), np.median(np.abs(corr[:, 0]))
+    check(lateral > 2 * forward, f"the lateral (y–θ) correlation dominates: median |corr| {lateral:.2f} against "
+          f"{forward:.2f} for x–θ — a heading error becomes a sideways position error")
+    check(abs(f_exact - REFERENCE_CHI2["se-sync/intel.g2o"]) < 1e-3 * f_exact, "Gauss–Newton reaches the reference minimum")
+    check(f_at_approx > f_exact, "the block-diagonal approximation of Remark 2 misses the minimum of the true cost")
+
+    fig, ax = plt.subplots(figsize=(7, 3.6))
+    ax.hist(corr[:, 0], bins=40, alpha=0.6, label="corr(x, θ)")
+    ax.hist(corr[:, 1], bins=40, alpha=0.6, label="corr(y, θ)")
+    ax.set_xlabel("correlation coefficient of the measurement noise, per edge")
+    ax.set_ylabel("edges")
+    ax.set_title("Remark 2 on real data: se-sync/intel.g2o is not block-diagonal")
+    ax.legend()
+    show(fig, "remark2_correlations")
+
+# %% [markdown]
+# ## 4. The reduced problem, eq. (6), and the system eq. (7)
+#
+# The reference frame is pose 0: $p_0 = 0$, $\theta_0 = 0$. Deleting pose 0 from the unknowns deletes
+# its row from $A$ (and its two rows from $A_2$): the *reduced* incidence matrices, $n \times m$ and
+# $2n \times 2m$. With $p \in \mathbb R^{2n}$, $\theta \in \mathbb R^n$ the remaining unknowns, eq. (5)
+# becomes eq. (6):
+#
+# $$f(p, \theta) = (A_2^\top p - R\Delta^l)^\top (R P_{\Delta^l} R^\top)^{-1} (A_2^\top p - R\Delta^l)
+#   + (A^\top\theta - \delta)^\top P_\delta^{-1} (A^\top\theta - \delta). \tag{6}$$
+#
+# Minimizing eq. (6) is solving, in the weighted least-squares sense, the system eq. (7):
+#
+# $$\begin{cases} A_2^\top p = R(\theta)\,\Delta^l \\ A^\top \theta = \delta \end{cases} \tag{7}$$
+#
+# It looks linear: incidence matrices times unknowns equal measurements. **It is not**: $R(\theta)$
+# multiplies the data by trigonometric functions of the unknown orientations, and with $\theta$ unknown
+# the first equation is bilinear. (Only the second equation is linear in $\theta$ — lecture 2 builds on
+# that.) In the package:
+#
+# | paper | `lago_cvx` |
+# |---|---|
+# | $A$, $(n+1)\times m$ | `lc.incidence_matrix(graph)` |
+# | reduced $A$, $n \times m$ | `lc.reduced_incidence(graph)` (some package docstrings call it "A2") |
+# | reduced $A_2^\top = A^\top \otimes I_2$ | the first block of `lago_cvx.phases.design_matrix(graph)` |
+# | $n + 1$ | `graph.n_poses` |
+#
+# We build them for a small graph — a robot that drives twice around a square, 8 poses, with four loop
+# closures between the two laps — and check: one $-1$ and one $+1$ per column; $A^\top\theta^+$ is the
+# vector of orientation differences; the reduced matrices and the package agree; and the residual of
+# eq. (7) is not linear in $\theta$: superposition fails.
 
 # %%
 corner = np.array([[0, 0], [2, 0], [2, 2], [0, 2]], float)
@@ -179,187 +327,201 @@ truth8[:, 2] = np.arange(8) * np.pi / 2               # heading towards the next
 tails8 = np.array([0, 1, 2, 3, 4, 5, 6, 0, 1, 2, 3])
 heads8 = np.array([1, 2, 3, 4, 5, 6, 7, 4, 5, 6, 7])
 meas8, info8 = add_noise(truth8, tails8, heads8, sigma_xy=0.05, sigma_theta=0.02, rng=np.random.default_rng(1))
-small = lc.PoseGraph(8, tails8, heads8, meas8[:, :2], meas8[:, 2], info8, name="two laps of a square")
-print(small)
-print("loop closures: true θ_j - θ_i =", np.round((truth8[heads8] - truth8[tails8])[7:, 2], 3),
-      " measured δ (wrapped) =", np.round(small.delta[7:], 3))
+square = lc.PoseGraph(8, tails8, heads8, meas8[:, :2], meas8[:, 2], info8, name="two laps of a square")
+n8, m8 = square.n_poses - 1, square.n_edges
+A8 = lc.incidence_matrix(square).toarray()
+A8_red = lc.reduced_incidence(square).toarray()
+A2_8_red = np.kron(A8_red, np.eye(2))
+print(square, f"→ n = {n8}, m = {m8}")
+print("A (rows: poses 0…7; columns: edges 0…10):\n", A8.astype(int))
+check(np.all(A8.sum(axis=0) == 0) and np.all(np.abs(A8).sum(axis=0) == 2), "each column of A holds one −1 and one +1")
+check(np.allclose(A8.T @ truth8[:, 2], truth8[heads8, 2] - truth8[tails8, 2]), "Aᵀθ⁺ = (θ_j − θ_i) for every edge")
+check(np.array_equal(A8_red, np.delete(A8, 0, axis=0)), "lc.reduced_incidence = A without the row of pose 0")
+check(np.array_equal(design_matrix(square).toarray()[:2 * m8, :2 * n8], A2_8_red.T),
+      "design_matrix's first block = reduced A₂ᵀ = (A ⊗ I₂)ᵀ without pose 0")
 
-A = lc.incidence_matrix(small).toarray()
-A2 = lc.reduced_incidence(small, anchor=0).toarray()
-print("A (rows = poses 0..7, columns = edges 0..10):")
-print(A.astype(int))
-assert np.all(A.sum(axis=0) == 0)                                  # one -1 and one +1 per column
-assert np.array_equal(A2, np.delete(A, 0, axis=0))                 # A2 = A without the anchor row
-th = truth8[:, 2]
-assert np.allclose(A.T @ th, th[heads8] - th[tails8])              # Aᵀθ = θ_j - θ_i
 
-# the reduced form reproduces edge_errors at random poses (anchor at the origin)
-x = random_poses(8)
-x[0] = 0.0
-p_free = x[1:, :2].reshape(-1)                                     # interleaved x1, y1, x2, y2, ...
-Rt = np.zeros((2 * small.n_edges, 2 * small.n_edges))
-for k in range(small.n_edges):
-    Rt[2 * k:2 * k + 2, 2 * k:2 * k + 2] = rot2(x[tails8[k], 2]).T
-e_pos = Rt @ np.kron(A2.T, np.eye(2)) @ p_free - small.delta_l.reshape(-1)
-e_rot = wrap_angle(A2.T @ x[1:, 2] - small.delta)
-e_ref = lc.edge_errors(small, x)
-err = max(np.abs(e_pos - e_ref[:, :2].reshape(-1)).max(), np.abs(e_rot - e_ref[:, 2]).max())
-print(f"max |reduced-form error - edge_errors| = {err:.2e}")
-assert err < 1e-10
-Bt = design_matrix(small).toarray()
-assert np.array_equal(Bt[:2 * small.n_edges, :2 * 7], np.kron(A2.T, np.eye(2)))
-print("design_matrix(small)[:2m, :2n] == A2ᵀ ⊗ I2: True")
+def residual_7(p, theta):
+    """Residual of the first equation of eq. (7), A₂ᵀp − R(θ)Δˡ, pose 0 at the origin."""
+    th_all = np.concatenate([[0.0], theta])
+    return A2_8_red.T @ p - np.einsum("kab,kb->ka", rot2(th_all[tails8]), square.delta_l).ravel()
 
-# %%
-fig, ax = plt.subplots(figsize=(5.5, 5.5))
-plotting.plot_trajectory(ax, truth8, label="odometric edges (k → k+1)", color="tab:blue", linewidth=1.5,
-                         style="-o", markersize=4)
-plotting.plot_edges(ax, small, truth8, which="loop_closures", color="tab:red", linewidth=1.5, alpha=0.8,
-                    label="loop closures (k → k+4)")
-ax.quiver(truth8[:, 0], truth8[:, 1], np.cos(truth8[:, 2]), np.sin(truth8[:, 2]), angles="xy",
-          scale_units="xy", scale=4, width=0.006, color="k")
+
+p_rand, t1, t2 = rng.normal(size=2 * n8), rng.normal(size=n8), rng.normal(size=n8)
+superposition = residual_7(p_rand, t1 + t2) - residual_7(p_rand, t1) - residual_7(p_rand, t2) + residual_7(p_rand, 0 * t1)
+p_lin = residual_7(2 * p_rand, t1) - 2 * residual_7(p_rand, t1) + residual_7(0 * p_rand, t1)
+check(np.abs(p_lin).max() < 1e-12, "for fixed θ the first equation of eq. (7) is affine in p")
+check(np.abs(superposition).max() > 0.1, f"but not in θ: superposition fails by {np.abs(superposition).max():.2f}")
+
+fig, axs = plt.subplots(1, 2, figsize=(11, 4.6), gridspec_kw={"width_ratios": [1, 1.25]})
+plotting.plot_trajectory(axs[0], truth8, label="odometric edges", color="tab:blue", linewidth=1.5, style="-o", markersize=4)
+plotting.plot_edges(axs[0], square, truth8, which="loop_closures", color="tab:red", linewidth=1.5, alpha=0.8,
+                    label="loop closures")
 for i, (px, py) in enumerate(truth8[:, :2]):
-    ax.annotate(f"{i}" + (" (anchor)" if i == 0 else ""), (px, py), textcoords="offset points",
-                xytext=(6, 6), fontsize=11)
-ax.set_title("A small pose graph: 8 poses, 11 edges\n(arrows: headings θ; true poses)")
-ax.legend(loc="center", fontsize=9)
-save(fig, "graph")
-plt.close(fig)
+    axs[0].annotate(f"{i}" + (" (reference)" if i == 0 else ""), (px, py), textcoords="offset points", xytext=(5, 5))
+axs[0].legend(loc="center", fontsize=8)
+axs[0].set_title("8 poses, 11 edges (true positions)")
+axs[1].imshow(A8, cmap="coolwarm", vmin=-1.5, vmax=1.5)
+axs[1].set_xticks(range(m8), [f"{t}→{h}" for t, h in zip(tails8, heads8)], rotation=60, fontsize=8)
+axs[1].set_yticks(range(8))
+axs[1].set_xlabel("edge (i → j)")
+axs[1].set_ylabel("pose")
+axs[1].axhline(0.5, color="k", lw=1)
+axs[1].set_title("incidence matrix A (blue −1 at i, red +1 at j);\nthe reduced A drops row 0")
+show(fig, "incidence")
 
 # %% [markdown]
-# ## 4. The problem is non-convex
+# ## 5. Lemma 1 — the pose graph is connected
 #
-# The cost depends on the orientations through $R(\theta_i)$ and through the wrapped angular error,
-# so it is $2\pi$-periodic in every $\theta_i$. A convex function that is periodic along a line is
-# constant on it; χ² is not constant, so **χ² is not convex**. Concretely, let $x^\star$ be a
-# minimiser (here: Gauss–Newton, `lago_cvx.refine`, started at the truth of the small graph) and move
-# along the straight line $x(\phi) = x^\star + \phi\, e_{\theta_2}$, rotating pose 2 only. Then
+# **Lemma 1 (connectivity of the pose graph).** A pose graph built from a robot's odometric and
+# loop-closing constraints is connected. *Proof:* the odometric edges join the poses taken at consecutive
+# instants, so they form a path through all poses — the trajectory the robot travelled.
 #
-# * $x(2\pi)$ describes the *same* physical configuration: $\chi^2(x(2\pi)) = \chi^2(x^\star)$;
-# * the midpoint $x(\pi)$ (pose 2 turned around) costs more, so Jensen's inequality
-#   $\chi^2(\tfrac12 x^\star + \tfrac12 x(2\pi)) \le \tfrac12\chi^2(x^\star) + \tfrac12 \chi^2(x(2\pi))$ fails;
-# * on $[-3\pi, 3\pi]$ the curve has (at least) three separate local minima.
+# Connectivity is what every later step needs: a disconnected graph leaves the relative placement of its
+# components undetermined. We check the lemma's proof on real graphs (the odometric edges alone — edges
+# between consecutive ids — join all $n + 1$ poses: one component) and show what breaks when its
+# hypothesis fails: two robots that never observed each other give two components, and LAGO refuses them.
 
 # %%
-x_star = refine(small, truth8 - truth8[0], tolerance=1e-15).poses
+for rel in ["carlone/INTEL_P_toro.graph", "se-sync/MIT.g2o"]:
+    graph = real(rel)
+    if graph is None:
+        continue
+    odometric = graph.subgraph_edges(graph.is_odometric)
+    parts, _ = lc.connected_components(odometric)
+    print(f"{rel}: n + 1 = {graph.n_poses} poses, {graph.n_odometric} odometric edges, {graph.n_loop_closures} loop closures")
+    check(graph.n_odometric == graph.n_poses - 1 and parts == 1,
+          f"Lemma 1 on {rel}: the odometric path alone connects all poses")
+
+two_robots = lc.circle_world(20, seed=0).graph
+offset = two_robots.n_poses
+union = lc.PoseGraph(2 * offset, np.concatenate([two_robots.tails, two_robots.tails + offset]),
+                     np.concatenate([two_robots.heads, two_robots.heads + offset]),
+                     np.vstack([two_robots.delta_l] * 2), np.concatenate([two_robots.delta] * 2),
+                     np.concatenate([two_robots.information] * 2))
+try:
+    lc.lago(union)
+    refused = ""
+except GraphError as exc:
+    refused = str(exc)
+print("two robots, no common observation:", refused)
+check(lc.connected_components(union)[0] == 2 and refused != "", "without Lemma 1's odometric path: 2 components, refused")
+
+# %% [markdown]
+# ## 6. The cost is non-convex, with local minima
+#
+# The cost eq. (3) depends on the orientations through $R(\theta_i)$ and through the angular residual,
+# which is defined modulo $2\pi$: $f$ is $2\pi$-periodic in every $\theta_i$. A convex function that is
+# periodic along a line is constant on it; $f$ is not constant, so **$f$ is not convex**. Concretely: let
+# $x^\star$ be a minimizer for the square graph (Gauss–Newton, `lago_cvx.refine`, started at the truth)
+# and turn pose 2 alone by $\phi$. At $\phi = 2\pi$ the configuration is the same, the cost too, while
+# the midpoint $\phi = \pi$ costs more — Jensen's inequality fails — and on $[-3\pi, 3\pi]$ the curve has
+# several separate local minima.
+
+# %%
+x_star = refine(square, truth8 - truth8[0], tolerance=1e-15).poses
 phi = np.linspace(-3 * np.pi, 3 * np.pi, 1201)
-K_POSE = 2
 
 
-def along(ph):
-    x = x_star.copy()
-    x[K_POSE, 2] += ph
-    return x
+def turned(angle, pose=2):
+    y = x_star.copy()
+    y[pose, 2] += angle
+    return y
 
 
-curve = np.array([lc.chi2(small, along(ph)) for ph in phi])
-f0, f2pi, fpi = lc.chi2(small, x_star), lc.chi2(small, along(2 * np.pi)), lc.chi2(small, along(np.pi))
-print(f"chi2(x*) = {f0:.4f}, chi2(x* + 2π e) = {f2pi:.4f}, chi2(midpoint) = {fpi:.1f}")
-assert abs(f2pi - f0) < 1e-9 * max(f0, 1.0)
-assert fpi > 0.5 * (f0 + f2pi) + 1.0                                # Jensen's inequality violated
-interior = (curve[1:-1] < curve[:-2]) & (curve[1:-1] < curve[2:])
-minima = phi[1:-1][interior]
-print("local minima of chi2 along the line at φ/π =", np.round(minima / np.pi, 3))
-assert minima.size >= 3
+curve = np.array([lc.chi2(square, turned(a)) for a in phi])
+f0, f2pi, fpi = (lc.chi2(square, turned(a)) for a in (0.0, 2 * np.pi, np.pi))
+inner = (curve[1:-1] < curve[:-2]) & (curve[1:-1] < curve[2:])
+minima = phi[1:-1][inner]
+print(f"f(x*) = {f0:.4f}, f(x* turned by 2π) = {f2pi:.4f}, f(midpoint) = {fpi:.1f}; "
+      f"local minima at φ/π = {np.round(minima / np.pi, 3)}")
+check(abs(f2pi - f0) < 1e-9 * max(f0, 1.0), "f is 2π-periodic in θ₂")
+check(fpi > 0.5 * (f0 + f2pi), "Jensen's inequality fails at the midpoint: f is not convex")
+check(minima.size >= 3, f"{minima.size} local minima along one line")
 
-fig, ax = plt.subplots(figsize=(7, 3.8))
-ax.plot(phi / np.pi, curve, color="tab:blue", label=r"$\chi^2(x^\star + \phi\, e_{\theta_2})$")
-ax.plot(minima / np.pi, curve[1:-1][interior], "o", color="tab:red", label="local minima")
+fig, ax = plt.subplots(figsize=(7.5, 3.8))
+ax.plot(phi / np.pi, curve, color="tab:blue", label=r"$f(x^\star$ with pose 2 turned by $\phi)$")
+ax.plot(minima / np.pi, curve[1:-1][inner], "o", color="tab:red", label="local minima")
 ax.plot([0, 2], [f0, f2pi], "k--", linewidth=1, label="chord between two minima")
 ax.set_yscale("log")
-ax.set_xlabel(r"rotation $\phi$ of pose 2 [units of $\pi$]")
-ax.set_ylabel("χ² (g2o convention)")
-ax.set_title("χ² along a straight line in pose space: periodic, multi-modal, not convex")
-ax.legend(fontsize=9, loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=3)
-save(fig, "nonconvex_rotation")
-plt.close(fig)
+ax.set_xlabel(r"$\phi$ [units of $\pi$]")
+ax.set_ylabel("cost eq. (3)")
+ax.set_title("Along one line in pose space the cost is periodic and multi-modal")
+ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=3)
+show(fig, "nonconvex_rotation")
 
 # %% [markdown]
-# ## 5. Local methods depend on the initial guess
-#
-# Iterative solvers (Gauss–Newton, Levenberg–Marquardt) linearise the cost at the current guess and
-# converge to a *local* minimum near it. We run the package's Gauss–Newton (`lago_cvx.refine.refine`)
-# on a synthetic Manhattan world with rather noisy rotations ($\sigma_\theta = 0.1$ rad) from three
-# guesses: dead reckoning along the odometry (`odometry_guess`), LAGO's estimate and the truth. We
-# verify that each end point is a genuine local minimum — one more Gauss–Newton step is negligible
-# ($\|dx\|_\infty$, the solution of $J^\top J\, dx = -J^\top r$) and 200 random perturbations of size
-# $10^{-3}$ all increase χ² — and that the odometry start ends in a different, far worse minimum.
-# For a convex function every local minimum is global, so two local minima with different values are a
-# second proof of non-convexity; the cost along the segment between them rises above the chord.
+# **Local solvers land where they start.** Gauss–Newton linearizes the cost at the current guess and
+# converges to a *local* minimum near it. On a synthetic Manhattan world with noisy headings we start it
+# from dead reckoning (the odometry composed along the path, `odometry_guess`) and from LAGO's estimate
+# (the subject of lectures 2–6): the two runs stop in two different minima, and the cost between them
+# rises above the chord — a second proof of non-convexity. On a real graph (MIT) the same happens.
 
 # %%
 mw = lc.manhattan_world(200, seed=0, sigma_theta=0.1, sigma_xy=0.05)
 gm = mw.graph
-print(gm)
-starts = {"dead reckoning": odometry_guess(gm), "LAGO": lc.lago(gm).poses, "truth": mw.truth.copy()}
-runs = {name: refine(gm, x0, max_iterations=200, tolerance=1e-15) for name, x0 in starts.items()}
-free = np.arange(1, gm.n_poses)
-rng_p = np.random.default_rng(2)
-for name, r in runs.items():
-    res_w = whitened_residuals(gm, r.poses).reshape(-1)
-    J = jacobian(gm, r.poses)
-    dx = spla.spsolve((J.T @ J).tocsc(), -(J.T @ res_w))
-    rises = []
-    for _ in range(200):
-        pert = r.poses.copy()
-        pert[free] += 1e-3 * rng_p.standard_normal((free.size, 3))
-        rises.append(lc.chi2(gm, pert) - r.chi2)
-    print(f"GN from {name:15s}: chi2 {r.chi2_initial:12.1f} -> {r.chi2:9.3f} in {r.iterations:2d} steps; "
-          f"next GN step |dx|max = {np.abs(dx).max():.1e}; min chi2 rise under perturbation = {min(rises):.3f}")
-    assert np.abs(dx).max() < 1e-5 and min(rises) > 0
-chi_dr, chi_lago, chi_true = (runs[k].chi2 for k in ("dead reckoning", "LAGO", "truth"))
-assert abs(chi_lago - chi_true) < 1e-6 * chi_true                  # same (best known) minimum
-assert chi_dr > 10 * chi_lago                                      # a different, much worse one
+from_dr = refine(gm, odometry_guess(gm), max_iterations=200)
+from_lago = refine(gm, lc.lago(gm).poses, max_iterations=200)
+from_truth = refine(gm, mw.truth, max_iterations=200)
+for name, run in [("dead reckoning", from_dr), ("LAGO", from_lago), ("the truth", from_truth)]:
+    print(f"Gauss–Newton from {name:15s}: cost {run.chi2_initial:12.1f} → {run.chi2:9.3f} in {run.iterations:2d} steps ({run.reason})")
+check(from_dr.converged and from_lago.converged, "both runs converged")
+check(from_dr.chi2 > 10 * from_lago.chi2, f"from dead reckoning: a minimum {from_dr.chi2 / from_lago.chi2:.0f}× worse")
+check(abs(from_lago.chi2 - from_truth.chi2) < 1e-6 * from_truth.chi2, "from LAGO: the same minimum as from the truth")
+tt = np.linspace(0, 1, 101)
+segment = np.array([lc.chi2(gm, (1 - s) * from_dr.poses + s * from_lago.poses) for s in tt])
+chord = (1 - tt) * segment[0] + tt * segment[-1]
+check(np.max(segment - chord) > 0, f"the cost rises {np.max(segment - chord):.0f} above the chord between them")
 
-xa, xb = runs["dead reckoning"].poses, runs["LAGO"].poses
-tt = np.linspace(0, 1, 201)
-seg = np.array([lc.chi2(gm, (1 - s) * xa + s * xb) for s in tt])
-chord = (1 - tt) * seg[0] + tt * seg[-1]
-print(f"max over the segment of chi2 - chord = {np.max(seg - chord):.1f} (> 0: not convex)")
-assert np.max(seg - chord) > 0
+mit = real("se-sync/MIT.g2o")
+if mit is not None:
+    mit_dr = refine(mit, odometry_guess(mit), max_iterations=100)
+    mit_lago = refine(mit, lc.lago(mit).poses, max_iterations=100)
+    print(f"MIT: from dead reckoning cost {mit_dr.chi2:.2f}; from LAGO {mit_lago.chi2:.4f} "
+          f"(reference minimum {REFERENCE_CHI2['se-sync/MIT.g2o']})")
+    check(mit_dr.chi2 > 5 * mit_lago.chi2 and abs(mit_lago.chi2 - REFERENCE_CHI2["se-sync/MIT.g2o"]) < 1e-3 * mit_lago.chi2,
+          "MIT: dead reckoning leads Gauss–Newton to a far worse minimum, LAGO to the reference one")
 
-fig, axs = plt.subplots(1, 2, figsize=(12, 5))
+fig, axs = plt.subplots(1, 2, figsize=(12, 4.8))
 plotting.plot_trajectory(axs[0], mw.truth, color="0.7", linewidth=3, label="truth")
-plotting.plot_trajectory(axs[0], xa, color="tab:red", label=f"GN from dead reckoning, χ²={chi_dr:.0f}")
-plotting.plot_trajectory(axs[0], xb, color="tab:blue", label=f"GN from LAGO, χ²={chi_lago:.1f}")
+plotting.plot_trajectory(axs[0], from_dr.poses, color="tab:red", label=f"from dead reckoning, cost {from_dr.chi2:.0f}")
+plotting.plot_trajectory(axs[0], from_lago.poses, color="tab:blue", label=f"from LAGO, cost {from_lago.chi2:.1f}")
 axs[0].set_title("Gauss–Newton: two starts, two local minima")
-axs[0].legend(fontsize=9)
-axs[1].plot(tt, seg, label="χ² on the segment")
+axs[0].legend(fontsize=8)
+axs[1].plot(tt, segment, label="cost on the segment")
 axs[1].plot(tt, chord, "k--", linewidth=1, label="chord")
 axs[1].set_yscale("log")
-axs[1].set_xlabel("t  (x = (1−t)·x_deadreckoning-GN + t·x_LAGO-GN)")
-axs[1].set_ylabel("χ² (g2o convention)")
-axs[1].set_title("χ² between the two minima rises above the chord")
-axs[1].legend(fontsize=9)
-save(fig, "local_minima")
-plt.close(fig)
+axs[1].set_xlabel("t (configuration (1 − t)·[from dead reckoning] + t·[from LAGO])")
+axs[1].set_ylabel("cost eq. (3)")
+axs[1].set_title("between the two minima the cost rises above the chord")
+axs[1].legend(fontsize=8)
+show(fig, "local_minima")
 
 # %% [markdown]
-# ### The same on a real graph
+# **Summary.** Maximum likelihood on a pose graph is the non-linear least-squares problem eq. (3); with
+# independent position and orientation noise it splits as eqs. (5)–(6), and it is the least-squares form
+# of the system eq. (7), whose only non-linearity is $R(\theta)$. The graph is connected (Lemma 1), but
+# the cost is periodic in every orientation, hence non-convex, and local solvers depend on their start.
+# LAGO avoids the start altogether by solving linear problems only: the orientations first (lecture 2),
+# then the positions (lectures 3–4).
 #
-# MIT (`se-sync/MIT.g2o`, 808 poses): Gauss–Newton from dead reckoning stops in a local minimum
-# far above the one reached from LAGO's estimate (the reference minimum of the datasets README is
-# χ² = 39.6013).
-
-# %%
-try:
-    mit = lc.read_graph(dataset("se-sync/MIT.g2o"))
-except DatasetNotFound as exc:
-    print(f"real datasets not found: skipping the MIT example ({exc})")
-else:
-    print(mit)
-    r_dr = refine(mit, odometry_guess(mit), max_iterations=100)
-    r_lg = refine(mit, lc.lago(mit).poses, max_iterations=100)
-    print(f"GN from dead reckoning: chi2 {r_dr.chi2_initial:.4g} -> {r_dr.chi2:.3f} ({r_dr.reason})")
-    print(f"GN from LAGO:           chi2 {r_lg.chi2_initial:.4g} -> {r_lg.chi2:.3f} ({r_lg.reason})")
-    assert r_dr.chi2 > 5 * r_lg.chi2
-    assert abs(r_lg.chi2 - 39.6013) < 1e-3 * 39.6013
-
-# %% [markdown]
-# **Summary.** The maximum-likelihood problem is a non-linear least-squares problem on poses whose
-# cost is periodic in every orientation, hence non-convex with many local minima; where a local solver
-# ends depends on where it starts. LAGO (Lectures 2–3 and on) builds a good starting point by solving
-# *linear* problems only: first the orientations (phase 1), then the positions (phases 2–3).
-
-# %%
-print(f"lecture 1 executed in {time.perf_counter() - T_START:.1f} s")
+# ## Exercise 1 — How far off is a factor ½?
+#
+# *Derive.* At the true poses $f$ follows a χ² law with $3m$ degrees of freedom. Show that a cost with a
+# factor ½ sits $\sqrt{3m/8}$ standard deviations below $3m$ on average, and find the smallest number of
+# edges $m$ for which that offset reaches 3σ. Check your formula by simulation on worlds of different
+# sizes. (Solution: `solutions/01_problem_ex1.py`.)
+#
+# ## Exercise 2 — The reduced cost of eq. (6) in code
+#
+# *Implement.* Write a function that evaluates eq. (6) for a graph with block-diagonal information, from
+# the reduced $A$, the reduced $A_2 = A \otimes I_2$ and $R(\theta)$ as sparse matrices, for any
+# configuration with pose 0 at the origin. Compare it with `lago_cvx.chi2` on a few hundred poses, and
+# find a configuration where the two differ — and explain why (hint: what does the package do to an
+# angular residual of $3\pi$?). (Solution: `solutions/01_problem_ex2.py`.)
+#
+# ## Exercise 3 — How many minima does Gauss–Newton find?
+#
+# *Explore.* On a small synthetic world, start Gauss–Newton from 30 random configurations (positions
+# and headings drawn at random) and count the distinct minima it reaches, for increasing heading noise.
+# Does LAGO's start reach the best of them? (Solution: `solutions/01_problem_ex3.py`.)

@@ -1,425 +1,488 @@
 # %% [markdown]
 # # Lecture 2 — Phase 1: the orientations as a linear estimation problem
 #
-# Section IV-B of the seed (Carlone, Aragues, Castellanos, Bona, RSS 2011). LAGO's first phase
-# estimates the orientations $\theta$ of the poses **from the relative orientation measurements
-# $\delta$ alone**, by a linear weighted least-squares problem. This lecture checks, with the package
-# `lago_cvx`:
+# Section IV-B of Carlone, Aragues, Castellanos, Bona (RSS 2011). Lecture 1 ended with the system
+# eq. (7), non-linear because of $R(\theta)$. Its second half does not contain $R$: the relative
+# orientations alone determine the orientations, by *linear* weighted least squares. That is LAGO's
+# phase 1.
 #
-# 1. Lemma 1 (as formulated here): the relative orientations are a *linear* model in $\theta$,
-#    $\delta_{\rm reg} = A_2^\top \theta + \epsilon_\delta$, once the $2k\pi$ ambiguity is removed;
-# 2. Proposition 1: $\operatorname{rank} A = \operatorname{rank} A_2 = n$ iff the graph is connected;
-# 3. the BLUE of eq. (13), as an explicit cvxpy problem and as a sparse closed form;
-# 4. its information matrix $A_2 P_\delta^{-1} A_2^\top$ — a weighted graph Laplacian;
-# 5. a Monte-Carlo check that $\hat\theta$ is unbiased with covariance $P_\theta = (A_2 P_\delta^{-1}
-#    A_2^\top)^{-1}$.
+# **Learning goals.** After this lecture you can
 #
-# Notation as in Lecture 1: poses $0, \dots, n$ (package: `n_poses` $= n + 1$), anchor 0, $m$ edges,
-# incidence matrix $A$ ($(n+1) \times m$), reduced incidence $A_2$ ($n \times m$, anchor row deleted),
-# $P_\delta = \mathrm{diag}(P_{\delta,ij})$ the variances of the relative orientations.
+# * state eq. (8), $A^\top\theta = \delta$, and explain why it is linear only after the $2k\pi$
+#   ambiguity of measured angles has been removed;
+# * prove Proposition 1 (a connected graph and one known orientation give a unique phase-1 solution)
+#   from the rank of the reduced incidence matrix, and check it on real data;
+# * write the BLUE of eq. (13) as a cvxpy problem with named parameters, re-solve it by changing a
+#   parameter, and check it against the closed form;
+# * read the information matrix $A P_\delta^{-1} A^\top$ as a weighted graph Laplacian;
+# * interpret the dual variable of an anchor constraint as a force;
+# * verify by Monte Carlo that $\hat\theta$ is unbiased with covariance $P_\theta$.
+#
+# Notation as in lecture 1: $n + 1$ poses, pose 0 the reference ($\theta_0 = 0$), $m$ edges, $A$ the
+# **reduced** incidence matrix ($n \times m$, the row of pose 0 deleted; `lc.reduced_incidence(graph)` in
+# the package, which some package docstrings call "A2"), $P_\delta = \mathrm{diag}(P_{\delta,ij})$ the
+# variances of the relative orientations.
 
 # %%
-import time
-
-
+import cvxpy as cp
 import matplotlib.pyplot as plt
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.sparse import csgraph
 
-from _lecture import figure_saver, paper_lago
 import lago_cvx as lc
-from lago_cvx import phases as P
-from lago_cvx.datasets import DatasetNotFound, dataset
-from lago_cvx.solvers import solve
-from lago_cvx.uncertainty import edge_uncertainty
-from lago_cvx.graph import check_connected, connected_components, spanning_tree
-from lago_cvx.metrics import relative_difference
+from _lecture import check, paper_lago, real, setup, show
+from lago_cvx import phases
 from lago_cvx.errors import GraphError
+from lago_cvx.graph import spanning_tree
 from lago_cvx.posegraph import wrap_angle
 from lago_cvx.regularization import regularize
+from lago_cvx.solvers import LEAST_SQUARES, solve
+from lago_cvx.uncertainty import edge_uncertainty
 
-save = figure_saver("02_phase1")
-
-T_START = time.perf_counter()
-
-try:
-    INTEL = lc.read_graph(dataset("carlone/INTEL_P_toro.graph"))
-    print("real graph:", INTEL)
-except DatasetNotFound as exc:
-    INTEL = None
-    print(f"real datasets not found: skipping the real-data cells ({exc})")
+setup("02_phase1")
+INTEL = real("carlone/INTEL_P_toro.graph")
 
 # %% [markdown]
-# ## 1. Lemma 1 — relative orientations are linear in $\theta$ (as formulated here)
+# ## 1. Eq. (8): the orientations obey a linear model — once regularized
 #
-# With the anchor's orientation fixed, $\theta_0 = 0$, the true relative orientation of edge
-# $k = (i \to j)$ is $\theta_j - \theta_i = (A^\top \theta)_k = (A_2^\top \theta_{1:n})_k$. The
-# measurement is $\delta_k = \theta_j - \theta_i + \epsilon_{\delta,k}$ **up to a multiple of
-# $2\pi$**: a sensor reports angles in $[-\pi, \pi)$. The linear model is therefore stated for the
-# *regularized* measurements $\delta_{\rm reg} = \delta + 2\pi k$ (Section IV-E, `lago_cvx.regularize`,
-# Lecture 5):
+# The true relative orientation of edge $(i, j)$ is $\theta_j - \theta_i$, entry $k$ of $A^\top\theta$
+# ($\theta \in \mathbb R^n$ the unknown orientations, $\theta_0 = 0$). Phase 1 solves the second
+# equation of eq. (7) alone:
 #
-# $$\delta_{\rm reg} = A_2^\top \theta + \epsilon_\delta, \qquad \epsilon_\delta \sim \mathcal N(0,
-#   P_\delta), \tag{8}$$
+# $$A^\top \theta = \delta. \tag{8}$$
 #
-# where $\theta \in \mathbb{R}^n$ are the orientations *lifted* to the branch chosen by the spanning
-# tree: $\theta^\star_v \equiv \theta^{\rm true}_v - \theta^{\rm true}_0 \pmod{2\pi}$, with the integer
-# multiple of $2\pi$ fixed by integrating $\delta$ along the tree. What we check:
+# There is a catch: a sensor reports $\delta_{ij}$ in $[-\pi, \pi)$, so $A^\top\theta = \delta$ holds
+# only **modulo $2\pi$**. Before eq. (8) is a linear model, every measurement must be lifted to
+# $\delta_{\rm reg} = \delta + 2k\pi$ consistent with the others — the regularization of Section IV-E
+# (`lc.regularize`, lecture 5). After it, $\delta_{\rm reg} = A^\top\theta + \epsilon_\delta$ with
+# $\epsilon_\delta \sim \mathcal N(0, P_\delta)$, a textbook linear Gaussian model. We call this the
+# **linearity of the regularized orientation model**. (Do not confuse it with Lemma 1, which is about
+# connectivity: Lemma 1 (the pose graph is connected) is what makes this model solvable, see §2.)
 #
-# * **noiseless winding world** (a circle driven 3 times, θ up to $6\pi$): the raw $\delta$ violate
-#   $\delta = A_2^\top \theta$ by multiples of $2\pi$; after regularization there is $\hat\theta$ (phase
-#   1's output) with $A_2^\top \hat\theta = \delta_{\rm reg}$ to round-off and $\hat\theta \equiv
-#   \theta^{\rm true} - \theta^{\rm true}_0 \pmod{2\pi}$;
-# * **noisy world**: with $\theta^\star$ the lifted truth, the residual of the linear model is *exactly*
-#   the wrapped measurement noise, $\delta_{\rm reg} - A^\top \theta^\star = \mathrm{wrap}(\delta -
-#   A^\top\theta^{\rm true})$ for every edge (no stray $2\pi$), and standardised by $\sqrt{P_\delta}$ it
-#   has mean ≈ 0 and standard deviation ≈ 1.
+# Two checks. On a *noiseless* robot that drives three times around a circle, the raw $\delta$ violate
+# eq. (8) by multiples of $2\pi$; regularized along the odometric path (the paper's choice) they satisfy
+# it exactly, and the solution is the true (unwrapped) heading. On a *noisy* world, the residual $\delta_{\rm reg} - A^\top\theta^{\rm true}$ of
+# the regularized model is exactly the measurement noise: no stray $2\pi$ left.
 
 # %%
+def regularized(graph, tree="odometry"):
+    """δ_reg by the paper's rounding along a spanning tree (the odometric path, as in the paper), and the
+    per-edge uncertainty."""
+    return regularize(graph, spanning_tree(graph, tree)), edge_uncertainty(graph)
+
+
 w0 = lc.circle_world(60, laps=3, seed=0, sigma_xy=0.0, sigma_theta=0.0)
 g0 = w0.graph
-tree0 = spanning_tree(g0, "odometry")
-reg0 = regularize(g0, tree0)
-unc0 = edge_uncertainty(g0)
-ph0 = P.phase1_closed_form(g0, reg0.delta_reg, unc0)
-A2_0 = lc.reduced_incidence(g0).toarray()
-th_rel = w0.truth[:, 2] - w0.truth[0, 2]
-raw = A2_0.T @ th_rel[1:] - g0.delta
-print(g0)
-print(f"raw δ: max |A2ᵀθ_true - δ| = {np.abs(raw).max():.4f} = {np.abs(raw).max() / np.pi:.3f} π; "
-      f"edges off by 2πk: {np.sum(np.abs(raw) > 1)}")
-print(f"regularized: {reg0.n_regularized} chords corrected; max |A2ᵀθ̂ - δ_reg| = "
-      f"{np.abs(A2_0.T @ ph0.theta_free - reg0.delta_reg).max():.2e}")
-print(f"max |θ̂ - (θ_true - θ_true,0)| = {np.abs(ph0.theta - th_rel).max():.2e} (no wrapping needed: the odometric "
-      f"tree lifts θ̂ to the true branch, θ̂ spans [{ph0.theta.min():.2f}, {ph0.theta.max():.2f}] rad)")
-assert np.abs(raw).max() > 6 and np.allclose(raw / (2 * np.pi), np.rint(raw / (2 * np.pi)), atol=1e-9)
-assert np.abs(A2_0.T @ ph0.theta_free - reg0.delta_reg).max() < 1e-9
-assert np.abs(ph0.theta - th_rel).max() < 1e-9
+reg0, unc0 = regularized(g0)
+A0 = lc.reduced_incidence(g0).toarray()
+theta_true0 = w0.truth[1:, 2] - w0.truth[0, 2]
+raw = A0.T @ theta_true0 - g0.delta
+ph0 = phases.phase1_closed_form(g0, reg0.delta_reg, unc0)
+print(g0, f"| true headings up to {theta_true0.max() / np.pi:.1f}π")
+check(np.abs(raw).max() > 6 and np.allclose(raw / (2 * np.pi), np.round(raw / (2 * np.pi)), atol=1e-9),
+      f"raw δ violate eq. (8) by multiples of 2π ({np.sum(np.abs(raw) > 1)} edges, up to {np.abs(raw).max() / np.pi:.0f}π)")
+check(np.abs(A0.T @ theta_true0 - reg0.delta_reg).max() < 1e-9, "the regularized δ satisfy eq. (8) exactly")
+check(np.abs(ph0.theta_free - theta_true0).max() < 1e-9, "and phase 1 returns the true unwrapped headings")
 
-# %%
 w1 = lc.circle_world(300, laps=4, seed=1, sigma_xy=0.05, sigma_theta=0.02)
 g1 = w1.graph
-reg1 = regularize(g1, spanning_tree(g1, "bfs"))
-unc1 = edge_uncertainty(g1)
-A1 = lc.incidence_matrix(g1)
-th_true = w1.truth[:, 2] - w1.truth[0, 2]
-th_star = th_true + 2 * np.pi * np.rint((reg1.theta_tree - th_true) / (2 * np.pi))   # lifted truth
-eps = reg1.delta_reg - A1.T @ th_star
-noise = wrap_angle(g1.delta - A1.T @ th_true)
-z = eps / np.sqrt(unc1.var_delta)
-print(g1)
-print(f"max |(δ_reg - Aᵀθ*) - wrap(δ - Aᵀθ_true)| = {np.abs(eps - noise).max():.2e}")
-print(f"standardised residual: mean {z.mean():+.3f}, std {z.std():.3f}, max |.| {np.abs(z).max():.2f} over m = {z.size}")
-assert np.abs(eps - noise).max() < 1e-9
-assert abs(z.mean()) < 4 / np.sqrt(z.size) and abs(z.std() - 1) < 0.1 and np.abs(z).max() < 5
+reg1, unc1 = regularized(g1)
+A1 = lc.reduced_incidence(g1)
+theta_true1 = w1.truth[1:, 2] - w1.truth[0, 2]
+eps = reg1.delta_reg - A1.T @ theta_true1
+noise = wrap_angle(g1.delta - A1.T @ theta_true1)
+standardized = eps / np.sqrt(unc1.var_delta)
+print(g1, f"| standardized residual: mean {standardized.mean():+.3f}, std {standardized.std():.3f}")
+check(np.abs(eps - noise).max() < 1e-9, "δ_reg − Aᵀθ_true is exactly the wrapped measurement noise")
+check(abs(standardized.mean()) < 4 / np.sqrt(g1.n_edges) and abs(standardized.std() - 1) < 0.1,
+      "and it is standard normal after scaling by P_δ^(−1/2)")
+
+fig, axs = plt.subplots(1, 2, figsize=(11, 3.6))
+axs[0].plot(raw / np.pi, ".", color="tab:red", label="raw δ")
+axs[0].plot((A0.T @ theta_true0 - reg0.delta_reg) / np.pi, ".", color="tab:blue", label="regularized δ")
+axs[0].set_xlabel("edge")
+axs[0].set_ylabel("Aᵀθ_true − δ  [units of π]")
+axs[0].set_title("noiseless circle, 3 laps: eq. (8) after regularization")
+axs[0].legend(fontsize=8)
+grid = np.linspace(-4, 4, 200)
+axs[1].hist(standardized, bins=30, density=True, color="tab:blue", alpha=0.6, label="P_δ^(−1/2)(δ_reg − Aᵀθ_true)")
+axs[1].plot(grid, np.exp(-grid**2 / 2) / np.sqrt(2 * np.pi), "k", label="standard normal")
+axs[1].set_title("noisy circle, 4 laps: a linear Gaussian model")
+axs[1].legend(fontsize=8)
+show(fig, "linear_model")
 
 # %% [markdown]
-# ## 2. Proposition 1 — $\operatorname{rank} A = \operatorname{rank} A_2 = n$ iff the graph is connected
+# ## 2. Proposition 1 — a unique phase-1 solution
 #
-# *Derivation.* $\mathbf 1^\top A = 0$ (each column has one $+1$ and one $-1$), so
-# $\operatorname{rank} A \le n$. More precisely, $A^\top v = 0$ means $v_i = v_j$ across every
-# edge, so the left null space of $A$ is spanned by the indicator vectors of the connected components:
-# $\operatorname{rank} A = (n+1) - c$ with $c$ the number of components. Deleting the anchor's row does
-# not lower the rank (that row is minus the sum of the other rows of its component), so
-# $\operatorname{rank} A_2 = \operatorname{rank} A = n + 1 - c$, which equals $n$ iff $c = 1$.
-# Consequence: $A_2 P_\delta^{-1} A_2^\top$ is invertible — phase 1 has a unique solution — iff the
-# graph is connected.
+# **Proposition 1 (existence of the phase-1 solution).** Phase 1 has a unique solution if the graph is
+# connected and one orientation is known. *Proof.* Every column of the full incidence matrix has one
+# $+1$ and one $-1$, so $\mathbf 1^\top A_{\rm full} = 0$: rank at most $n$. More precisely $A_{\rm
+# full}^\top v = 0$ means $v_i = v_j$ across every edge, so $v$ is constant on each connected component:
+# $\operatorname{rank} A_{\rm full} = (n + 1) - c$ with $c$ components. For a connected graph ($c = 1$,
+# Lemma 1) the rank is $n$, and deleting the row of the known orientation leaves the $n$ remaining rows
+# independent: the reduced $A$ has full rank $n$. Then for any $x \neq 0$,
+# $x^\top A P_\delta^{-1} A^\top x = \|P_\delta^{-1/2} A^\top x\|^2 > 0$: $A P_\delta^{-1} A^\top$ is
+# positive definite, hence invertible, and eq. (13) below has one solution.
 #
-# We check $\operatorname{rank} A = \operatorname{rank} A_2 = $ `n_poses` $- c$ (dense SVD rank) on
-# connected graphs with several anchors and on graphs made disconnected by deleting edges, with $c$
-# from `lago_cvx.graph.connected_components`; `check_connected` must reject the disconnected ones.
+# Both hypotheses matter. Without a known orientation, $A_{\rm full} P_\delta^{-1} A_{\rm full}^\top$
+# is singular ($\theta + c\mathbf 1$ fits as well as $\theta$): the whole map may turn. Without
+# connectivity, each component turns on its own. We check the ranks, the smallest eigenvalue of
+# $A P_\delta^{-1} A^\top$ and what the package does, on connected and disconnected graphs.
 
 # %%
-def ranks(g, anchor=0):
-    A = lc.incidence_matrix(g).toarray()
-    A2 = lc.reduced_incidence(g, anchor).toarray()
-    return np.linalg.matrix_rank(A), np.linalg.matrix_rank(A2), connected_components(g)[0]
+def proposition1(graph):
+    """(c, rank of the full A, rank of the reduced A, smallest eigenvalue of A P_δ⁻¹ Aᵀ, of the full one)."""
+    full = lc.incidence_matrix(graph).toarray()
+    reduced = lc.reduced_incidence(graph).toarray()
+    w = 1.0 / edge_uncertainty(graph).var_delta
+    return (lc.connected_components(graph)[0], np.linalg.matrix_rank(full), np.linalg.matrix_rank(reduced),
+            np.linalg.eigvalsh((reduced * w) @ reduced.T).min(), np.linalg.eigvalsh((full * w) @ full.T).min())
 
 
-cases = []
-for seed in range(3):
-    cases.append((f"random_graph(30, 50, seed={seed})", lc.random_graph(30, 50, seed=seed).graph, seed * 7))
-circ = lc.circle_world(40, laps=2, seed=0).graph
-cases.append(("circle_world(40, laps=2)", circ, 0))
-rg = lc.random_graph(30, 50, seed=0).graph
-cases.append(("random graph, edges of pose 7 removed", rg.subgraph_edges((rg.tails != 7) & (rg.heads != 7)), 0))
-cases.append(("random graph, edges of the anchor removed", rg.subgraph_edges((rg.tails != 0) & (rg.heads != 0)), 0))
-half = circ.tails < 20
-cases.append(("circle world cut in two halves", circ.subgraph_edges(half == (circ.heads < 20)), 5))
-chain = lc.random_graph(12, 11, seed=4, spanning="odometry").graph            # a path
-cases.append(("path with 3 edges removed", chain.subgraph_edges(~np.isin(np.arange(11), [2, 5, 8])), 0))
-
-print(f"{'graph':45s} n_poses  c  rank A  rank A2  connected?")
-for name, g, anchor in cases:
-    rA, rA2, c = ranks(g, anchor)
+base = lc.random_graph(30, 50, seed=0).graph
+cases = {
+    "random graph, 30 poses, 50 edges": base,
+    "circle, 2 laps": lc.circle_world(40, laps=2, seed=0).graph,
+    "random graph, all edges of pose 7 removed": base.subgraph_edges((base.tails != 7) & (base.heads != 7)),
+    "circle cut into two halves": (lambda c: c.subgraph_edges((c.tails < 20) == (c.heads < 20)))(
+        lc.circle_world(40, laps=2, seed=0).graph),
+}
+print(f"{'graph':44s} n+1  c  rank A_full  rank A  λ_min(A P⁻¹ Aᵀ)  λ_min(full)  lago()")
+for name, graph in cases.items():
+    c, r_full, r_red, lam, lam_full = proposition1(graph)
     try:
-        check_connected(g)
-        connected = True
+        lc.lago(graph)
+        verdict = "solved"
     except GraphError:
-        connected = False
-    print(f"{name:45s} {g.n_poses:6d} {c:3d} {rA:6d} {rA2:7d}   {connected}")
-    assert rA == rA2 == g.n_poses - c
-    assert (rA2 == g.n_poses - 1) == (c == 1) == connected
+        verdict = "refused"
+    print(f"{name:44s} {graph.n_poses:3d} {c:2d} {r_full:11d} {r_red:7d} {lam:16.2e} {lam_full:12.1e}  {verdict}")
+    n = graph.n_poses - 1
+    check(r_full == n + 1 - c and r_red == n + 1 - c, f"rank A = n + 1 − c = {n + 1 - c}")
+    check((lam > 1e-8) == (c == 1) == (verdict == "solved") and abs(lam_full) < 1e-8,
+          "A P_δ⁻¹ Aᵀ ≻ 0 exactly when connected; never without a known orientation")
 
 # %% [markdown]
-# On the real INTEL graph (1228 poses) a dense SVD is slow on this machine, so we use the equivalent
-# statement $\operatorname{rank} A_2 = n \iff A_2 A_2^\top \succ 0$, tested by its smallest eigenvalue
-# (sparse shift-invert Lanczos, `scipy.sparse.linalg.eigsh`)
-# (together with $\mathbf 1^\top A = 0$ this gives $\operatorname{rank} A = n$ too). Cutting the graph
-# into poses $< 600$ and $\ge 600$ makes $A_2 A_2^\top$ singular.
+# On a real graph, a dense rank is slow; the equivalent test is the smallest eigenvalue of the sparse
+# matrix $A P_\delta^{-1} A^\top$ (shift-invert Lanczos). We also cut the Intel graph into the poses
+# before and after the middle of the run, removing the edges between the two parts.
 
 # %%
-if INTEL is None:
-    print("real datasets not found: skipping Proposition 1 on INTEL")
-else:
-    def lambda_min(g):
-        """Smallest eigenvalue of the grounded Laplacian A2 A2ᵀ (sparse shift-invert Lanczos)."""
-        L = (lc.reduced_incidence(g) @ lc.reduced_incidence(g).T).tocsc()
-        return spla.eigsh(L, k=1, sigma=-1e-2, which="LM", return_eigenvectors=False)[0]
-    cut = INTEL.subgraph_edges((INTEL.tails < 600) == (INTEL.heads < 600))
+if INTEL is not None:
+    def lambda_min(graph):
+        A = lc.reduced_incidence(graph)
+        info = (A @ sp.diags(1.0 / edge_uncertainty(graph).var_delta) @ A.T).tocsc()
+        return spla.eigsh(info, k=1, sigma=-1.0, which="LM", return_eigenvectors=False)[0]
+
+    half = INTEL.n_poses // 2
+    cut = INTEL.subgraph_edges((INTEL.tails < half) == (INTEL.heads < half))
     lam, lam_cut = lambda_min(INTEL), lambda_min(cut)
-    c, c_cut = connected_components(INTEL)[0], connected_components(cut)[0]
-    print(f"INTEL:                 components {c}, λ_min(A2 A2ᵀ) = {lam:.2e}  -> rank A2 = n")
-    print(f"INTEL cut at pose 600: components {c_cut}, λ_min(A2 A2ᵀ) = {lam_cut:.2e} -> rank A2 < n")
-    assert c == 1 and lam > 1e-8
-    assert c_cut == 2 and abs(lam_cut) < 1e-10
+    print(f"Intel: {lc.connected_components(INTEL)[0]} component, λ_min = {lam:.3e}; "
+          f"cut at pose {half}: {lc.connected_components(cut)[0]} components, λ_min = {lam_cut:.1e}")
+    check(lam > 0, "Proposition 1 on Intel: A P_δ⁻¹ Aᵀ is positive definite")
+    check(abs(lam_cut) < 1e-6 * lam, "cut in two: singular")
 
 # %% [markdown]
-# ## 3. The BLUE of eq. (13): cvxpy problem and closed form
+# ## 3. Eq. (13): the BLUE, as a cvxpy problem and in closed form
 #
-# Model (8) is linear with Gaussian noise, so the best linear unbiased estimator (and maximum-likelihood
-# estimator) is the weighted least-squares solution
+# Model eq. (8) is linear with Gaussian noise of covariance $P_\delta$, so its best linear unbiased
+# estimator (BLUE, also the maximum-likelihood estimate) is the weighted least-squares solution, eq. (13):
 #
-# $$\hat\theta = \arg\min_\theta \big\|P_\delta^{-1/2}(A_2^\top \theta - \delta_{\rm reg})\big\|^2
-#   = (A_2 P_\delta^{-1} A_2^\top)^{-1} A_2 P_\delta^{-1} \delta_{\rm reg}, \qquad
-#   P_\theta = (A_2 P_\delta^{-1} A_2^\top)^{-1}. \tag{13}$$
+# $$\hat\theta = \arg\min_\theta \big\|P_\delta^{-1/2}(A^\top\theta - \delta_{\rm reg})\big\|^2
+#   = (A P_\delta^{-1} A^\top)^{-1} A P_\delta^{-1} \delta_{\rm reg}, \qquad
+#   P_\theta = (A P_\delta^{-1} A^\top)^{-1}. \tag{13}$$
 #
-# `lago_cvx.phases.phase1_problem` writes the left-hand form as a cvxpy problem (solved with Clarabel);
-# `phase1_closed_form` the right-hand form (a sparse factorization of $A_2 P_\delta^{-1} A_2^\top$ with
-# corrected semi-normal-equation refinement). We print the cvxpy problem of a 6-pose graph, then solve
-# both ways on larger graphs and require agreement to $10^{-9}$ relative; we also compare with the
-# dense formula and check the normal equations $A_2 P_\delta^{-1}(A_2^\top\hat\theta - \delta_{\rm reg}) = 0$.
+# We write the left-hand form in cvxpy with *named* objects: the variable `θ`, the data `Aᵀ` and
+# `δ_reg`, and a **parameter** `w_δ` holding the weights $P_\delta^{-1/2}$, so that the printed problem
+# reads like the equation (cvxpy prints `sum_squares(x)` as `quad_over_lin(x, 1.0)`, i.e.
+# $\sum x^2 / 1$). Clarabel solves it; the package's `phase1_closed_form` computes the right-hand form
+# with a sparse factorization.
+#
+# **How close should they be?** Clarabel stops when the duality gap is below
+# `tol_gap_abs + tol_gap_rel·|f|` (the package's settings `lago_cvx.solvers.LEAST_SQUARES`). The cost
+# is strongly convex with Hessian $2AP_\delta^{-1}A^\top$, so a cost excess $\Delta f$ means
+# $\|\theta - \hat\theta\| \le \sqrt{\Delta f / \lambda_{\min}(AP_\delta^{-1}A^\top)}$: that bound, from
+# the solver's own tolerances, is what we require.
 
 # %%
-tiny = lc.random_graph(6, 9, seed=0).graph
-res_tiny = paper_lago(tiny)
-prob_tiny, theta_var = P.phase1_problem(tiny, res_tiny.regularization.delta_reg, res_tiny.uncertainty)
-print("cvxpy problem of phase 1 (6 poses, 9 edges; theta has", theta_var.shape[0], "entries):")
-print(prob_tiny)
-print("\nclosed form θ̂ =", np.round(res_tiny.phase1.theta_free, 6))
-solve(prob_tiny)
-print("cvxpy       θ̂ =", np.round(theta_var.value, 6))
+world = lc.manhattan_world(150, seed=4, sigma_theta=0.03)
+g = world.graph
+reg, unc = regularized(g)
+A = lc.reduced_incidence(g)
+n, m = A.shape
+
+θ = cp.Variable(n, name="θ")
+w_δ = cp.Parameter(m, nonneg=True, name="w_δ")
+At = cp.Constant(A.T.tocsr(), name="Aᵀ")
+δ_reg = cp.Constant(reg.delta_reg, name="δ_reg")
+phase1 = cp.Problem(cp.Minimize(cp.sum_squares(cp.multiply(w_δ, At @ θ - δ_reg))))
+print(phase1)
+check(phase1.is_dpp(), "the problem is DPP: changing w_δ.value re-solves without rebuilding it")
 
 
-def check_blue(g, label):
-    res = paper_lago(g)
-    d_reg, unc = res.regularization.delta_reg, res.uncertainty
-    t = time.perf_counter()
-    ph_cvx, _ = P.phase1_from_problem(g, d_reg, unc)
-    t_cvx = time.perf_counter() - t
-    t = time.perf_counter()
-    ph_cf = P.phase1_closed_form(g, d_reg, unc)
-    t_cf = time.perf_counter() - t
-    diff = relative_difference(ph_cvx.theta_free, ph_cf.theta_free)
-    A2 = lc.reduced_incidence(g)
-    Wd = sp.diags(1.0 / unc.var_delta)
-    grad = A2 @ Wd @ (A2.T @ ph_cf.theta_free - d_reg)
-    line = (f"{label}: max|cvxpy - closed form| / max|closed form| = {diff:.1e} "
-            f"(cvxpy {t_cvx * 1e3:.0f} ms, closed form {t_cf * 1e3:.0f} ms); "
-            f"max |normal-equation residual| = {np.abs(grad).max():.1e}")
-    if g.n_poses <= 400:
-        N = (A2 @ Wd @ A2.T).toarray()
-        dense = np.linalg.solve(N, A2 @ Wd @ d_reg)
-        line += f"; vs dense formula {relative_difference(ph_cf.theta_free, dense):.1e}"
-        assert relative_difference(ph_cf.theta_free, dense) < 1e-9
-    print(line)
-    assert diff < 1e-9
-    assert np.abs(grad).max() < 1e-6 * np.abs(A2 @ Wd @ d_reg).max()
-    return res
+def closed_form(weights):
+    """Eq. (13) with dense algebra, for weights w = P_δ^(-1/2): θ̂ and P_θ⁻¹."""
+    info = (A.multiply(weights**2) @ A.T).toarray()
+    return np.linalg.solve(info, A @ (weights**2 * reg.delta_reg)), info
 
 
-check_blue(tiny, "random_graph(6, 9)")
-check_blue(lc.random_graph(50, 120, seed=2, information="full").graph, "random_graph(50, 120, full info)")
-res_m = check_blue(lc.manhattan_world(300, seed=1).graph, "manhattan_world(300)")
-res_intel = None
-if INTEL is None:
-    print("real datasets not found: skipping eq. (13) on INTEL")
-else:
-    res_intel = check_blue(INTEL, "INTEL (real)")
+def agreement(theta_cvx, weights):
+    """|θ_cvx − θ̂| and the bound the solver's gap tolerance allows (strong convexity)."""
+    theta_hat, info = closed_form(weights)
+    f_hat = np.sum((weights * (A.T @ theta_hat - reg.delta_reg)) ** 2)
+    gap = LEAST_SQUARES.tol_gap_abs + LEAST_SQUARES.tol_gap_rel * f_hat
+    return np.abs(theta_cvx - theta_hat).max(), np.sqrt(gap / np.linalg.eigvalsh(info)[0])
+
+
+w_δ.value = np.sqrt(1.0 / unc.var_delta)
+solve(phase1)
+package = phases.phase1_closed_form(g, reg.delta_reg, unc)
+err, bound = agreement(θ.value, w_δ.value)
+print(g, f"| status {phase1.status}")
+check(err <= bound, f"cvxpy = eq. (13) in closed form: |Δθ| = {err:.1e} ≤ {bound:.1e} (the solver's tolerance)")
+check(np.abs(package.theta_free - closed_form(w_δ.value)[0]).max() < 1e-9,
+      "lago_cvx.phases.phase1_closed_form = eq. (13)")
+pkg_problem, pkg_theta = phases.phase1_problem(g, reg.delta_reg, unc)
+solve(pkg_problem)
+check(np.abs(pkg_theta.value - θ.value).max() <= 2 * bound, "and the package's own cvxpy builder, phase1_problem, agrees")
 
 # %% [markdown]
-# **Why "best".** Any other linear unbiased estimator $K\delta_{\rm reg}$ ($K A_2^\top = I$) has
-# covariance $K P_\delta K^\top \succeq P_\theta$ (Gauss–Markov). Two examples on the 300-pose
-# Manhattan world, whose orientation variances we make unequal (each edge's $P_\delta$ multiplied by a
-# random factor between 0.1 and 10, otherwise all weights would be equal and unweighted least squares
-# would coincide with the BLUE): integrating $\delta$ along the spanning tree (what dead reckoning
-# does) and the unweighted least squares $K = (A_2A_2^\top)^{-1}A_2$. We check that both are unbiased
-# ($KA_2^\top = I$) and that $K P_\delta K^\top - P_\theta$ has no negative eigenvalue.
+# **A sweep without rebuilding.** How much should loop closures count? Multiply their weights by a
+# factor $s$ (their standard deviation by $1/\sqrt{s}$... in weights, $w \to \sqrt{s}\,w$) and re-solve by
+# changing `w_δ.value` only. At $s \to 0$ the loop closures are ignored and $\hat\theta$ is dead
+# reckoning along the odometry; as $s$ grows they pull the trajectory into agreement. Each re-solve is
+# checked against the closed form, and the uncertainty $\operatorname{tr} P_\theta$ drops as the loop
+# closures gain weight.
 
 # %%
-g_m = res_m.graph
-scale = 10.0 ** np.random.default_rng(5).uniform(-1, 1, g_m.n_edges)
-info_het = g_m.information.copy()
-info_het[:, 2, 2] /= scale
-g_het = lc.PoseGraph(g_m.n_poses, g_m.tails, g_m.heads, g_m.delta_l, g_m.delta, info_het)
-res_het = paper_lago(g_het)
-A2m = lc.reduced_incidence(g_het).toarray()
-Pd = res_het.uncertainty.var_delta
-P_theta = np.linalg.inv(res_het.phase1.info.toarray())
-K_tree = np.column_stack([res_het.tree.integrate(g_het, np.eye(g_het.n_edges)[k])[1:]
-                          for k in range(g_het.n_edges)])
-K_ls = np.linalg.solve(A2m @ A2m.T, A2m)
-for name, K in [("tree integration", K_tree), ("unweighted LS", K_ls)]:
-    unbiased = np.abs(K @ A2m.T - np.eye(A2m.shape[0])).max()
-    C = (K * Pd) @ K.T
-    lam = np.linalg.eigvalsh(C - P_theta)
-    print(f"{name:17s}: max|K A2ᵀ - I| = {unbiased:.1e}; eig(K P_δ Kᵀ - P_θ) in [{lam.min():.1e}, {lam.max():.1e}]; "
-          f"tr(K P_δ Kᵀ) / tr(P_θ) = {np.trace(C) / np.trace(P_theta):.2f}")
-    assert unbiased < 1e-9 and lam.min() > -1e-10 * lam.max() and np.trace(C) > np.trace(P_theta)
+loop = ~g.is_odometric
+scales = [1e-4, 1e-2, 1.0, 1e2]
+last, traces = [], []
+for s in scales:
+    w_δ.value = np.sqrt(1.0 / unc.var_delta) * np.where(loop, np.sqrt(s), 1.0)
+    solve(phase1)
+    err, bound = agreement(θ.value, w_δ.value)
+    check(err <= bound, f"s = {s:g}: cvxpy = closed form (|Δθ| = {err:.1e})")
+    last.append(θ.value[-1])
+    traces.append(np.trace(np.linalg.inv(closed_form(w_δ.value)[1])))
+odo = g.is_odometric
+dead_reckoning = np.sum(np.where(g.heads > g.tails, 1.0, -1.0)[odo] * reg.delta_reg[odo])  # θ of the last pose
+print("θ̂ of the last pose:", np.round(last, 4), f"| dead reckoning: {dead_reckoning:.4f}")
+check(abs(last[0] - dead_reckoning) < 1e-2 * abs(dead_reckoning) + 0.01, "with s → 0 phase 1 is dead reckoning")
+check(all(np.diff(traces) < 0), "tr P_θ decreases as the loop closures gain weight")
+
+fig, axs = plt.subplots(1, 2, figsize=(11, 3.6))
+axs[0].semilogx(scales, last, "o-")
+axs[0].axhline(dead_reckoning, color="0.5", ls="--", label="dead reckoning")
+axs[0].axhline(world.truth[-1, 2] - world.truth[0, 2], color="k", ls=":", label="truth")
+axs[0].set_xlabel("weight factor s of the loop closures")
+axs[0].set_ylabel("θ̂ of the last pose [rad]")
+axs[0].legend(fontsize=8)
+axs[1].loglog(scales, traces, "o-", color="tab:red")
+axs[1].set_xlabel("weight factor s of the loop closures")
+axs[1].set_ylabel("tr P_θ [rad²]")
+fig.suptitle("One cvxpy problem, four solves: only the parameter w_δ changed")
+show(fig, "weight_sweep")
+w_δ.value = np.sqrt(1.0 / unc.var_delta)
 
 # %% [markdown]
-# ## 4. The information matrix $A_2 P_\delta^{-1} A_2^\top$ is a weighted graph Laplacian
+# ## 4. The information matrix is a weighted graph Laplacian
 #
-# $(A P_\delta^{-1} A^\top)_{uv} = \sum_k A_{uk} A_{vk} / P_{\delta,k}$: on the diagonal the sum of the
-# weights $w_k = 1/P_{\delta,k}$ of the edges at pose $u$, off the diagonal $-\sum$ of the weights of
-# the edges joining $u$ and $v$ (zero if none). That is the Laplacian $L = D - W$ of the graph
-# weighted by the orientation information; $\Omega_\theta = A_2 P_\delta^{-1} A_2^\top$ is $L$ with
-# the anchor's row and column deleted (the *grounded* Laplacian). Hence it is as sparse as the graph
-# itself ($n + 2\times$#adjacent pairs nonzeros), symmetric, with non-positive off-diagonal entries,
-# diagonally dominant, and (Proposition 1) positive definite for a connected graph.
-#
-# We build $L$ independently from the weighted adjacency matrix with `scipy.sparse.csgraph.laplacian`
-# and compare it with `Phase1.info`.
+# $(A P_\delta^{-1} A^\top)_{uv} = \sum_k A_{uk}A_{vk}/P_{\delta,k}$: on the diagonal, the summed weights
+# $1/P_{\delta,k}$ of the edges at pose $u$; off the diagonal, minus the weights of the edges joining
+# $u$ and $v$ (zero if none). That is the Laplacian $L = D - W$ of the graph weighted by orientation
+# information, with the row and column of pose 0 deleted (a *grounded* Laplacian). It is as sparse as
+# the graph; its inverse $P_\theta$ is not (§4 of lecture 3 says exactly when it is full). We build $L$
+# independently with `scipy.sparse.csgraph.laplacian` and compare with the package's `Phase1.info`.
 
 # %%
-def check_laplacian(res, label):
-    g, info = res.graph, res.phase1.info
-    w = 1.0 / res.uncertainty.var_delta
-    Wadj = sp.coo_matrix((w, (g.tails, g.heads)), shape=(g.n_poses,) * 2).tocsr()
-    L = csgraph.laplacian((Wadj + Wadj.T).tocsr()).tocsr()
-    keep = np.arange(1, g.n_poses)
-    L2 = L[keep][:, keep]
-    diff = abs(info - L2).max() / abs(L2).max()
-    off = (info - sp.diags(info.diagonal())).tocsr()
-    off.eliminate_zeros()
-    rowsum = np.asarray(L.sum(axis=1)).ravel()
-    pairs = np.unique(np.sort(np.column_stack([g.tails, g.heads]), axis=1), axis=0)
-    n_free_pairs = int(np.sum(pairs.min(axis=1) > 0))
-    print(f"{label}: max|info - grounded Laplacian| / max|L| = {diff:.1e}; largest stored off-diagonal entry = {off.data.max():.1e}; "
-          f"max|row sums of L| / max|L| = {np.abs(rowsum).max() / abs(L).max():.1e}; "
-          f"nnz(info) = {info.nnz} = d + 2·#pairs = {g.n_poses - 1 + 2 * n_free_pairs}; "
-          f"density {info.nnz / (g.n_poses - 1) ** 2:.2%}")
-    assert diff < 1e-12 and off.data.max() < 0 and np.abs(rowsum).max() < 1e-12 * abs(L).max()
-    assert abs(info - info.T).max() == 0
-    assert info.nnz == g.n_poses - 1 + 2 * n_free_pairs
-    margin = info.diagonal() - np.asarray(abs(off).sum(axis=1)).ravel()
-    assert margin.min() > -1e-9 * info.diagonal().max()                 # diagonally dominant
-    np.linalg.cholesky(info.toarray())                                  # positive definite
+def grounded_laplacian(graph, var_delta):
+    weights = sp.coo_matrix((1.0 / var_delta, (graph.tails, graph.heads)), shape=(graph.n_poses,) * 2).tocsr()
+    L = csgraph.laplacian((weights + weights.T).tocsr()).tocsr()
+    return L[1:][:, 1:]
 
 
-check_laplacian(res_m, "manhattan_world(300)")
-if res_intel is not None:
-    check_laplacian(res_intel, "INTEL (real)")
+laplacian = grounded_laplacian(g, unc.var_delta)
+check(abs(package.info - laplacian).max() < 1e-12 * abs(laplacian).max(),
+      "Phase1.info = A P_δ⁻¹ Aᵀ = the grounded weighted Laplacian")
+P_theta = np.linalg.inv(package.info.toarray())
+density_info = package.info.nnz / n**2
+density_cov = np.mean(np.abs(P_theta) > 1e-12 * np.abs(P_theta).max())
+check(density_info < 0.1 and density_cov > 0.9,
+      f"information {density_info:.1%} non-zero, covariance P_θ {density_cov:.0%} non-zero")
 
-# %%
-panels = [(r"manhattan_world(300): $\Omega_\theta = A_2 P_\delta^{-1} A_2^\top$", res_m)]
-if res_intel is not None:
-    panels.append((r"INTEL (real): $\Omega_\theta = A_2 P_\delta^{-1} A_2^\top$", res_intel))
-fig, axs = plt.subplots(1, len(panels), figsize=(6 * len(panels), 6), squeeze=False)
-for ax, (title, res) in zip(axs[0], panels):
-    info = res.phase1.info
-    ax.spy(info, markersize=1.0 if info.shape[0] > 500 else 1.5, color="tab:blue")
-    ax.set_title(f"{title}\n{info.shape[0]}×{info.shape[0]}, nnz = {info.nnz} "
-                 f"({info.nnz / info.shape[0] ** 2:.2%})", fontsize=10)
-    ax.set_xlabel("pose index (anchor removed)")
-    ax.set_ylabel("pose index (anchor removed)")
-fig.suptitle("Phase-1 information matrix: a grounded weighted Laplacian, as sparse as the graph\n"
-             "(band = odometry chain, off-band dots = loop closures)", y=1.02)
-save(fig, "information_spy")
-plt.close(fig)
+fig, axs = plt.subplots(1, 2, figsize=(11, 5.2))
+axs[0].spy(package.info, markersize=1.5)
+axs[0].set_title(f"information A P_δ⁻¹ Aᵀ\n{density_info:.1%} non-zero", pad=24)
+im = axs[1].imshow(np.log10(np.abs(P_theta)), cmap="viridis")
+axs[1].set_title(f"covariance P_θ, log₁₀ |entries|\n{density_cov:.0%} non-zero", pad=24)
+fig.colorbar(im, ax=axs[1], shrink=0.8)
+fig.suptitle(f"Phase 1 on a Manhattan world ({n + 1} poses, {m} edges)", y=1.04)
+show(fig, "information")
 
 # %% [markdown]
-# ## 5. Monte Carlo: $\hat\theta$ is unbiased with covariance $P_\theta = (A_2 P_\delta^{-1} A_2^\top)^{-1}$
+# ## 5. The anchor as a constraint, and what its dual variable means
 #
-# On a fixed 8-pose, 14-edge graph with true orientations in $\pm 3\pi$ and a *different* standard
-# deviation $\sigma_k \in [0.005, 0.03]$ rad for every edge, we draw $N$ independent noise vectors
-# $\epsilon_\delta \sim \mathcal N(0, P_\delta)$, form the measurements as a sensor would
-# ($\delta = \mathrm{wrap}(\theta_j - \theta_i + \epsilon_\delta)$) in a new `PoseGraph`, regularize
-# them along the fixed spanning tree (`regularize`) and run `phase1_closed_form`. Phase 1 is linear in
-# $\delta_{\rm reg}$, so the only thing that could break unbiasedness is a wrong $2k\pi$ correction; at
-# this noise level (cycle residuals of a few hundredths of a radian against a decision threshold of
-# $\pi$) the regularization is trivially correct, and we verify it sample by sample: $\delta_{\rm reg} -
-# A^\top\theta^\star$ must equal the drawn noise exactly, $\theta^\star$ being the truth lifted to the
-# branch of the tree. Errors are compared modulo $2\pi$ (a tree edge near $\pm\pi$ may wrap
-# differently from sample to sample, which shifts a whole subtree by $2\pi$ — the same orientations).
+# Deleting the row of pose 0 is one way to say "$\theta_0$ is known". Another keeps all $n + 1$
+# orientations and adds the constraint $\theta_0 = 0$; its Lagrange multiplier is the *force* the anchor
+# must exert. Think of each edge as a torsion spring of stiffness $1/P_{\delta,k}$ between two poses:
+# the cost is twice the stored energy and its gradient with respect to $\theta_i$ is the net torque on
+# pose $i$. With **one** anchor the springs can always relax completely in the free directions — the
+# cost does not change if all orientations turn together ($\mathbf 1^\top A_{\rm full} = 0$) — so the
+# anchor holds nothing: **its multiplier is zero**. It only fixes the gauge.
 #
-# Expected sampling error of a covariance estimated from $N$ Gaussian samples:
-# $\mathbb E\|\hat S - P\|_F^2 \approx ((\operatorname{tr}P)^2 + \|P\|_F^2)/N$; we require the measured
-# relative Frobenius error to be below 3 times that, and every component of the mean error within 4.5
-# standard errors of 0.
+# With a **second** known orientation — say a compass tells $\theta_k = c$ — the springs are put under
+# tension, and the two multipliers are equal and opposite (the torques balance, again because
+# $\mathbf 1^\top A_{\rm full} = 0$). Sensitivity analysis says more: the multiplier of $\theta_k = c$ is
+# the derivative of the optimal cost with respect to $c$ (up to cvxpy's sign convention, which the cell
+# settles). We check it by re-solving with the parameter `c` moved by a small step.
 
 # %%
-base_w = lc.random_graph(8, 14, seed=3, sigma_xy=0.0, sigma_theta=0.0)
-tails, heads, truth = base_w.graph.tails, base_w.graph.heads, base_w.truth
-m_mc = tails.size
-rng = np.random.default_rng(11)
-sig = rng.uniform(0.005, 0.03, m_mc)
-info_mc = np.zeros((m_mc, 3, 3))
+A_full = cp.Constant(lc.incidence_matrix(g).T.tocsr(), name="A_fullᵀ")
+θ_all = cp.Variable(n + 1, name="θ⁺")
+k = n // 2
+c = cp.Parameter(name="c")
+anchor = θ_all[0] == 0
+compass = θ_all[k] == c
+spring = cp.sum_squares(cp.multiply(w_δ, A_full @ θ_all - δ_reg))
+one_anchor = cp.Problem(cp.Minimize(spring), [anchor])
+two_anchors = cp.Problem(cp.Minimize(spring), [anchor, compass])
+print(two_anchors)
+
+solve(one_anchor)
+err, bound = agreement(θ_all.value[1:], w_δ.value)
+check(err <= bound, f"θ₀ = 0 as a constraint gives the same θ̂ as deleting the row (|Δθ| = {err:.1e})")
+one_anchor_force = float(anchor.dual_value)
+
+theta_hat_k = θ_all.value[k]                                         # phase 1's θ̂_k (one anchor)
+c_values = theta_hat_k + np.linspace(-0.05, 0.05, 9)
+costs, forces = [], []
+for value in c_values:
+    c.value = value
+    solve(two_anchors)
+    costs.append(two_anchors.value)
+    forces.append((float(anchor.dual_value), float(compass.dual_value)))
+forces = np.array(forces)
+slope = np.gradient(np.array(costs), c_values)
+sign = np.sign(np.sum(slope[1:-1] * forces[1:-1, 1]))
+print("c − θ̂_k:", np.round(c_values[::2] - theta_hat_k, 3), "| multipliers (anchor, compass):\n", np.round(forces[::2], 3))
+print(f"cvxpy's sign convention here: d(optimal cost)/dc = {sign:+.0f} × (multiplier of θ_k = c)")
+check(abs(one_anchor_force) < 1e-6 * np.abs(forces).max(), f"one anchor holds no force: multiplier {one_anchor_force:.1e}")
+check(np.abs(forces.sum(axis=1)).max() < 1e-6 * np.abs(forces).max(), "the two anchors hold equal and opposite forces")
+check(np.abs(np.abs(slope[1:-1]) - np.abs(forces[1:-1, 1])).max() < 1e-3 * np.abs(forces).max(),
+      "|multiplier of θ_k = c| = |d(optimal cost)/dc|")
+check(abs(forces[4, 1]) < 1e-3 * np.abs(forces).max(), "and it vanishes when c = θ̂_k: the compass agrees with phase 1")
+
+fig, ax = plt.subplots(figsize=(6.5, 3.8))
+ax.plot(c_values - theta_hat_k, costs, "o-", label="optimal cost with θ_k = c")
+dc = np.array([-0.012, 0.012])
+for value, cost, force in zip(c_values[::4], costs[::4], forces[::4, 1]):
+    ax.plot(value - theta_hat_k + dc, cost + sign * force * dc, "r-", lw=2)
+ax.plot([], [], "r-", lw=2, label="tangent with slope ± the compass multiplier")
+ax.set_xlabel("c − θ̂_k [rad]")
+ax.set_ylabel("optimal cost")
+ax.set_title(f"A second known orientation (pose {k}): the dual variable is the force")
+ax.legend(fontsize=8)
+show(fig, "anchor_dual")
+
+# %% [markdown]
+# ## 6. Monte Carlo: $\hat\theta$ is unbiased with covariance $P_\theta$
+#
+# Eq. (13) is linear in $\delta_{\rm reg}$, so $\hat\theta$ is unbiased and has covariance exactly
+# $P_\theta$ — provided the regularization picks the right $2k\pi$. We test the whole chain as a robot
+# would meet it: on a fixed graph (8 poses, 14 edges, true orientations over several turns, a different
+# standard deviation for every edge) we draw noise, wrap the measured angles to $[-\pi, \pi)$,
+# regularize along a fixed spanning tree, and apply eq. (13) — with fixed weights a single matrix
+# $K = (A P_\delta^{-1} A^\top)^{-1} A P_\delta^{-1}$, checked against `phase1_closed_form` — 2000 times. Errors are compared
+# modulo $2\pi$ (a whole subtree may be lifted by $2\pi$ — the same orientations). A sample covariance
+# of $N$ Gaussian draws has relative Frobenius error about $\sqrt{((\operatorname{tr}P)^2 +
+# \|P\|_F^2)/N}/\|P\|_F$; we allow three times that, and 4.5 standard errors for the mean.
+
+# %%
+mc_world = lc.random_graph(8, 14, seed=3, sigma_xy=0.0, sigma_theta=0.0)
+tails, heads, truth = mc_world.graph.tails, mc_world.graph.heads, mc_world.truth
+mc_rng = np.random.default_rng(11)
+sig = mc_rng.uniform(0.005, 0.03, tails.size)
+info_mc = np.zeros((tails.size, 3, 3))
 info_mc[:, 0, 0] = info_mc[:, 1, 1] = 1 / 0.05**2
 info_mc[:, 2, 2] = 1 / sig**2
 d_true = truth[heads, 2] - truth[tails, 2]
 
 
 def graph_with(delta):
-    return lc.PoseGraph(8, tails, heads, base_w.graph.delta_l, delta, info_mc)
+    return lc.PoseGraph(8, tails, heads, mc_world.graph.delta_l, delta, info_mc)
 
 
-g_base = graph_with(wrap_angle(d_true))
-tree_mc = spanning_tree(g_base, "bfs")
-unc_mc = edge_uncertainty(g_base)
-ph_base = P.phase1_closed_form(g_base, regularize(g_base, tree_mc).delta_reg, unc_mc)
-theta_star = ph_base.theta_free                                   # noiseless phase 1 = lifted truth
-assert np.abs(wrap_angle(ph_base.theta - (truth[:, 2] - truth[0, 2]))).max() < 1e-9
-P_theta_mc = np.linalg.inv(ph_base.info.toarray())
-A_mc = lc.incidence_matrix(g_base)
-print(g_base, f"σ_δ from {sig.min():.3f} to {sig.max():.3f} rad; true θ in [{truth[:, 2].min():.2f}, {truth[:, 2].max():.2f}]")
-
+g_mc = graph_with(wrap_angle(d_true))
+tree_mc, unc_mc = spanning_tree(g_mc, "bfs"), edge_uncertainty(g_mc)
+ph_true = phases.phase1_closed_form(g_mc, regularize(g_mc, tree_mc).delta_reg, unc_mc)
+P_theta_mc = np.linalg.inv(ph_true.info.toarray())
+A_mc = lc.reduced_incidence(g_mc).toarray()
+K = np.linalg.solve((A_mc / sig**2) @ A_mc.T, A_mc / sig**2)           # eq. (13) as a matrix: θ̂ = K δ_reg
 N_MC = 2000
-t_mc = time.perf_counter()
 errs = np.empty((N_MC, 7))
-reg_failures = 0
 for s in range(N_MC):
-    noise = sig * rng.standard_normal(m_mc)
-    g_s = graph_with(wrap_angle(d_true + noise))
-    reg = regularize(g_s, tree_mc)
-    ph = P.phase1_closed_form(g_s, reg.delta_reg, unc_mc)
-    lift = np.concatenate([[0.0], theta_star])
-    lift = lift + 2 * np.pi * np.rint((reg.theta_tree - lift) / (2 * np.pi))
-    reg_failures += np.abs(reg.delta_reg - A_mc.T @ lift - noise).max() > 1e-9
-    errs[s] = wrap_angle(ph.theta_free - theta_star)
-t_mc = time.perf_counter() - t_mc
-
-mean = errs.mean(axis=0)
-zscore = mean / np.sqrt(np.diag(P_theta_mc) / N_MC)
+    g_s = graph_with(wrap_angle(d_true + sig * mc_rng.standard_normal(tails.size)))
+    delta_reg = regularize(g_s, tree_mc).delta_reg
+    errs[s] = wrap_angle(K @ delta_reg - ph_true.theta_free)
+    if s == 0:
+        fast_path = np.abs(K @ delta_reg - phases.phase1_closed_form(g_s, delta_reg, unc_mc).theta_free).max()
+check(fast_path < 1e-9, "the loop's θ̂ = K δ_reg is the package's phase1_closed_form")
+zscore = errs.mean(axis=0) / np.sqrt(np.diag(P_theta_mc) / N_MC)
 S = np.cov(errs, rowvar=False)
 rel = np.linalg.norm(S - P_theta_mc) / np.linalg.norm(P_theta_mc)
 expected = np.sqrt((np.trace(P_theta_mc) ** 2 + np.linalg.norm(P_theta_mc) ** 2) / N_MC) / np.linalg.norm(P_theta_mc)
-print(f"{N_MC} samples in {t_mc:.1f} s; wrong 2kπ corrections: {reg_failures}")
+print(g_mc, f"| σ_δ from {sig.min():.3f} to {sig.max():.3f} rad")
 print("mean error / standard error per pose:", np.round(zscore, 2))
-print(f"‖S - P_θ‖_F / ‖P_θ‖_F = {rel:.3f} (expected sampling level ≈ {expected:.3f})")
-print("sample std / predicted std per pose:", np.round(np.sqrt(np.diag(S) / np.diag(P_theta_mc)), 3))
-assert reg_failures == 0
-assert np.abs(zscore).max() < 4.5
-assert rel < 3 * expected
+check(np.abs(zscore).max() < 4.5, "θ̂ is unbiased (every mean error within 4.5 standard errors)")
+check(rel < 3 * expected, f"sample covariance = P_θ: ‖S − P_θ‖/‖P_θ‖ = {rel:.3f} (sampling level {expected:.3f})")
+
+fig, axs = plt.subplots(1, 2, figsize=(11, 4))
+i1, i2 = 2, 5
+axs[0].plot(errs[:, i1], errs[:, i2], ".", ms=2, color="0.5", label=f"{N_MC} samples")
+C2 = P_theta_mc[np.ix_([i1, i2], [i1, i2])]
+vals, vecs = np.linalg.eigh(C2)
+t = np.linspace(0, 2 * np.pi, 200)
+ellipse = 3 * vecs @ (np.sqrt(vals)[:, None] * np.vstack([np.cos(t), np.sin(t)]))
+axs[0].plot(*ellipse, "tab:blue", label="3σ ellipse of P_θ")
+axs[0].set_xlabel(f"error of θ̂ at pose {i1 + 1} [rad]")
+axs[0].set_ylabel(f"error of θ̂ at pose {i2 + 1} [rad]")
+axs[0].set_aspect("equal", adjustable="datalim")
+axs[0].legend(fontsize=8)
+axs[1].bar(np.arange(1, 8) - 0.2, np.sqrt(np.diag(S)), 0.4, label="sample std")
+axs[1].bar(np.arange(1, 8) + 0.2, np.sqrt(np.diag(P_theta_mc)), 0.4, label="√diag P_θ, eq. (13)")
+axs[1].set_xlabel("pose")
+axs[1].set_ylabel("std of θ̂ [rad]")
+axs[1].legend(fontsize=8)
+fig.suptitle("Monte Carlo of phase 1 (noise → wrap → regularize → eq. (13))")
+show(fig, "montecarlo")
 
 # %% [markdown]
-# **Summary.** Once the $2k\pi$ ambiguity is removed, the orientations obey a linear Gaussian model
-# whose design matrix is the reduced incidence matrix; it has full rank exactly for connected graphs,
-# and phase 1 is its BLUE — one sparse grounded-Laplacian solve, identical (to $10^{-9}$ and better)
-# to the explicit cvxpy problem. Lecture 3 propagates $\hat\theta$ and its covariance $P_\theta$ to
-# the relative positions (phase 2).
-
-# %%
-print(f"lecture 2 executed in {time.perf_counter() - T_START:.1f} s")
+# **Summary.** After the $2k\pi$ regularization, the relative orientations obey the linear model
+# eq. (8); connectivity and one known orientation make it uniquely solvable (Proposition 1); its BLUE
+# eq. (13) is one sparse solve with a grounded weighted Laplacian. cvxpy states the same problem in a
+# line, with parameters to re-solve and multipliers that are forces. Lecture 3 uses $\hat\theta$ and
+# $P_\theta$ to bring the positions into the global frame.
+#
+# ## Exercise 1 — $P_\theta$ of a chain
+#
+# *Derive.* For a path $0 \to 1 \to \dots \to n$ (odometry only, variances $\sigma_1^2, \dots, \sigma_n^2$)
+# anchored at pose 0, derive $P_\theta$ in closed form: show that $(P_\theta)_{ij} = \sum_{k \le
+# \min(i, j)} \sigma_k^2$ (the orientation error is a random walk). Check it against the inverse of
+# $A P_\delta^{-1} A^\top$. (Solution: `solutions/02_phase1_ex1.py`.)
+#
+# ## Exercise 2 — A compass instead of an anchor
+#
+# *Implement.* Replace the anchor by absolute heading measurements (a compass) on a few poses, with
+# variance $\sigma_c^2$: keep all $n + 1$ orientations as unknowns, write the problem in cvxpy with a
+# parameter for the compass readings, and derive the closed form with an augmented design matrix.
+# Verify that both agree, that one compass reading is enough for a unique solution (Proposition 1 in
+# another guise), and that re-solving with new readings needs no rebuild.
+# (Solution: `solutions/02_phase1_ex2.py`.)
+#
+# ## Exercise 3 — Which loop closure helps most?
+#
+# *Explore.* On a Manhattan world, start from the odometry alone and add one loop closure at a time:
+# which single loop closure reduces $\operatorname{tr} P_\theta$ the most? Relate your answer to the
+# length of the cycle it closes. (Solution: `solutions/02_phase1_ex3.py`.)

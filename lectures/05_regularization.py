@@ -1,503 +1,634 @@
 # %% [markdown]
-# # Lecture 5 — Regularization: cycles, the 2kπ ambiguity and Theorems 2–3
+# # Lecture 5 — Regularization: cycles, the cycle basis and the $2k\pi$ corrections
 #
-# *LAGO, Carlone, Aragues, Castellanos, Bona, RSS 2011 (the seed), Section IV-E.*
+# *L. Carlone, R. Aragues, J. A. Castellanos, B. Bona, "A Linear Approximation for Graph-based
+# Simultaneous Localization and Mapping", RSS 2011 — Section IV-E and the regularization steps of Section V.*
 #
-# Phase 1 (eq. (13)) treats the relative orientations $\delta$ as real numbers whose sums around every
-# loop vanish up to noise. A sensor reports them only **modulo $2\pi$** (here in $[-\pi,\pi)$): a loop
-# closure between two visits of the same place after the robot turned twice around reads $\approx 0$,
-# not $4\pi$. Before phase 1 every measurement must therefore be corrected by the right multiple of $2\pi$.
-# This lecture
+# Phase 1 (lecture 2) treats the relative orientations $\delta$ as real numbers whose sums around every loop
+# vanish up to noise. A sensor reports them only modulo $2\pi$, here in $[-\pi, \pi)$: after a full turn
+# the loop closure reads $\approx 0$, not $2\pi$. Before phase 1 every measurement must be corrected by the
+# right multiple of $2\pi$ — the paper calls this *regularization*.
 #
-# 1. defines cycles and the fundamental cycle basis of a spanning tree, and checks Corollaries 1–2;
-# 2. states Theorem 2 (measured orientations sum to $2k\pi$ around a cycle) and checks it;
-# 3. states and checks Theorem 3, the construction of eq. (23) (`lago_cvx.regularization.regularize`);
-# 4. checks when the rounding recovers the *true* $k$ (Proposition 2 / Corollary 3) by a noise sweep;
-# 5. shows the wraparound problem on a trajectory that turns four times, with and without regularization;
-# 6. shows what an ambiguous rounding does on real data (M3500a) and a noisy synthetic world;
-# 7. reproduces the seed's Table I number (198 regularized chords on INTEL).
+# **Learning goals.** After this lecture you can
 #
-# **Notation.** Poses $0\dots n$ (the package: `n_poses` $= n+1$), pose 0 the anchor, $m$ edges, $A$ the
-# incidence matrix (eq. (6): $-1$ at the tail, $+1$ at the head), $A_2$ without the anchor's row (eq. (7)),
-# $\delta$ the measured relative orientations, $l$ the number of chords. **Warning on $B$:** the seed uses
-# $B$ both for the phase-3 design matrix ($z = B^\top x$, eq. (12), lecture 4) and for the tree block of the
-# cycle basis $C = [I_l\ B]$ used here; they are unrelated.
+# 1. explain the wraparound problem and see what it does to phase 1;
+# 2. tell a cycle from a circuit, build the fundamental circuits of a spanning tree (Definition 1) and
+#    check that they form a cycle basis (Theorem 2) of dimension $l = m - n$ (Corollary 1), with matrix
+#    $C = [I_l\ B]$ (Corollary 2, eq. (19));
+# 3. state the zero-sum property (eqs. (20)–(21)), prove Theorem 3 with the correction of eqs. (22)–(23),
+#    and relate it to phase 1 through a cvxpy problem and its multipliers;
+# 4. use Proposition 2 and Corollary 3 to see why the paper corrects only loop closures;
+# 5. measure when the rounding finds the true $k$, what an ambiguous rounding costs, and how the chordal
+#    regularizer (the package's default, beyond the paper) avoids tree paths;
+# 6. reproduce Table I on the INTEL graph.
+#
+# **Notation.** $n+1$ poses $p_0,\dots,p_n$, pose 0 the reference (package: `graph.n_poses` $= n+1$); $m$
+# edges; the incidence matrix $A$ ($(n+1)\times m$, column of edge $(i,j)$: $-1$ at $i$, $+1$ at $j$;
+# `lc.incidence_matrix`) and its reduced form without pose 0's row ($n\times m$, `lc.reduced_incidence`,
+# called "A2" in some package docstrings — not the paper's $A_2 = A\otimes I_2$); $\delta$ the measured
+# relative orientations, $\delta_{\rm reg} = \delta + 2\pi k$ the regularized ones; $l$ the number of chords.
+# The letter $B$ in $C = [I_l\ B]$ is unrelated to the $B$ of phase 3 (lecture 4).
 
 # %%
-import time
-
-_t_start = time.perf_counter()
-
-import logging
-
+import cvxpy as cp
 import matplotlib.pyplot as plt
 import numpy as np
+import scipy.sparse as sp
 
-from _lecture import figure_saver, paper_lago, real
 import lago_cvx as lc
 from lago_cvx import phases as P
-from lago_cvx.uncertainty import edge_uncertainty
-from lago_cvx.graph import (cycle_basis, cyclomatic_number, incidence_matrix, spanning_tree)
-from lago_cvx.plotting import plot_trajectory
-from lago_cvx.posegraph import PoseGraph
+from lago_cvx.datasets import REFERENCE_CHI2
+from lago_cvx.plotting import plot_edges, plot_trajectory
 from lago_cvx.regularization import regularize
+from lago_cvx.rounding import AMBIGUITY_MARGIN
+from lago_cvx.solvers import LEAST_SQUARES, ClarabelSettings
+from lago_cvx.uncertainty import edge_uncertainty
+from _lecture import FULL, check, paper_lago, real, setup, show
 
-save = figure_saver("05_regularization")
+setup("05_regularization")
+TWO_PI = 2 * np.pi
 
-logging.getLogger("lago_cvx").setLevel(logging.ERROR)  # ambiguity warnings are counted, not logged, here
-TWO_PI = 2.0 * np.pi
-np.set_printoptions(linewidth=120)
 
-# %% [markdown]
-# ## 1. Cycles, circuits and the fundamental cycle basis
-#
-# Walk around a closed path in the graph (a *circuit*; a *cycle* when no pose is repeated) and record, for
-# every edge, $+1$ if it is traversed along its direction, $-1$ against it, $0$ if not used. The resulting
-# vector $c\in\{-1,0,1\}^m$ satisfies $A\,c = 0$: every pose is entered as often as it is left. The vectors
-# with $Ac=0$ form the **cycle space** $\ker A$, of dimension $m - \operatorname{rank}A = m - n$ for a
-# connected graph (Proposition 1: $\operatorname{rank}A = n$).
-#
-# A **spanning tree** has $n$ edges; the remaining $l$ edges are the **chords**. Each chord closes exactly
-# one cycle with the tree path between its endpoints — its **fundamental cycle**. Oriented along the chord,
-# the $l$ fundamental cycles are the rows of the cycle basis matrix $C$ ($l\times m$).
-#
-# **Corollary 1 (as formulated here).** The number of independent cycles is the cyclomatic number
-# $l = m - n$ (with the package's count: $m$ − `n_poses` + number of components).
-#
-# **Corollary 2 (as formulated here).** Ordering the edges as [chords, tree edges]
-# (`SpanningTree.edge_order`), the cycle basis is $C = [I_l\ \ B]$: the identity on the chords (each
-# fundamental cycle contains exactly one chord, its own), and $B$ (entries $-1, 0, 1$) on the tree. Its rows
-# are cycles ($AC^\top = 0$) and independent ($\operatorname{rank}C = l$) — they are a basis of $\ker A$.
-#
-# (Derivation: with $A = [A_C\ \ A_T]$ in that edge order and $A_{2,T}$ invertible — a tree is connected,
-# Proposition 1 — the rows of $[I\ \ B]$ with $B^\top = -A_{2,T}^{-1}A_{2,C}$ satisfy $A_2C^\top = A_{2,C} + A_{2,T}B^\top = 0$;
-# the anchor's row of $A$ is minus the sum of the others, so $AC^\top=0$; the identity block gives rank $l$;
-# and $\dim\ker A = m-n = l$. This is exactly how `cycle_basis` builds $C$.)
-#
-# A five-pose example: odometry $0\to1\to2\to3\to4$ and three loop closures.
+def solve_qp(problem):
+    """Solve with Clarabel as the package does (tolerances 1e-12, iterative refinement: solvers.LEAST_SQUARES)
+    but with Clarabel's default static regularization 1e-8 and its QDLDL factorization, which these
+    equality-constrained forms with dense parameters need; returns the status."""
+    kwargs = ClarabelSettings(static_regularization_constant=1e-8).over(LEAST_SQUARES).solver_kwargs()
+    problem.solve(solver=cp.CLARABEL, direct_solve_method="qdldl", **kwargs)
+    return problem.status
 
-# %%
-truth5 = np.array([[0, 0, 0], [1, 0, np.pi / 2], [1, 1, np.pi], [0, 1, 3 * np.pi / 2], [0, 0, 2 * np.pi]], float)
-tails5 = np.array([0, 1, 2, 3, 0, 4, 3])
-heads5 = np.array([1, 2, 3, 4, 2, 1, 0])
-rel5 = lc.between(truth5[tails5], truth5[heads5])
-g5 = PoseGraph(5, tails5, heads5, rel5[:, :2], lc.wrap_angle(rel5[:, 2]), np.broadcast_to(np.eye(3), (7, 3, 3)))
-t5 = spanning_tree(g5, "odometry")
-C5 = cycle_basis(g5, t5).toarray()
-print("edges (tail→head):", [f"{a}→{b}" for a, b in zip(tails5, heads5)])
-print("incidence A (eq. 6):\n", incidence_matrix(g5).toarray().astype(int))
-print("odometric tree edges:", t5.tree_edges, " chords:", t5.chords, " edge_order:", t5.edge_order)
-print("C (graph edge order):\n", C5.astype(int))
-print("C in edge_order = [I_l B]:\n", C5[:, t5.edge_order].astype(int))
-print("cyclomatic number l =", cyclomatic_number(g5), "= m − n =", g5.n_edges, "−", g5.n_poses - 1)
-assert np.array_equal(C5[:, t5.edge_order][:, :t5.n_chords], np.eye(t5.n_chords))
-assert np.abs(incidence_matrix(g5) @ C5.T).max() == 0
 
 # %% [markdown]
-# Corollaries 1 and 2 on larger graphs, for every kind of spanning tree the package builds (breadth-first
-# from the anchor, the odometric chain where it exists, the minimum spanning tree of the $\delta$
-# variances, and a user-given tree), and on the real INTEL graph:
+# ## 1. The wraparound problem
+#
+# The paper's example: a robot drives once around a circle, anticlockwise, and comes back to its start.
+# Summing the relative orientations around the loop, each small and in $[-\pi,\pi)$, gives $2\pi$ — yet
+# the loop closure links the last pose with the first one, whose orientation is 0 by convention: the
+# data say both "one full turn" and "back to the same heading". Phase 1's linear model $A^\top\theta = \delta$
+# cannot recognise that $0$ and $2\pi$ are the same orientation: it tries to satisfy both, and spreads the
+# contradiction over the loop.
+#
+# We write phase 1 (eq. (13)) as a cvxpy problem from named parameters — $A^\top$, the measurements $\delta$
+# and the weights $w_\delta = P_\delta^{-1/2}$ — solve it once with the raw $\delta$ and once with the
+# regularized $\delta_{\rm reg}$, changing only `δ.value`.
 
 # %%
-wr = lc.random_graph(40, 75, seed=3, sigma_xy=0.0, sigma_theta=0.0)
-CASES = [
-    ("random 40/75", wr.graph, ["bfs", "mst", "given"]),
-    ("circle 60 poses, 3 laps", lc.circle_world(60, laps=3, seed=4, sigma_xy=0.0, sigma_theta=0.0).graph,
-     ["bfs", "odometry", "mst"]),
-    ("manhattan 300", lc.manhattan_world(300, seed=1).graph, ["bfs", "odometry", "mst"]),
-]
-intel_toro = real("carlone/INTEL_P_toro.graph")
-if intel_toro is not None:
-    CASES.append(("carlone/INTEL_P_toro.graph (real)", intel_toro, ["bfs", "odometry", "mst"]))
+circle = lc.circle_world(8, laps=1, seed=0, sigma_xy=0.0, sigma_theta=0.0)
+gc = circle.graph
+odo = gc.is_odometric
+print(f"{gc!r}\nodometric δ: {np.round(gc.delta[odo], 4)}\nloop closure {gc.tails[~odo][0]}→{gc.heads[~odo][0]}: "
+      f"δ = {gc.delta[~odo][0]:.4f}")
+turn = gc.delta[odo].sum() - gc.delta[~odo][0]                       # around the loop: the chord backwards
+check(abs(turn - TWO_PI) < 1e-12, f"around the loop the relative orientations add up to {turn:.6f} = 2π, not 0")
 
-print(f"{'graph':34s} {'tree':8s} {'m':>5s} {'n_poses':>7s} {'l':>4s} {'rows C':>6s} {'rank C':>6s} "
-      f"{'|A Cᵀ|':>7s} {'entries':>10s} {'[I B]':>5s}")
-for name, g, kinds in CASES:
-    l = cyclomatic_number(g)
-    assert l == g.n_edges - (g.n_poses - 1)                      # Corollary 1 (connected graph)
-    for kind in kinds:
-        tree = spanning_tree(g, wr.params["spanning_edges"] if kind == "given" else kind)
-        C = cycle_basis(g, tree)
-        Cd = C.toarray()
-        rank = np.linalg.matrix_rank(Cd)
-        ACt = np.abs(incidence_matrix(g) @ C.T).max()
-        entries = set(np.unique(Cd).astype(int).tolist())
-        ib = np.array_equal(Cd[:, tree.edge_order][:, :l], np.eye(l))
-        print(f"{name:34s} {kind:8s} {g.n_edges:5d} {g.n_poses:7d} {l:4d} {C.shape[0]:6d} {rank:6d} {ACt:7.0f} "
-              f"{str(sorted(entries)):>10s} {str(ib):>5s}")
-        assert C.shape == (l, g.n_edges) and tree.n_chords == l and rank == l and ACt == 0
-        assert entries <= {-1, 0, 1} and ib
-
-# Corollary 1 with the package's general formula: a disconnected graph (pose 0 cut off)
-g_split = wr.graph.subgraph_edges((wr.graph.tails != 0) & (wr.graph.heads != 0))
-k_comp, _ = lc.connected_components(g_split)
-print(f"\nremoving the edges of pose 0: {k_comp} components, cyclomatic_number = {cyclomatic_number(g_split)} "
-      f"= m − n_poses + components = {g_split.n_edges} − {g_split.n_poses} + {k_comp}")
-assert k_comp == 2 and cyclomatic_number(g_split) == g_split.n_edges - g_split.n_poses + k_comp
+n8, m8 = gc.n_poses - 1, gc.n_edges
+theta = cp.Variable(n8, name="θ")
+e = cp.Variable(m8, name="e")
+At = cp.Parameter((m8, n8), name="Aᵀ")
+delta = cp.Parameter(m8, name="δ")
+w = cp.Parameter(m8, nonneg=True, name="w_δ")
+fit = e == At @ theta - delta
+phase1 = cp.Problem(cp.Minimize(cp.sum_squares(cp.multiply(w, e))), [fit])
+print(phase1)
+At.value = lc.reduced_incidence(gc).toarray().T
+w.value = edge_uncertainty(gc).sqrt_info_delta
+truth_theta = circle.truth[1:, 2]
+reg8 = regularize(gc, lc.spanning_tree(gc, "odometry"))
+for label, value in (("raw δ", gc.delta), ("regularized δ_reg", reg8.delta_reg)):
+    delta.value = value
+    status = solve_qp(phase1)
+    err = np.abs(theta.value - truth_theta).max()
+    print(f"phase 1 with the {label}: max |θ − θ_true| = {err:.3f} rad ({status})")
+check(np.abs(theta.value - truth_theta).max() < 1e-8, "with δ_reg phase 1 recovers the true orientations")
+lam = fit.dual_value
+check(np.allclose(lam, -2 * w.value ** 2 * e.value, atol=1e-9) and np.abs(At.value.T @ lam).max() < 1e-8,
+      "multipliers λ = −2 P_δ⁻¹ e balance at every pose: A λ = 0 (the normal equations of eq. (13))")
 
 # %% [markdown]
-# ## 2. Theorem 2 — orientations around a cycle sum to $2k\pi$
-#
-# **Theorem 2 (as formulated here).** For exact measurements, the relative orientations along any cycle
-# sum to an integer multiple of $2\pi$; equivalently, for the cycle basis,
-# $C\,\delta_{\text{true}} \equiv 0 \pmod{2\pi}$.
-#
-# *Proof.* Write the true, unwrapped orientation differences as $t = A^\top\theta$. For a cycle $c$,
-# $c^\top t = (Ac)^\top\theta = 0$. A measurement is $\delta = t + 2\pi w$ with integer $w$ (the wrap), so
-# $c^\top\delta = 2\pi\,c^\top w \in 2\pi\mathbb Z$. $\square$
-#
-# The sum is zero only when no wrap happened along the cycle; when it is not, phase 1 would fit the
-# orientations to an inconsistent loop — the problem Theorem 3 fixes. We check on noiseless worlds with the
-# ground truth: $C t = 0$ exactly, $C\delta/2\pi$ is an integer, and (on winding trajectories) often non-zero.
+# The same on a trajectory that winds four times: `circle_world(120, laps=4)`, noiseless. Without the
+# correction, phase 1 spreads the four turns over the loops and phases 2–3 build the positions from wrong
+# headings; with it, the estimate is exact.
 
 # %%
-print(f"{'graph':34s} {'tree':8s} {'max|C t|':>9s} {'max|Cδ/2π − round|':>19s} {'cycles with Cδ ≠ 0':>19s}")
-NOISELESS = [
-    ("random 40/75 (θ in ±3π)", wr, ["bfs", "mst", "given"]),
-    ("circle 120 poses, 5 laps", lc.circle_world(120, laps=5, seed=1, sigma_xy=0.0, sigma_theta=0.0),
-     ["bfs", "odometry", "mst"]),
-    ("manhattan 500", lc.manhattan_world(500, seed=3, sigma_xy=0.0, sigma_theta=0.0), ["bfs", "odometry", "mst"]),
-]
-for name, w, kinds in NOISELESS:
-    g = w.graph
-    t_true = w.truth[g.heads, 2] - w.truth[g.tails, 2]
-    for kind in kinds:
-        tree = spanning_tree(g, w.params["spanning_edges"] if kind == "given" else kind)
-        C = cycle_basis(g, tree)
-        Ct = np.abs(C @ t_true).max()
-        q = C @ g.delta / TWO_PI
-        frac = np.abs(q - np.rint(q)).max()
-        print(f"{name:34s} {kind:8s} {Ct:9.1e} {frac:19.1e} {np.count_nonzero(np.rint(q)):10d} of {C.shape[0]:4d}")
-        assert Ct < 1e-9 and frac < 1e-9
+w4 = lc.circle_world(120, laps=4, seed=0, sigma_xy=0.0, sigma_theta=0.0)
+g4 = w4.graph
+unc4 = edge_uncertainty(g4)
+raw1 = P.phase1_closed_form(g4, g4.delta, unc4)                       # phase 1 on the raw, wrapped δ
+raw3 = P.phase3_closed_form(g4, P.phase2(g4, raw1.theta, unc4, information="marginal"))
+res4 = paper_lago(g4)
+err_raw = np.abs(raw3.poses[:, :2] - w4.truth[:, :2]).max()
+err_reg = np.abs(res4.poses[:, :2] - w4.truth[:, :2]).max()
+wrapped = np.count_nonzero(np.rint((w4.truth[g4.heads, 2] - w4.truth[g4.tails, 2] - g4.delta) / TWO_PI))
+print(f"{g4!r}: {wrapped} measurements differ from the true orientation change by a multiple of 2π")
+check(err_raw > 1.0, f"without regularization: max position error {err_raw:.2f} m")
+check(err_reg < 1e-9, f"with regularization ({res4.regularization.n_regularized} chords corrected): "
+      f"max position error {err_reg:.1e} m")
 
-# %% [markdown]
-# ## 3. Theorem 3 — the regularization of eq. (23)
-#
-# **Theorem 3 (as formulated here).** Given a spanning tree, integrate the measured orientations along
-# it from the anchor ($\theta_{\text{tree}}$, tree edges unchanged). For each chord $c = (i\to j)$ let
-# $r_c = (C\delta)_c = \delta_c - (\theta_{\text{tree},j} - \theta_{\text{tree},i})$ be its cycle residual, and set
-#
-# $$ k_c = -\operatorname{round}\!\Big(\frac{r_c}{2\pi}\Big),\qquad \delta_{\text{reg},c} = \delta_c + 2\pi k_c,
-#    \qquad k = 0 \text{ on tree edges.} \tag{23}$$
-#
-# Then $(C\delta_{\text{reg}})_c = r_c + 2\pi k_c \in (-\pi, \pi]$ for every chord, and on exact measurements
-# $C\delta_{\text{reg}} = 0$: the regularized measurements are cycle-consistent and phase 1 can treat them as real
-# numbers.
-#
-# *Proof.* $C = [I\ B]$ and $k$ vanishes on the tree, so $(C\delta_{\text{reg}})_c = (C\delta)_c + 2\pi k_c$ — the
-# rounding puts it in $(-\pi,\pi]$ (ties sent to $+\pi$, the package's rule). On exact data $(C\delta)_c \in 2\pi\mathbb Z$
-# (Theorem 2), so $r_c + 2\pi k_c$ is a multiple of $2\pi$ in $(-\pi,\pi]$, i.e. $0$. $\square$
-#
-# `regularize(graph, tree)` computes $r_c$ through the tree (no $C$ is formed); we check its output against
-# the explicit $C$ of `cycle_basis`.
-
-# %%
-print(f"{'graph':34s} {'tree':8s} {'chords':>6s} {'k≠0':>5s} {'max|C δ_reg|':>13s} {'|report − C δ_reg|':>19s}")
-for name, w, kinds in NOISELESS:
-    g = w.graph
-    for kind in kinds:
-        tree = spanning_tree(g, w.params["spanning_edges"] if kind == "given" else kind)
-        reg = regularize(g, tree)
-        C = cycle_basis(g, tree)
-        Cd = C @ reg.delta_reg
-        e_rep = np.abs(Cd - reg.residual).max()
-        print(f"{name:34s} {kind:8s} {tree.n_chords:6d} {reg.n_regularized:5d} {np.abs(Cd).max():13.1e} {e_rep:19.1e}")
-        assert np.abs(Cd).max() < 1e-9 and e_rep < 1e-9
-        assert np.all(reg.k[tree.tree_edges] == 0)
-        assert np.allclose((reg.delta_reg - g.delta) / TWO_PI, reg.k, atol=1e-12)
-
-# %% [markdown]
-# With noise the cycle residuals no longer vanish, but they always lie in $(-\pi,\pi]$ — here strictly inside,
-# $|C\delta_{\text{reg}}| < \pi$, since no exact tie occurs on continuous noise:
-
-# %%
-print(f"{'graph':40s} {'tree':8s} {'max|C δ_reg|':>13s} {'(π = 3.14159)':>14s}")
-for sig in (0.05, 0.3, 1.0):
-    w = lc.manhattan_world(800, seed=5, sigma_theta=sig)
-    g = w.graph
-    for kind in ("bfs", "odometry", "mst"):
-        tree = spanning_tree(g, kind)
-        reg = regularize(g, tree)
-        Cd = cycle_basis(g, tree) @ reg.delta_reg
-        print(f"{'manhattan 800, σ_θ = ' + str(sig):40s} {kind:8s} {np.abs(Cd).max():13.6f}")
-        assert np.abs(Cd).max() < np.pi and np.allclose(Cd, reg.residual, atol=1e-9)
-
-# %% [markdown]
-# ## 4. When does the rounding find the true $k$? Proposition 2 and Corollary 3
-#
-# Write each measurement as $\delta = t + \nu + 2\pi w$: true unwrapped difference $t = A^\top\theta_{\text{true}}$,
-# noise $\nu$, and an integer wrap $w$. By Theorem 2, $C\delta = C\nu + 2\pi Cw$.
-#
-# **Proposition 2 / Corollary 3 (as formulated here).** The *true* correction is $k^{\text{true}} = -Cw$ (it makes
-# $C\delta_{\text{reg}} = C\nu$, the noise accumulated around each fundamental cycle). The rounding of eq. (23)
-# returns $k_c = k^{\text{true}}_c$ if and only if $(C\nu)_c \in (-\pi,\pi]$ — i.e. if the noise accumulated
-# along the chord's fundamental cycle stays below $\pi$. (Immediate: $r_c = (C\nu)_c - 2\pi k^{\text{true}}_c$, and the
-# rounding picks the unique $k_c$ with $r_c + 2\pi k_c \in (-\pi,\pi]$.)
-#
-# On a synthetic world we know $t$ from the ground truth, hence $w = \operatorname{round}((\delta - t)/2\pi)$
-# (valid while every single $|\nu_e| < \pi$, asserted) and $C\nu$. For the odometric tree of a trajectory without
-# wrapped odometry steps $w = 0$ on the tree and $k^{\text{true}}_c$ reduces to
-# $\operatorname{round}((t_c - \delta_c)/2\pi)$, "the true unwrapped difference minus the measured $\delta$, over
-# $2\pi$"; in general the tree's own wraps enter through $B$. A long fundamental cycle accumulates more noise,
-# so the tree matters: the odometric tree closes a loop through the whole trajectory between the two visits;
-# the BFS tree through as few edges as possible.
-#
-# We sweep the rotation noise $\sigma_\theta$ on Manhattan worlds (1000 poses, three seeds; worlds that differ only
-# in $\sigma$ share their graph and standardized noise) and count, per tree, the chords whose $k$ is wrong and the
-# chords `regularize` reports as `ambiguous` (corrected residual within 0.5 rad of $\pm\pi$). To keep it fast we
-# apply $C$ through the tree, $(Cv)_c = v_c - (\text{tree path sum of } v)_c$ (`SpanningTree.path_sums`, what
-# `regularize` itself does), checked once against the explicit `cycle_basis`.
-
-# %%
-SIGMAS = [0.01, 0.02, 0.05, 0.075, 0.1, 0.125, 0.15, 0.2, 0.25, 0.3, 0.4, 0.5]
-SEEDS = [0, 1, 2]
-TREES = ["odometry", "bfs"]
-stats = {kind: {"wrong": [], "n_wrong": [], "ambiguous": [], "flagged": []} for kind in TREES}
-checked = 0
-simple = 0  # (world, tree) pairs whose tree has no wrapped step
-print(f"{'σ_θ':>6s} {'chords':>7s} | " + " | ".join(f"{kind + ': wrong k (frac.)':>26s} {'ambiguous':>9s}"
-                                                  for kind in TREES))
-for sig in SIGMAS:
-    acc = {kind: np.zeros(3) for kind in TREES}
-    n_chords = 0
-    for seed in SEEDS:
-        w = lc.manhattan_world(1000, seed=seed, sigma_theta=sig)
-        g = w.graph
-        t_true = w.truth[g.heads, 2] - w.truth[g.tails, 2]
-        wrap = np.rint((g.delta - t_true) / TWO_PI)
-        nu = g.delta - t_true - TWO_PI * wrap
-        assert np.abs(nu).max() < np.pi            # every single edge's noise below π: w is well defined
-        n_chords += g.n_edges - g.n_poses + 1
-        for kind in TREES:
-            tree = spanning_tree(g, kind)
-            reg = regularize(g, tree)
-
-            def cyc(v):  # C·v without forming C: chord value minus the tree path's sum
-                return v[tree.chords] - tree.path_sums(g, v)[tree.chords]
-
-            if seed == 0 and sig == SIGMAS[0]:
-                assert np.allclose(cyc(nu), cycle_basis(g, tree) @ nu, atol=1e-12)
-            k_true = -cyc(wrap)
-            C_nu = cyc(nu)
-            wrong = reg.k_chords != np.rint(k_true).astype(np.int64)
-            assert np.array_equal(wrong, np.abs(C_nu) > np.pi)    # wrong k  ⇔  accumulated noise beyond ±π
-            assert np.allclose(reg.residual[~wrong], C_nu[~wrong])  # correct k: residual = accumulated noise
-            if not wrap[tree.tree_edges].any():  # no wrapped tree step: k_true = round((t_c − δ_c)/2π)
-                assert np.array_equal(k_true, -wrap[tree.chords])
-                simple += 1
-            checked += tree.n_chords
-            acc[kind] += [wrong.sum(), reg.ambiguous.size, np.isin(reg.chords[wrong], reg.ambiguous).sum()]
-    for kind in TREES:
-        stats[kind]["wrong"].append(acc[kind][0] / n_chords)
-        stats[kind]["n_wrong"].append(acc[kind][0])
-        stats[kind]["ambiguous"].append(acc[kind][1] / len(SEEDS))
-        stats[kind]["flagged"].append(acc[kind][2])
-    print(f"{sig:6.3f} {n_chords:7d} | " + " | ".join(
-        f"{int(acc[kind][0]):15d} ({acc[kind][0] / n_chords:6.1%}) {acc[kind][1] / len(SEEDS):9.1f}" for kind in TREES))
-print(f"\nwrong k ⇔ |C ν| > π verified on {checked} chords; in {simple} of {2 * len(SIGMAS) * len(SEEDS)} "
-      "(world, tree) pairs no tree edge is wrapped and k_true = round((t_c − δ_c)/2π) per chord")
-for kind in TREES:
-    assert stats[kind]["wrong"][0] == 0                             # small noise: every k is right
-    print(f"{kind}: wrong chords that were flagged ambiguous, summed over the sweep: "
-          f"{int(sum(stats[kind]['flagged']))} of {int(sum(stats[kind]['n_wrong']))}")
-odo, bfs = np.array(stats["odometry"]["wrong"]), np.array(stats["bfs"]["wrong"])
-assert np.all(bfs <= odo)   # on these worlds the shortest-depth tree is never worse
-assert stats["odometry"]["ambiguous"][0] == 0 and max(stats["odometry"]["ambiguous"]) > 10
-
-# %%
-fig, axes = plt.subplots(1, 2, figsize=(12, 4.6))
-colors = {"odometry": "tab:red", "bfs": "tab:blue"}
-labels = {"odometry": "odometric tree (the seed's choice)", "bfs": "BFS tree (shortest depth, package default)"}
-for kind in TREES:
-    axes[0].plot(SIGMAS, 100 * np.array(stats[kind]["wrong"]), "o-", color=colors[kind], label=labels[kind])
-    axes[1].plot(SIGMAS, stats[kind]["ambiguous"], "o-", color=colors[kind], label=labels[kind])
-axes[0].set_ylabel("chords with a wrong 2kπ correction [%]")
-axes[0].set_title("Rounding errors of eq. (23) vs rotation noise\n(Manhattan worlds, 1000 poses, 3 seeds)")
-axes[1].set_ylabel("chords reported ambiguous (mean per world)")
-axes[1].set_title("`ambiguous` list: |C δ_reg| within 0.5 rad of ±π")
-for ax in axes:
-    ax.set_xscale("log")
-    ax.set_xlabel("rotation noise σ_θ per measurement [rad]")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=9)
-fig.tight_layout()
-save(fig, "noise_sweep")
-plt.close(fig)
-
-# %% [markdown]
-# Below a threshold of $\sigma_\theta$ every $k$ is right for both trees; beyond it the odometric tree — whose
-# fundamental cycles run along the whole trajectory between two visits — goes wrong first and fast, while
-# the BFS tree's short cycles keep the accumulated noise below $\pi$ much longer. The `ambiguous` list starts
-# to fill at the same noise level as the errors appear: it is the package's warning that Corollary 3's
-# condition is in danger. It is a warning, not a detector: a chord whose $k$ is wrong has a residual anywhere in
-# $(-\pi,\pi]$, so only some wrong chords are flagged, and some flagged chords are right.
-#
-# ## 5. The wraparound problem on a trajectory that turns four times
-#
-# `circle_world(120, laps=4)`, **noiseless**: the robot drives four times around a circle; the loop closures
-# join poses one, two or three laps apart, whose true relative orientation is $2\pi q$ (plus a tiny
-# offset) but is *measured* as $\approx 0$.
-#
-# * **Without regularization** we run the package's phases directly on the raw, wrapped $\delta$:
-#   `phase1_closed_form(graph, graph.delta, …)`, then `phase2` and `phase3_closed_form`.
-# * **With regularization**: `lago(graph)` (BFS tree, eq. (23), then the same phases).
-
-# %%
-wc = lc.circle_world(120, laps=4, seed=0, sigma_xy=0.0, sigma_theta=0.0)
-gc = wc.graph
-unc = edge_uncertainty(gc)
-ph1_raw = P.phase1_closed_form(gc, gc.delta, unc)
-ph3_raw = P.phase3_closed_form(gc, P.phase2(gc, ph1_raw.theta, unc, information="marginal"))
-res_c = paper_lago(gc)
-err_raw = np.abs(ph3_raw.poses[:, :2] - wc.truth[:, :2]).max()
-err_reg = np.abs(res_c.poses[:, :2] - wc.truth[:, :2]).max()
-err_reg_th = np.abs(lc.wrap_angle(res_c.poses[:, 2] - wc.truth[:, 2])).max()
-print(f"{gc!r}")
-print(f"loop closures whose raw δ differs from the true difference by 2π·q, q ≠ 0: "
-      f"{np.count_nonzero(np.rint((wc.truth[gc.heads, 2] - wc.truth[gc.tails, 2] - gc.delta) / TWO_PI))}")
-print(f"without regularization: max position error {err_raw:.3f} m, χ² = {lc.chi2(gc, ph3_raw.poses):.4g}")
-print(f"with regularization ({res_c.regularization.n_regularized} chords corrected): max position error "
-      f"{err_reg:.1e} m, max orientation error {err_reg_th:.1e} rad, χ² = {res_c.chi2:.1e}")
-assert err_raw > 1.0 and err_reg < 1e-9 and err_reg_th < 1e-9
-for kind in ("odometry", "mst"):
-    r_k = paper_lago(gc, spanning_tree=kind)
-    e_k = np.abs(r_k.poses[:, :2] - wc.truth[:, :2]).max()
-    print(f"with regularization, {kind} tree ({r_k.regularization.n_regularized} chords corrected): "
-          f"max position error {e_k:.1e} m")
-    assert e_k < 1e-9
-
-fig, axes = plt.subplots(1, 2, figsize=(12, 5.6))
-for ax, poses, title in [(axes[0], ph3_raw.poses, "without regularization (raw wrapped δ)"),
-                         (axes[1], res_c.poses, "with the 2kπ regularization of eq. (23)")]:
-    plot_trajectory(ax, wc.truth, label="ground truth (4 laps)", color="k", linewidth=3.0, alpha=0.25)
-    plot_trajectory(ax, poses, label="estimate after phases 1–3", color="tab:red", linewidth=1.0,
-                    style=".-", markersize=3)
-    ax.set_title(f"Circle world, 120 poses, noiseless:\n{title}")
-    ax.legend(fontsize=9, loc="upper right")
-axes[0].annotate(f"estimate collapsed here\n(max position error {err_raw:.1f} m)", xy=(0.0, 0.3),
-                 xytext=(-8.5, 8.0), arrowprops=dict(arrowstyle="->"), fontsize=9)
-inset = axes[0].inset_axes([0.58, 0.3, 0.38, 0.38])
-plot_trajectory(inset, ph3_raw.poses, color="tab:red", linewidth=1.0, style=".-", markersize=2)
-inset.set_title("zoom on that estimate", fontsize=8)
+fig, axes = plt.subplots(1, 2, figsize=(12, 5.4))
+for ax, poses, title in [(axes[0], raw3.poses, "phases 1–3 on the raw, wrapped δ"),
+                         (axes[1], res4.poses, "phases 1–3 on the regularized δ_reg")]:
+    plot_trajectory(ax, w4.truth, label="ground truth (4 laps)", color="k", linewidth=3.0, alpha=0.25)
+    plot_trajectory(ax, poses, label="estimate", color="tab:red", linewidth=1.0, style=".-", markersize=3)
+    ax.set_title(f"circle world, 120 poses, noiseless:\n{title}")
+    ax.legend(fontsize=8, loc="upper right")
+inset = axes[0].inset_axes([0.3, 0.3, 0.4, 0.4])
+plot_trajectory(inset, raw3.poses, color="tab:red", linewidth=0.8, style=".-", markersize=2)
+inset.set_title("the estimate, enlarged", fontsize=8)
 inset.tick_params(labelsize=7)
-inset.set_xlabel("x [m]", fontsize=7)
-inset.set_ylabel("y [m]", fontsize=7)
+inset.set_xlabel("")
+inset.set_ylabel("")
 fig.tight_layout()
-save(fig, "wraparound")
-plt.close(fig)
+show(fig, "wraparound")
 
 # %% [markdown]
-# Without the correction phase 1 tries to satisfy "four turns of $2\pi$" and "zero turn" at once and
-# spreads the contradiction over all orientations; phases 2–3 then build positions from wrong headings.
-# With it, the estimate is exact (to rounding) on noiseless data, for every tree.
+# ## 2. Cycles and circuits
 #
-# ## 6. What goes wrong when the rounding is ambiguous
+# The paper's definitions (cycle / circuit, Section IV-E): a **cycle** is a subgraph in which every node
+# appears in an even number of edges; a **circuit** is a cycle in which every node appears in exactly two
+# edges. A circuit is
+# one closed walk without repeated nodes; a cycle may be several circuits glued together (a figure
+# eight). A *directed* circuit is written as a vector $c\in\{-1,0,1\}^m$: $+1$ for an edge traversed from
+# tail to head, $-1$ for one traversed backwards, $0$ for an edge not in it. Walking around it, every pose
+# is entered as often as it is left, so $A c = 0$.
 #
-# **Real data: M3500a** (`carlone/input_M3500a_g2o.g2o`, M3500 with the orientation measurements perturbed
-# by an extra σ = 0.1 rad). With the odometric tree the fundamental cycles are long, the accumulated rotation
-# noise reaches $\pi$ and the rounding becomes a coin toss; with the BFS tree it does not. There is no ground
-# truth here, so we compare χ² with the reference minimum 912.115 (datasets README §4.2; a local
-# Gauss–Newton value, not certified) and count the fundamental cycles of the odometric basis on which the two
-# regularizations disagree: two corrections are equivalent exactly when $C(\delta_{\text{reg}}^{\text{odo}} - \delta_{\text{reg}}^{\text{bfs}}) = 0$.
+# A small graph that contains both: two loops sharing pose 3, odometry $0\to1\to\dots\to6$, loop
+# closures $3\to0$, $6\to3$ and $2\to4$.
+
+# %%
+pos8 = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0, 2], [-1, 2], [-1, 1]], float)
+th8 = np.array([0, 1, 2, 3, 4, 5, 6]) * np.pi / 2                      # the robot keeps turning left
+truth8 = np.column_stack([pos8, th8])
+tails8 = np.array([0, 1, 2, 3, 4, 5, 3, 6, 2])
+heads8 = np.array([1, 2, 3, 4, 5, 6, 0, 3, 4])
+meas8 = lc.between(truth8[tails8], truth8[heads8])
+eight = lc.PoseGraph(7, tails8, heads8, meas8[:, :2], lc.wrap_angle(meas8[:, 2]), np.broadcast_to(np.eye(3), (9, 3, 3)))
+A8 = lc.incidence_matrix(eight).toarray().astype(int)
+print("edges:", [f"{i}→{j}" for i, j in zip(tails8, heads8)])
+print("incidence matrix A:\n", A8)
+
+
+def degrees(graph, c):
+    """How many edges of the support of c meet each pose."""
+    used = c != 0
+    return np.bincount(np.concatenate([graph.tails[used], graph.heads[used]]), minlength=graph.n_poses)
+
+
+loop_a = np.array([1, 1, 1, 0, 0, 0, 1, 0, 0])        # 0→1→2→3→0
+loop_b = np.array([0, 0, 0, 1, 1, 1, 0, 1, 0])        # 3→4→5→6→3
+eight_cycle = loop_a + loop_b
+for name, c in (("loop 0-1-2-3", loop_a), ("loop 3-4-5-6", loop_b), ("both loops", eight_cycle)):
+    deg = degrees(eight, c)
+    kind = "circuit" if set(deg[deg > 0]) == {2} else "cycle, not a circuit"
+    print(f"{name:13s}: degrees {deg}, A c = {A8 @ c} → {kind}")
+check(np.all(A8 @ eight_cycle == 0) and degrees(eight, eight_cycle)[3] == 4 and np.all(degrees(eight, eight_cycle) % 2 == 0),
+      "both loops together: every degree even, pose 3 has degree 4 — a cycle that is not a circuit")
+check(all(set(degrees(eight, c)[degrees(eight, c) > 0]) == {2} and np.all(A8 @ c == 0) for c in (loop_a, loop_b)),
+      "each loop alone is a circuit (every degree exactly 2) and A c = 0")
+
+# %% [markdown]
+# ## 3. Definition 1, Theorem 2 and Corollary 1 — fundamental circuits form a cycle basis
+#
+# A spanning tree $T$ has $n$ edges; the other $m - n$ edges are its **chords**.
+#
+# **Definition 1** (fundamental circuit). Given a directed graph $G$ and a spanning tree $T$, a fundamental
+# circuit is the circuit made of a chord $(i,j)$ of $G$ with respect to $T$ and the unique path in $T$ joining
+# $i$ and $j$.
+#
+# A **cycle basis** is a smallest set of circuits such that every cycle is a combination of them; they span
+# the cycle space.
+#
+# **Theorem 2** (fundamental circuits form a cycle basis). *The fundamental circuits of a directed graph
+# constitute a cycle basis.* The paper refers to graph-theory textbooks for the proof. The argument is short
+# in vector form: each fundamental circuit contains exactly one chord, its own, so they are independent;
+# and if $c$ is any cycle vector, $c' = c - \sum_{\text{chords } k} c_k\, c^{(k)}$ has no chord edge left and
+# still satisfies $Ac' = 0$ — a cycle inside a tree, which can only be empty. So
+# $c = \sum_k c_k\, c^{(k)}$: **the coefficients of a cycle in the fundamental basis are its own chord
+# entries** (Exercise 1).
+#
+# **Corollary 1** (the dimension of the cycle space). *The cycle space of a connected graph has dimension
+# $l = m - n$, the cyclomatic number.* (Also $m - \operatorname{rank} A$ with $\operatorname{rank}A = n$,
+# Proposition 1.)
+#
+# `lc.spanning_tree(graph, kind)` builds the tree (`"odometry"`, the paper's; `"bfs"`, the package's
+# default; `"mst"`) and `lc.cycle_basis(graph, tree)` the fundamental circuits, one row per chord.
+
+# %%
+tree8 = lc.spanning_tree(eight, "odometry")
+C8 = lc.cycle_basis(eight, tree8).toarray().astype(int)
+print("odometric tree edges:", tree8.tree_edges, " chords:", tree8.chords)
+print("fundamental circuits, one row per chord (graph edge order):\n", C8)
+for row, k in zip(C8, tree8.chords):
+    deg = degrees(eight, row)
+    check(set(deg[deg > 0]) == {2} and np.all(A8 @ row == 0) and row[k] == 1 and np.all(row[tree8.chords[tree8.chords != k]] == 0),
+          f"Definition 1: chord {tails8[k]}→{heads8[k]} + its tree path is a circuit, with no other chord")
+coef = eight_cycle[tree8.chords]
+check(np.array_equal(C8.T @ coef, eight_cycle), f"Theorem 2: the figure-eight cycle = Σ (its chord entries {coef}) × circuits")
+check(C8.shape[0] == lc.cyclomatic_number(eight) == eight.n_edges - (eight.n_poses - 1),
+      f"Corollary 1: l = m − n = {eight.n_edges} − {eight.n_poses - 1} = {C8.shape[0]}")
+
+fig, axes = plt.subplots(1, 1 + C8.shape[0], figsize=(3.3 * (1 + C8.shape[0]), 3.6))
+for ax, c, title in [(axes[0], eight_cycle, "a cycle (not a circuit)")] + \
+        [(ax, row, f"fundamental circuit of chord {tails8[k]}→{heads8[k]}") for ax, row, k in zip(axes[1:], C8, tree8.chords)]:
+    plot_edges(ax, eight, truth8, which="all", color="0.8", linewidth=1.0, alpha=1.0)
+    used = eight.subgraph_edges(c != 0)
+    plot_edges(ax, used, truth8, which="all", color="tab:red", linewidth=2.5, alpha=1.0)
+    ax.plot(pos8[:, 0], pos8[:, 1], "ko", markersize=4)
+    for i, (x, y) in enumerate(pos8):
+        ax.annotate(str(i), (x, y), textcoords="offset points", xytext=(4, 4), fontsize=9)
+    ax.set_title(title, fontsize=9)
+    ax.set_xticks([])
+    ax.set_yticks([])
+    ax.margins(0.2)
+fig.tight_layout()
+show(fig, "circuits")
+
+# %% [markdown]
+# The same on larger graphs and every kind of tree, including a real one: the rows are circuits,
+# independent, as many as $m - n$, and any cycle — here random integer combinations of the circuits of
+# *another* tree — has its own chord entries as coordinates.
+
+# %%
+intel = real("carlone/INTEL_P_toro.graph")
+CASES = [("random 40 poses / 75 edges", lc.random_graph(40, 75, seed=3).graph, ("bfs", "mst")),
+         ("circle 60 poses, 3 laps", lc.circle_world(60, laps=3, seed=4).graph, ("bfs", "odometry", "mst")),
+         ("Manhattan 300 poses", lc.manhattan_world(300, seed=1).graph, ("bfs", "odometry", "mst"))]
+if intel is not None:
+    CASES.append(("INTEL_P_toro (real)", intel, ("bfs", "odometry")))
+rng = np.random.default_rng(0)
+print(f"{'graph':28s} {'tree':8s} {'m':>5s} {'n':>5s} {'l':>4s} {'rank C':>6s} {'max|A Cᵀ|':>9s} {'spans':>5s}")
+for name, gr, kinds in CASES:
+    C_other = lc.cycle_basis(gr, lc.spanning_tree(gr, kinds[-1]))
+    cycles = (rng.integers(-2, 3, (5, C_other.shape[0])) @ C_other).astype(float)   # 5 random cycles
+    for kind in kinds:
+        tree = lc.spanning_tree(gr, kind)
+        C = lc.cycle_basis(gr, tree)
+        rank = np.linalg.matrix_rank(C.toarray())
+        ACt = np.abs(lc.incidence_matrix(gr) @ C.T).max()
+        spans = np.abs(cycles[:, tree.chords] @ C - cycles).max() == 0
+        print(f"{name:28s} {kind:8s} {gr.n_edges:5d} {gr.n_poses - 1:5d} {C.shape[0]:4d} {rank:6d} {ACt:9.0f} {spans!s:>5s}")
+        check(C.shape[0] == rank == gr.n_edges - (gr.n_poses - 1) and ACt == 0 and spans,
+              f"{name}, {kind} tree: l = m − n independent circuits that span the cycles")
+
+# %% [markdown]
+# ## 4. Corollary 2 and eq. (19) — the cycle basis matrix $C = [I_l\ B]$
+#
+# **Corollary 2** (the cycle basis matrix). *Order the edges so that the $m - n$ chords come first and the
+# $n$ tree edges last; then the matrix whose rows are the fundamental circuits is*
+#
+# $$ C = [\,I_l\ \ B\,], \qquad B\in\{-1,0,1\}^{l\times n}. \tag{19}$$
+#
+# Each fundamental circuit contains its own chord and no other (the identity), plus tree edges traversed
+# either way ($B$). `SpanningTree.edge_order` is that order; `cycle_basis` keeps the graph's own edge order,
+# and builds $B^\top = -A_T^{-1}A_C$ from the reduced incidence matrix split into tree and chord columns
+# ($A_T$ is square and invertible: a tree is connected, Proposition 1).
+
+# %%
+print("C in the order [chords | tree edges] (eq. (19)):\n", C8[:, tree8.edge_order])
+for name, gr, kinds in CASES:
+    for kind in kinds:
+        tree = lc.spanning_tree(gr, kind)
+        C = lc.cycle_basis(gr, tree)[:, tree.edge_order]
+        l = tree.n_chords
+        check((C[:, :l] != sp.identity(l)).nnz == 0 and set(np.unique(C[:, l:].data)) <= {-1.0, 1.0},
+              f"{name}, {kind} tree: C = [I_{l} B], B ∈ {{−1, 0, 1}}")
+
+# %% [markdown]
+# ## 5. The zero-sum property, eqs. (20)–(23), and Theorem 3
+#
+# **Why measured orientations sum to multiples of $2\pi$** (a lemma of this lecture, call it *the
+# $2\pi$-multiple property*). Exact measurements are $\delta = A^\top\theta + 2\pi w$ for the true orientations
+# $\theta$ and some integers $w$ (the wrap into $[-\pi,\pi)$). For a cycle vector $c$, $c^\top A^\top\theta =
+# (Ac)^\top\theta = 0$, so $c^\top\delta = 2\pi\,c^\top w \in 2\pi\mathbb Z$.
+#
+# The paper asks for more: the **zero-sum property** — corrected measurements $\bar\delta$ sum to zero
+# around every cycle. It suffices to ask it of a cycle basis, the fundamental circuits $c_i$ (the rows of $C$):
+# eq. (20) for each of them, eq. (21) for all at once,
+#
+# $$ c_i^\top\bar\delta = 0\quad\forall c_i\in\mathcal C, \tag{20}$$
+# $$ C\bar\delta = 0 . \tag{21}$$
+#
+# With $\bar\delta = \delta + v$ this is a linear system for the correction $v$, eq. (22):
+#
+# $$ C(\delta + v) = 0 \iff Cv = -C\delta . \tag{22}$$
+#
+# **Theorem 3** (existence of correction factors). *For any relative orientation measurements $\delta$ there
+# is a correction $v$ such that $\delta + v$ satisfies the zero-sum property.* Proof: by eq. (19), in the
+# order [chords, tree edges], the correction of eq. (23) solves eq. (22):
+#
+# $$ v = \begin{bmatrix} -C\delta\\ 0_n\end{bmatrix}\quad\Longrightarrow\quad Cv = [I_l\ B]\begin{bmatrix} -C\delta\\ 0_n\end{bmatrix} = -C\delta . \tag{23}$$
+#
+# Only the chords are corrected. For exact measurements $C\delta\in 2\pi\mathbb Z^l$ (the $2\pi$-multiple
+# property), so $v$ consists of multiples of $2\pi$ and does not change what the measurements say. With
+# noise $C\delta$ is only close to multiples of $2\pi$, and the paper rounds: $v_c = 2\pi k_c$,
+# $k_c = -\operatorname{round}((C\delta)_c/2\pi)$, so that $(C\delta_{\rm reg})_c\in(-\pi,\pi]$; the rest is noise,
+# which phase 1 averages. `lago_cvx.regularization.regularize(graph, tree)` (the `"tree"` regularizer)
+# does exactly this, computing $C\delta$ through tree path sums without forming $C$.
+
+# %%
+wn = lc.circle_world(120, laps=4, seed=1, sigma_xy=0.0, sigma_theta=0.0)
+gn = wn.graph
+tree = lc.spanning_tree(gn, "odometry")
+C = lc.cycle_basis(gn, tree)
+q = C @ gn.delta / TWO_PI
+check(np.abs(q - np.rint(q)).max() < 1e-9, f"2π-multiple property: C δ / 2π integer on exact data "
+      f"({np.count_nonzero(np.rint(q))} of {q.size} non-zero)")
+v = np.zeros(gn.n_edges)
+v[tree.chords] = -(C @ gn.delta)                                   # eq. (23), in the graph's edge order
+check(np.abs(C @ v + C @ gn.delta).max() < 1e-9, "eq. (23) solves eq. (22): C v = −C δ")
+check(np.abs(C @ (gn.delta + v)).max() < 1e-9 and np.abs(v / TWO_PI - np.rint(v / TWO_PI)).max() < 1e-9,
+      "Theorem 3: δ + v has the zero-sum property (21), v = 2πk on the chords only")
+reg = regularize(gn, tree)
+check(np.allclose(reg.delta_reg, gn.delta + v, atol=1e-9) and np.all(reg.k[tree.tree_edges] == 0),
+      "regularize(graph, tree) returns the same δ_reg")
+
+# %% [markdown]
+# **Eq. (22) has many solutions, and phase 1 picks one.** The correction of eq. (23) puts each circuit's
+# whole residual on its chord. Another solution spreads it over all edges, weighted by their
+# certainty: the smallest weighted correction,
+#
+# $$ \min_v\ \lVert P_\delta^{-1/2} v\rVert^2 \quad\text{subject to}\quad Cv = -C\delta .$$
+#
+# Since $\{x: Cx = 0\}$ is exactly the set of orientation differences $A^\top\theta$, this is phase 1 in
+# disguise: $\delta + v^\star = A^\top\hat\theta$. So the two steps divide the work: regularization removes the
+# integer part of $C\delta$ (multiples of $2\pi$, chords only, eq. (23)), phase 1 removes the noise (a real
+# correction, all edges). The multipliers $\nu$ of the $l$ constraints are one per fundamental circuit — the
+# "tension" of each loop, $\nu = 2(CP_\delta C^\top)^{-1}C\delta$. For correctly regularized measurements the
+# weighted size of $v^\star$ is the phase-1 residual, a $\chi^2$ with $l$ degrees of freedom: about $l$. We solve it
+# with $C\delta$ a parameter, first for the regularized and then for the raw measurements of a noisy winding
+# world.
+
+# %%
+noisy = lc.circle_world(120, laps=4, seed=2, sigma_xy=0.05, sigma_theta=0.02)
+gq = noisy.graph
+tq = lc.spanning_tree(gq, "odometry")
+Cq = lc.cycle_basis(gq, tq).toarray()
+uq = edge_uncertainty(gq)
+regq = regularize(gq, tq)
+vv = cp.Variable(gq.n_edges, name="v")
+Cp = cp.Parameter(Cq.shape, name="C")
+Cd = cp.Parameter(Cq.shape[0], name="Cδ")
+wq = cp.Parameter(gq.n_edges, nonneg=True, name="w_δ")
+zero_sum = Cp @ vv == -Cd
+smallest = cp.Problem(cp.Minimize(cp.sum_squares(cp.multiply(wq, vv))), [zero_sum])
+print(smallest)
+Cp.value, wq.value = Cq, uq.sqrt_info_delta
+out = {}
+for label, d in (("δ_reg", regq.delta_reg), ("raw δ", gq.delta)):
+    Cd.value = Cq @ d
+    status = solve_qp(smallest)
+    out[label] = (vv.value.copy(), zero_sum.dual_value.copy(), smallest.value)
+    print(f"{label:6s}: {status}; weighted size ‖P_δ^(-1/2) v*‖² = {smallest.value:10.1f} (l = {Cq.shape[0]} "
+          f"circuits); largest |v| = {np.abs(vv.value).max():.3f} rad, largest |ν| = {np.abs(zero_sum.dual_value).max():.1f}")
+v_reg, nu_reg, _ = out["δ_reg"]
+ph1 = P.phase1_closed_form(gq, regq.delta_reg, uq)
+diffs = lc.reduced_incidence(gq).T @ ph1.theta_free
+e_ph1 = np.abs(regq.delta_reg + v_reg - diffs).max()
+nu_formula = 2 * np.linalg.solve(Cq @ np.diag(uq.var_delta) @ Cq.T, Cq @ regq.delta_reg)
+check(e_ph1 < 1e-8, f"δ_reg + v* = Aᵀθ̂ of phase 1 ({e_ph1:.1e})")
+check(np.allclose(np.abs(nu_reg), np.abs(nu_formula), rtol=1e-6, atol=1e-9 * np.abs(nu_formula).max()),
+      "|ν| = |2 (C P_δ Cᵀ)⁻¹ C δ_reg|: one tension per fundamental circuit")
+check(out["δ_reg"][2] < 2 * Cq.shape[0] and out["raw δ"][2] > 10 * out["δ_reg"][2],
+      f"after regularization the correction is noise-sized (weighted size {out['δ_reg'][2]:.0f}, about l); "
+      f"without it {out['raw δ'][2] / out['δ_reg'][2]:.0f}× larger")
+
+fig, axes = plt.subplots(1, 2, figsize=(12, 3.8))
+axes[0].hist(Cq @ gq.delta / TWO_PI, bins=60, color="tab:red")
+axes[0].set_title("C δ / 2π on the raw measurements: near integers")
+axes[1].hist(Cq @ regq.delta_reg / TWO_PI, bins=60, color="tab:blue")
+axes[1].set_title("C δ_reg / 2π after the rounding of eq. (23): near 0")
+for ax in axes:
+    ax.set_xlabel("circuit sum / 2π")
+    ax.set_ylabel("fundamental circuits")
+fig.suptitle(f"noisy circle world, 4 laps, {Cq.shape[0]} fundamental circuits of the odometric tree")
+fig.tight_layout()
+show(fig, "circuit_sums")
+check(np.abs(Cq @ regq.delta_reg).max() < np.pi, f"after rounding every circuit sum lies in (−π, π] "
+      f"(largest {np.abs(Cq @ regq.delta_reg).max():.3f} rad)")
+
+# %% [markdown]
+# ## 6. Proposition 2 and Corollary 3 — only the loop closures are corrected
+#
+# **Proposition 2** (the odometric edges form a spanning tree). *The edges of the odometric constraints
+# constitute a spanning tree of the (connected) pose graph.* — the trajectory visits every pose once, in
+# order.
+#
+# **Corollary 3** (loop closures are chords). *The loop-closing edges are the chords of the pose graph with
+# respect to that tree.* With Theorem 3, regularization therefore corrects loop closures only, each by the
+# number of full turns the robot made between the two poses it links.
+#
+# In the package, `spanning_tree(graph, "odometry")` is the chain of edges between consecutive ids
+# (`graph.is_odometric`); among parallel edges it takes the most certain one, so a loop closure that
+# duplicates an odometric pair could enter the tree — we check that it does not happen here.
+
+# %%
+for name, gr in [("circle 120 poses, 4 laps", g4), ("Manhattan 300 poses", CASES[2][1])] + \
+        ([("INTEL_P_toro (real)", intel)] if intel is not None else []):
+    t_odo = lc.spanning_tree(gr, "odometry")
+    check(np.array_equal(np.sort(t_odo.tree_edges), np.flatnonzero(gr.is_odometric))
+          and t_odo.tree_edges.size == gr.n_poses - 1,
+          f"{name}: Proposition 2 — the {gr.n_odometric} odometric edges are a spanning tree")
+    check(np.array_equal(t_odo.chords, np.flatnonzero(~gr.is_odometric)),
+          f"{name}: Corollary 3 — the {gr.n_loop_closures} loop closures are its chords")
+
+reg4 = regularize(g4, lc.spanning_tree(g4, "odometry"))             # the 4-lap circle of section 1
+turns = np.rint((w4.truth[g4.heads, 2] - w4.truth[g4.tails, 2] - g4.delta) / TWO_PI).astype(int)
+check(np.array_equal(reg4.k, turns) and np.all(reg4.k[g4.is_odometric] == 0),
+      f"4-lap circle: k = number of full turns between the two poses, on loop closures only "
+      f"(k ∈ {sorted(set(reg4.k[~g4.is_odometric].tolist()))})")
+
+# %% [markdown]
+# ## 7. When does the rounding find the true $k$?
+#
+# This is a result of this lecture, not of the paper; call it **the circuit noise margin**. Write each
+# measurement as $\delta = A^\top\theta + \nu + 2\pi w$: true orientation change, noise $\nu$ (each $|\nu_e| < \pi$),
+# integer wrap $w$. The true correction makes $C\delta_{\rm reg} = C\nu$, i.e. $k^{\rm true} = -Cw$, and
+#
+# $$ k_c = k^{\rm true}_c \iff (C\nu)_c \in (-\pi, \pi] :$$
+#
+# the rounding is right exactly when the noise accumulated around the chord's fundamental circuit stays
+# below $\pi$ (because $(C\delta)_c = (C\nu)_c - 2\pi k_c^{\rm true}$). Long circuits accumulate more noise. The
+# odometric tree of Proposition 2 makes circuits as long as the trajectory between two visits; a
+# breadth-first tree (`"bfs"`, the package's default tree) keeps them short. We sweep the rotation noise on
+# Manhattan worlds and count wrong circuits; the package also reports chords whose residual lies within a
+# margin (`lago_cvx.rounding.AMBIGUITY_MARGIN`) of $\pm\pi$ as `ambiguous` (a warning, not a detector).
+
+# %%
+SIGMAS = [0.02, 0.05, 0.1, 0.15, 0.2, 0.3, 0.4] + ([0.5, 0.6] if FULL else [])
+SEEDS = range(6 if FULL else 3)
+TREES = ("odometry", "bfs")
+wrong = {kind: [] for kind in TREES + ("chordal",)}
+ambiguous = {kind: [] for kind in TREES}
+verified, margin_ok = 0, True
+for sig in SIGMAS:
+    counts = {kind: 0 for kind in wrong}
+    amb = {kind: 0 for kind in TREES}
+    for seed in SEEDS:
+        wm = lc.manhattan_world(1000, seed=seed, sigma_theta=sig)
+        gm = wm.graph
+        t_true = wm.truth[gm.heads, 2] - wm.truth[gm.tails, 2]
+        wrap = np.rint((gm.delta - t_true) / TWO_PI)
+        nu = gm.delta - t_true - TWO_PI * wrap
+        bfs = lc.spanning_tree(gm, "bfs")
+        for kind in TREES + ("chordal",):
+            tree = bfs if kind == "chordal" else lc.spanning_tree(gm, kind)
+            rep = regularize(gm, tree, regularization="chordal" if kind == "chordal" else "tree")
+
+            def circuit(x):                            # C x through tree path sums, without forming C
+                return x[tree.chords] - tree.path_sums(gm, x)[tree.chords]
+
+            k_true = -np.rint(circuit(wrap)).astype(int)
+            bad = rep.cycle_k != k_true
+            counts[kind] += int(bad.sum())
+            if kind != "chordal":
+                amb[kind] += rep.ambiguous.size
+                margin_ok &= np.array_equal(bad, np.abs(circuit(nu)) > np.pi)
+                verified += tree.n_chords
+    for kind in wrong:
+        wrong[kind].append(counts[kind] / len(SEEDS))
+    for kind in TREES:
+        ambiguous[kind].append(amb[kind] / len(SEEDS))
+print(f"{'σ_θ':>5s} " + " ".join(f"{k + ': wrong':>16s}" for k in wrong) + " " +
+      " ".join(f"{k + ': ambiguous':>20s}" for k in TREES) + "   (means per world)")
+for i, sig in enumerate(SIGMAS):
+    print(f"{sig:5.2f} " + " ".join(f"{wrong[k][i]:16.1f}" for k in wrong) + " " +
+          " ".join(f"{ambiguous[k][i]:20.1f}" for k in TREES))
+check(margin_ok, f"circuit noise margin: k wrong ⇔ |C ν| > π, verified on {verified} chords")
+check(all(wrong[k][0] == 0 for k in wrong), f"σ_θ = {SIGMAS[0]}: every k right with every regularizer")
+check(all(b <= o for b, o in zip(wrong["bfs"], wrong["odometry"])),
+      "the BFS tree's short circuits are never worse than the odometric tree's")
+first_bad = {k: next((s for s, x in zip(SIGMAS, wrong[k]) if x > 0), np.inf) for k in wrong}
+check(first_bad["odometry"] <= first_bad["bfs"] < first_bad["chordal"] < np.inf,
+      f"first noise level with a wrong circuit: odometric {first_bad['odometry']}, BFS {first_bad['bfs']}, "
+      f"chordal {first_bad['chordal']}")
+
+# %%
+fig, axes = plt.subplots(1, 2, figsize=(12, 4.4))
+styles = {"odometry": ("tab:red", "odometric tree (the paper's)"), "bfs": ("tab:blue", "BFS tree"),
+          "chordal": ("tab:green", "chordal regularizer")}
+for kind, (color, label) in styles.items():
+    axes[0].plot(SIGMAS, wrong[kind], "o-", color=color, label=label)
+for kind in TREES:
+    axes[1].plot(SIGMAS, ambiguous[kind], "o-", color=styles[kind][0], label=styles[kind][1])
+axes[0].set_ylabel("fundamental circuits with a wrong 2kπ (per world)")
+axes[0].set_title(f"wrong corrections vs rotation noise\nManhattan worlds, 1000 poses, {len(SEEDS)} seeds")
+axes[1].set_ylabel("chords reported ambiguous (per world)")
+axes[1].set_title(f"the `ambiguous` warning (|C δ_reg| within {AMBIGUITY_MARGIN} rad of ±π)")
+for ax in axes:
+    ax.set_xlabel("rotation noise σ_θ per measurement [rad]")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+fig.tight_layout()
+show(fig, "noise_margin")
+
+# %% [markdown]
+# ## 8. Ambiguous roundings, and the chordal regularizer
+#
+# A wrong $k$ is a gross error: it tells phase 1 that a loop is off by a full turn. The package's default
+# regularizer (`regularization="chordal"`, beyond the paper) avoids tree paths altogether: it estimates all
+# rotations at once by the chordal relaxation — each rotation written as a unit vector
+# $r_i = (\cos\theta_i, \sin\theta_i)$, the measurement $r_j = R(\delta_e) r_i$ linear in them, $\lVert r_i\rVert = 1$
+# dropped, a sparse least squares (`regularization.chordal.chordal_problem` in cvxpy, `chordal_closed_form`)
+# — and rounds every edge against that estimate. $\delta$ enters the relaxation only through $\cos\delta$ and
+# $\sin\delta$, so the relaxation itself does not care how the measurements were wrapped, and no noise is
+# accumulated along a tree path. Section 7's sweep already shows it keeps the right $k$ to a larger noise
+# level than either tree — but not at any noise level.
+#
+# **Real data: M3500a** (`carlone/input_M3500a_g2o.g2o`, the M3500 world with extra rotation noise). No
+# ground truth: we compare χ² with the reference minimum and count the circuits on which two
+# regularizations disagree (two corrections are equivalent iff $C(\delta_{\rm reg}' - \delta_{\rm reg}) = 0$).
 
 # %%
 m3500a = real("carlone/input_M3500a_g2o.g2o")
 if m3500a is not None:
-    out = {}
-    for kind in ("odometry", "bfs"):
-        out[kind] = paper_lago(m3500a, spanning_tree=kind)
-        s = out[kind].regularization.summary()
-        print(f"M3500a, {kind:8s} tree: {s['n_chords']} chords, {s['n_regularized']} with k ≠ 0, "
-              f"{s['n_ambiguous']} ambiguous, χ² = {out[kind].chi2:.1f} (minimum 912.115, ratio "
-              f"{out[kind].chi2 / 912.115:.3f})")
-    tree_odo = out["odometry"].tree
-    diff = cycle_basis(m3500a, tree_odo) @ (out["odometry"].regularization.delta_reg
-                                             - out["bfs"].regularization.delta_reg) / TWO_PI
-    n_disagree = np.count_nonzero(np.rint(diff))
-    print(f"fundamental cycles (odometric basis) on which the two regularizations disagree: {n_disagree}")
-    assert out["odometry"].regularization.ambiguous.size == 58
-    assert abs(out["odometry"].chi2 - 15750.6) < 1.0 and abs(out["bfs"].chi2 - 926.11) < 0.05
-    assert out["bfs"].regularization.ambiguous.size == 0 and n_disagree > 0
+    ref = REFERENCE_CHI2["carlone/input_M3500a_g2o.g2o"]
+    runs = {"odometric tree": paper_lago(m3500a, spanning_tree="odometry"),
+            "BFS tree": paper_lago(m3500a, spanning_tree="bfs"),
+            "chordal (odometric tree)": paper_lago(m3500a, spanning_tree="odometry", regularization="chordal")}
+    for label, r in runs.items():
+        s = r.regularization.summary()
+        print(f"M3500a, {label:26s}: {s['n_regularized']:4d} circuits corrected, {s['n_ambiguous']:3d} ambiguous, "
+              f"χ² = {r.chi2:9.1f} ({r.chi2 / ref:.3f} × the minimum {ref})")
+    C_odo = lc.cycle_basis(m3500a, runs["odometric tree"].tree)
+    disagree = np.count_nonzero(np.rint(C_odo @ (runs["odometric tree"].regularization.delta_reg
+                                               - runs["BFS tree"].regularization.delta_reg) / TWO_PI))
+    agree_chordal = np.count_nonzero(np.rint(C_odo @ (runs["chordal (odometric tree)"].regularization.delta_reg
+                                                    - runs["BFS tree"].regularization.delta_reg) / TWO_PI))
+    print(f"odometric vs BFS: the corrections disagree on {disagree} circuits; chordal vs BFS on {agree_chordal}")
+    check(runs["odometric tree"].regularization.ambiguous.size > 0 and disagree > 0
+          and runs["odometric tree"].chi2 > 5 * ref,
+          "odometric tree: ambiguous roundings, wrong circuits, χ² many times the minimum")
+    check(disagree > runs["odometric tree"].regularization.ambiguous.size,
+          f"more circuits are wrong ({disagree}) than chords flagged ambiguous "
+          f"({runs['odometric tree'].regularization.ambiguous.size})")
+    check(runs["BFS tree"].chi2 < 1.1 * ref and runs["chordal (odometric tree)"].chi2 < 1.1 * ref and agree_chordal == 0,
+          "BFS tree and chordal regularizer: the same integers, χ² within 10 % of the minimum")
 
-    fig, axes = plt.subplots(1, 2, figsize=(12, 6))
-    for ax, kind in zip(axes, ("odometry", "bfs")):
-        plot_trajectory(ax, out[kind].poses, color="tab:blue" if kind == "bfs" else "tab:red", linewidth=0.5)
-        ax.set_title(f"M3500a, LAGO with the {'odometric' if kind == 'odometry' else 'BFS'} tree\n"
-                     f"{out[kind].regularization.ambiguous.size} ambiguous chords, χ² = {out[kind].chi2:.0f} "
-                     f"(min 912.1)")
+    fig, axes = plt.subplots(1, 3, figsize=(15, 5.2))
+    for ax, (label, r), color in zip(axes, runs.items(), ("tab:red", "tab:blue", "tab:green")):
+        plot_trajectory(ax, r.poses, color=color, linewidth=0.4)
+        ax.set_title(f"M3500a, {label}\n{r.regularization.ambiguous.size} ambiguous, χ² = {r.chi2 / ref:.2f} × min",
+                     fontsize=10)
     fig.tight_layout()
-    save(fig, "m3500a")
-    plt.close(fig)
-else:
-    print("real datasets not found: skipping the M3500a comparison (odometric tree: 58 ambiguous chords, "
-          "χ² ≈ 15750.6; BFS tree: χ² ≈ 926.1, minimum 912.115) and its figure")
+    show(fig, "m3500a")
 
 # %% [markdown]
-# The two corrections disagree on more cycles (148) than the odometric tree flags as ambiguous (58): as in §4,
-# `ambiguous` is a warning, not a detector of every wrong $k$.
+# The `ambiguous` list is a warning, not a detector: a chord whose $k$ is wrong can have any residual in
+# $(-\pi,\pi]$, so the circuits on which the corrections disagree outnumber the flagged chords.
 #
-# **Synthetic world with large rotation noise** (Manhattan, 1500 poses, σ_θ = 0.25 rad per measurement), where the
-# ground truth tells which $k$ are wrong:
+# ## 9. The regularization steps of Section V and Table I
+#
+# The regularization steps (Section V): the paper's experiment solves SLAM from real data in three steps:
+# (1) extract the odometric and loop-closing constraints from the sensor data — here they come in the file; (2) **regularize** the
+# orientation measurements, with the cycle basis $C$ of the odometric tree and the correction
+# $v = [-(C\delta)^\top\ 0^\top]^\top$ of eq. (23), rounded; (3) run the three phases. Table I lists, for the
+# Intel Research Lab dataset, the number of nodes, odometric constraints, loop-closing constraints, and
+# loop closures that needed a correction $2k\pi$, $k\neq 0$.
+#
+# `carlone/INTEL_P_toro.graph` is that graph. Table I (Intel Research Lab): 1228 nodes, 1227 odometric
+# constraints, 278 loop closing constraints, 198 chords needing regularization — computed below.
 
 # %%
-wn = lc.manhattan_world(1500, seed=2, sigma_theta=0.25)
-gn = wn.graph
-t_true = wn.truth[gn.heads, 2] - wn.truth[gn.tails, 2]
-wrap = np.rint((gn.delta - t_true) / TWO_PI)
-chi2_truth = lc.chi2(gn, wn.truth)
-print(f"{gn!r}; χ² at the ground truth = {chi2_truth:.1f}")
-res_n = {}
-for kind in ("odometry", "bfs"):
-    r_n = res_n[kind] = paper_lago(gn, spanning_tree=kind)
-    reg = r_n.regularization
-    wrong = reg.k_chords != np.rint(-(cycle_basis(gn, r_n.tree) @ wrap)).astype(np.int64)
-    print(f"{kind:8s} tree: {wrong.sum():4d} of {reg.chords.size} chords with a wrong k, "
-          f"{reg.ambiguous.size:3d} ambiguous, χ² = {r_n.chi2:10.1f} ({r_n.chi2 / chi2_truth:.2f} × χ² at the truth)")
-assert res_n["bfs"].chi2 < res_n["odometry"].chi2
+TABLE_I = {"nodes": 1228, "odometric constraints": 1227, "loop closing constraints": 278,
+           "chords needing regularization": 198}
+if intel is not None:
+    steps = lc.lago(intel, route="seed")                               # steps (2) and (3), the paper's route
+    computed = {"nodes": intel.n_poses, "odometric constraints": intel.n_odometric,
+                "loop closing constraints": intel.n_loop_closures,
+                "chords needing regularization": steps.regularization.n_regularized}
+    print(f"{'Table I':32s} {'paper':>6s} {'computed':>9s}")
+    for key, value in TABLE_I.items():
+        print(f"{key:32s} {value:6d} {computed[key]:9d}")
+    check(computed == TABLE_I, "Table I reproduced on INTEL_P_toro with the odometric tree")
+    check(np.all(steps.regularization.k[intel.is_odometric] == 0) and steps.tree.kind == "odometry",
+          "the corrections sit on loop closures only (Corollary 3)")
+    bfs_reg = regularize(intel, lc.spanning_tree(intel, "bfs"))
+    same = np.count_nonzero(np.rint(lc.cycle_basis(intel, steps.tree)
+                                    @ (steps.regularization.delta_reg - bfs_reg.delta_reg) / TWO_PI))
+    print(f"with the BFS tree {bfs_reg.n_regularized} chords need a correction instead; the two corrections "
+          f"disagree on {same} circuits")
+    check(same == 0, "on INTEL the two trees' corrections are equivalent: the count depends on the tree, "
+          "the regularized graph does not")
 
 # %% [markdown]
-# A wrong $k$ is a *gross* error: it tells phase 1 that a loop is off by a full turn, and the least-squares
-# fit spreads that turn over the loop — the χ² explodes (M3500a: 17× the minimum with the odometric tree,
-# 1.5 % above it with the BFS tree). This is why the package's default tree is BFS and why `regularize` lists
-# the ambiguous chords (and logs a warning): an ambiguous chord is one where Corollary 3's condition may fail.
+# ## Exercise 1 — Coordinates in the fundamental basis
 #
-# ## 7. The seed's Table I: INTEL
+# *Derive.* Show that a cycle vector $c$ ($Ac = 0$) equals $\sum_k c_k\,c^{(k)}$, the sum over the chords $k$
+# of $T$ of its chord entries times the fundamental circuits — hence that the fundamental circuits span the
+# cycle space (Theorem 2). Then check it: express every fundamental circuit of the BFS tree of a
+# Manhattan world in the basis of the odometric tree, i.e. verify $C_{\rm bfs} = C_{\rm bfs}[:, \text{odometric
+# chords}]\; C_{\rm odo}$. Solution: `solutions/05_regularization_ex1.py`.
 #
-# The seed's INTEL graph has 1228 poses, 1227 odometric edges and 278 loop closures; with the odometric
-# spanning tree **198** chords need a non-zero $2k\pi$ correction. `carlone/INTEL_P_toro.graph` matches the
-# description exactly:
-
-# %%
-if intel_toro is not None:
-    g = intel_toro
-    reg_odo = regularize(g, spanning_tree(g, "odometry"))
-    reg_bfs = regularize(g, spanning_tree(g, "bfs"))
-    print(f"INTEL_P_toro: {g.n_poses} poses, {g.n_odometric} odometric edges, {g.n_loop_closures} loop closures, "
-          f"l = {cyclomatic_number(g)} chords")
-    print(f"odometric tree: {reg_odo.n_regularized} chords regularized (k ≠ 0), {reg_odo.ambiguous.size} ambiguous; "
-          f"BFS tree: {reg_bfs.n_regularized} regularized, {reg_bfs.ambiguous.size} ambiguous")
-    assert (g.n_poses, g.n_odometric, g.n_loop_closures) == (1228, 1227, 278)
-    assert reg_odo.n_regularized == 198
-else:
-    print("real datasets not found: skipping the Table I check (INTEL: 1228 poses, 1227 odometric edges, "
-          "278 loop closures, 198 regularized chords with the odometric tree)")
-
-# %% [markdown]
-# (The count depends on the tree — the BFS tree needs far fewer corrections because its fundamental cycles
-# are short and the wraps along them are fewer — but on INTEL both corrections are equivalent: LAGO lands on
-# the same estimate with either tree, see the README's results table.)
-
-# %%
-if intel_toro is not None:
-    r_odo, r_bfs = paper_lago(intel_toro, spanning_tree="odometry"), paper_lago(intel_toro, spanning_tree="bfs")
-    disagree = np.count_nonzero(np.rint(cycle_basis(intel_toro, r_odo.tree)
-                                        @ (r_odo.regularization.delta_reg - r_bfs.regularization.delta_reg) / TWO_PI))
-    print(f"INTEL: cycles on which the two regularizations disagree: {disagree}; χ² odometric tree "
-          f"{r_odo.chi2:.4f}, BFS tree {r_bfs.chi2:.4f}")
-    assert disagree == 0 and abs(r_odo.chi2 - r_bfs.chi2) < 1e-6 * r_bfs.chi2
-else:
-    print("real datasets not found: skipping the INTEL tree comparison")
-
-# %%
-elapsed = time.perf_counter() - _t_start
-print(f"lecture 5 executed in {elapsed:.1f} s")
+# ## Exercise 2 — The paper's regularization from scratch
+#
+# *Implement.* Without `regularize`: integrate $\delta$ along a spanning tree from pose 0 (walk the tree in
+# breadth-first order), compute each chord's circuit sum $(C\delta)_c = \delta_c - (\theta_j - \theta_i)$, round to
+# $k_c$ with residuals in $(-\pi, \pi]$, and form $\delta_{\rm reg}$. Check that your $k$ equals the package's on a
+# synthetic world and, with the datasets, that the odometric tree of INTEL gives Table I's count.
+# Solution: `solutions/05_regularization_ex2.py`.
+#
+# ## Exercise 3 — How much noise can each regularizer take?
+#
+# *Explore.* On Manhattan worlds of 500 poses, find for the odometric tree, the BFS tree and the chordal
+# regularizer the smallest rotation noise $\sigma_\theta$ at which a fundamental circuit gets a wrong $k$, and
+# what that does to χ² relative to LAGO with the true integers. Solution:
+# `solutions/05_regularization_ex3.py`.

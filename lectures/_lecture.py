@@ -1,14 +1,25 @@
-"""What every lecture shares: where figures go (and how they are written byte-for-byte reproducibly),
-how a real benchmark graph is read (or skipped, saying so), quiet logging and print options.
+"""What every lecture shares: set-up, one-line checks, inline figures (written to disk, byte for byte
+reproducibly, only when asked), real benchmark graphs (or a clear skip), and the paper's procedure.
 
 Used as ``from _lecture import ...`` by the lectures (run from any working directory: Jupyter, a script,
-the tests) and by their exercise solutions in ``solutions/``.
+the tests) and by their exercise solutions in ``solutions/``::
+
+    from _lecture import setup, check, show, real, FULL
+    setup("02_phase1")                   # quiet warnings, compact printing, figures named 02_phase1_*
+    check(err < 1e-9, f"cvxpy = closed form ({err:.1e})")     # prints "✓ cvxpy = closed form (3.1e-16)"
+    fig, ax = plt.subplots(); ...; show(fig, "laplacian")      # inline in Jupyter; saved only on request
+
+Running a lecture changes no file: figures are displayed, and written to ``figures/`` only when the
+environment variable ``LAGO_CVX_FIGURES`` names a folder (``python lectures/render.py`` sets it to the
+project's ``figures/``; the tests set it to a temporary folder). ``LAGO_CVX_FULL=1`` turns on the
+bigger sweeps that are skipped by default to keep every lecture under a minute.
 """
 
 from __future__ import annotations
 
 import logging
 import os
+import sys
 from pathlib import Path
 
 import matplotlib as mpl
@@ -17,19 +28,77 @@ import numpy as np
 import lago_cvx as lc
 from lago_cvx.datasets import DatasetNotFound, dataset
 
-__all__ = ["ROOT", "FIG", "S", "real", "figure_saver", "quiet", "paper_lago"]
+__all__ = ["ROOT", "FULL", "S", "setup", "check", "show", "real", "paper_lago", "figure_dir"]
 
-#: The project checkout, and the folder the lectures write their figures to (``figures/``; the tests point
-#: ``LAGO_CVX_FIGURES`` at a temporary folder, so that running them changes no tracked file).
+#: The project checkout.
 ROOT = Path(__file__).resolve().parents[1]
-FIG = Path(os.environ.get("LAGO_CVX_FIGURES", ROOT / "figures"))
+
+#: Bigger sweeps (more seeds, sizes, noise levels) run only with ``LAGO_CVX_FULL=1``.
+FULL = os.environ.get("LAGO_CVX_FULL", "") not in ("", "0")
 
 #: The 90° rotation S = [[0, −1], [1, 0]] (S Δ is Δ turned by +90°; ∂R(θ)/∂θ = S R(θ)).
 S = np.array([[0.0, -1.0], [1.0, 0.0]])
 
-# Reproducible figures: SVG ids from a fixed salt, no dates or tool versions in any file.
+# Reproducible figure files: SVG ids from a fixed salt, no dates or tool versions in any file.
 mpl.rcParams["svg.hashsalt"] = "lago-cvx"
+mpl.rcParams["svg.fonttype"] = "path"
 _METADATA = {"png": {"Software": None}, "svg": {"Date": None, "Creator": None}}
+_INLINE_DPI = 100  # the resolution of the figures shown inline (and stored in the rendered notebooks)
+
+_PREFIX = ["lecture"]
+
+
+def setup(prefix: str) -> None:
+    """Start a lecture: figure files will be named ``<prefix>_<name>.{png,svg}``; the package's warnings
+    (e.g. ambiguous 2kπ roundings, which lectures count themselves) stay out of the output; NumPy prints
+    compactly."""
+    _PREFIX[0] = prefix
+    logging.getLogger("lago_cvx").setLevel(logging.ERROR)
+    np.set_printoptions(precision=4, suppress=True, linewidth=110)
+
+
+def check(condition, claim: str) -> None:
+    """One quiet line per verified claim: prints ``✓ claim``, or raises ``AssertionError('✗ claim')``."""
+    if not bool(condition):
+        raise AssertionError(f"✗ {claim}")
+    print(f"✓ {claim}")
+
+
+def figure_dir() -> Path | None:
+    """Where figures are written: ``$LAGO_CVX_FIGURES`` if set, else nowhere (None)."""
+    target = os.environ.get("LAGO_CVX_FIGURES", "")
+    return Path(target) if target else None
+
+
+def _in_notebook() -> bool:
+    shell = sys.modules.get("IPython")
+    ip = shell.get_ipython() if shell is not None and hasattr(shell, "get_ipython") else None
+    return ip is not None and ip.__class__.__name__ == "ZMQInteractiveShell"
+
+
+def show(fig, name: str) -> None:
+    """Display ``fig`` inline (in Jupyter, as a PNG), write ``<prefix>_<name>.png`` and ``.svg`` when
+    ``$LAGO_CVX_FIGURES`` is set (identical bytes on every run), then close it."""
+    import matplotlib.pyplot as plt
+
+    target = figure_dir()
+    if target is not None:
+        target.mkdir(parents=True, exist_ok=True)
+        for ext in ("png", "svg"):
+            fig.savefig(target / f"{_PREFIX[0]}_{name}.{ext}", dpi=120, bbox_inches="tight",
+                        metadata=_METADATA[ext])
+    if _in_notebook():
+        import base64
+        import io
+
+        from IPython.display import display
+
+        # The PNG bytes are made here, without the "Software" stamp the inline backend adds, so that a
+        # re-rendered notebook changes only where the figure does.
+        buffer = io.BytesIO()
+        fig.savefig(buffer, format="png", dpi=_INLINE_DPI, bbox_inches="tight", metadata=_METADATA["png"])
+        display({"image/png": base64.b64encode(buffer.getvalue()).decode("ascii")}, raw=True)
+    plt.close(fig)
 
 
 def paper_lago(graph, **options):
@@ -39,34 +108,11 @@ def paper_lago(graph, **options):
     return lc.lago(graph, **{"regularization": "tree", "information": "marginal", "positions": "phase3", **options})
 
 
-def quiet() -> None:
-    """Keep the package's warnings (e.g. ambiguous 2kπ roundings, which lectures count) out of the output;
-    compact NumPy printing."""
-    logging.getLogger("lago_cvx").setLevel(logging.ERROR)
-    np.set_printoptions(precision=4, suppress=True, linewidth=110)
-
-
 def real(rel: str):
-    """Read a real benchmark graph (``rel`` inside the datasets folder), or return None and say so when
-    the datasets are absent: the lecture then runs its synthetic cells only."""
+    """Read a real benchmark graph (``rel`` inside the datasets folder, e.g. ``"carlone/INTEL_P_toro.graph"``),
+    or return None and say so when the datasets are absent: the lecture then runs its synthetic cells only."""
     try:
         return lc.read_graph(dataset(rel))
     except DatasetNotFound as exc:
         print(f"real datasets not found: skipping the {rel} cells ({exc})")
         return None
-
-
-def figure_saver(prefix: str):
-    """``save(fig, name)`` writing ``figures/<prefix>_<name>.png`` and ``.svg`` (reproducible bytes)."""
-    FIG.mkdir(exist_ok=True)
-
-    def save(fig, name: str) -> list[Path]:
-        paths = []
-        for ext in ("png", "svg"):
-            path = FIG / f"{prefix}_{name}.{ext}"
-            fig.savefig(path, dpi=120, bbox_inches="tight", metadata=_METADATA[ext])
-            paths.append(path)
-        print("figure written:", ", ".join(f"figures/{p.name}" for p in paths))
-        return paths
-
-    return save

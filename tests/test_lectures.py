@@ -1,42 +1,402 @@
-"""Every lecture notebook executes top to bottom (nbclient), and its .py/.ipynb pair is in sync.
+"""The course in lectures/ holds together.
 
-Notebooks run with lectures/ as the working directory. Real-data cells read ../shared/datasets through
-``lago_cvx.datasets`` and say so clearly when it is absent.
+* each lecture's .py/.ipynb pair is in sync, and the committed notebook holds rendered outputs — at
+  least one figure, no error (``python lectures/render.py`` stores them);
+* each lecture executes top to bottom with nbclient (working directory lectures/, figures written to a
+  temporary folder so the tracked ones stay as they are);
+* each lecture has two or three exercises, each with one solution script that runs and verifies;
+* no ``matplotlib.use`` and no internal wording in the course's prose;
+* lectures/CONCORDANCE.md covers every item of the paper (../shared/SEED.md beside the project) and
+  every row points at a real section, importable package names and existing tests;
+* the course site builds from the stored outputs without a warning;
+* running a lecture as a script leaves no tracked change and no untracked file.
+
+Real-data cells read ../shared/datasets through ``lago_cvx.datasets`` and say so when it is absent.
 """
 
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import io
+import os
+import re
+import shutil
+import subprocess
+import sys
+import time
+import tokenize
+from functools import lru_cache
 from pathlib import Path
 
 import pytest
 
-jupytext = pytest.importorskip("jupytext", reason="the test extra (pip install -e '.[test]') runs the lectures")
-nbclient = pytest.importorskip("nbclient")
-
-LECTURES = Path(__file__).resolve().parents[1] / "lectures"
+ROOT = Path(__file__).resolve().parents[1]
+LECTURES = ROOT / "lectures"
+SOLUTIONS = LECTURES / "solutions"
 SOURCES = sorted(LECTURES.glob("[0-9][0-9]_*.py"))
+IDS = [s.stem for s in SOURCES]
+SOLUTION_FILES = sorted(SOLUTIONS.glob("[0-9][0-9]_*_ex[0-9].py"))
+SEED_MD = ROOT.parent / "shared" / "SEED.md"
+CONCORDANCE = LECTURES / "CONCORDANCE.md"
+
+#: A lecture may take 60 s here; the tests fail only far beyond that (a sweep left on, a hang).
+LECTURE_SECONDS_LIMIT = 180
+#: The lecture that the script-run test executes: the quickest.
+SCRIPT_LECTURE = "01"
+
+SECTION = re.compile(r"^## (\d+)\. \S")
+EXERCISE = re.compile(r"^## Exercise (\d+) — \S")
 
 
+def _jupytext():
+    return pytest.importorskip("jupytext", reason="the test extra (pip install -e '.[test]') runs the lectures")
+
+
+@lru_cache(maxsize=None)
+def _cells(stem: str) -> tuple[tuple[str, str], ...]:
+    """(cell type, source) of the lecture ``stem``, read from its .py."""
+    return tuple((c.cell_type, c.source) for c in _jupytext().read(LECTURES / f"{stem}.py").cells)
+
+
+def _level2_sections(stem: str) -> dict[str, str]:
+    """Every ``## …`` heading of the lecture → the text (markdown and code) up to the next one."""
+    sections: dict[str, str] = {}
+    current = None
+    for cell_type, source in _cells(stem):
+        for line in source.splitlines():
+            if cell_type == "markdown" and line.startswith("## "):
+                current = line
+                sections[current] = ""
+            if current is not None:
+                sections[current] += line + "\n"
+    return sections
+
+
+def _numbered_sections(stem: str) -> dict[int, str]:
+    return {int(SECTION.match(h).group(1)): text for h, text in _level2_sections(stem).items() if SECTION.match(h)}
+
+
+def _exercises(stem: str) -> list[int]:
+    return [int(EXERCISE.match(h).group(1)) for h in _level2_sections(stem) if EXERCISE.match(h)]
+
+
+def _render_module():
+    spec = importlib.util.spec_from_file_location("lectures_render", LECTURES / "render.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _script_env(**extra: str) -> dict[str, str]:
+    env = dict(os.environ)
+    env.pop("LAGO_CVX_FIGURES", None)
+    env["MPLBACKEND"] = "Agg"
+    env["PYTHONPATH"] = os.pathsep.join([str(ROOT)] + [p for p in env.get("PYTHONPATH", "").split(os.pathsep) if p])
+    env.update(extra)
+    return env
+
+
+# ----------------------------------------------------------------------------- the notebooks
 def test_there_are_lectures():
     assert SOURCES, f"no lectures found in {LECTURES}"
 
 
-@pytest.mark.parametrize("src", SOURCES, ids=[s.stem for s in SOURCES])
+@pytest.mark.parametrize("src", SOURCES, ids=IDS)
 def test_pair_in_sync(src):
+    jupytext = _jupytext()
     ipynb = src.with_suffix(".ipynb")
-    assert ipynb.exists(), f"{ipynb.name} missing: run `jupytext --sync {src}`"
+    assert ipynb.exists(), f"{ipynb.name} missing: run `python lectures/render.py {src.name[:2]}`"
     a = [(c.cell_type, c.source.strip()) for c in jupytext.read(src).cells]
     b = [(c.cell_type, c.source.strip()) for c in jupytext.read(ipynb).cells]
-    assert a == b, f"{src.name} and {ipynb.name} differ: run `jupytext --sync {src}`"
-    assert all(not c.get("outputs") for c in jupytext.read(ipynb).cells if c.cell_type == "code"), \
-        f"{ipynb.name} carries outputs: strip them (jupyter nbconvert --clear-output)"
+    assert a == b, f"{src.name} and {ipynb.name} differ: run `jupytext --sync {src}` (or render it again)"
 
 
-@pytest.mark.parametrize("src", SOURCES, ids=[s.stem for s in SOURCES])
-def test_lecture_executes(src, monkeypatch, tmp_path):
-    monkeypatch.setenv("SOURCE_DATE_EPOCH", "0")  # reproducible figure metadata (the kernel inherits it)
-    monkeypatch.setenv("LAGO_CVX_FIGURES", str(tmp_path))  # running the tests changes no tracked file
-    nb = jupytext.read(src)
-    client = nbclient.NotebookClient(nb, timeout=600, kernel_name="python3",
-                                     resources={"metadata": {"path": str(LECTURES)}})
-    client.execute()
+@pytest.mark.parametrize("src", SOURCES, ids=IDS)
+def test_notebook_holds_rendered_outputs(src):
+    nbformat = pytest.importorskip("nbformat")
+    nb = nbformat.read(src.with_suffix(".ipynb"), as_version=4)
+    outputs = [o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])]
+    hint = f"run `python lectures/render.py {src.name[:2]}`"
+    assert outputs, f"{src.name[:-3]}.ipynb holds no outputs: {hint}"
+    assert any("image/png" in o.get("data", {}) for o in outputs), f"no figure stored: {hint}"
+    errors = [o.get("ename", "") + ": " + o.get("evalue", "") for o in outputs if o.output_type == "error"]
+    assert not errors, f"stored outputs hold errors {errors}: fix the lecture and {hint}"
+    volatile = [c.get("id") for c in nb.cells if "execution" in c.get("metadata", {})]
+    assert not volatile and "version" not in nb.metadata.get("language_info", {}), \
+        f"volatile metadata (timestamps, versions) stored: {hint}"
+
+
+@pytest.mark.parametrize("src", SOURCES, ids=IDS)
+def test_lecture_executes(src, tmp_path):
+    _jupytext()
+    pytest.importorskip("nbclient")
+    render = _render_module()
+    start = time.perf_counter()
+    nb = render.execute(src, figures=tmp_path)            # raises CellExecutionError on a failing cell
+    seconds = time.perf_counter() - start
     errors = [o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", []) if o.output_type == "error"]
     assert not errors
+    assert render.count_figures(nb) >= 1, "the lecture shows no figure"
+    assert seconds < LECTURE_SECONDS_LIMIT, f"{src.stem} took {seconds:.0f} s (budget: 60 s)"
+
+
+# ----------------------------------------------------------------------------- exercises
+@pytest.mark.parametrize("src", SOURCES, ids=IDS)
+def test_exercises_and_their_solutions(src):
+    numbers = _exercises(src.stem)
+    assert 2 <= len(numbers) <= 3, f"{src.stem}: {len(numbers)} '## Exercise N — Title' headings (2 or 3 wanted)"
+    assert numbers == list(range(1, len(numbers) + 1)), f"{src.stem}: exercises numbered {numbers}"
+    expected = {f"{src.stem}_ex{n}.py" for n in numbers}
+    found = {p.name for p in SOLUTIONS.glob(f"{src.stem}_ex*.py")}
+    assert found == expected, f"{src.stem}: solutions {sorted(found)}, expected {sorted(expected)}"
+
+
+def test_every_solution_belongs_to_an_exercise():
+    stems = {s.stem for s in SOURCES}
+    orphans = [p.name for p in SOLUTIONS.glob("*.py") if p.name.rsplit("_ex", 1)[0] not in stems]
+    assert not orphans, f"solutions without a lecture: {orphans}"
+
+
+@pytest.mark.parametrize("solution", SOLUTION_FILES, ids=[p.stem for p in SOLUTION_FILES])
+def test_solution_runs_and_verifies(solution):
+    run = subprocess.run([sys.executable, str(solution)], cwd=LECTURES, env=_script_env(), capture_output=True,
+                         text=True, encoding="utf-8", timeout=300)
+    assert run.returncode == 0, f"{solution.name} failed:\n{run.stdout[-2000:]}\n{run.stderr[-4000:]}"
+    assert "✓" in run.stdout, f"{solution.name} verifies nothing (no ✓ line):\n{run.stdout[-2000:]}"
+
+
+# ----------------------------------------------------------------------------- wording
+#: Words of the people who write the course, not of the course: in prose (markdown, comments, strings
+#: with spaces), outside `code spans`.
+INTERNAL = re.compile(r"\bseed\b|\bbrief\b|as formulated here|datasets README", re.IGNORECASE)
+MPL_USE = re.compile(r"\b(matplotlib|mpl)\.use\s*\(")
+CODE_SPAN = re.compile(r"`+[^`\n]*`+")
+#: Replacement fields of f-strings ({seed}, {x:.2f}) are code, not prose.
+FIELD = re.compile(r"\{[^{}\n]*\}")
+#: Files in lectures/ that are not part of the course text (none at present).
+NOT_COURSE: set[str] = set()
+
+
+def _prose_of_code(text: str) -> list[str]:
+    """Comments, and string literals that read like prose (contain a space), of Python source."""
+    prose = []
+    kinds = {tokenize.COMMENT, tokenize.STRING} | {getattr(tokenize, "FSTRING_MIDDLE", tokenize.STRING)}
+    for tok in tokenize.generate_tokens(io.StringIO(text).readline):
+        if tok.type == tokenize.COMMENT or (tok.type in kinds and " " in tok.string):
+            prose.append(FIELD.sub("", tok.string) if tok.type != tokenize.COMMENT else tok.string)
+    return prose
+
+
+def _course_texts() -> list[tuple[str, str, str]]:
+    """(file, kind, text) for every piece of the course: lectures, solutions, helpers, site pages."""
+    texts = []
+    for path in sorted(LECTURES.glob("*.py")) + sorted(SOLUTIONS.glob("*.py")):
+        name = str(path.relative_to(ROOT))
+        if path in SOURCES:
+            for cell_type, source in _cells(path.stem):
+                if cell_type == "markdown":
+                    texts.append((name, "prose", source))
+                else:
+                    texts.append((name, "code", source))
+                    texts += [(name, "prose", p) for p in _prose_of_code(source)]
+        else:
+            source = path.read_text(encoding="utf-8")
+            texts.append((name, "code", source))
+            texts += [(name, "prose", p) for p in _prose_of_code(source)]
+    for path in sorted(LECTURES.glob("*.md")):
+        if path.name not in NOT_COURSE:
+            texts.append((str(path.relative_to(ROOT)), "prose", path.read_text(encoding="utf-8")))
+    return texts
+
+
+def test_no_matplotlib_use_and_no_internal_wording():
+    _jupytext()
+    problems = []
+    for name, kind, text in _course_texts():
+        if MPL_USE.search(text):
+            problems.append(f"{name}: matplotlib.use (figures show inline; _lecture.show writes files)")
+        if kind == "prose":
+            for match in INTERNAL.finditer(CODE_SPAN.sub("", text)):
+                problems.append(f"{name}: internal wording {match.group(0)!r}")
+    assert not problems, "\n".join(sorted(set(problems)))
+
+
+# ----------------------------------------------------------------------------- concordance
+#: The items the paper states without a number (SEED.md, "Also stated in the text"), as labelled here.
+UNNUMBERED = ["cycle / circuit", "regularization steps (Section V)", "abstract: refinement often unnecessary"]
+ROW_LECTURE = re.compile(r"^(\d\d_\w+) §(\d+)$")
+DOTTED = re.compile(r"^[A-Za-z_][\w.]*$")
+
+
+def _table_rows(text: str) -> list[list[str]]:
+    rows = []
+    for line in text.splitlines():
+        line = line.strip()
+        if line.startswith("|") and line.endswith("|") and not re.fullmatch(r"[\s|:-]+", line):
+            rows.append([c.strip() for c in line[1:-1].split(" | ")])
+    return rows
+
+
+def seed_labels() -> list[str]:
+    """Every item of the paper, as SEED.md labels it, in its order."""
+    if not SEED_MD.is_file():
+        pytest.skip(f"the paper's item list is not at {SEED_MD}")
+    text = SEED_MD.read_text(encoding="utf-8")
+    labels = []
+    experiment = text.index("## Experiment")
+    also = re.search(r"^Also stated in the text.*?(?=\n\n)", text, re.MULTILINE | re.DOTALL)
+    assert also, "SEED.md has no 'Also stated in the text' paragraph"
+    for word in ("cycle", "circuit", "regularization steps of Section V", "abstract", "refinement"):
+        assert word in also.group(0), f"SEED.md's 'Also stated' paragraph no longer mentions {word!r}"
+    for index, part in enumerate((text[:experiment], text[experiment:])):
+        for cells in _table_rows(part):
+            first = cells[0]
+            if first in ("eq.", "label", "item"):
+                continue
+            number = re.fullmatch(r"\((\d+)\)", first)
+            labels.append(f"eq. ({number.group(1)})" if number else re.sub(r"\s*\(.*\)$", "", first))
+        if index == 0:                      # the unnumbered items come after the numbered results
+            labels += UNNUMBERED
+    return labels
+
+
+def concordance_rows() -> list[list[str]]:
+    assert CONCORDANCE.is_file(), f"{CONCORDANCE} missing"
+    rows = [r for r in _table_rows(CONCORDANCE.read_text(encoding="utf-8")) if r[0] != "label"]
+    bad = [r for r in rows if len(r) != 4]
+    assert not bad, f"rows without exactly 4 cells (label | lecture | package | tests): {bad}"
+    return rows
+
+
+def _backticked(cell: str) -> list[str]:
+    return re.findall(r"`([^`]+)`", cell)
+
+
+def _resolves(dotted: str) -> bool:
+    parts = dotted.split(".")
+    for cut in range(len(parts), 0, -1):
+        try:
+            obj = importlib.import_module(".".join(parts[:cut]))
+        except ImportError:
+            continue
+        try:
+            for attr in parts[cut:]:
+                obj = getattr(obj, attr)
+        except AttributeError:
+            return False
+        return True
+    return False
+
+
+def test_seed_labels_are_read():
+    labels = seed_labels()
+    assert [f"eq. ({i})" for i in range(1, 24)] == [lb for lb in labels if lb.startswith("eq. (")]
+    for label in ("Lemma 1", "Proposition 1", "Theorem 3", "Remark 2", "Table I", "Table II", "Fig. 3"):
+        assert label in labels
+
+
+def test_concordance_covers_the_paper():
+    labels = seed_labels()
+    rows = {r[0] for r in concordance_rows()}
+    missing = [lb for lb in labels if lb not in rows]
+    assert not missing, f"items of the paper without a row in {CONCORDANCE.name}: {missing}"
+
+
+def test_concordance_rows_hold():
+    _jupytext()
+    labels = seed_labels()
+    rows = concordance_rows()
+    problems = []
+    seen = [r[0] for r in rows]
+    problems += [f"unknown label {lb!r} (not an item of SEED.md)" for lb in seen if lb not in labels]
+    problems += [f"label {lb!r} has {seen.count(lb)} rows" for lb in sorted(set(seen)) if seen.count(lb) > 1]
+    known = [lb for lb in seen if lb in labels]
+    if known != sorted(known, key=labels.index):
+        problems.append("rows are not in the paper's order (SEED.md)")
+    for label, lecture, package, tests in rows:
+        if not lecture.startswith("—"):
+            for ref in lecture.split("; "):
+                m = ROW_LECTURE.match(ref.strip())
+                if not m:
+                    problems.append(f"{label}: lecture {ref!r} is not 'NN_name §K'")
+                    continue
+                stem, k = m.group(1), int(m.group(2))
+                if not (LECTURES / f"{stem}.py").is_file():
+                    problems.append(f"{label}: no lecture {stem}")
+                    continue
+                section = _numbered_sections(stem).get(k)
+                if section is None:
+                    problems.append(f"{label}: {stem} has no section '## {k}.'")
+                elif label not in section:
+                    problems.append(f"{label}: {stem} §{k} does not contain {label!r}")
+        if not package.startswith("—"):
+            names = _backticked(package)
+            if not names:
+                problems.append(f"{label}: package cell {package!r} names nothing (use `a.b.c` or '— reason')")
+            for name in names:
+                if not DOTTED.match(name) or not _resolves(name):
+                    problems.append(f"{label}: package name {name!r} does not import")
+        if not tests.startswith("—"):
+            ids = _backticked(tests)
+            if not ids:
+                problems.append(f"{label}: tests cell {tests!r} names nothing (use `tests/f.py::test_x` or '— reason')")
+            for test_id in ids:
+                path, _, name = test_id.partition("::")
+                name = name.split("::")[-1].split("[")[0]
+                file = ROOT / path
+                if not path.startswith("tests/") or not file.is_file():
+                    problems.append(f"{label}: test file {path!r} does not exist")
+                elif not name or not re.search(rf"^\s*(async\s+)?def {re.escape(name)}\(", file.read_text(encoding="utf-8"),
+                                               re.MULTILINE):
+                    problems.append(f"{label}: no 'def {name}' in {path}")
+    assert not problems, "\n".join(problems)
+
+
+# ----------------------------------------------------------------------------- the site and a clean run
+def test_course_site_builds(tmp_path):
+    pytest.importorskip("sphinx", reason="the course site needs the course extra (sphinx, myst-nb)")
+    pytest.importorskip("myst_nb", reason="the course site needs the course extra (sphinx, myst-nb)")
+    run = subprocess.run([sys.executable, "-m", "sphinx", "-b", "html", "-W", "--keep-going", "-q",
+                          "-d", str(tmp_path / "doctrees"), str(LECTURES), str(tmp_path / "html")],
+                         cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, f"the site does not build cleanly:\n{run.stdout[-3000:]}\n{run.stderr[-6000:]}"
+    for src in SOURCES:
+        assert (tmp_path / "html" / f"{src.stem}.html").is_file()
+
+
+def test_running_a_lecture_as_a_script_leaves_the_checkout_clean(tmp_path):
+    """A copy of the checkout (tracked and untracked files, as git lists them) becomes a repository;
+    the quickest lecture runs there as a plain script; git then sees no change and no new file."""
+    git = shutil.which("git")
+    if git is None or subprocess.run([git, "rev-parse"], cwd=ROOT, capture_output=True).returncode != 0:
+        pytest.skip("not a git checkout")
+    src = next((s for s in SOURCES if s.name.startswith(SCRIPT_LECTURE)), None)
+    if src is None:
+        pytest.skip(f"no lecture {SCRIPT_LECTURE}")
+    listed = subprocess.run([git, "ls-files", "-z", "-co", "--exclude-standard"], cwd=ROOT, capture_output=True,
+                            check=True).stdout.decode().split("\0")
+    copy = tmp_path / "checkout"
+    for rel in filter(None, listed):
+        if (ROOT / rel).is_file():
+            (copy / rel).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(ROOT / rel, copy / rel)
+
+    def git_in_copy(*args):
+        return subprocess.run([git, "-c", "user.name=t", "-c", "user.email=t@t", *args], cwd=copy,
+                              capture_output=True, text=True, check=True).stdout
+
+    git_in_copy("init", "-q")
+    git_in_copy("add", "-A")
+    git_in_copy("commit", "-q", "-m", "copy")
+    assert git_in_copy("status", "--porcelain", "--untracked-files=all") == ""
+    from conftest import DATASETS
+
+    extra = {"LAGO_CVX_DATASETS": str(DATASETS)} if DATASETS.is_dir() else {}
+    env = _script_env(**extra)
+    env["PYTHONPATH"] = os.pathsep.join([str(copy)] + env["PYTHONPATH"].split(os.pathsep)[1:])
+    run = subprocess.run([sys.executable, src.name], cwd=copy / "lectures", env=env, capture_output=True,
+                         text=True, encoding="utf-8", timeout=600)
+    assert run.returncode == 0, f"{src.name} as a script failed:\n{run.stdout[-2000:]}\n{run.stderr[-4000:]}"
+    left = git_in_copy("status", "--porcelain", "--untracked-files=all")
+    assert left == "", f"running {src.name} changed or left files:\n{left}"
