@@ -54,7 +54,7 @@ from scipy.sparse import csgraph
 from .errors import NumericalError
 
 __all__ = ["EliminationPlan", "BlockLayout", "BlockFactor", "plan_from_pattern", "plan_from_qdldl",
-           "NotPositiveDefinite", "matrix_blocks"]
+           "NotPositiveDefinite", "matrix_blocks", "inverse_blocks"]
 
 log = logging.getLogger(__name__)
 
@@ -495,31 +495,69 @@ class BlockFactor:
         rhs = np.asarray(rhs, dtype=float)
         return self.solve_slots(rhs[np.argsort(slots)])[slots]
 
+    def _levels(self):
+        """The factor regrouped for solves: per height of the front tree, all its fronts padded to the
+        level's largest pivot and row counts, with L_PP⁻¹ (identity on padding) and X (zero on padding)
+        — a solve then costs a few stacked products per level, whatever the number of fronts."""
+        cache = self.__dict__.get("_level_cache")
+        if cache is not None:
+            return cache
+        lay = self.layout
+        b, N = lay.b, lay.N
+        height = lay.plan.height
+        levels = []
+        by_level: dict[int, list] = {}
+        for gi, g in enumerate(lay.groups):
+            by_level.setdefault(int(height[g.fronts[0]]), []).append(gi)
+        for h in sorted(by_level):
+            gis = by_level[h]
+            Kb = max(lay.groups[gi].K * b for gi in gis)
+            Rb = max(lay.groups[gi].R * b for gi in gis)
+            Bt = sum(lay.groups[gi].fronts.size for gi in gis)
+            Li = np.zeros((Bt, Kb, Kb))
+            Li[:, np.arange(Kb), np.arange(Kb)] = 1.0
+            X = np.zeros((Bt, Rb, Kb))
+            piv = np.full((Bt, Kb), N, np.int64)
+            rowv = np.full((Bt, Rb), N, np.int64)
+            o = 0
+            for gi in gis:
+                g = lay.groups[gi]
+                B, kb, rb = g.fronts.size, g.K * b, g.R * b
+                ci = self.Linv[gi]
+                if ci is None:
+                    ci = np.tril(lapack.dtrtri(self.L11[gi][0], lower=1)[0])[None]
+                Li[o:o + B, :kb, :kb] = ci
+                X[o:o + B, :rb, :kb] = self.X[gi]
+                piv[o:o + B, :kb] = g.piv
+                rowv[o:o + B, :rb] = g.rowv
+                o += B
+            levels.append((Li, X, piv, rowv))
+        self._level_cache = levels
+        return levels
+
     def solve_slots(self, y: np.ndarray) -> np.ndarray:
         """Solve N x = y with y (N,) or (N, r) indexed by elimination slots; returns x likewise."""
         lay = self.layout
         one = y.ndim == 1
-        Y = np.zeros((lay.N + 1, 1 if one else y.shape[1]))
-        Y[:-1] = y.reshape(lay.N, -1)
-        for g, c, ci, X in zip(lay.groups, self.L11, self.Linv, self.X):
-            z = Y[g.piv]  # (B, Kb, r)
-            if g.single:
-                z = lapack.dtrtrs(c[0], z[0], lower=1)[0][None]
-            else:
-                z = ci @ z
-            Y[g.piv] = z
+        r = 1 if one else y.shape[1]
+        Y = np.zeros((lay.N + 1, r))
+        Y[:-1] = y.reshape(lay.N, r)
+        levels = self._levels()
+        n1 = lay.N + 1
+        for Li, X, piv, rowv in levels:  # forward: z_P = L_PP⁻¹ y_P, y_R −= X z_P
+            z = Li @ Y[piv]
+            Y[piv] = z
             if X.shape[1]:
-                np.subtract.at(Y, g.rowv.reshape(-1), (X @ z).reshape(-1, Y.shape[1]))
+                upd = (X @ z).reshape(-1, r)
+                idx = rowv.reshape(-1)
+                for j in range(r):
+                    Y[:, j] -= np.bincount(idx, upd[:, j], minlength=n1)
             Y[-1] = 0.0
-        for g, c, ci, X in zip(reversed(lay.groups), reversed(self.L11), reversed(self.Linv), reversed(self.X)):
-            z = Y[g.piv]
+        for Li, X, piv, rowv in reversed(levels):  # back: x_P = L_PP⁻ᵀ (z_P − Xᵀ x_R)
+            z = Y[piv]
             if X.shape[1]:
-                z = z - np.swapaxes(X, 1, 2) @ Y[g.rowv]
-            if g.single:
-                z = lapack.dtrtrs(c[0], z[0], lower=1, trans=1)[0][None]
-            else:
-                z = np.swapaxes(ci, 1, 2) @ z
-            Y[g.piv] = z
+                z = z - np.swapaxes(X, 1, 2) @ Y[rowv]
+            Y[piv] = np.swapaxes(Li, 1, 2) @ z
             Y[-1] = 0.0
         out = Y[:-1]
         return out[:, 0] if one else out
@@ -557,3 +595,37 @@ class BlockFactor:
             if progress is not None:
                 progress(nG - gi, nG)
         return sig
+
+
+def inverse_blocks(factor: BlockFactor, prow=None, pcol=None, *, progress=None):
+    """Blocks of Σ = N⁻¹ by selected inversion (T): ``diag`` (d, b, b) the b×b block of every pose (in
+    pose order) and, when ``prow``/``pcol`` (q,) are given — pose pairs on the pattern of L, e.g. the
+    ends of edges — ``pairs`` (q, b, b) with pairs[t] = Σ[prow[t], pcol[t]] (rows: prow's variables).
+    Returns ``(diag, pairs)`` (``pairs`` None without pairs)."""
+    lay = factor.layout
+    plan, b = lay.plan, lay.b
+    sig = factor.selected_inverse(progress=progress)
+    pose_at = np.empty(plan.d, np.int64)
+    pose_at[plan.position] = np.arange(plan.d)
+    diag = np.zeros((plan.d, b, b))
+    for g, S in zip(lay.groups, sig):
+        B, K = g.fronts.size, g.K
+        Sr = S[:, :K * b, :K * b].reshape(B, K, b, K, b)
+        t = np.arange(K)
+        blk = Sr[:, t, :, t, :]  # (K, B, b, b)
+        pos = g.piv[:, ::b].T  # (K, B) slots of component 0
+        ok = pos < lay.N
+        diag[pose_at[pos[ok] // b]] = blk[ok]
+    pairs = None
+    if prow is not None:
+        grp, off, D, tr = lay.block_targets(np.asarray(prow, np.int64), np.asarray(pcol, np.int64))
+        cr, cc = np.divmod(np.arange(b * b), b)
+        rr = np.where(tr[:, None], cc[None, :], cr[None, :])
+        ccs = np.where(tr[:, None], cr[None, :], cc[None, :])
+        flat = off[:, None] + rr * D[:, None] + ccs
+        pairs = np.empty((grp.size, b * b))
+        for gi in np.unique(grp):
+            sel = grp == gi
+            pairs[sel] = sig[gi].reshape(-1)[flat[sel]]
+        pairs = pairs.reshape(-1, b, b)
+    return diag, pairs
