@@ -53,8 +53,8 @@ from scipy.sparse import csgraph
 
 from .errors import NumericalError
 
-__all__ = ["EliminationPlan", "BlockLayout", "BlockFactor", "plan_from_pattern", "plan_from_qdldl",
-           "NotPositiveDefinite", "matrix_blocks", "inverse_blocks"]
+__all__ = ["EliminationPlan", "BlockLayout", "BlockFactor", "plan_from_qdldl", "NotPositiveDefinite",
+           "inverse_blocks"]
 
 log = logging.getLogger(__name__)
 
@@ -241,25 +241,6 @@ def plan_from_qdldl(L: sp.csc_matrix, perm: np.ndarray) -> EliminationPlan:
                            height=height)
 
 
-def plan_from_pattern(d: int, rows: np.ndarray, cols: np.ndarray) -> EliminationPlan:
-    """The plan of the d × d pose pattern with off-diagonal entries (rows[k], cols[k]) (either
-    orientation, duplicates allowed): AMD and the factor's pattern from QDLDL on a diagonally dominant
-    matrix of that pattern."""
-    import qdldl
-
-    rows = np.asarray(rows, np.int64)
-    cols = np.asarray(cols, np.int64)
-    keep = rows != cols
-    lo, hi = np.minimum(rows[keep], cols[keep]), np.maximum(rows[keep], cols[keep])
-    deg = np.bincount(np.r_[lo, hi], minlength=d).astype(float)
-    A = sp.csc_matrix((np.r_[-np.ones(lo.size), deg + 1.0], (np.r_[lo, np.arange(d)], np.r_[hi, np.arange(d)])),
-                      shape=(d, d))
-    A.sum_duplicates()
-    s = qdldl.Solver(A, upper=True)
-    L, _, perm = s.factors()
-    return plan_from_qdldl(L, perm)
-
-
 @dataclass(eq=False)
 class _Group:
     """Fronts factored together: ``fronts`` (B,), padded pivot/row pose counts K, R (exact for a single
@@ -425,29 +406,6 @@ class BlockLayout:
             if progress is not None:
                 progress(gi + 1, nG)
         return BlockFactor(self, L11, Linv, X)
-
-
-def matrix_blocks(N: sp.spmatrix, var_index: np.ndarray):
-    """The b×b blocks of a sparse symmetric N (system numbering ``var_index`` (d, b)) at every pose pair
-    with an entry, each unordered pair once: ``(prow, pcol, blocks (q, b, b))`` with prow ≥ pcol. For
-    tests and for matrices not assembled from edges."""
-    var_index = np.asarray(var_index, np.int64)
-    d, b = var_index.shape
-    pose = np.empty(d * b, np.int64)
-    comp = np.empty(d * b, np.int64)
-    pose[var_index.reshape(-1)] = np.repeat(np.arange(d), b)
-    comp[var_index.reshape(-1)] = np.tile(np.arange(b), d)
-    C = sp.coo_matrix(N)
-    pi, pj = pose[C.row], pose[C.col]
-    lower = pi >= pj
-    pi, pj, ci, cj, v = pi[lower], pj[lower], comp[C.row][lower], comp[C.col][lower], C.data[lower]
-    key = pi * d + pj
-    uk, inv = np.unique(key, return_inverse=True)
-    blocks = np.zeros((uk.size, b, b))
-    np.add.at(blocks, (inv, ci, cj), v)
-    same = (uk // d) == (uk % d)
-    blocks[same] = np.tril(blocks[same]) + np.swapaxes(np.tril(blocks[same], -1), 1, 2)
-    return uk // d, uk % d, blocks
 
 
 class BlockAssembler:

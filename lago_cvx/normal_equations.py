@@ -30,13 +30,55 @@ import scipy.sparse as sp
 
 from .graph import free_poses
 from .linalg import Factor, augmented_least_squares, refine_normal_equations
-from .multifrontal import BlockFactor, EliminationPlan, NotPositiveDefinite, plan_from_qdldl, plan_from_pattern
+from .multifrontal import BlockFactor, EliminationPlan, NotPositiveDefinite, plan_from_qdldl
 from .posegraph import PoseGraph
 from .progress import Progress
 
-__all__ = ["EdgeSystem", "GraphElimination", "PoseFactor", "QdldlFactor", "RenumberedFactor", "ENGINE_MIN"]
+__all__ = ["plan_from_pattern", "matrix_blocks", "EdgeSystem", "GraphElimination", "PoseFactor", "QdldlFactor", "RenumberedFactor", "ENGINE_MIN"]
 
 log = logging.getLogger(__name__)
+
+
+def plan_from_pattern(d: int, rows: np.ndarray, cols: np.ndarray) -> EliminationPlan:
+    """The plan of the d × d pose pattern with off-diagonal entries (rows[k], cols[k]) (either
+    orientation, duplicates allowed): AMD and the factor's pattern from QDLDL on a diagonally dominant
+    matrix of that pattern."""
+    import qdldl
+
+    rows = np.asarray(rows, np.int64)
+    cols = np.asarray(cols, np.int64)
+    keep = rows != cols
+    lo, hi = np.minimum(rows[keep], cols[keep]), np.maximum(rows[keep], cols[keep])
+    deg = np.bincount(np.r_[lo, hi], minlength=d).astype(float)
+    A = sp.csc_matrix((np.r_[-np.ones(lo.size), deg + 1.0], (np.r_[lo, np.arange(d)], np.r_[hi, np.arange(d)])),
+                      shape=(d, d))
+    A.sum_duplicates()
+    s = qdldl.Solver(A, upper=True)
+    L, _, perm = s.factors()
+    return plan_from_qdldl(L, perm)
+
+
+def matrix_blocks(N: sp.spmatrix, var_index: np.ndarray):
+    """The b×b blocks of a sparse symmetric N (system numbering ``var_index`` (d, b)) at every pose pair
+    with an entry, each unordered pair once: ``(prow, pcol, blocks (q, b, b))`` with prow ≥ pcol. For
+    tests and for matrices not assembled from edges."""
+    var_index = np.asarray(var_index, np.int64)
+    d, b = var_index.shape
+    pose = np.empty(d * b, np.int64)
+    comp = np.empty(d * b, np.int64)
+    pose[var_index.reshape(-1)] = np.repeat(np.arange(d), b)
+    comp[var_index.reshape(-1)] = np.tile(np.arange(b), d)
+    C = sp.coo_matrix(N)
+    pi, pj = pose[C.row], pose[C.col]
+    lower = pi >= pj
+    pi, pj, ci, cj, v = pi[lower], pj[lower], comp[C.row][lower], comp[C.col][lower], C.data[lower]
+    key = pi * d + pj
+    uk, inv = np.unique(key, return_inverse=True)
+    blocks = np.zeros((uk.size, b, b))
+    np.add.at(blocks, (inv, ci, cj), v)
+    same = (uk // d) == (uk % d)
+    blocks[same] = np.tril(blocks[same]) + np.swapaxes(np.tril(blocks[same], -1), 1, 2)
+    return uk // d, uk % d, blocks
 
 
 @dataclass(frozen=True, eq=False)
