@@ -187,7 +187,7 @@ class QdldlFactor(Factor):
                 return solver.solve(rhs)
             return np.column_stack([solver.solve(np.ascontiguousarray(rhs[:, j])) for j in range(rhs.shape[1])])
 
-        super().__init__(solve, n, "qdldl", None)
+        super().__init__(solve, n, "qdldl", self.matrix)
 
 
 #: Systems with at least this many unknowns (d·b) are factored by the multifrontal engine
