@@ -191,8 +191,11 @@ class QdldlFactor(Factor):
 
 
 #: Systems with at least this many unknowns (d·b) are factored by the multifrontal engine
-#: (``lago_cvx.multifrontal``), smaller ones by QDLDL (benchmarks/perf.md has the measurements).
-ENGINE_MIN = 250_000
+#: (``lago_cvx.multifrontal``), smaller ones by QDLDL. Measured, QDLDL was faster at every size
+#: (phase 3 of a 100 000-pose world: 3.4 s against 5.2 s; city10000's LAGO step 765 against 1135 ms)
+#: and the engine's padded fronts exhausted memory at 1 000 000 poses, so LAGO's solves use QDLDL; the
+#: engine serves the selected inversion (covariances). ``GraphElimination.factor(engine=True)`` forces it.
+ENGINE_MIN = 1 << 62
 
 
 class RenumberedFactor(Factor):
