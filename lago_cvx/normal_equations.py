@@ -237,27 +237,39 @@ class GraphElimination:
         self._assemblers = {}
         self.laplacian = None
         both = (self.tails >= 0) & (self.heads >= 0)
-        lo = np.minimum(self.tails, self.heads)[both]
-        hi = np.maximum(self.tails, self.heads)[both]
+        self._lo = np.minimum(self.tails, self.heads)[both]
+        self._hi = np.maximum(self.tails, self.heads)[both]
+        self._plan = None
+        self._qdldl_pattern = None
         if d == 0:
-            self.plan = EliminationPlan(0, np.zeros(0, np.int64), np.zeros(1, np.int64), np.zeros(1, np.int64),
-                                        np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64))
+            self._plan = EliminationPlan(0, np.zeros(0, np.int64), np.zeros(1, np.int64), np.zeros(1, np.int64),
+                                         np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64))
             return
         if weights is not None:
             w = np.asarray(weights, dtype=float)
+            lo, hi = self._lo, self._hi
             diag = np.bincount(self.tails[self.tails >= 0], w[self.tails >= 0], minlength=d) + \
                 np.bincount(self.heads[self.heads >= 0], w[self.heads >= 0], minlength=d)
             Lap = sp.csc_matrix((np.r_[-w[both], diag], (np.r_[lo, np.arange(d)], np.r_[hi, np.arange(d)])),
                                 shape=(d, d))
             try:
                 solver = qdldl.Solver(Lap, upper=True)
-                L, _, perm = solver.factors()
-                self.plan = plan_from_qdldl(L, perm)
                 self.laplacian = (solver, Lap)
-                return
-            except Exception as exc:  # not quasi-definite in floating point: use the pattern alone
+            except Exception as exc:  # not quasi-definite in floating point: the plan from the pattern alone
                 log.info("weighted pose Laplacian not factored by QDLDL (%s); plan from the pattern", exc)
-        self.plan = plan_from_pattern(d, lo, hi)
+
+    @property
+    def plan(self) -> EliminationPlan:
+        """The pose-level ``EliminationPlan``, built on first use (the multifrontal engine and the selected
+        inversion need it, QDLDL's solves do not): from the QDLDL factorization of the weighted Laplacian
+        when there is one (its AMD ordering and L's pattern), else from the pattern."""
+        if self._plan is None:
+            if self.laplacian is not None:
+                L, _, perm = self.laplacian[0].factors()
+                self._plan = plan_from_qdldl(L, perm)
+            else:
+                self._plan = plan_from_pattern(self.d, self._lo, self._hi)
+        return self._plan
 
     @property
     def pairs(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
