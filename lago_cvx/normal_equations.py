@@ -310,7 +310,7 @@ class GraphElimination:
         d, b = system.d, system.b
         stats = {"method": "normal equations", "refinement_steps": 0, "relative_correction": 0.0}
         if d == 0:
-            return np.zeros((0, b)), None, stats
+            return np.zeros((0, b) + system.c.shape[2:]), None, stats
         tracker = Progress(stage, callback=progress, logger=log) if progress is not None or d > 200_000 else None
         trusted = False
         x = None
