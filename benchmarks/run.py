@@ -13,6 +13,8 @@ date):
 * ``datasets`` — LAGO on every public dataset: regularization counts, χ² against the reference minimum,
   time per step, cvxpy against the closed form, Gauss–Newton from LAGO and from odometry, GTSAM's
   ``lago.initialize`` side by side (when the ``gtsam`` extra is installed);
+* ``perf``     — the LAGO step against GTSAM's ``lago.initialize`` step by step on city10000 and
+  input_M3500 (interleaved runs), and ``pose_covariances`` on city10000 and a 100 000-pose world;
 * ``scaling``  — the graph machinery and closed-form LAGO on synthetic Manhattan worlds up to 100 000
   poses, cvxpy on some of them, the log–log slope of time against edges;
 * ``chordal``  — tree rounding against the chordal regularizer, on every dataset and over rising
@@ -44,7 +46,7 @@ from pathlib import Path
 
 import _bench
 
-SECTIONS = ("datasets", "scaling", "chordal", "certify", "integer", "theorem1", "route")
+SECTIONS = ("datasets", "scaling", "perf", "chordal", "certify", "integer", "theorem1", "route")
 
 
 def parser(modules: dict) -> argparse.ArgumentParser:

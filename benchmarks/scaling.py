@@ -14,6 +14,10 @@ cycles, O(l·n) for long trajectories, and LAGO never forms it.
 
 from __future__ import annotations
 
+import json
+import resource
+import subprocess
+import sys
 import tempfile
 from pathlib import Path
 
@@ -36,9 +40,88 @@ def add_arguments(group) -> None:
     group.add_argument("--sizes", type=int, nargs="+", default=None,
                        help=f"poses of the synthetic worlds (default {' '.join(map(str, SIZES))}; "
                             f"--quick {' '.join(map(str, QUICK_SIZES))})")
+    group.add_argument("--process-sizes", type=int, nargs="*", default=None,
+                       help=f"sizes of the per-process time/memory sweep (default {' '.join(map(str, PROCESS_SIZES))}; "
+                            f"--quick {' '.join(map(str, QUICK_PROCESS_SIZES))})")
     group.add_argument("--cvxpy-sizes", type=int, nargs="*", default=None,
                        help=f"sizes also solved with cvxpy (default {' '.join(map(str, CVXPY_SIZES))}; "
                             f"--quick {' '.join(map(str, QUICK_CVXPY_SIZES))})")
+
+
+#: Sizes of the per-process sweep (time and peak memory of the LAGO step, each size in its own process).
+PROCESS_SIZES = [1000, 3000, 10000, 30000, 100000, 300000, 1000000]
+QUICK_PROCESS_SIZES = [1000, 3000, 10000]
+
+#: What each child process runs: world generation (not timed), the LAGO step (default route, then the
+#: seed route), and Σ colcount² of phase 3's actual factor (QDLDL's L, or the multifrontal plan).
+_CHILD = r"""
+import json, resource, sys, time
+import numpy as np
+import lago_cvx as lc
+n = int(sys.argv[1])
+g = lc.manhattan_world(n, seed=0).graph
+out = {"n": n, "m": g.n_edges}
+for route in ("default", "seed"):
+    t = time.perf_counter()
+    res = lc.lago(g, route=route)
+    out[route] = {"total": time.perf_counter() - t, **{k: v for k, v in res.timings.items()}}
+    f = getattr(res.phase3.factor, "pose_major", None)
+    if getattr(f, "blocks", None) is not None:
+        out[route + "_flops"] = f.blocks.layout.plan.flops(3)
+    elif getattr(f, "matrix", None) is not None:
+        import qdldl
+        L = qdldl.Solver(f.matrix, upper=True).factors()[0]
+        out[route + "_flops"] = float(((np.diff(L.indptr) + 1.0) ** 2).sum())
+    out[route + "_rss"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+print(json.dumps(out))
+"""
+
+
+def process_sweep(sizes) -> list[dict]:
+    """Each size in a child process, in increasing order: the child's timings and Σ colcount², and the peak
+    resident memory of the children so far (``getrusage(RUSAGE_CHILDREN).ru_maxrss``; sizes ascending, so
+    it is the peak of the largest run)."""
+    rows = []
+    for n in sorted(sizes):
+        proc = subprocess.run([sys.executable, "-c", _CHILD, str(n)], capture_output=True, text=True, check=True)
+        out = json.loads(proc.stdout.strip().splitlines()[-1])
+        out["peak_children"] = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss * 1024
+        rows.append(out)
+        print(f"  {n} poses: default {out['default']['total']:.2f} s, seed {out['seed']['total']:.2f} s, "
+              f"peak {out['peak_children'] / 2**30:.2f} GiB", flush=True)
+    return rows
+
+
+def scaling_figure(rows, path: Path) -> dict:
+    """Log–log plot of the LAGO step's time (default and seed routes) and of Σ colcount² against edges,
+    written to ``path`` with fixed metadata (the PNG is byte-stable for the same numbers). Returns the
+    fitted slopes."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    m = np.array([r["m"] for r in rows], float)
+    slopes = {}
+    fig, ax = plt.subplots(figsize=(6.4, 4.4))
+    for route, style in (("default", "o-"), ("seed", "s--")):
+        t = np.array([r[route]["total"] for r in rows])
+        slopes[route] = loglog_slope(m, t)
+        ax.loglog(m, t, style, label=f"LAGO {route} route (slope {slopes[route]:.2f})")
+    fl = np.array([r.get("default_flops", np.nan) for r in rows])
+    if np.isfinite(fl).all():
+        slopes["flops"] = loglog_slope(m, fl)
+        scale = rows[-1]["default"]["total"] / fl[-1]
+        ax.loglog(m, fl * scale, ":", color="gray", label=f"Σ colcount², phase 3 (slope {slopes['flops']:.2f}, scaled)")
+    ax.set_xlabel("edges")
+    ax.set_ylabel("seconds")
+    ax.set_title("LAGO step on Manhattan worlds (one process per size)")
+    ax.legend(fontsize=8)
+    ax.grid(True, which="both", alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100, metadata={"Software": None})
+    plt.close(fig)
+    return slopes
 
 
 def loglog_slope(x, y) -> float:
@@ -80,8 +163,27 @@ def run(args) -> str:
         rows.append(row)
         edges.append(m)
         times.append(t)
+    psizes = args.process_sizes if args.process_sizes is not None else (
+        QUICK_PROCESS_SIZES if args.quick else PROCESS_SIZES)
+    prows = process_sweep(psizes) if psizes else []
+    slopes = scaling_figure(prows, Path(args.out) / "scaling.png") if len(prows) > 1 else {}
+    ptable = _bench.table(
+        ["poses", "edges", "default route [s]", "tree", "regularization", "phase1", "phase2", "phase3", "positions",
+         "seed route [s]", "seed phase3 [s]", "Σ colcount² (phase 3)", "peak memory [GiB]"],
+        [[r["n"], r["m"], f"{r['default']['total']:.2f}",
+          *(f"{r['default'][k]:.2f}" for k in ("tree", "regularization", "phase1", "phase2", "phase3", "positions")),
+          f"{r['seed']['total']:.2f}", f"{r['seed']['phase3']:.2f}", _bench.fmt(r.get("default_flops"), ".3g"),
+          f"{r['peak_children'] / 2**30:.2f}"] for r in prows])
     return "\n".join([
         "# Scaling on synthetic Manhattan worlds (seed 0)", "",
+        "## The LAGO step per process, 1 000 to 1 000 000 poses", "",
+        "Each size in its own child process (world generated there, not timed); time of `lago(graph)` "
+        "(default route) by step and of `lago(graph, route=\"seed\")`; Σ colcount² of phase 3's actual "
+        "factor (the Cholesky multiply–add count); peak memory = `getrusage(RUSAGE_CHILDREN).ru_maxrss` "
+        "after the size (sizes ascending). Figure: [`scaling.png`](scaling.png).", "",
+        ptable, "",
+        "Log–log slopes against edges: " + ", ".join(f"{k} {v:.2f}" for k, v in slopes.items()), "",
+        "## Graph machinery and cvxpy, in process", "",
         f"Medians of {args.repeat} runs (cvxpy: one run). read g2o = `read_graph` of the world written by "
         "`write_graph`; trees = `spanning_tree(graph, kind)`; regularize = the tree rounding on the BFS tree; "
         "LAGO closed form = `lago(graph)` (tree, regularization, phases 1–3); cvxpy = phases 1 and 3 as cvxpy "

@@ -27,7 +27,7 @@ import scipy.sparse.linalg as spla
 
 from .errors import NumericalError, OptionError
 
-__all__ = ["Factor", "factorize", "solve_least_squares", "REFINEMENT_STEPS", "TRUST_TOLERANCE", "whitening_2x2", "block_diagonal_inverse", "SOLVER_BACKENDS"]
+__all__ = ["Factor", "factorize", "solve_least_squares", "refine_normal_equations", "augmented_least_squares", "REFINEMENT_STEPS", "TRUST_TOLERANCE", "whitening_2x2", "block_diagonal_inverse", "SOLVER_BACKENDS"]
 
 log = logging.getLogger(__name__)
 
@@ -106,14 +106,57 @@ def _augmented_solve(M: sp.csc_matrix, b: np.ndarray) -> np.ndarray:
     return sol[r:]
 
 
+def augmented_least_squares(M: sp.spmatrix, b: np.ndarray) -> np.ndarray:
+    """min ‖Mx − b‖ by the augmented system (``_augmented_solve``); ``NumericalError`` if it gives no finite
+    answer. The fallback of every normal-equation solve of the package."""
+    try:
+        x = _augmented_solve(sp.csc_matrix(M), np.asarray(b, dtype=float))
+    except Exception as exc:
+        raise NumericalError(f"the least-squares system is numerically singular ({exc}); check for "
+                             "information matrices spanning more than ~1e15") from None
+    if not np.isfinite(x).all():
+        raise NumericalError("the least-squares system is numerically singular (non-finite solution); "
+                             "check for information matrices spanning more than ~1e15")
+    return x
+
+
+def refine_normal_equations(solve, matvec, rmatvec, b: np.ndarray):
+    """x = N⁻¹Mᵀb for a factored N = MᵀM (``solve``), then the corrected semi-normal equations
+    x ← x + N⁻¹Mᵀ(b − Mx) while the correction shrinks (at most ``REFINEMENT_STEPS``, stopping below
+    1e-14 relative). ``matvec(x) = Mx``, ``rmatvec(r) = Mᵀr``. Returns ``(x, stats, trusted)``: ``stats``
+    with ``method``, ``refinement_steps``, ``relative_correction`` (the last correction relative to
+    ‖x‖∞); ``trusted`` False when x is not finite or that correction exceeds ``TRUST_TOLERANCE``."""
+    stats = {"method": "normal equations", "refinement_steps": 0, "relative_correction": 0.0}
+    x = solve(rmatvec(b))
+    scale = max(np.max(np.abs(x)) if x.size else 0.0, np.finfo(float).tiny)
+    last = np.inf
+    rel = 0.0
+    steps = 0
+    for steps in range(1, REFINEMENT_STEPS + 1):
+        dx = solve(rmatvec(b - matvec(x)))
+        size = np.max(np.abs(dx)) if dx.size else 0.0
+        if not size < last:  # no longer converging (or non-finite): keep the previous iterate
+            steps -= 1
+            break
+        x = x + dx
+        rel = size / scale
+        last = size
+        if rel < 1e-14:
+            break
+    stats.update(refinement_steps=steps, relative_correction=float(rel))
+    trusted = bool(np.isfinite(x).all()) and rel <= TRUST_TOLERANCE
+    return x, stats, trusted
+
+
 def solve_least_squares(M: sp.spmatrix, b: np.ndarray, *, backend: str = "auto"):
     """Minimise ‖M x − b‖² for a sparse M (r × c) of full column rank.
 
     Factor N = MᵀM once and solve the normal equations, then apply the *corrected semi-normal
     equations*: x ← x + N⁻¹Mᵀ(b − Mx), repeated while the correction shrinks (at most
-    ``REFINEMENT_STEPS``). The residual b − Mx is formed in the original space, so this recovers the
-    accuracy a QR factorization would give even when cond(M)² ε ≈ 1 (real files with information
-    spanning 1e1 … 1e8, e.g. carlone/input_INTEL_g2o.g2o, lose 6 digits in the plain normal equations).
+    ``REFINEMENT_STEPS``; ``refine_normal_equations``). The residual b − Mx is formed in the original
+    space, so this recovers the accuracy a QR factorization would give even when cond(M)² ε ≈ 1 (real
+    files with information spanning 1e1 … 1e8, e.g. carlone/input_INTEL_g2o.g2o, lose 6 digits in the
+    plain normal equations).
 
     The solver checks itself: if the factorization of N fails (N singular in floating point although M
     is not, e.g. one edge with information 1e16 and the others 1) or the last correction is still
@@ -129,40 +172,16 @@ def solve_least_squares(M: sp.spmatrix, b: np.ndarray, *, backend: str = "auto")
     if M.shape[1] == 0:  # nothing to estimate (a single pose)
         return np.zeros(0), N, None, stats
     factor, x = None, None
+    trusted = False
     try:
         factor = factorize(N, backend=backend)
-        x = factor.solve(M.T @ b)
-        scale = max(np.max(np.abs(x)) if x.size else 0.0, np.finfo(float).tiny)
-        last = np.inf
-        rel = 0.0
-        steps = 0
-        for steps in range(1, REFINEMENT_STEPS + 1):
-            dx = factor.solve(M.T @ (b - M @ x))
-            size = np.max(np.abs(dx)) if dx.size else 0.0
-            if not size < last:  # no longer converging (or non-finite): keep the previous iterate
-                steps -= 1
-                break
-            x = x + dx
-            rel = size / scale
-            last = size
-            if rel < 1e-14:
-                break
-        stats.update(refinement_steps=steps, relative_correction=float(rel))
-        trusted = bool(np.isfinite(x).all()) and rel <= TRUST_TOLERANCE
+        x, stats, trusted = refine_normal_equations(factor.solve, M.dot, M.T.dot, b)
     except Exception as exc:  # qdldl "not quasi-definite", SuperLU "exactly singular", CHOLMOD errors
         log.info("normal equations could not be factored (%s): using the augmented system", exc)
-        trusted = False
     if not trusted:
         log.warning("least squares: normal equations too ill-conditioned (relative correction %.2g); "
                     "solving the augmented system instead", stats["relative_correction"])
-        try:
-            x = _augmented_solve(M, b)
-        except Exception as exc:
-            raise NumericalError(f"the least-squares system is numerically singular ({exc}); check for "
-                                 "information matrices spanning more than ~1e15") from None
-        if not np.isfinite(x).all():
-            raise NumericalError("the least-squares system is numerically singular (non-finite solution); "
-                                 "check for information matrices spanning more than ~1e15")
+        x = augmented_least_squares(M, b)
         stats["method"] = "augmented system"
         factor = None
     return x, N, factor, stats

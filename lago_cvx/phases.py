@@ -64,7 +64,9 @@ import numpy as np
 import scipy.sparse as sp
 
 from .graph import _reduced_incidence, free_poses
-from .linalg import Factor, block_diagonal_inverse, factorize, solve_least_squares
+from .linalg import Factor, block_diagonal_inverse, factorize, refine_normal_equations, solve_least_squares
+from .multifrontal import inverse_blocks
+from .normal_equations import EdgeSystem, GraphElimination, PoseFactor, RenumberedFactor, matrix_blocks, plan_from_pattern
 from .posegraph import PoseGraph, rot2
 from .errors import OptionError, check_choice
 from .solvers import ClarabelSettings, named_constant, parameter, solve
@@ -72,7 +74,7 @@ from .uncertainty import INFORMATION_MODES, EdgeUncertainty
 
 __all__ = [
     "Phase1", "phase1_problem", "phase1_closed_form", "phase1_from_problem",
-    "Phase2", "phase2", "phase2_blocks", "edge_whitening",
+    "Phase2", "phase2", "phase2_blocks", "edge_whitening", "phase1_system", "phase3_edge_system", "Lazy",
     "Phase3", "design_matrix", "phase3_problem", "phase3_closed_form", "phase3_from_problem",
 ]
 
@@ -89,25 +91,67 @@ def _full(n: int, a: int, free_values: np.ndarray, anchor_value=0.0) -> np.ndarr
     return out
 
 
+class Lazy:
+    """A dataclass field computed on first access: the stored value, or — when it is a zero-argument
+    callable (or None with a ``_build`` method on the instance) — what that returns, cached. The closed
+    forms never need the sparse matrices (``info``, and phase 2's ``z``, ``W``, ``jac``, ``Bt``) that the
+    cvxpy builders and the lectures read; they are built only when read."""
+
+    def __set_name__(self, owner, name):
+        self.public, self.private = name, "_" + name
+
+    def __get__(self, obj, objtype=None):
+        if obj is None:
+            return None  # the field's default
+        v = obj.__dict__.get(self.private)
+        if v is None and hasattr(obj, "_build"):
+            v = obj._build(self.public)
+            obj.__dict__[self.private] = v
+        elif callable(v) and not isinstance(v, (np.ndarray, sp.spmatrix, sp.sparray)):
+            v = v()
+            obj.__dict__[self.private] = v
+        return v
+
+    def __set__(self, obj, value):
+        obj.__dict__[self.private] = value
+
+
+def _selected_diagonal(factor, info, var_index: np.ndarray, progress=None) -> np.ndarray:
+    """Diagonal b×b blocks (d, b, b) of info⁻¹ for the variables ``var_index`` (d, b) of each free pose, by
+    selected inversion on the multifrontal factor (``lago_cvx.multifrontal``, eq. (T)): the given factor
+    when it is one, else a factorization of ``info`` on its own pose-level plan."""
+    if isinstance(factor, PoseFactor):
+        return inverse_blocks(factor.blocks)[0]
+    d, b = var_index.shape
+    prow, pcol, blocks = matrix_blocks(info, var_index)
+    off = prow != pcol
+    plan = plan_from_pattern(d, prow[off], pcol[off])
+    lay = plan.layout(b)
+    return inverse_blocks(lay.factor(lay.assembler(prow, pcol), blocks), progress=progress)[0]
+
+
 # ------------------------------------------------------------------------------ phase 1
 @dataclass(frozen=True, eq=False)
 class Phase1:
     """Phase-1 result. ``theta`` (n,) with the anchor at 0; ``theta_free`` (d,);
-    ``info`` (d, d) sparse Ω_θ = A2 P_δ⁻¹ A2ᵀ; ``anchor_index`` the anchor's index; ``factor`` the
-    factorization of ``info`` and ``stats`` the solver's refinement statistics (closed form only)."""
+    ``info`` (d, d) sparse Ω_θ = A2 P_δ⁻¹ A2ᵀ (built on first access); ``anchor_index`` the anchor's index;
+    ``factor`` the factorization of ``info`` and ``stats`` the solver's refinement statistics (closed form
+    only)."""
 
     theta: np.ndarray
     theta_free: np.ndarray
-    info: sp.csr_matrix
-    anchor_index: int
+    info: sp.csr_matrix = Lazy()
+    anchor_index: int = 0
     factor: Factor | None = None
     stats: dict | None = None
 
     def variances(self) -> np.ndarray:
-        """Marginal variances of θ̂ (n,), diag(P_θ) with 0 at the anchor, without forming P_θ."""
-        f = self.factor or factorize(self.info)
+        """Marginal variances of θ̂ (n,), diag(P_θ) with 0 at the anchor, by selected inversion of Ω_θ
+        (eq. (T) of ``lago_cvx.multifrontal``) — never P_θ itself."""
         d = self.theta_free.size
-        var = block_diagonal_inverse(f, np.arange(d)[:, None])[:, 0, 0]
+        if d == 0:
+            return np.zeros(1)
+        var = _selected_diagonal(None, self.info, np.arange(d)[:, None])[:, 0, 0]
         return _full(d + 1, self.anchor_index, var)
 
 
@@ -136,15 +180,48 @@ def phase1_problem(graph: PoseGraph, delta_reg, unc: EdgeUncertainty, *, anchor=
     return cp.Problem(cp.Minimize(cp.sum_squares(P_inv_sqrt @ (At @ theta - delta)))), theta
 
 
+def phase1_system(graph: PoseGraph, delta_reg, unc: EdgeUncertainty, elim: GraphElimination) -> EdgeSystem:
+    """Eq. (13) as the edge system (E) of ``lago_cvx.normal_equations``: per edge k = (i → j),
+    √(1/P_δ,k) (θ_j − θ_i − δ_reg,k), b = q = 1."""
+    w = unc.sqrt_info_delta
+    m = graph.n_edges
+    return EdgeSystem(elim.tails, elim.heads, (-w).reshape(m, 1, 1), w.reshape(m, 1, 1),
+                      (w * np.asarray(delta_reg, dtype=float)).reshape(m, 1), elim.d)
+
+
 def phase1_closed_form(graph: PoseGraph, delta_reg, unc: EdgeUncertainty, *, anchor=None,
-                       backend: str = "auto") -> Phase1:
+                       backend: str = "auto", elimination: GraphElimination | None = None) -> Phase1:
     """Phase 1 in closed form (eq. (13)): θ̂ = (A2 P_δ⁻¹ A2ᵀ)⁻¹ A2 P_δ⁻¹ δ_reg by a sparse factorization
-    (with corrected semi-normal refinement, see ``lago_cvx.linalg.solve_least_squares``)."""
+    with corrected semi-normal refinement (``lago_cvx.linalg.refine_normal_equations``).
+
+    ``backend="auto"``: the pose-level elimination of the graph (``elimination``, a
+    ``normal_equations.GraphElimination`` built with weights 1/P_δ, is reused when given: its QDLDL
+    factorization *is* Ω_θ's); another backend: ``linalg.solve_least_squares`` on the sparse design."""
     a = graph.anchor_index(anchor)
-    A2, W, d_reg = _phase1_terms(graph, delta_reg, unc, a)
-    M = (W @ A2.T).tocsc()  # whitened design, (m, d)
-    theta_free, info, factor, stats = solve_least_squares(M, unc.sqrt_info_delta * d_reg, backend=backend)
-    return Phase1(_full(graph.n_poses, a, theta_free), theta_free, info.tocsr(), a, factor, stats)
+    if backend != "auto":
+        A2, W, d_reg = _phase1_terms(graph, delta_reg, unc, a)
+        M = (W @ A2.T).tocsc()  # whitened design, (m, d)
+        theta_free, info, factor, stats = solve_least_squares(M, unc.sqrt_info_delta * d_reg, backend=backend)
+        return Phase1(_full(graph.n_poses, a, theta_free), theta_free, info.tocsr(), a, factor, stats)
+    elim = elimination if elimination is not None and elimination.anchor_index == a else \
+        GraphElimination(graph, a, weights=unc.info_delta)
+    system = phase1_system(graph, delta_reg, unc, elim)
+    d = elim.d
+    factor = None
+    if elim.laplacian is not None:
+        solver, Lap = elim.laplacian
+        factor = Factor(solver.solve, d, "qdldl", None)
+        x, stats, trusted = refine_normal_equations(
+            factor.solve, lambda v: system.matvec(v.reshape(d, 1)).reshape(-1),
+            lambda r: system.rmatvec(r.reshape(-1, 1)).reshape(-1), system.c.reshape(-1))
+        if not trusted:
+            x, factor, stats = elim.solve(system, stage="phase 1")
+        info = (lambda: (Lap + Lap.T - sp.diags(Lap.diagonal())).tocsr())
+    else:
+        x, factor, stats = elim.solve(system, stage="phase 1")
+        info = (lambda: (system.sparse().T @ system.sparse()).tocsr())
+    theta_free = np.asarray(x, dtype=float).reshape(-1)
+    return Phase1(_full(graph.n_poses, a, theta_free), theta_free, info, a, factor, stats)
 
 
 def phase1_from_problem(graph: PoseGraph, delta_reg, unc: EdgeUncertainty, *, anchor=None,
@@ -173,12 +250,23 @@ class Phase2:
     (2k, 2k + 1, 2m + k) and ``Bt`` = [[A2ᵀ⊗I₂, −J], [0, A2ᵀ]] (3m × 3d) (module docstring)."""
 
     delta_g: np.ndarray
-    z: np.ndarray
-    W: sp.csr_matrix
-    jac: sp.csr_matrix
-    anchor_index: int
-    Bt: sp.csr_matrix = None
+    z: np.ndarray = Lazy()
+    W: sp.csr_matrix = Lazy()
+    jac: sp.csr_matrix = Lazy()
+    anchor_index: int = 0
+    Bt: sp.csr_matrix = Lazy()
     information: str = "marginal"
+    edges: EdgeSystem | None = None
+    builder: object = None
+
+    def _build(self, name: str):
+        """Build ``z``, ``W``, ``jac``, ``Bt`` (sparse, for the cvxpy problem) on first access."""
+        if self.builder is None:
+            return None
+        built = self.builder()
+        for k, v in built.items():
+            self.__dict__["_" + k] = v
+        return built[name]
 
     def covariance_z(self) -> np.ndarray:
         """Dense (WᵀW)⁻¹: P_z of eq. (10) for the seed's form, blkdiag(T_k Σ_k T_kᵀ) for the full one —
@@ -228,32 +316,93 @@ def edge_whitening(graph: PoseGraph, theta: np.ndarray, unc: EdgeUncertainty) ->
 
 
 def phase2(graph: PoseGraph, theta: np.ndarray, unc: EdgeUncertainty, *, anchor=None, information: str = "full",
-           delta_reg=None) -> Phase2:
+           delta_reg=None, elimination: GraphElimination | None = None) -> Phase2:
     """Phase 2 (eqs. (9)–(11)): Δᵍ, J, and the system phase 3 solves (module docstring).
 
     ``theta`` (n,) the phase-1 orientations (anchor at 0). ``information`` ``"full"`` (each edge's whole
     3×3 information; needs ``delta_reg`` (m,), the regularized δ phase 1 used) or ``"marginal"`` (the
     seed's z and P_z⁻¹ = WᵀW with the marginal P_Δ, P_δ). No optimisation happens here; the same code
-    serves both the closed form and the cvxpy route."""
+    serves both the closed form and the cvxpy route. The phase-3 system is kept edge by edge
+    (``edges``, ``phase3_edge_system``); the sparse ``z``, ``W``, ``jac``, ``Bt`` of eq. (15) are built
+    when first read."""
     check_choice("information", information, INFORMATION_MODES)
     a = graph.anchor_index(anchor)
+    if information == "full" and delta_reg is None:
+        raise OptionError("phase2(information='full') needs delta_reg, the regularized δ of phase 1")
+    theta = np.asarray(theta, dtype=float)
+    delta_g = np.einsum("kab,kb->ka", rot2(theta[graph.tails]), graph.delta_l)  # eq. (9)
+    free_of = np.full(graph.n_poses, -1, np.int64)
+    free_of[free_poses(graph.n_poses, a)] = np.arange(graph.n_poses - 1)
+    tails = free_of[graph.tails] if elimination is None else elimination.tails
+    heads = free_of[graph.heads] if elimination is None else elimination.heads
+    edges = phase3_edge_system(graph, theta, unc, delta_g, tails, heads, information=information,
+                               delta_reg=delta_reg)
+    return Phase2(delta_g, anchor_index=a, information=information, edges=edges,
+                  builder=lambda: _phase2_sparse(graph, theta, unc, a, information, delta_reg))
+
+
+def _phase2_sparse(graph: PoseGraph, theta: np.ndarray, unc: EdgeUncertainty, a: int, information: str,
+                   delta_reg) -> dict:
+    """z, W, jac, Bt of eq. (15) as sparse matrices (the cvxpy problem's data; module docstring)."""
     n, m = graph.n_poses, graph.n_edges
     free = free_poses(n, a)
     col_of = np.full(n, -1, np.int64)
     col_of[free] = np.arange(n - 1)
-    delta_g, jac, top = phase2_blocks(graph, theta, unc, col_of, n - 1)
+    _, jac, top = phase2_blocks(graph, theta, unc, col_of, n - 1)
     A2t = _reduced_incidence(graph, a).T  # (m, d)
+    delta_g = np.einsum("kab,kb->ka", rot2(theta[graph.tails]), graph.delta_l)
     if information == "marginal":
         z = np.concatenate([delta_g.reshape(-1), theta[free]])
-        # second block row: [0, P_δ^{-1/2} A2ᵀ]
-        L = sp.diags(unc.sqrt_info_delta) @ A2t
+        L = sp.diags(unc.sqrt_info_delta) @ A2t  # second block row: [0, P_δ^{-1/2} A2ᵀ]
         W = sp.vstack([top, sp.hstack([sp.csr_matrix((m, 2 * m)), L])], format="csr")
-        return Phase2(delta_g, z, W, jac, a, design_matrix(graph, anchor=int(graph.ids[a])), "marginal")
-    if delta_reg is None:
-        raise OptionError("phase2(information='full') needs delta_reg, the regularized δ of phase 1")
+        return {"z": z, "W": W, "jac": jac, "Bt": design_matrix(graph, anchor=int(graph.ids[a]))}
     z = np.concatenate([delta_g.reshape(-1) - jac @ theta[free], np.asarray(delta_reg, dtype=float)])
     Bt = sp.bmat([[sp.kron(A2t, sp.identity(2)), -jac], [None, A2t]], format="csr")
-    return Phase2(delta_g, z, edge_whitening(graph, theta, unc), jac, a, Bt, "full")
+    return {"z": z, "W": edge_whitening(graph, theta, unc), "jac": jac, "Bt": Bt}
+
+
+def phase3_edge_system(graph: PoseGraph, theta: np.ndarray, unc: EdgeUncertainty, delta_g: np.ndarray,
+                       tails: np.ndarray, heads: np.ndarray, *, information: str, delta_reg=None) -> EdgeSystem:
+    """Phase 3's least-squares problem ‖W(Bᵀx − z)‖² (eq. (15)) written edge by edge, (E) of
+    ``lago_cvx.normal_equations`` with b = q = 3 and pose variables x_i = (p_x, p_y, θ)_i:
+
+    full — W_k = U_k T_kᵀ (T_k = blkdiag(R(θ̂_i), 1)), A_k = W_k [[−I₂, −SΔᵍ_k], [0, −1]], B_k = W_k,
+    c_k = W_k [Δᵍ_k − SΔᵍ_k θ̂_i; δ_reg,k] (module docstring);
+    marginal (the seed's eqs. (10)–(12)) — A_k = [[−U_Δ R(θ̂_i)ᵀ, −U_Δ SΔˡ_k], [0, −w_δ]],
+    B_k = [[U_Δ R(θ̂_i)ᵀ, 0], [0, w_δ]], c_k = [U_Δ (R(θ̂_i)ᵀΔᵍ_k − SΔˡ_k θ̂_i); w_δ (θ̂_j − θ̂_i)]
+    (U_Δ = P_Δ^{-1/2}, w_δ = P_δ^{-1/2}). ``tails``/``heads`` (m,) free-pose indices (−1: the anchor)."""
+    m = graph.n_edges
+    th_i = theta[graph.tails]
+    Ri = rot2(th_i)
+    A = np.zeros((m, 3, 3))
+    B = np.zeros((m, 3, 3))
+    c = np.empty((m, 3))
+    if information == "full":
+        Sdg = np.stack([-delta_g[:, 1], delta_g[:, 0]], 1)  # S Δᵍ (m, 2)
+        T = np.zeros((m, 3, 3))
+        T[:, :2, :2] = Ri
+        T[:, 2, 2] = 1.0
+        Wk = unc.sqrt_info @ np.swapaxes(T, 1, 2)  # (m, 3, 3)
+        J = np.zeros((m, 3, 3))
+        J[:, 0, 0] = J[:, 1, 1] = J[:, 2, 2] = -1.0
+        J[:, :2, 2] = -Sdg
+        A = Wk @ J
+        B = Wk
+        cu = np.concatenate([delta_g - Sdg * th_i[:, None], np.asarray(delta_reg, dtype=float)[:, None]], 1)
+        c = np.einsum("kab,kb->ka", Wk, cu)
+    else:
+        U = unc.sqrt_info_delta_l
+        URt = U @ np.swapaxes(Ri, 1, 2)
+        USdl = np.einsum("kab,kb->ka", U, graph.delta_l @ _S.T)  # U S Δˡ (m, 2)
+        w = unc.sqrt_info_delta
+        A[:, :2, :2] = -URt
+        A[:, :2, 2] = -USdl
+        A[:, 2, 2] = -w
+        B[:, :2, :2] = URt
+        B[:, 2, 2] = w
+        c[:, :2] = np.einsum("kab,kb->ka", URt, delta_g) - USdl * th_i[:, None]
+        c[:, 2] = w * (theta[graph.heads] - th_i)
+    return EdgeSystem(tails, heads, A, B, c, graph.n_poses - 1)
 
 
 # ------------------------------------------------------------------------------ phase 3
@@ -265,21 +414,32 @@ class Phase3:
 
     x_star: np.ndarray
     poses: np.ndarray
-    info: sp.csr_matrix
-    anchor_index: int
+    info: sp.csr_matrix = Lazy()
+    anchor_index: int = 0
     factor: Factor | None = None
     stats: dict | None = None
 
-    def pose_covariances(self) -> np.ndarray:
-        """Marginal 3×3 covariance of every pose (n, 3, 3), order (x, y, θ), zeros at the anchor.
-
-        Selected blocks of (Ω*)⁻¹ by batched sparse solves — no dense inverse."""
+    def pose_covariances(self, *, progress=None) -> np.ndarray:
+        """Marginal 3×3 covariance of every pose (n, 3, 3), order (x, y, θ), zeros at the anchor: the
+        diagonal pose blocks of (Ω*)⁻¹ by selected inversion (Takahashi's recurrences, eq. (T) of
+        ``lago_cvx.multifrontal``) on the factor phase 3 used — no dense inverse, no column solves.
+        ``progress`` an optional ``lago_cvx.progress.ProgressCallback``."""
         n = self.poses.shape[0]
         d = n - 1
-        f = self.factor or factorize(self.info)
-        r = np.arange(d)
-        blocks = block_diagonal_inverse(f, np.stack([2 * r, 2 * r + 1, 2 * d + r], 1))
         out = np.zeros((n, 3, 3))
+        if d == 0:
+            return out
+        r = np.arange(d)
+        var3 = np.stack([2 * r, 2 * r + 1, 2 * d + r], 1)
+        from .progress import Progress
+
+        with Progress("pose covariances", callback=progress, logger=log) as tracker:
+            pm = getattr(self.factor, "pose_major", None)
+            if isinstance(pm, PoseFactor):
+                blocks = inverse_blocks(pm.blocks, progress=lambda i, k: tracker.update(i, k))[0]
+            else:
+                blocks = _selected_diagonal(None, self.info, var3,
+                                            progress=lambda i, k: tracker.update(i, k))
         out[free_poses(n, self.anchor_index)] = blocks
         return out
 
@@ -317,14 +477,39 @@ def _poses_from_x(n: int, a: int, x: np.ndarray) -> np.ndarray:
     return poses
 
 
-def phase3_closed_form(graph: PoseGraph, ph2: Phase2, *, backend: str = "auto") -> Phase3:
-    """Phase 3 in closed form: x* = (B WᵀW Bᵀ)⁻¹ B WᵀW z, the least-squares solution of
-    M x ≈ W z with M = W Bᵀ, by a sparse factorization of MᵀM with corrected semi-normal
-    refinement (``lago_cvx.linalg.solve_least_squares``). Anchored where phase 2 was."""
+def phase3_closed_form(graph: PoseGraph, ph2: Phase2, *, backend: str = "auto",
+                       elimination: GraphElimination | None = None, progress=None) -> Phase3:
+    """Phase 3 in closed form: x* = (B WᵀW Bᵀ)⁻¹ B WᵀW z, the least-squares solution of M x ≈ W z with
+    M = W Bᵀ, by a sparse factorization of MᵀM with corrected semi-normal refinement. Anchored where
+    phase 2 was.
+
+    ``backend="auto"``: the edge system ``ph2.edges`` through the pose-level multifrontal elimination
+    (``lago_cvx.normal_equations``; ``elimination`` reused when given), whose factor also serves
+    ``Phase3.pose_covariances``; another backend: ``linalg.solve_least_squares`` on the sparse M.
+    ``progress`` an optional ``lago_cvx.progress.ProgressCallback``."""
+    n, a = graph.n_poses, ph2.anchor_index
+    if backend == "auto" and ph2.edges is not None:
+        elim = elimination if elimination is not None and elimination.anchor_index == a else \
+            GraphElimination(graph, a)
+        x, factor, stats = elim.solve(ph2.edges, stage="phase 3", progress=progress)
+        d = n - 1
+        x_star = np.concatenate([x[:, :2].reshape(-1), x[:, 2]])
+        if factor is not None:  # number its variables as x_star: (2i, 2i + 1, 2d + i)
+            r = np.arange(d)
+            factor = RenumberedFactor(factor, np.stack([2 * r, 2 * r + 1, 2 * d + r], 1))
+        edges = ph2.edges
+        info = (lambda: _phase3_info(edges, d))
+        return Phase3(x_star, _poses_from_x(n, a, x_star), info, a, factor, stats)
     M = (ph2.W @ ph2.Bt).tocsc()
     x, info, factor, stats = solve_least_squares(M, ph2.W @ ph2.z, backend=backend)
-    return Phase3(x, _poses_from_x(graph.n_poses, ph2.anchor_index, x), info.tocsr(), ph2.anchor_index, factor,
-                  stats)
+    return Phase3(x, _poses_from_x(n, a, x), info.tocsr(), a, factor, stats)
+
+
+def _phase3_info(edges: EdgeSystem, d: int) -> sp.csr_matrix:
+    """Ω* = MᵀM (3d × 3d) in x_star's variable order, from the edge system."""
+    r = np.arange(d)
+    M = edges.sparse(np.stack([2 * r, 2 * r + 1, 2 * d + r], 1))
+    return (M.T @ M).tocsr()
 
 
 def phase3_from_problem(graph: PoseGraph, ph2: Phase2, *, settings: ClarabelSettings | None = None):

@@ -21,7 +21,8 @@ from .errors import GraphError, check_choice
 from .graph import spanning_tree as build_tree
 from .metrics import relative_difference
 from .posegraph import PoseGraph, compose
-from .positions import Polish, polish, positions_from_problem, resolve_positions
+from .normal_equations import GraphElimination
+from .positions import Polish, PositionSolver, polish, positions_from_problem, resolve_positions
 from .regularization import REGULARIZATIONS, regularize
 from .result import LagoResult
 from .rounding import AMBIGUITY_MARGIN
@@ -39,7 +40,7 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
          regularization: str | None = None, information: str | None = None, positions: str | None = None,
          anchor=None, anchor_pose=None, margin: float = AMBIGUITY_MARGIN,
          solver_settings: ClarabelSettings | None = None, backend: str = "auto", anchors=None,
-         integer_search: IntegerSearch | None = None) -> LagoResult:
+         integer_search: IntegerSearch | None = None, progress=None) -> LagoResult:
     """LAGO: the linear approximation of planar pose-graph optimization (the seed's Section IV).
 
     Parameters (keyword-only):
@@ -69,6 +70,9 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
         with the anchor at the origin and the result is rigidly moved there (exactly equivariant).
       margin — ambiguity margin of the regularization report (radians).
       backend — sparse solver of the closed form: ``"auto"``, ``"qdldl"``, ``"superlu"``, ``"cholmod"``.
+      progress — an optional ``lago_cvx.progress.ProgressCallback`` ``(stage, fraction)``, told about the
+        long steps (large factorizations, the integer search); they also log at INFO level, at most
+        once a second.
       anchors — ``{id: (x, y, θ)}`` known poses (None for unknown components); when given (even ``{}``)
         LAGO runs with the known entries moved to the right-hand side (``lago_cvx.variants.anchored_lago``;
         returns its ``VariantResult``, a ``LagoResult``).
@@ -98,29 +102,38 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
     tree = build_tree(graph, choice["spanning_tree"], anchor=aid)
     timings["tree"] = time.perf_counter() - t
 
+    # The pose-level elimination, shared by every closed-form system: AMD and the factorization of phase 1's
+    # Ω_θ = A2 P_δ⁻¹ A2ᵀ (QDLDL), the elimination tree and fronts (lago_cvx.multifrontal); timed as phase 1.
+    t = time.perf_counter()
+    unc = edge_uncertainty(graph)
+    elim = GraphElimination(graph, a, weights=unc.info_delta) if method == "closed_form" and backend == "auto" \
+        else None
+    t_elim = time.perf_counter() - t
+
     t = time.perf_counter()
     reg = regularize(graph, tree, regularization=choice["regularization"], margin=margin, method=method,
-                     backend=backend, settings=solver_settings, search=integer_search)
-    unc = edge_uncertainty(graph)
+                     backend=backend, settings=solver_settings, search=integer_search, progress=progress,
+                     uncertainty=unc, elimination=elim)
     timings["regularization"] = time.perf_counter() - t
     if reg.problem is not None:
         problems[reg.regularization] = reg.problem  # "chordal" or "integer"
 
     t = time.perf_counter()
     if method == "closed_form":
-        ph1 = P.phase1_closed_form(graph, reg.delta_reg, unc, anchor=aid, backend=backend)
+        ph1 = P.phase1_closed_form(graph, reg.delta_reg, unc, anchor=aid, backend=backend, elimination=elim)
     else:
         ph1, problems["phase1"] = P.phase1_from_problem(graph, reg.delta_reg, unc, anchor=aid,
                                                         settings=solver_settings)
-    timings["phase1"] = time.perf_counter() - t
+    timings["phase1"] = time.perf_counter() - t + t_elim
 
     t = time.perf_counter()
-    ph2 = P.phase2(graph, ph1.theta, unc, anchor=aid, information=choice["information"], delta_reg=reg.delta_reg)
+    ph2 = P.phase2(graph, ph1.theta, unc, anchor=aid, information=choice["information"], delta_reg=reg.delta_reg,
+                   elimination=elim)
     timings["phase2"] = time.perf_counter() - t
 
     t = time.perf_counter()
     if method == "closed_form":
-        ph3 = P.phase3_closed_form(graph, ph2, backend=backend)
+        ph3 = P.phase3_closed_form(graph, ph2, backend=backend, elimination=elim, progress=progress)
     else:
         ph3, problems["phase3"] = P.phase3_from_problem(graph, ph2, settings=solver_settings)
     timings["phase3"] = time.perf_counter() - t
@@ -128,7 +141,7 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
     t = time.perf_counter()
     pol, poses = None, ph3.poses
     if choice["positions"] == "resolve":
-        pol = _polish(graph, ph1.theta, ph3.poses[:, 2], unc, aid, method, backend, solver_settings, problems)
+        pol = _polish(graph, ph1.theta, ph3.poses[:, 2], unc, aid, method, backend, solver_settings, problems, elim)
         poses = pol.poses
     timings["positions"] = time.perf_counter() - t
 
@@ -144,11 +157,14 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
                       positions=choice["positions"], polish=pol)
 
 
-def _polish(graph, theta_hat, theta_star, unc, aid, method, backend, settings, problems) -> Polish:
-    """The position polish in closed form or as cvxpy problems (the last one solved is kept)."""
+def _polish(graph, theta_hat, theta_star, unc, aid, method, backend, settings, problems, elim=None) -> Polish:
+    """The position polish in closed form or as cvxpy problems (the last one solved is kept). In closed
+    form one ``PositionSolver`` serves every trial (isotropic information: one factorization for all)."""
+    solver = PositionSolver(graph, unc, elim) if elim is not None else None
+
     def solve_positions(theta):
         if method == "closed_form":
-            return resolve_positions(graph, theta, unc, anchor=aid, backend=backend)
+            return resolve_positions(graph, theta, unc, anchor=aid, backend=backend, solver=solver)
         pos, problems["positions"] = positions_from_problem(graph, theta, unc, anchor=aid, settings=settings)
         return pos
 

@@ -30,12 +30,14 @@ import scipy.sparse as sp
 
 from .graph import _reduced_incidence, free_poses
 from .linalg import Factor, solve_least_squares
+from .normal_equations import EdgeSystem, GraphElimination
+from .phases import Lazy
 from .posegraph import PoseGraph, rot2, wrap_angle
 from .solvers import ClarabelSettings, named_constant, parameter, solve
 from .uncertainty import EdgeUncertainty
 
 __all__ = ["Positions", "position_system", "position_problem", "resolve_positions", "positions_from_problem",
-           "Polish", "polish", "MAX_HALVINGS"]
+           "PositionSolver", "isotropic", "Polish", "polish", "MAX_HALVINGS"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -45,8 +47,8 @@ class Positions:
     ``factor``/``stats`` of the closed form."""
 
     poses: np.ndarray
-    info: sp.csr_matrix
-    anchor_index: int
+    info: sp.csr_matrix = Lazy()
+    anchor_index: int = 0
     factor: Factor | None = None
     stats: dict | None = None
 
@@ -81,12 +83,91 @@ def _poses(graph: PoseGraph, theta, a: int, p_free: np.ndarray, anchor_position)
     return poses
 
 
+def isotropic(unc: EdgeUncertainty) -> bool:
+    """True when every edge's conditional position information is isotropic, Ω_pp,k = s_k I₂ (exactly):
+    then R(θ_i) Ω_pp,k R(θ_i)ᵀ = s_k I₂ for every θ, and (P) splits into two weighted-Laplacian problems,
+    one for x and one for y, with the same θ-independent matrix L_s = A2 diag(s) A2ᵀ."""
+    C = unc.sqrt_info_pp
+    return bool(C.shape[0] == 0 or (np.all(C[:, 0, 1] == 0.0) and np.all(C[:, 0, 0] == C[:, 1, 1])))
+
+
+class PositionSolver:
+    """(P) in closed form for many orientations of one graph (the polish solves it two to five times).
+
+    General information: each θ gives the 2d × 2d system of ``position_system``, factored through the
+    pose-level elimination (b = 2). Isotropic translational information (``isotropic``; city10000, the
+    M3500 g2o files, every synthetic world with diagonal information): C_k = √s_k I₂, so
+    ‖C_k R(θ_i)ᵀ(p_j − p_i − g_k)‖² = s_k ‖p_j − p_i − g_k‖² — (P) is min Σ_k s_k ‖p_j − p_i − g_k‖²,
+    two weighted-Laplacian least-squares problems (x and y) with the matrix L_s = A2 diag(s) A2ᵀ
+    (d × d) that does not depend on θ: it is factored once (b = 1) and reused for every θ and both
+    coordinates. Same minimiser, a quarter of the fill and one factorization instead of one per θ.
+
+    ``solver(theta, anchor_position=(0, 0)) -> Positions``."""
+
+    def __init__(self, graph: PoseGraph, unc: EdgeUncertainty, elimination: GraphElimination):
+        self.graph, self.unc, self.elim = graph, unc, elimination
+        self.isotropic = isotropic(unc)
+        self._factor = None
+
+    def _targets(self, theta: np.ndarray, p0: np.ndarray):
+        g = self.graph
+        Ri = rot2(theta[g.tails])
+        e = wrap_angle(theta[g.heads] - theta[g.tails] - g.delta)
+        t = g.delta_l - self.unc.shift * e[:, None]
+        gk = np.einsum("kab,kb->ka", Ri, t)  # R(θ_i) t_k, (m, 2)
+        el = self.elim
+        gk = gk - (el.heads < 0)[:, None] * p0 + (el.tails < 0)[:, None] * p0  # the anchor's p0 moved right
+        return Ri, gk
+
+    def __call__(self, theta, *, anchor_position=(0.0, 0.0)) -> "Positions":
+        g, el = self.graph, self.elim
+        theta = np.asarray(theta, dtype=float)
+        p0 = np.asarray(anchor_position, dtype=float).reshape(2)
+        m, d = g.n_edges, el.d
+        Ri, gk = self._targets(theta, p0)
+        if self.isotropic:
+            s = self.unc.sqrt_info_pp[:, 0, 0]  # √s_k
+            A, B = (-s).reshape(m, 1, 1), s.reshape(m, 1, 1)
+            # x and y: two right-hand sides of one d × d system (c (m, 1, 2))
+            system = EdgeSystem(el.tails, el.heads, A, B, (s[:, None] * gk).reshape(m, 1, 2), d)
+            if self._factor is None and d:
+                self._factor = el.factor(system)
+            x, self._factor, stats = el.solve(system, factor=self._factor, stage="positions")
+            p = x[:, 0, :]
+            factor = self._factor
+            info = (lambda: sp.kron(_laplacian(el, s * s), sp.identity(2), format="csr"))
+        else:
+            Wk = self.unc.sqrt_info_pp @ np.swapaxes(Ri, 1, 2)  # C_k R(θ_i)ᵀ
+            system = EdgeSystem(el.tails, el.heads, -Wk, Wk, np.einsum("kab,kb->ka", Wk, gk), d)
+            x, factor, stats = el.solve(system, stage="positions")
+            p = x
+            info = (lambda: (system.sparse().T @ system.sparse()).tocsr())
+        return Positions(_poses(g, theta, el.anchor_index, p.reshape(-1), p0), info, el.anchor_index, factor,
+                         stats)
+
+
+def _laplacian(el: GraphElimination, w: np.ndarray) -> sp.csr_matrix:
+    """A2 diag(w) A2ᵀ (d × d) on the free poses."""
+    t, h = el.tails, el.heads
+    both = (t >= 0) & (h >= 0)
+    diag = np.bincount(t[t >= 0], w[t >= 0], minlength=el.d) + np.bincount(h[h >= 0], w[h >= 0], minlength=el.d)
+    return sp.csr_matrix((np.r_[-w[both], -w[both], diag], (np.r_[t[both], h[both], np.arange(el.d)],
+                                                             np.r_[h[both], t[both], np.arange(el.d)])),
+                         shape=(el.d, el.d))
+
+
 def resolve_positions(graph: PoseGraph, theta, unc: EdgeUncertainty, *, anchor=None, anchor_position=(0.0, 0.0),
-                      backend: str = "auto") -> Positions:
+                      backend: str = "auto", solver: PositionSolver | None = None) -> Positions:
     """(P) in closed form: the positions minimising χ² for the orientations ``theta`` (n,), the anchor's
     position fixed at ``anchor_position``; one sparse factorization of the 2d × 2d normal matrix with
-    corrected semi-normal refinement (``lago_cvx.linalg.solve_least_squares``)."""
+    corrected semi-normal refinement. ``backend="auto"``: through ``PositionSolver`` (``solver`` reused
+    when given: with isotropic information its factorization is shared by every θ); another backend:
+    ``linalg.solve_least_squares`` on the sparse system of ``position_system``."""
     a = graph.anchor_index(anchor)
+    if backend == "auto":
+        if solver is None or solver.elim.anchor_index != a:
+            solver = PositionSolver(graph, unc, GraphElimination(graph, a))
+        return solver(theta, anchor_position=anchor_position)
     W, Bt, g = position_system(graph, theta, unc, anchor=anchor, anchor_position=anchor_position)
     p, info, factor, stats = solve_least_squares((W @ Bt).tocsc(), W @ g, backend=backend)
     return Positions(_poses(graph, theta, a, p, anchor_position), info.tocsr(), a, factor, stats)

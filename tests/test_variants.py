@@ -58,7 +58,8 @@ def test_bad_anchors_are_named():
 def test_empty_anchors_is_plain_lago():
     w = manhattan_world(300, seed=5)
     g = w.graph
-    np.testing.assert_array_equal(lc.lago(g, anchors={}).poses, lc.lago(g).poses)
+    # same problem, two assemblies (sparse design vs edge by edge): equal to rounding
+    np.testing.assert_allclose(lc.lago(g, anchors={}).poses, lc.lago(g).poses, rtol=0, atol=1e-12)
     T = np.array([3.0, -2.0, 2.5])
     np.testing.assert_allclose(lc.lago(g, anchors={}, anchor=120, anchor_pose=T).poses,
                                lc.lago(g, anchor=120, anchor_pose=T).poses, atol=1e-10)

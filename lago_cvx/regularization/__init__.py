@@ -35,18 +35,22 @@ __all__ = ["REGULARIZATIONS", "MAX_INTEGER_CHORDS", "RegularizationReport", "reg
 def regularize(graph: PoseGraph, tree: SpanningTree, *, regularization: str = "tree",
                margin: float = AMBIGUITY_MARGIN, method: str = "closed_form", backend: str = "auto",
                settings: ClarabelSettings | None = None, search: IntegerSearch | None = None,
-               progress=None) -> RegularizationReport:
+               progress=None, uncertainty=None, elimination=None) -> RegularizationReport:
     """2kπ regularization of the relative orientations.
 
     regularization — ``"tree"`` (``regularize_tree``), ``"chordal"`` (``regularize_chordal``) or
       ``"integer"`` (``regularize_integer``). ``method`` (``"closed_form"`` | ``"cvxpy"``), ``backend``
       and ``settings`` concern the chordal relaxation; for ``"integer"`` ``method`` picks the solver
       (exact enumeration | SCIP through cvxpy) unless ``search`` names one. margin — ambiguity margin
-      (rad). progress — called with the node count during a long integer search."""
+      (rad). progress — an optional ``lago_cvx.progress.ProgressCallback`` (the integer search reports
+      through it). ``uncertainty`` (the graph's ``EdgeUncertainty``) and ``elimination`` (a
+      ``normal_equations.GraphElimination`` anchored at the tree's root) are reused by the chordal
+      relaxation when given."""
     if regularization == "tree":
         return regularize_tree(graph, tree, margin=margin)
     if regularization == "chordal":
-        return regularize_chordal(graph, tree, margin=margin, method=method, backend=backend, settings=settings)
+        return regularize_chordal(graph, tree, margin=margin, method=method, backend=backend, settings=settings,
+                                  uncertainty=uncertainty, elimination=elimination)
     if regularization == "integer":
         return regularize_integer(graph, tree, margin=margin, method=method, search=search, progress=progress)
     from ..errors import OptionError

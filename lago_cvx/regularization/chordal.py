@@ -61,13 +61,14 @@ import scipy.sparse as sp
 from ..errors import OptionError
 from ..graph import SpanningTree, free_poses
 from ..linalg import solve_least_squares
+from ..normal_equations import EdgeSystem, GraphElimination
 from ..posegraph import PoseGraph
 from ..rounding import AMBIGUITY_MARGIN, TWO_PI, branch, check_angles
 from ..solvers import ClarabelSettings, check_method, named_constant, parameter, solve
 from ..uncertainty import edge_uncertainty
 from .report import RegularizationReport, warn_ambiguous
 
-__all__ = ["ChordalEstimate", "chordal_system", "chordal_problem", "chordal_closed_form", "chordal_from_problem",
+__all__ = ["ChordalEstimate", "chordal_system", "chordal_edge_system", "chordal_problem", "chordal_closed_form", "chordal_from_problem",
            "regularize_chordal"]
 
 log = logging.getLogger(__name__)
@@ -134,9 +135,9 @@ def _estimate(n: int, anchor: int, x: np.ndarray, cost: float, stats=None) -> Ch
     theta = np.arctan2(vec[:, 1], vec[:, 0])
     theta[anchor] = 0.0
     weak = np.flatnonzero(norms < 1e-8)
-    if weak.size:
-        log.warning("chordal relaxation: %d pose(s) have ‖r_i‖ < 1e-8 (their orientation is undetermined by "
-                    "the relaxation; contradicting measurements)", weak.size)
+    if weak.size:  # not a warning by itself: the rounding's ambiguity is judged in regularize_chordal
+        log.debug("chordal relaxation: %d pose(s) have ‖r_i‖ < 1e-8 (orientation not fixed by the relaxation)",
+                  weak.size)
     return ChordalEstimate(vectors=vec, theta=theta, norms=norms, cost=float(cost), anchor=anchor, stats=stats)
 
 
@@ -155,13 +156,43 @@ def chordal_problem(graph: PoseGraph, info_delta, *, anchor=None):
     return cp.Problem(cp.Minimize(objective)), x
 
 
-def chordal_closed_form(graph: PoseGraph, info_delta, *, anchor=None, backend: str = "auto") -> ChordalEstimate:
+def chordal_edge_system(graph: PoseGraph, info_delta, elim: GraphElimination) -> EdgeSystem:
+    """(C3) edge by edge, the form (E) of ``lago_cvx.normal_equations`` (b = q = 2): edge k = (i → j)
+    contributes √ω_k (r_j − R(δ_k) r_i), i.e. A_k = −√ω_k R(δ_k), B_k = √ω_k I₂, and the anchor's known
+    r = (1, 0) moves to c_k (c_k = √ω_k (cos δ_k, sin δ_k) when the tail is the anchor, −√ω_k (1, 0) when
+    the head is)."""
+    m = graph.n_edges
+    w = np.sqrt(np.asarray(info_delta, dtype=float))
+    if w.shape != (m,):
+        raise OptionError(f"info_delta must have shape ({m},), got {w.shape}")
+    cs, sn = np.cos(graph.delta), np.sin(graph.delta)
+    A = np.empty((m, 2, 2))
+    A[:, 0, 0], A[:, 0, 1], A[:, 1, 0], A[:, 1, 1] = -w * cs, w * sn, -w * sn, -w * cs
+    B = np.zeros((m, 2, 2))
+    B[:, 0, 0] = B[:, 1, 1] = w
+    c = np.zeros((m, 2))
+    t_fix, h_fix = elim.tails < 0, elim.heads < 0
+    c[t_fix] += (w * np.stack([cs, sn]))[:, t_fix].T
+    c[h_fix, 0] -= w[h_fix]
+    return EdgeSystem(elim.tails, elim.heads, A, B, c, elim.d)
+
+
+def chordal_closed_form(graph: PoseGraph, info_delta, *, anchor=None, backend: str = "auto",
+                        elimination: GraphElimination | None = None) -> ChordalEstimate:
     """The chordal relaxation (C2) in closed form: x = (MᵀM)⁻¹Mᵀb by a sparse factorization with corrected
-    semi-normal refinement (``lago_cvx.linalg.solve_least_squares``); projected to angles."""
-    M, b = chordal_system(graph, info_delta, anchor=anchor)
-    x, _, _, stats = solve_least_squares(M, b, backend=backend)
-    r = M @ x - b
-    return _estimate(graph.n_poses, graph.anchor_index(anchor), x, float(r @ r), stats)
+    semi-normal refinement; projected to angles. ``backend="auto"``: the edge system
+    (``chordal_edge_system``) through the pose-level multifrontal elimination (``elimination`` reused when
+    its anchor matches); another backend: ``linalg.solve_least_squares`` on M of ``chordal_system``."""
+    a = graph.anchor_index(anchor)
+    if backend != "auto":
+        M, b = chordal_system(graph, info_delta, anchor=anchor)
+        x, _, _, stats = solve_least_squares(M, b, backend=backend)
+        r = M @ x - b
+        return _estimate(graph.n_poses, a, x, float(r @ r), stats)
+    elim = elimination if elimination is not None and elimination.anchor_index == a else GraphElimination(graph, a)
+    system = chordal_edge_system(graph, info_delta, elim)
+    x, _, stats = elim.solve(system, stage="chordal relaxation")
+    return _estimate(graph.n_poses, a, x.reshape(-1), system.cost(x), stats)
 
 
 def chordal_from_problem(graph: PoseGraph, info_delta, *, anchor=None,
@@ -178,20 +209,30 @@ def chordal_from_problem(graph: PoseGraph, info_delta, *, anchor=None,
 
 def regularize_chordal(graph: PoseGraph, tree: SpanningTree, *, margin: float = AMBIGUITY_MARGIN,
                        method: str = "closed_form", backend: str = "auto",
-                       settings: ClarabelSettings | None = None) -> RegularizationReport:
+                       settings: ClarabelSettings | None = None, uncertainty=None,
+                       elimination: GraphElimination | None = None) -> RegularizationReport:
     """2kπ regularization of every edge against the chordal relaxation (module docstring, (R-C)).
 
     The relaxation (eq. (C2)) is anchored at ``tree.root`` and solved in closed form
     (``method="closed_form"``, sparse ``backend``) or as its cvxpy problem with Clarabel
     (``method="cvxpy"``; the problem is kept in ``report.problem``). O(m + n log n) plus one sparse
-    factorization of the 2(n−1) × 2(n−1) connection Laplacian."""
+    factorization of the 2(n−1) × 2(n−1) connection Laplacian. ``uncertainty`` (the graph's
+    ``EdgeUncertainty``) and ``elimination`` (a ``normal_equations.GraphElimination`` anchored at the
+    root) are reused when given.
+
+    Ambiguity (warned, listed in ``ambiguous``): an edge whose residual against the relaxed orientations
+    is within ``margin`` of ±π — there the other integer is within the margin. A small ‖r_i‖ alone is no
+    reason for a warning: it says φ_i is loosely fixed, but the cycle integers through pose i depend only
+    on the *differences* of its edges' residuals, which do not depend on φ_i; they change only if some
+    residual crosses ±π, which is exactly the edge test (logged at DEBUG level)."""
     check_method(method)
     check_angles(graph)
-    info = edge_uncertainty(graph).info_delta  # 1/P_δ, as phase 1 weighs the orientations
+    unc = uncertainty if uncertainty is not None else edge_uncertainty(graph)
+    info = unc.info_delta  # 1/P_δ, as phase 1 weighs the orientations
     root = int(graph.ids[tree.root])
     problem = None
     if method == "closed_form":
-        est = chordal_closed_form(graph, info, anchor=root, backend=backend)
+        est = chordal_closed_form(graph, info, anchor=root, backend=backend, elimination=elimination)
     else:
         est, problem = chordal_from_problem(graph, info, anchor=root, settings=settings)
     theta_raw = tree.integrate(graph)
@@ -204,9 +245,10 @@ def regularize_chordal(graph: PoseGraph, tree: SpanningTree, *, margin: float = 
     path_raw = theta_raw[graph.heads] - theta_raw[graph.tails]
     theta_tree = tree.integrate(graph, delta_reg)
     path_reg = theta_tree[graph.heads] - theta_tree[graph.tails]
+    residual = delta_reg[c] - path_reg[c]  # (C δ_reg)_c
     ambiguous = np.flatnonzero(np.abs(edge_residual) > np.pi - margin)
     warn_ambiguous(graph, ambiguous, margin, "edge", "the measurement contradicts the chordal estimate by ≈ π")
     return RegularizationReport(delta_reg=delta_reg, k=k, chords=c, residual_before=graph.delta[c] - path_raw[c],
-                                residual=delta_reg[c] - path_reg[c], ambiguous=ambiguous, theta_tree=theta_tree,
+                                residual=residual, ambiguous=ambiguous, theta_tree=theta_tree,
                                 margin=float(margin), tree=tree, regularization="chordal", reference=ref,
                                 edge_residual=edge_residual, chordal=est, problem=problem)

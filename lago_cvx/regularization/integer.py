@@ -476,7 +476,7 @@ def integer_regularization(graph: PoseGraph, tree: SpanningTree | str = "bfs", *
       tree — a ``SpanningTree`` or a kind (``"bfs"``, ``"odometry"``, ``"mst"``) rooted at ``anchor``
         (a pose id, default the smallest).
       unc, data — precomputed ``EdgeUncertainty`` / ``CycleData`` (sweeps reuse them).
-      progress — called with the node count during long enumerations.
+      progress — an optional ``lago_cvx.progress.ProgressCallback``, told ("integer search", share of the node budget used) during long enumerations.
     Raises ``MissingSolverError`` (an ImportError naming the extra) when the solver is not installed,
     ``SearchLimitError`` when the enumeration exceeds its node budget, ``SolverError`` when a MIP
     solver fails."""

@@ -12,6 +12,7 @@ import math
 import numpy as np
 
 from ..errors import SearchLimitError
+from ..progress import Progress
 from ..rounding import TWO_PI
 
 __all__ = ["enumerate_integers", "PROGRESS_NODES", "TIE_RTOL"]
@@ -60,13 +61,16 @@ def enumerate_integers(data, box: tuple[np.ndarray, np.ndarray], *, max_nodes: i
     partial sum reaches the incumbent's cost. The incumbent starts as the rounding (radius J₀); a
     candidate replaces it only if cheaper by more than ``TIE_RTOL`` (ties keep the rounding). ``box`` =
     (lo, hi) (l,) bounds every coordinate (the exact box (6), ∩ |q − q_round| ≤ max_shift).
-    ``data`` is a ``CycleData``; ``progress(nodes)`` is called every ``PROGRESS_NODES`` nodes.
+    ``data`` is a ``CycleData``; ``progress`` an optional ``lago_cvx.progress.ProgressCallback``, told
+    ("integer search", nodes / max_nodes) — the share of the node budget used — at most once a second
+    (and logged every ``PROGRESS_NODES`` nodes).
 
     Returns (q (l,) int64, J(q), nodes visited). Raises ``SearchLimitError`` after ``max_nodes`` nodes."""
     l = data.n_chords
     if l == 0:
         return np.zeros(0, np.int64), 0.0, 0
     lo, hi = box
+    tracker = None if progress is None else Progress("integer search", callback=progress)
     qhat = -data.r / TWO_PI
     p, G = _min_variance_cholesky(data.S / TWO_PI**2)
     qh, lo_p, hi_p = qhat[p], lo[p], hi[p]
@@ -117,8 +121,8 @@ def enumerate_integers(data, box: tuple[np.ndarray, np.ndarray], *, max_nodes: i
         nodes += 1
         if nodes % PROGRESS_NODES == 0:  # long searches show progress (lago-cvx -v)
             log.info("integer enumeration: %d nodes (max_nodes %d), %d chords", nodes, max_nodes, l)
-            if progress is not None:
-                progress(nodes)
+        if tracker is not None and nodes % 4096 == 0:
+            tracker.update(nodes, max_nodes)
         if nodes > max_nodes:
             raise SearchLimitError(f"the integer enumeration stopped after {max_nodes} nodes ({l} chords): too "
                                    "many cycle integers are uncertain (large rotation noise); raise max_nodes, "
@@ -143,6 +147,8 @@ def enumerate_integers(data, box: tuple[np.ndarray, np.ndarray], *, max_nodes: i
         start(i)
     q = np.empty(l, np.int64)
     q[p] = best_q
+    if tracker is not None:
+        tracker.finish()
     return q, data.cost(q), nodes
 
 

@@ -1,0 +1,340 @@
+r"""Least squares on the pose graph, edge by edge, solved through the shared pose-level elimination.
+
+Every closed form of LAGO (the chordal relaxation (C2), phase 1 eq. (13), phase 3 eqs. (12)/(15), the
+positions (P)) minimises a sum of per-edge terms over the free poses x_i ∈ ℝ^b (i = 0 … d−1, the anchor
+held fixed):
+
+    minimise_x  Σ_k ‖A_k x_{t_k} + B_k x_{h_k} − c_k‖²,    A_k, B_k (q × b),  c_k (q,)            (E)
+
+(t_k, h_k the free-pose indices of edge k's tail and head, −1 for the anchor, whose term is dropped;
+the anchor's known value is already moved into c_k). Written as ‖M x − c‖² with the sparse whitened
+design M (mq × db), its normal matrix N = MᵀM has the b×b blocks
+
+    N_ii = Σ_{k: t_k = i} A_kᵀA_k + Σ_{k: h_k = i} B_kᵀB_k,    N_{h_k t_k} += B_kᵀA_k,              (N)
+
+the anchor-reduced pose graph's pattern for every b. ``EdgeSystem`` holds (E) as arrays (m, q, b) and
+applies M and Mᵀ edge by edge (no sparse matrix is built); ``GraphElimination`` holds the pose-level
+symbolic analysis of one graph and anchor (``lago_cvx.multifrontal``), computed once and shared by every
+system LAGO solves on that graph, and solves (E) by the corrected semi-normal equations
+(``lago_cvx.linalg.refine_normal_equations``), falling back to the augmented system as
+``lago_cvx.linalg.solve_least_squares`` does.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from .graph import free_poses
+from .linalg import Factor, augmented_least_squares, refine_normal_equations
+from .multifrontal import BlockFactor, EliminationPlan, NotPositiveDefinite, plan_from_qdldl
+from .posegraph import PoseGraph
+from .progress import Progress
+
+__all__ = ["plan_from_pattern", "matrix_blocks", "EdgeSystem", "GraphElimination", "PoseFactor", "QdldlFactor", "RenumberedFactor", "ENGINE_MIN"]
+
+log = logging.getLogger(__name__)
+
+
+def plan_from_pattern(d: int, rows: np.ndarray, cols: np.ndarray) -> EliminationPlan:
+    """The plan of the d × d pose pattern with off-diagonal entries (rows[k], cols[k]) (either
+    orientation, duplicates allowed): AMD and the factor's pattern from QDLDL on a diagonally dominant
+    matrix of that pattern."""
+    import qdldl
+
+    rows = np.asarray(rows, np.int64)
+    cols = np.asarray(cols, np.int64)
+    keep = rows != cols
+    lo, hi = np.minimum(rows[keep], cols[keep]), np.maximum(rows[keep], cols[keep])
+    deg = np.bincount(np.r_[lo, hi], minlength=d).astype(float)
+    A = sp.csc_matrix((np.r_[-np.ones(lo.size), deg + 1.0], (np.r_[lo, np.arange(d)], np.r_[hi, np.arange(d)])),
+                      shape=(d, d))
+    A.sum_duplicates()
+    s = qdldl.Solver(A, upper=True)
+    L, _, perm = s.factors()
+    return plan_from_qdldl(L, perm)
+
+
+def matrix_blocks(N: sp.spmatrix, var_index: np.ndarray):
+    """The b×b blocks of a sparse symmetric N (system numbering ``var_index`` (d, b)) at every pose pair
+    with an entry, each unordered pair once: ``(prow, pcol, blocks (q, b, b))`` with prow ≥ pcol. For
+    tests and for matrices not assembled from edges."""
+    var_index = np.asarray(var_index, np.int64)
+    d, b = var_index.shape
+    pose = np.empty(d * b, np.int64)
+    comp = np.empty(d * b, np.int64)
+    pose[var_index.reshape(-1)] = np.repeat(np.arange(d), b)
+    comp[var_index.reshape(-1)] = np.tile(np.arange(b), d)
+    C = sp.coo_matrix(N)
+    pi, pj = pose[C.row], pose[C.col]
+    lower = pi >= pj
+    pi, pj, ci, cj, v = pi[lower], pj[lower], comp[C.row][lower], comp[C.col][lower], C.data[lower]
+    key = pi * d + pj
+    uk, inv = np.unique(key, return_inverse=True)
+    blocks = np.zeros((uk.size, b, b))
+    np.add.at(blocks, (inv, ci, cj), v)
+    same = (uk // d) == (uk % d)
+    blocks[same] = np.tril(blocks[same]) + np.swapaxes(np.tril(blocks[same], -1), 1, 2)
+    return uk // d, uk % d, blocks
+
+
+@dataclass(frozen=True, eq=False)
+class EdgeSystem:
+    """The least-squares problem (E): ``tails``, ``heads`` (m,) free-pose indices (−1: the anchor),
+    ``A``, ``B`` (m, q, b), ``c`` (m, q) — or (m, q, r) for r problems with the same matrix, solved
+    together; ``d`` free poses."""
+
+    tails: np.ndarray
+    heads: np.ndarray
+    A: np.ndarray
+    B: np.ndarray
+    c: np.ndarray
+    d: int
+
+    @property
+    def b(self) -> int:
+        return self.A.shape[2]
+
+    def matvec(self, x: np.ndarray) -> np.ndarray:
+        """M x (m, q[, r]) for x (d, b[, r]): A_k x_{t_k} + B_k x_{h_k} (anchor terms 0)."""
+        xe = np.concatenate([x, np.zeros((1,) + x.shape[1:])])  # row d: the anchor's zero
+        return (np.einsum("kqb,kb...->kq...", self.A, xe[self.tails]) +
+                np.einsum("kqb,kb...->kq...", self.B, xe[self.heads]))
+
+    def rmatvec(self, r: np.ndarray) -> np.ndarray:
+        """Mᵀ r (d, b[, r]) for r (m, q[, r]) (scatter-add by ``np.bincount``)."""
+        ut = np.einsum("kqb,kq...->kb...", self.A, r).reshape(r.shape[0], -1)
+        uh = np.einsum("kqb,kq...->kb...", self.B, r).reshape(r.shape[0], -1)
+        idx = np.concatenate([self.tails, self.heads])
+        idx = np.where(idx < 0, self.d, idx)
+        both = np.concatenate([ut, uh])
+        out = np.stack([np.bincount(idx, both[:, j], minlength=self.d + 1)[:self.d]
+                        for j in range(both.shape[1])], 1)
+        return out.reshape((self.d, self.b) + r.shape[2:])
+
+    def normal_blocks(self) -> np.ndarray:
+        """The blocks of (N) in ``GraphElimination.pairs`` order: [A_kᵀA_k (tail diagonal), B_kᵀB_k (head
+        diagonal), B_kᵀA_k (head row, tail column)], (3m, b, b)."""
+        At = np.swapaxes(self.A, 1, 2)
+        Bt = np.swapaxes(self.B, 1, 2)
+        return np.concatenate([At @ self.A, Bt @ self.B, Bt @ self.A])
+
+    def sparse(self, var_index: np.ndarray | None = None) -> sp.csr_matrix:
+        """M as a sparse (m·q) × (d·b) matrix, columns ``var_index`` (d, b) (default pose-major)."""
+        m, q, b = self.A.shape
+        var = (np.arange(self.d * b).reshape(self.d, b) if var_index is None
+               else np.asarray(var_index, np.int64))
+        rows = np.repeat(np.arange(m * q).reshape(m, q), b, axis=1).reshape(m, q * b)
+        parts_r, parts_c, parts_v = [], [], []
+        for ends, J in ((self.tails, self.A), (self.heads, self.B)):
+            ok = ends >= 0
+            parts_r.append(rows[ok].reshape(-1))
+            parts_c.append(np.tile(var[ends[ok]], (1, q)).reshape(-1))
+            parts_v.append(J[ok].reshape(-1))
+        return sp.csr_matrix((np.concatenate(parts_v), (np.concatenate(parts_r), np.concatenate(parts_c))),
+                             shape=(m * q, self.d * b))
+
+    def cost(self, x: np.ndarray) -> float:
+        r = self.matvec(x) - self.c
+        return float(np.sum(r * r))
+
+
+class PoseFactor(Factor):
+    """A ``linalg.Factor`` of a system of (N) solved through the pose-level elimination: ``solve(rhs)``
+    for rhs (d·b,) or (d·b, r) pose-major; ``blocks`` the ``multifrontal.BlockFactor``."""
+
+    def __init__(self, blocks: BlockFactor, slots: np.ndarray):
+        self.blocks = blocks
+        self.slots = slots
+        order = np.argsort(slots)
+
+        def solve(rhs: np.ndarray) -> np.ndarray:
+            return blocks.solve_slots(rhs[order])[slots]
+
+        super().__init__(solve, slots.size, "multifrontal")
+
+
+class QdldlFactor(Factor):
+    """A system of (N) assembled as an upper-triangular CSC (pose-major variables i·b + c) and factored by
+    QDLDL (AMD + LDLᵀ in C): below ``ENGINE_MIN`` unknowns faster than the multifrontal engine, whose
+    Python cost per level of fronts does not pay there."""
+
+    def __init__(self, system: "EdgeSystem", pairs, keep):
+        import qdldl
+
+        b = system.b
+        prow, pcol = pairs
+        blocks = system.normal_blocks()[keep]
+        pr, pc = prow[keep], pcol[keep]
+        cr, cc = np.divmod(np.arange(b * b), b)
+        rows = (pr[:, None] * b + cr).reshape(-1)
+        cols = (pc[:, None] * b + cc).reshape(-1)
+        vals = blocks.reshape(-1)
+        up = rows <= cols
+        lo = ~up  # an entry below the diagonal is stored transposed (N is symmetric; only the upper half)
+        dup = (pr == pc)[:, None].repeat(b * b, 1).reshape(-1) & lo  # diagonal blocks: lower half is a copy
+        r_ = np.where(up, rows, cols)[~dup]
+        c_ = np.where(up, cols, rows)[~dup]
+        n = system.d * b
+        self.matrix = sp.csc_matrix((vals[~dup], (r_, c_)), shape=(n, n))
+        solver = qdldl.Solver(self.matrix, upper=True)
+
+        def solve(rhs: np.ndarray) -> np.ndarray:
+            if rhs.ndim == 1:
+                return solver.solve(rhs)
+            return np.column_stack([solver.solve(np.ascontiguousarray(rhs[:, j])) for j in range(rhs.shape[1])])
+
+        super().__init__(solve, n, "qdldl", self.matrix)
+
+
+#: Systems with at least this many unknowns (d·b) are factored by the multifrontal engine
+#: (``lago_cvx.multifrontal``), smaller ones by QDLDL. Measured, QDLDL was faster at every size
+#: (phase 3 of a 100 000-pose world: 3.4 s against 5.2 s; city10000's LAGO step 765 against 1135 ms)
+#: and the engine's padded fronts exhausted memory at 1 000 000 poses, so LAGO's solves use QDLDL; the
+#: engine serves the selected inversion (covariances). ``GraphElimination.factor(engine=True)`` forces it.
+ENGINE_MIN = 1 << 62
+
+
+class RenumberedFactor(Factor):
+    """A pose-major factor (``PoseFactor`` or ``QdldlFactor``, variable i·b + c) seen in a system's own
+    numbering: ``var_index`` (d, b) the system's index of (pose i, component c). ``pose_major`` the
+    original factor (its ``blocks`` serve the selected inversion)."""
+
+    def __init__(self, factor: Factor, var_index: np.ndarray):
+        vi = np.asarray(var_index, np.int64).reshape(-1)
+        self.pose_major = factor
+
+        def solve(rhs: np.ndarray) -> np.ndarray:
+            out = np.empty_like(rhs, dtype=float)
+            out[vi] = factor.solve(rhs[vi])
+            return out
+
+        super().__init__(solve, vi.size, factor.backend, getattr(factor, "matrix", None))
+
+
+class GraphElimination:
+    """The pose-level elimination of one graph and anchor (index ``anchor_index``), shared by its systems.
+
+    ``d`` free poses; ``free_of`` (n,) each pose's free index (−1 at the anchor); ``tails``, ``heads``
+    (m,) edges' ends as free indices; ``plan`` the ``EliminationPlan``. With ``weights`` (m,) the plan
+    comes from QDLDL's AMD on the weighted Laplacian A2 diag(weights) A2ᵀ, whose factorization is kept in
+    ``laplacian`` (phase 1's normal matrix when weights = 1/P_δ; None if it could not be factored)."""
+
+    def __init__(self, graph: PoseGraph, anchor_index: int, *, weights: np.ndarray | None = None):
+        import qdldl
+
+        n = graph.n_poses
+        self.n = n
+        self.d = d = n - 1
+        self.anchor_index = int(anchor_index)
+        self.free_of = np.full(n, -1, np.int64)
+        self.free_of[free_poses(n, self.anchor_index)] = np.arange(d)
+        self.tails = self.free_of[graph.tails]
+        self.heads = self.free_of[graph.heads]
+        self._assemblers = {}
+        self.laplacian = None
+        both = (self.tails >= 0) & (self.heads >= 0)
+        self._lo = np.minimum(self.tails, self.heads)[both]
+        self._hi = np.maximum(self.tails, self.heads)[both]
+        self._plan = None
+        self._qdldl_pattern = None
+        if d == 0:
+            self._plan = EliminationPlan(0, np.zeros(0, np.int64), np.zeros(1, np.int64), np.zeros(1, np.int64),
+                                         np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64))
+            return
+        if weights is not None:
+            w = np.asarray(weights, dtype=float)
+            lo, hi = self._lo, self._hi
+            diag = np.bincount(self.tails[self.tails >= 0], w[self.tails >= 0], minlength=d) + \
+                np.bincount(self.heads[self.heads >= 0], w[self.heads >= 0], minlength=d)
+            Lap = sp.csc_matrix((np.r_[-w[both], diag], (np.r_[lo, np.arange(d)], np.r_[hi, np.arange(d)])),
+                                shape=(d, d))
+            try:
+                solver = qdldl.Solver(Lap, upper=True)
+                self.laplacian = (solver, Lap)
+            except Exception as exc:  # not quasi-definite in floating point: the plan from the pattern alone
+                log.info("weighted pose Laplacian not factored by QDLDL (%s); plan from the pattern", exc)
+
+    @property
+    def plan(self) -> EliminationPlan:
+        """The pose-level ``EliminationPlan``, built on first use (the multifrontal engine and the selected
+        inversion need it, QDLDL's solves do not): from the QDLDL factorization of the weighted Laplacian
+        when there is one (its AMD ordering and L's pattern), else from the pattern."""
+        if self._plan is None:
+            if self.laplacian is not None:
+                L, _, perm = self.laplacian[0].factors()
+                self._plan = plan_from_qdldl(L, perm)
+            else:
+                self._plan = plan_from_pattern(self.d, self._lo, self._hi)
+        return self._plan
+
+    @property
+    def pairs(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(prow, pcol, keep) of the blocks ``EdgeSystem.normal_blocks`` returns: tail diagonals, head
+        diagonals, (head, tail) off-diagonals; ``keep`` (3m,) those between free poses."""
+        t, h = self.tails, self.heads
+        prow = np.concatenate([t, h, h])
+        pcol = np.concatenate([t, h, t])
+        keep = (prow >= 0) & (pcol >= 0)
+        return prow, pcol, keep
+
+    def slots(self, b: int) -> np.ndarray:
+        """Elimination slot of each pose-major variable i·b + c."""
+        return (self.plan.position[:, None] * b + np.arange(b)).reshape(-1)
+
+    def factor(self, system: EdgeSystem, *, progress=None, engine: bool | None = None) -> Factor:
+        """Factor the normal matrix (N) of ``system``: by the multifrontal engine (a ``PoseFactor``) when
+        ``engine`` (default: at least ``ENGINE_MIN`` unknowns), else by QDLDL (a ``QdldlFactor``).
+        Raises ``multifrontal.NotPositiveDefinite`` (or QDLDL's error) if N is not numerically SPD."""
+        b = system.b
+        if not (engine if engine is not None else system.d * b >= ENGINE_MIN):
+            prow, pcol, keep = self.pairs
+            return QdldlFactor(system, (prow, pcol), keep)
+        if b not in self._assemblers:
+            prow, pcol, keep = self.pairs
+            lay = self.plan.layout(b)
+            self._assemblers[b] = (lay, lay.assembler(prow[keep], pcol[keep]), keep)
+        lay, asm, keep = self._assemblers[b]
+        blocks = system.normal_blocks()[keep]
+        bf = lay.factor(asm, blocks, progress=progress)
+        return PoseFactor(bf, self.slots(b))
+
+    def solve(self, system: EdgeSystem, *, factor: PoseFactor | None = None, stage: str = "solve",
+              progress=None):
+        """Minimise (E): returns ``(x (d, b), factor, stats)`` with ``stats`` as
+        ``linalg.solve_least_squares`` reports it (``factor`` None after the augmented-system fallback).
+        A given ``factor`` (of the same normal matrix) is reused."""
+        d, b = system.d, system.b
+        stats = {"method": "normal equations", "refinement_steps": 0, "relative_correction": 0.0}
+        if d == 0:
+            return np.zeros((0, b) + system.c.shape[2:]), None, stats
+        tracker = Progress(stage, callback=progress, logger=log) if progress is not None or d > 200_000 else None
+        trusted = False
+        x = None
+        try:
+            if factor is None:
+                factor = self.factor(system, progress=None if tracker is None else
+                                     (lambda i, n: tracker.update(0.9 * i / n)))
+            extra = system.c.shape[2:]  # several right-hand sides: (d·b, r)
+            m, q = system.c.shape[:2]
+            x, stats, trusted = refine_normal_equations(
+                factor.solve,
+                lambda v: system.matvec(v.reshape((d, b) + extra)).reshape((m * q,) + extra),
+                lambda r: system.rmatvec(r.reshape((m, q) + extra)).reshape((d * b,) + extra),
+                system.c.reshape((m * q,) + extra))
+        except Exception as exc:  # NotPositiveDefinite, QDLDL "not quasi-definite", LinAlgError
+            log.info("normal equations could not be factored (%s): using the augmented system", exc)
+        if not trusted:
+            log.warning("least squares: normal equations too ill-conditioned (relative correction %.2g); "
+                        "solving the augmented system instead", stats["relative_correction"])
+            cc = system.c.reshape(system.c.shape[0] * system.c.shape[1], -1)
+            M = system.sparse()
+            x = np.stack([augmented_least_squares(M, cc[:, j]) for j in range(cc.shape[1])], 1)
+            stats["method"] = "augmented system"
+            factor = None
+        if tracker is not None:
+            tracker.finish()
+        return x.reshape((d, b) + system.c.shape[2:]), factor, stats

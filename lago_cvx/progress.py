@@ -1,0 +1,90 @@
+"""Progress of long computations: one callback protocol and one throttle.
+
+Whatever can run longer than a few seconds (the factorizations and solves of LAGO at scale, the selected
+inversion behind ``pose_covariances``, the integer search, the certification loops) reports its progress
+in two ways:
+
+* an INFO record on its module's logger (``lago_cvx.<module>``), at most once per ``interval`` seconds
+  (default 1 s) and never for a computation that finishes within the first interval;
+* a call ``progress(stage, fraction)`` of the optional keyword-only ``progress=`` argument, a
+  ``ProgressCallback``: ``stage`` a short human-readable name (e.g. ``"phase 3: factorization"``),
+  ``fraction`` in [0, 1]. The callback is called once with 0.0 when the stage starts, at most once per
+  ``interval`` seconds while it runs, and once with 1.0 when it ends.
+
+Nothing is printed: drawing a bar is the caller's business (e.g. the command line's).
+
+    def show(stage, fraction):
+        print(f"\\r{stage}: {100 * fraction:5.1f} %", end="")
+    res = lago_cvx.lago(graph, progress=show)
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from typing import Callable, Optional
+
+__all__ = ["ProgressCallback", "Progress", "PROGRESS_INTERVAL"]
+
+#: ``progress(stage, fraction)``: ``stage`` a short name of the running step, ``fraction`` in [0, 1].
+ProgressCallback = Callable[[str, float], None]
+
+#: Seconds between two reports of the same stage (log records and callback calls).
+PROGRESS_INTERVAL = 1.0
+
+
+class Progress:
+    """Throttled reporter of one stage.
+
+    ``Progress(stage, callback=None, logger=None, interval=PROGRESS_INTERVAL, clock=time.monotonic)``;
+    ``update(done, total)`` (or ``update(fraction)``) reports when ``interval`` has passed since the last
+    report; ``finish()`` reports 1.0 to the callback (and to the log when the stage took longer than
+    ``interval``). Cheap enough to call in every iteration of a loop. Use as a context manager to get
+    ``finish()`` on exit."""
+
+    def __init__(self, stage: str, *, callback: Optional[ProgressCallback] = None,
+                 logger: Optional[logging.Logger] = None, interval: float = PROGRESS_INTERVAL,
+                 clock: Callable[[], float] = time.monotonic):
+        self.stage = stage
+        self.callback = callback
+        self.logger = logger
+        self.interval = float(interval)
+        self.clock = clock
+        self.start = self.last = clock()
+        self.logged = False
+        self.finished = False
+        if callback is not None:
+            callback(stage, 0.0)
+
+    def update(self, done: float, total: float | None = None) -> None:
+        """Report ``done / total`` (or ``done`` as a fraction when ``total`` is None) if the throttle
+        allows."""
+        now = self.clock()
+        if now - self.last < self.interval:
+            return
+        fraction = float(done) if total is None else (float(done) / float(total) if total else 1.0)
+        fraction = min(max(fraction, 0.0), 1.0)
+        self.last = now
+        if self.callback is not None:
+            self.callback(self.stage, fraction)
+        if self.logger is not None and self.logger.isEnabledFor(logging.INFO):
+            self.logger.info("%s: %.0f %% (%.1f s)", self.stage, 100.0 * fraction, now - self.start)
+            self.logged = True
+
+    def finish(self) -> None:
+        """Report the end of the stage (once)."""
+        if self.finished:
+            return
+        self.finished = True
+        now = self.clock()
+        if self.callback is not None:
+            self.callback(self.stage, 1.0)
+        if self.logger is not None and (self.logged or now - self.start >= self.interval):
+            self.logger.info("%s: done in %.1f s", self.stage, now - self.start)
+
+    def __enter__(self) -> "Progress":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if exc[0] is None:
+            self.finish()

@@ -1,0 +1,212 @@
+"""The performance work held to the numbers: the multifrontal factorization and its selected inversion
+against dense linear algebra, the isotropic position fast path against the general one, the engine
+against QDLDL inside LAGO, the progress throttle, and when the chordal regularizer warns."""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+import pytest
+
+import lago_cvx as lc
+from lago_cvx import multifrontal as mf
+from lago_cvx import normal_equations as ne
+from lago_cvx.normal_equations import GraphElimination, matrix_blocks, plan_from_pattern
+from lago_cvx.positions import PositionSolver, isotropic
+from lago_cvx.progress import Progress
+from lago_cvx.uncertainty import edge_uncertainty
+
+from helpers import graph_from_truth
+
+
+def _full_info_world(n, seed):
+    return lc.manhattan_world(n, seed=seed, information="full").graph
+
+
+@pytest.fixture(params=[1, 2, 3], ids=["b1", "b2", "b3"])
+def block_size(request):
+    return request.param
+
+
+@pytest.mark.parametrize("single_front", [8, 96, 10**9], ids=["all-single", "mixed", "all-batched"])
+def test_factor_solve_and_selected_inverse_match_dense(block_size, single_front, monkeypatch):
+    """N = A2 W A2ᵀ ⊗ (random SPD b×b couplings): the multifrontal solve and the selected inverse (eq. (T))
+    agree with numpy's dense solve and inverse to 1e-9 relative — diagonal pose blocks and the blocks of
+    every edge — on batched, single and mixed fronts."""
+    monkeypatch.setattr(mf, "SINGLE_FRONT", single_front)
+    g = lc.manhattan_world(160, seed=3).graph
+    b = block_size
+    el = GraphElimination(g, 0)
+    rng = np.random.default_rng(0)
+    m = g.n_edges
+    A = rng.standard_normal((m, b + 1, b))
+    B = rng.standard_normal((m, b + 1, b))
+    system = ne.EdgeSystem(el.tails, el.heads, A, B, rng.standard_normal((m, b + 1)), el.d)
+    M = system.sparse().toarray()
+    N = M.T @ M
+    f = el.factor(system, engine=True)
+    rhs = rng.standard_normal(el.d * b)
+    x = f.solve(rhs)
+    ref = np.linalg.solve(N, rhs)
+    assert np.abs(x - ref).max() <= 1e-9 * np.abs(ref).max()
+    prow, pcol, keep = el.pairs
+    off = keep & (prow != pcol)
+    diag, pairs = mf.inverse_blocks(f.blocks, prow[off], pcol[off])
+    inv = np.linalg.inv(N)
+    idx = np.arange(el.d * b).reshape(el.d, b)
+    dref = np.stack([inv[np.ix_(v, v)] for v in idx])
+    pref = np.stack([inv[np.ix_(idx[i], idx[j])] for i, j in zip(prow[off], pcol[off])])
+    scale = np.abs(dref).max()
+    assert np.abs(diag - dref).max() <= 1e-9 * scale
+    assert np.abs(pairs - pref).max() <= 1e-9 * scale
+
+
+def test_plan_is_a_valid_elimination():
+    """Every update row of a front lies in its parent's front (the extend-add needs it), pivots cover
+    each pose once, and the structure contains every edge."""
+    g = lc.manhattan_world(400, seed=1).graph
+    d = g.n_poses - 1
+    plan = plan_from_pattern(d, g.tails[(g.tails > 0) & (g.heads > 0)] - 1, g.heads[(g.tails > 0) & (g.heads > 0)] - 1)
+    assert np.array_equal(np.sort(plan.position), np.arange(d))
+    for f in range(plan.n_fronts):
+        rows = plan.rows[plan.rptr[f]:plan.rptr[f + 1]]
+        p = plan.parent[f]
+        if p < 0:
+            assert rows.size == 0
+            continue
+        front_p = np.r_[np.arange(plan.fptr[p], plan.fptr[p + 1]), plan.rows[plan.rptr[p]:plan.rptr[p + 1]]]
+        assert np.isin(rows, front_p).all()
+    assert plan.flops(3) > plan.flops(1) > 0
+
+
+def test_pose_covariances_and_variances_match_the_dense_inverse():
+    """LAGO's pose covariances (phase 3, eq. (15)) and phase-1 variances by selected inversion = blocks of
+    the dense inverse, to 1e-9 relative, on a full-information world and with the engine forced."""
+    g = _full_info_world(200, 4)
+    for engine_min in (ne.ENGINE_MIN, 0):
+        old = ne.ENGINE_MIN
+        ne.ENGINE_MIN = engine_min
+        try:
+            res = lc.lago(g)
+        finally:
+            ne.ENGINE_MIN = old
+        cov = res.phase3.pose_covariances()
+        full = np.linalg.inv(res.phase3.info.toarray())
+        d = g.n_poses - 1
+        free = np.delete(np.arange(g.n_poses), res.anchor_index)
+        for r, i in enumerate(free):
+            v = [2 * r, 2 * r + 1, 2 * d + r]
+            assert np.abs(cov[i] - full[np.ix_(v, v)]).max() <= 1e-9 * np.abs(full).max()
+        assert np.all(cov[res.anchor_index] == 0)
+        var = res.phase1.variances()
+        ref = np.diag(np.linalg.inv(res.phase1.info.toarray()))
+        assert np.abs(var[free] - ref).max() <= 1e-9 * ref.max()
+
+
+def test_engine_and_qdldl_give_the_same_lago():
+    """The multifrontal engine (forced) and QDLDL solve the same systems: LAGO's poses agree to 1e-10."""
+    g = lc.manhattan_world(300, seed=2).graph
+    ref = lc.lago(g)
+    old = ne.ENGINE_MIN
+    ne.ENGINE_MIN = 0
+    try:
+        eng = lc.lago(g)
+    finally:
+        ne.ENGINE_MIN = old
+    assert np.abs(eng.poses - ref.poses).max() <= 1e-10 * np.abs(ref.poses).max()
+    assert eng.chi2 == pytest.approx(ref.chi2, rel=1e-10)
+
+
+def test_isotropic_positions_fast_path_equals_the_general_path():
+    """With Ω_pp = s I₂ the positions (P) are solved as two d × d Laplacian problems with one factorization;
+    the general 2d × 2d path gives the same positions to 1e-10."""
+    g = lc.manhattan_world(300, seed=7).graph
+    unc = edge_uncertainty(g)
+    assert isotropic(unc)
+    el = GraphElimination(g, 0)
+    theta = lc.lago(g).phase1.theta
+    fast = PositionSolver(g, unc, el)
+    slow = PositionSolver(g, unc, el)
+    slow.isotropic = False
+    for th in (theta, theta + 0.01 * np.sin(np.arange(g.n_poses))):
+        a = fast(th, anchor_position=(1.0, -2.0)).poses
+        b = slow(th, anchor_position=(1.0, -2.0)).poses
+        assert np.abs(a - b).max() <= 1e-10 * np.abs(b).max()
+    assert fast._factor is not None  # the one factorization, reused
+    # and the whole LAGO route: same χ² either way
+    res = lc.lago(g)
+    assert not isotropic(edge_uncertainty(_full_info_world(50, 0)))
+    ref = lc.lago(g, backend="qdldl")  # the sparse-design route of before
+    assert res.chi2 == pytest.approx(ref.chi2, rel=1e-10)
+
+
+def test_progress_is_throttled_and_bracketed(caplog):
+    """The callback gets 0.0 at the start, at most one call per interval, and 1.0 at the end; the log
+    gets INFO records only for a stage longer than the interval."""
+    now = [0.0]
+    calls = []
+    tracker = Progress("test stage", callback=lambda s, f: calls.append((s, f, now[0])),
+                       logger=logging.getLogger("lago_cvx.test"), interval=1.0, clock=lambda: now[0])
+    with caplog.at_level(logging.INFO, logger="lago_cvx.test"):
+        for i in range(100):
+            now[0] = 0.05 * i  # 5 s in steps of 50 ms
+            tracker.update(i, 100)
+        tracker.finish()
+        tracker.finish()  # once only
+    fractions = [f for _, f, _ in calls]
+    assert fractions[0] == 0.0 and fractions[-1] == 1.0
+    times = [t for _, _, t in calls[1:-1]]
+    assert 3 <= len(times) <= 5 and np.all(np.diff(times) >= 1.0 - 1e-12)
+    assert all(s == "test stage" for s, _, _ in calls)
+    assert sum("test stage" in r.message for r in caplog.records) == len(times) + 1
+    # a quick stage: callback bracketed, no log record
+    caplog.clear()
+    quick = []
+    with caplog.at_level(logging.INFO, logger="lago_cvx.test"):
+        with Progress("quick", callback=lambda s, f: quick.append(f), logger=logging.getLogger("lago_cvx.test"),
+                      clock=lambda: 0.0) as t:
+            t.update(0.5)
+    assert quick == [0.0, 1.0] and not caplog.records
+
+
+def test_lago_reports_progress_through_its_callback(monkeypatch):
+    """``lago(progress=...)`` reaches the long steps: with the engine forced, phase 3's factorization
+    reports (stage names, fractions in [0, 1], ending at 1.0)."""
+    monkeypatch.setattr(ne, "ENGINE_MIN", 0)
+    seen = []
+    lc.lago(lc.manhattan_world(200, seed=0).graph, progress=lambda s, f: seen.append((s, f)))
+    stages = {s for s, _ in seen}
+    assert "phase 3" in stages
+    assert all(0.0 <= f <= 1.0 for _, f in seen)
+    assert [f for s, f in seen if s == "phase 3"][-1] == 1.0
+
+
+def _ambiguous_pair_graph(delta_gap):
+    """Poses 0, 1, 2 in a triangle plus a second edge 1 → 2 whose orientation disagrees with the first by
+    ``delta_gap`` (rad)."""
+    truth = np.array([[0, 0, 0], [1, 0, 0.5], [1, 1, 1.2]])
+    g = graph_from_truth(truth, [0, 1, 0, 1], [1, 2, 2, 2])
+    delta = g.delta.copy()
+    delta[3] = delta[1] + delta_gap
+    return lc.PoseGraph(3, g.tails, g.heads, g.delta_l, delta, g.information)
+
+
+def test_chordal_warns_only_on_an_ambiguous_rounding(caplog):
+    """Near-noiseless graphs: no warning. Two parallel measurements contradicting each other by ≈ π:
+    the rounding is a near tie, warned and listed in ``ambiguous``. A small ‖r_i‖ alone is only a DEBUG
+    record."""
+    with caplog.at_level(logging.WARNING, logger="lago_cvx"):
+        res = lc.lago(lc.manhattan_world(300, seed=0, sigma_theta=1e-4, sigma_xy=1e-4).graph)
+    assert res.regularization.ambiguous.size == 0
+    assert not [r for r in caplog.records if r.levelno >= logging.WARNING]
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="lago_cvx"):
+        res = lc.lago(_ambiguous_pair_graph(np.pi - 0.05))
+    assert res.regularization.ambiguous.size > 0
+    assert any("ambiguous" in r.message for r in caplog.records)
+    caplog.clear()
+    with caplog.at_level(logging.DEBUG, logger="lago_cvx.regularization.chordal"):
+        res = lc.lago(_ambiguous_pair_graph(1.0))  # disagreeing, but far from a tie
+    assert res.regularization.ambiguous.size == 0
+    assert not [r for r in caplog.records if r.levelno >= logging.WARNING]
