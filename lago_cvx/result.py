@@ -75,11 +75,15 @@ class LagoResult:
         """χ² of eq. (3) at ``poses`` (g2o convention, no ½)."""
         return chi2(self.graph, self.poses)
 
-    def pose_covariances(self) -> np.ndarray:
-        """Marginal covariance (n, 3, 3) of each pose from phase 3's information (zeros at the anchor),
-        rotated into the output frame."""
+    def pose_covariances(self, *, progress=None) -> np.ndarray:
+        """Marginal covariance (n, 3, 3) of each pose, order (x, y, θ), zeros at the anchor, rotated into
+        the output frame: the 3×3 diagonal blocks of phase 3's inverse information (eq. (15)), by selected
+        inversion of its sparse factor (no dense inverse). It is the first-order covariance of LAGO's
+        estimate whatever ``positions`` was: the re-solved positions (``positions="resolve"``) differ from
+        phase 3's only at second order in the noise, so the same covariance describes them to first
+        order. ``progress`` — an optional ``ProgressCallback(stage, fraction)``."""
         T = self._frame()
-        return T @ self.phase3.pose_covariances() @ T.T
+        return T @ self.phase3.pose_covariances(progress=progress) @ T.T
 
     def summary(self) -> dict:
         return {"n_poses": self.graph.n_poses, "n_edges": self.graph.n_edges, "method": self.method,

@@ -311,3 +311,21 @@ def test_ambiguous_tree_rounding_warning_suggests_the_chordal_regularizer(capsys
     assert code == 0 and len(warnings) == 1, err  # said once
     assert "ambiguous" in warnings[0] and "--regularization chordal" in warnings[0]
     assert 'regularization="chordal"' not in warnings[0]
+
+
+def test_progress_is_drawn_on_a_terminal_and_silent_otherwise(monkeypatch):
+    import io
+    from types import SimpleNamespace
+
+    from lago_cvx.cli.common import ProgressBar, progress_callback
+
+    buf = io.StringIO()
+    bar = ProgressBar(buf)
+    bar("phase 3: factorization", 0.0)
+    bar("phase 3: factorization", 0.5)
+    bar("phase 3: factorization", 1.0)
+    text = buf.getvalue()
+    assert text.count("\r") == 3 and text.endswith("100 %\n") and " 50 %" in text
+    assert progress_callback(SimpleNamespace(json=True)) is None  # --json: machine output, no bar
+    monkeypatch.setattr("sys.stderr", io.StringIO())  # not a terminal
+    assert progress_callback(SimpleNamespace(json=False)) is None

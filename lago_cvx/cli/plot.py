@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from .common import (EXIT_OK, UsageError, add_route_options, emit, output_target, positive_float, positive_int,
-                     write_bytes)
+                     progress_callback, write_bytes)
 
 FORMATS = ("png", "svg", "pdf")
 
@@ -62,7 +62,7 @@ def cmd_plot(args) -> int:
             from ..pipeline import lago
 
             res = lago(graph, route=args.route, spanning_tree=args.spanning_tree, regularization=args.regularization)
-        covs = res.pose_covariances()
+        covs = res.pose_covariances(progress=progress_callback(args))
         plot_covariances(ax, poses, covs, every=args.every, n_sigma=args.sigma)
         n_ellipses = len(range(0, graph.n_poses, args.every))
     ax.set_title(args.title or f"{Path(args.file).name}: {graph.n_poses} poses, {graph.n_edges} edges"

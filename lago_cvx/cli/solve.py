@@ -10,7 +10,8 @@ import numpy as np
 from ..errors import LagoError
 from ..routes import resolve_route
 from .common import (EXIT_OK, UsageError, add_route_options, check_finite, check_regularization, emit,
-                     integer_search, method_arg, nonneg_int, output_target, speak_cli, write_estimate)
+                     integer_search, method_arg, nonneg_int, output_target, progress_callback, speak_cli,
+                     write_estimate)
 
 _FIELD = r"\s*([^,]*)\s*"
 _SPEC = re.compile(r"^\s*([+-]?\d+)\s*:" + _FIELD + "," + _FIELD + "," + _FIELD + "$")
@@ -135,7 +136,8 @@ def cmd_solve(args) -> int:
     if args.check:
         res, report = compare_methods(graph, **kw)
     else:
-        res, report = lago(graph, method=args.method, **kw), None
+        progress = progress_callback(args) if not anchors else None
+        res, report = lago(graph, method=args.method, progress=progress, **kw), None
     check_finite(res.chi2, res.poses, what="LAGO estimate")
     reg = res.regularization
     payload = {
