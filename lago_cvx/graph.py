@@ -15,7 +15,9 @@ Notation (seed ↔ code). The seed numbers poses 0 … n (n+1 poses, pose 0 the 
   unwrapped relative orientations. Here its columns follow the graph's own edge order;
   ``SpanningTree.edge_order`` gives the permutation [chords, tree edges] in which it reads [I B].
 
-Everything is vectorized with ``scipy.sparse`` / ``scipy.sparse.csgraph``; no Python loop over edges.
+Everything is vectorized (NumPy, ``scipy.sparse``; ``scipy.sparse.csgraph`` only for the minimum spanning
+tree, imported when asked for: it loads ``scipy.sparse.linalg``, which the other routes never need); no
+Python loop over edges.
 Quantities along the tree (orientation potentials, depths) are integrated by pointer jumping:
 O(n log depth) vectorized work, so a 100 000-pose chain takes milliseconds.
 """
@@ -27,7 +29,6 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse import csgraph
 
 from .errors import GraphError, OptionError
 from .posegraph import PoseGraph, rot2
@@ -76,14 +77,79 @@ def free_poses(n_poses: int, anchor_index: int) -> np.ndarray:
 
 
 # ------------------------------------------------------------------------- connectivity
-def _adjacency(graph: PoseGraph) -> sp.csr_matrix:
-    m = graph.n_edges
-    return sp.csr_matrix((np.ones(m), (graph.tails, graph.heads)), shape=(graph.n_poses, graph.n_poses))
+def _neighbours(n: int, tails: np.ndarray, heads: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Undirected adjacency as CSR ``(indptr (n+1,), indices)``: for each pose, its out-neighbours
+    (ascending, without repeats), then its in-neighbours (ascending) — the order in which
+    ``scipy.sparse.csgraph``'s undirected traversals visit them, so trees come out identical."""
+    t = np.asarray(tails, np.int64)
+    h = np.asarray(heads, np.int64)
+    out = np.unique(t * n + h)
+    inn = np.unique(h * n + t)
+    src = np.concatenate([out // n, inn // n])
+    dst = np.concatenate([out % n, inn % n])
+    part = np.concatenate([np.zeros(out.size, np.int8), np.ones(inn.size, np.int8)])
+    order = np.lexsort((dst, part, src))
+    indptr = np.zeros(n + 1, np.int64)
+    np.cumsum(np.bincount(src, minlength=n), out=indptr[1:])
+    return indptr, dst[order]
+
+
+def _bfs_parents(n: int, tails: np.ndarray, heads: np.ndarray, root: int) -> np.ndarray:
+    """Breadth-first tree of the undirected graph from ``root``: parent index of every pose (−1 at the
+    root and where unreachable), shape (n,). Level by level, each level one vectorized step; a pose's
+    parent is the first pose of the previous level (in queue order) that reaches it — the tree of
+    ``csgraph.breadth_first_order(..., directed=False)``."""
+    indptr, nbr = _neighbours(n, tails, heads)
+    parent = np.full(n, -1, np.int64)
+    seen = np.zeros(n, bool)
+    seen[root] = True
+    frontier = np.array([root], np.int64)
+    while frontier.size:
+        starts = indptr[frontier]
+        lens = indptr[frontier + 1] - starts
+        total = int(lens.sum())
+        if total == 0:
+            break
+        ends = np.cumsum(lens)
+        idx = np.repeat(starts - ends + lens, lens) + np.arange(total)
+        cand = nbr[idx]
+        fresh = ~seen[cand]
+        cand, par = cand[fresh], np.repeat(frontier, lens)[fresh]
+        if cand.size == 0:
+            break
+        _, first = np.unique(cand, return_index=True)
+        first.sort()  # discovery order
+        frontier = cand[first]
+        parent[frontier] = par[first]
+        seen[frontier] = True
+    return parent
+
+
+def _component_roots(n: int, tails: np.ndarray, heads: np.ndarray) -> np.ndarray:
+    """For every pose, the smallest index of its connected component (n,): hooking of roots onto smaller
+    roots along the edges and pointer jumping, O((n + m) log n)."""
+    root = np.arange(n, dtype=np.int64)
+    t = np.asarray(tails, np.int64)
+    h = np.asarray(heads, np.int64)
+    while True:
+        rt, rh = root[t], root[h]
+        lo, hi = np.minimum(rt, rh), np.maximum(rt, rh)
+        differ = lo != hi
+        if not differ.any():
+            return root
+        np.minimum.at(root, hi[differ], lo[differ])
+        while True:  # pointer jumping until every pose points at its root
+            jumped = root[root]
+            if np.array_equal(jumped, root):
+                break
+            root = jumped
 
 
 def connected_components(graph: PoseGraph) -> tuple[int, np.ndarray]:
-    """Number of connected components and the component label of each pose, shape (n_poses,)."""
-    return csgraph.connected_components(_adjacency(graph), directed=False)
+    """Number of connected components and the component label of each pose, shape (n_poses,). Labels
+    are numbered in the order of each component's smallest pose index (as ``csgraph`` numbers them)."""
+    roots, labels = np.unique(_component_roots(graph.n_poses, graph.tails, graph.heads), return_inverse=True)
+    return int(roots.size), labels.astype(np.int32)
 
 
 def check_connected(graph: PoseGraph) -> None:
@@ -208,6 +274,8 @@ def minimum_spanning_edges(graph: PoseGraph, weight: np.ndarray | None = None) -
     top = float(w.max()) if w.size else 0.0
     w = (w / top if top > 0 else np.zeros_like(w)) + 1.0
     W = sp.csr_matrix((w, (graph.tails[best], graph.heads[best])), shape=(n, n))
+    from scipy.sparse import csgraph  # loads scipy.sparse.linalg: only when an MST is asked for
+
     T = csgraph.minimum_spanning_tree(W + W.T).tocoo()
     return best[np.searchsorted(keys, _pair_keys(graph, T.row, T.col))]
 
@@ -232,11 +300,7 @@ def _tree_from_parent(graph: PoseGraph, root: int, parent: np.ndarray, kind: str
 def _parent_from_edges(graph: PoseGraph, root: int, edges: np.ndarray) -> np.ndarray:
     """Parent array of the tree formed by ``edges`` (must be a spanning tree), rooted at ``root``."""
     n = graph.n_poses
-    adj = sp.csr_matrix((np.ones(edges.size), (graph.tails[edges], graph.heads[edges])), shape=(n, n))
-    _, pred = csgraph.breadth_first_order(adj, root, directed=False, return_predecessors=True)
-    parent = np.where(pred < 0, -1, pred)
-    parent[root] = -1
-    return parent
+    return _bfs_parents(n, graph.tails[edges], graph.heads[edges], root)
 
 
 def _broken_chain(graph: PoseGraph, odo: np.ndarray) -> str:
@@ -283,10 +347,7 @@ def spanning_tree(graph: PoseGraph, kind="bfs", *, anchor=None) -> SpanningTree:
                             np.array([-1]), np.zeros(1, bool), np.zeros(1, np.int64), str(kind))
     if isinstance(kind, str):
         if kind == "bfs":
-            _, pred = csgraph.breadth_first_order(_adjacency(graph), anchor, directed=False,
-                                                  return_predecessors=True)
-            parent = np.where(pred < 0, -1, pred)
-            parent[anchor] = -1
+            parent = _bfs_parents(n, graph.tails, graph.heads, anchor)
             return _tree_from_parent(graph, anchor, parent, "bfs")
         if kind == "odometry":
             odo = np.flatnonzero(graph.is_odometric)

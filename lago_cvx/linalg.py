@@ -23,7 +23,6 @@ from typing import Callable
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from .errors import NumericalError, OptionError
 
@@ -84,6 +83,8 @@ def factorize(N: sp.spmatrix, *, backend: str = "auto") -> Factor:
             return np.column_stack([solver.solve(np.ascontiguousarray(rhs[:, j])) for j in range(rhs.shape[1])])
 
         return Factor(solve, d, "qdldl", N)
+    import scipy.sparse.linalg as spla  # SuperLU: imported only when it is used
+
     lu = spla.splu(N, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
     return Factor(lu.solve, d, "superlu")
 
@@ -102,6 +103,8 @@ def _augmented_solve(M: sp.csc_matrix, b: np.ndarray) -> np.ndarray:
     with partial pivoting: its conditioning is that of M, not cond(M)² as for MᵀM."""
     r, c = M.shape
     K = sp.bmat([[sp.identity(r, format="csc"), M], [M.T, None]], format="csc")
+    import scipy.sparse.linalg as spla
+
     sol = spla.splu(K).solve(np.concatenate([b, np.zeros(c)]))
     return sol[r:]
 

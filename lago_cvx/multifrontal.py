@@ -48,8 +48,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.linalg import blas, lapack
-from scipy.sparse import csgraph
 
 from .errors import NumericalError
 
@@ -97,6 +95,8 @@ def _pad(x: np.ndarray) -> np.ndarray:
 def _postorder(parent: np.ndarray) -> np.ndarray:
     """A postorder of the forest ``parent`` (−1 at roots): ``order[t]`` = the node visited t-th, children
     before parents. The reverse of a depth-first preorder (C, ``scipy.sparse.csgraph``)."""
+    from scipy.sparse import csgraph
+
     n = parent.size
     par = np.where(parent < 0, n, parent)  # a virtual root n above the roots
     children = sp.csr_matrix((np.ones(n), (par, np.arange(n))), shape=(n + 1, n + 1))
@@ -367,6 +367,8 @@ class BlockLayout:
     def factor(self, assembler: "BlockAssembler", blocks: np.ndarray, *, progress=None) -> "BlockFactor":
         """Factor N = Σ_q E_q blocks[q] by (MF) (blocks (q, b, b) at the assembler's pose pairs).
         Raises ``NotPositiveDefinite`` if a pivot block is not positive definite."""
+        from scipy.linalg import blas, lapack
+
         values, dest = assembler.scalars(blocks)
         b, nG = self.b, len(self.groups)
         L11, Linv, X = [], [], []
@@ -457,6 +459,8 @@ class BlockFactor:
         """The factor regrouped for solves: per height of the front tree, all its fronts padded to the
         level's largest pivot and row counts, with L_PP⁻¹ (identity on padding) and X (zero on padding)
         — a solve then costs a few stacked products per level, whatever the number of fronts."""
+        from scipy.linalg import lapack
+
         cache = self.__dict__.get("_level_cache")
         if cache is not None:
             return cache
@@ -523,6 +527,8 @@ class BlockFactor:
     def selected_inverse(self, *, progress=None):
         """Σ = N⁻¹ on every front by (T), from the root down. Returns, per group, the dense front blocks
         Σ_f (B, D, D) in the group's local variable order (zero on padded variables)."""
+        from scipy.linalg import lapack
+
         lay = self.layout
         nG = len(lay.groups)
         sig: list = [None] * nG

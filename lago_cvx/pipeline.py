@@ -29,7 +29,6 @@ from .rounding import AMBIGUITY_MARGIN
 from .routes import POSITIONS, resolve_route
 from .solvers import ClarabelSettings, IntegerSearch, check_method
 from .uncertainty import INFORMATION_MODES, edge_uncertainty
-from .variants import anchored_lago, compare_anchored_methods
 
 __all__ = ["lago", "compare_methods"]
 
@@ -82,6 +81,8 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
     choice, route_name = resolve_route(route, spanning_tree=spanning_tree, regularization=regularization,
                                        information=information, positions=positions)
     if anchors is not None:
+        from .variants import anchored_lago  # the engine of anchors, priors, constraints (loaded on demand)
+
         return anchored_lago(graph, anchors=anchors, method=method, route=route, spanning_tree=spanning_tree,
                              regularization=regularization, information=information, positions=positions,
                              anchor=anchor, anchor_pose=anchor_pose, margin=margin, solver_settings=solver_settings,
@@ -181,6 +182,8 @@ def compare_methods(graph: PoseGraph, *, solver_settings: ClarabelSettings | Non
     rotations) with ``regularization="chordal"``}, the cvxpy timings and the problems.
     ``anchors`` as in ``lago`` (then ``lago_cvx.variants.compare_anchored_methods``)."""
     if anchors is not None:
+        from .variants import compare_anchored_methods
+
         return compare_anchored_methods(graph, anchors=anchors, solver_settings=solver_settings, **kwargs)
     res = lago(graph, method="closed_form", **kwargs)
     t = time.perf_counter()

@@ -112,7 +112,6 @@ import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.linalg as sla
 import scipy.sparse as sp
 
 from ..errors import MissingSolverError, OptionError, SolverError
@@ -209,6 +208,8 @@ def cycle_data(graph: PoseGraph, tree: SpanningTree, *, unc: EdgeUncertainty | N
     S = (C.multiply(unc.var_delta[None, :]) @ C.T).toarray() if c.size else np.zeros((0, 0))
     S = 0.5 * (S + S.T)
     L = np.linalg.cholesky(S) if c.size else S
+    import scipy.linalg as sla
+
     W = sla.solve_triangular(L, np.eye(c.size), lower=True) if c.size else S
     k_edges = np.zeros(graph.n_edges, np.int64)  # the seed's rounding (regularize_tree), without its warnings
     k_edges[c] = round_residual(r)
