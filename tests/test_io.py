@@ -442,9 +442,10 @@ def test_write_failure_leaves_old_file(tmp_path, monkeypatch):
     def boom(src, dst):
         raise OSError("disk full")
 
-    monkeypatch.setattr(lio.writer.os, "replace", boom)
-    with pytest.raises(OSError):
+    monkeypatch.setattr(lio.output.os, "replace", boom)
+    with pytest.raises(OSError) as ei:  # an OutputError naming the target, never the temporary file
         write_graph(target, g)
+    assert str(ei.value) == f"cannot write {target}: disk full"
     assert target.read_text() == "old\n"
     assert sorted(os.listdir(tmp_path)) == ["in.g2o", "w.g2o"]
 

@@ -5,11 +5,14 @@
   information (with the evidence for its direction);
 * ``reader.py`` — ``read_graph`` and ``detect_format``; every problem with a file raises ``ParseError``
   naming ``file:line`` and the offending token;
-* ``writer.py`` — ``write_graph``.
+* ``writer.py`` — ``write_graph`` (records formatted in blocks, bytes as ``repr`` writes them);
+* ``output.py`` — ``open_output`` (atomic replace, symlinks written through, FIFOs and devices
+  streamed, ``"-"`` for standard output, one-line ``OutputError``) and ``same_file``.
 """
 
-from ..errors import ParseError
+from ..errors import OutputError, ParseError
+from .output import open_output, same_file
 from .reader import detect_format, read_graph
 from .writer import write_graph
 
-__all__ = ["ParseError", "read_graph", "write_graph", "detect_format"]
+__all__ = ["ParseError", "OutputError", "read_graph", "write_graph", "detect_format", "open_output", "same_file"]
