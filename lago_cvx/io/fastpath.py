@@ -17,7 +17,8 @@ cache), each by a fixed number of NumPy passes — never a Python step per line 
 
 All numbers are then converted at once: by SciPy's Matrix Market reader (``scipy.io.mmread``, the
 C++ *fast_matrix_market*: correctly rounded like ``float()``, multi-threaded; the body is presented as
-a one-column real array) when it is there, else by ``np.fromstring``. The reader turns ``-0`` into
+a one-column real array) when it is there and the file is large enough to repay importing it, else by
+``np.fromstring``. The reader turns ``-0`` into
 +0.0, so the sign of every token that starts with ``-`` is set afterwards (``float("-0.0")`` is −0.0). A few tokens per chunk are
 compared with ``float()`` bit for bit, so a misbehaving converter (say, a locale with a decimal comma)
 sends the file to the careful parser instead of giving wrong numbers.
@@ -33,6 +34,7 @@ from __future__ import annotations
 import logging
 import mmap
 import os
+import sys
 import threading
 import warnings
 from concurrent.futures import ThreadPoolExecutor
@@ -49,6 +51,9 @@ logger = logging.getLogger("lago_cvx.io")
 
 #: Bytes per chunk (a chunk ends at a line end, so it may be longer).
 CHUNK = 1 << 20
+#: Below this many numbers, ``np.fromstring`` converts them: importing ``scipy.io`` (≈ 0.3–1 s) would
+#: cost more than its faster conversion saves.
+MMREAD_MIN_TOKENS = 1_500_000
 #: Threads for the chunk pass (the processors this process may use, at most 4).
 WORKERS = max(1, min(4, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1))
 _PAD = 16              # newline padding after a chunk: 8-byte tag words and next-character looks stay inside
@@ -296,25 +301,30 @@ class _Chunks:
 
 
 def _convert(out: mmap.mmap, n_tokens: int, body_size: int) -> np.ndarray | None:
-    """All numbers of the prepared body (one token per line, after a Matrix Market header)."""
-    try:
-        import scipy.io
-        from scipy.io import _fast_matrix_market  # noqa: F401 - the C++ reader (SciPy ≥ 1.12)
-    except ImportError:
-        body = out[_HEADER:_HEADER + body_size]
+    """All numbers of the prepared body (one token per line, after a Matrix Market header): SciPy's
+    C++ reader when SciPy ≥ 1.12 is there and worth its import (already imported, or at least
+    :data:`MMREAD_MIN_TOKENS` numbers), else ``np.fromstring``."""
+    if "scipy.io" in sys.modules or n_tokens >= MMREAD_MIN_TOKENS:
         try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("error")
-                values = np.fromstring(body, dtype=float, sep=" ")
-        except (ValueError, DeprecationWarning):
-            return None
-        return values if values.size == n_tokens else None
-    out.seek(0)
+            import scipy.io
+            from scipy.io import _fast_matrix_market  # noqa: F401 - the C++ reader (SciPy ≥ 1.12)
+        except ImportError:
+            pass
+        else:
+            out.seek(0)
+            try:
+                values = scipy.io.mmread(out)
+            except Exception:  # any complaint: let the careful parser look
+                return None
+            values = np.asarray(values, dtype=float).reshape(-1)
+            return values if values.size == n_tokens else None
+    body = out[_HEADER:_HEADER + body_size]
     try:
-        values = scipy.io.mmread(out)
-    except Exception:  # any complaint: let the careful parser look
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")  # older NumPy only warns about unparsed data
+            values = np.fromstring(body, dtype=float, sep=" ")
+    except (ValueError, DeprecationWarning):
         return None
-    values = np.asarray(values, dtype=float).reshape(-1)
     return values if values.size == n_tokens else None
 
 
