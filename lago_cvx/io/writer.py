@@ -7,12 +7,13 @@ that reads back to the same double), so read → write → read reproduces a gra
 
 Speed
 =====
-Records are formatted in blocks of :data:`BLOCK` lines by one ``%`` operation each (a format string
-repeated once per line, applied to the flattened values), never line by line in Python. Within a block a
-column whose values are all equal (same bits) is written as a literal in the format string, and a
-column of integral values below 1e16 with ``%d.0`` on the integers — both produce exactly the text
-``repr`` would (``repr(400.0) == "400.0"``), so the bytes do not depend on these shortcuts; they only
-spare the shortest-digit search where it is not needed (constant information matrices, grid poses).
+Records are formatted in blocks of :data:`BLOCK` lines, column by column in NumPy, never line by line
+in Python: ``floatfmt.py`` finds the shortest digits of a whole column at once (``repr``'s, byte for
+byte; the few values it cannot decide with margin go to ``repr`` itself) and lays the columns out side
+by side; a column whose values are all equal (same bits) is one literal. As a guard, the first and last
+number of every column of every block are compared with ``repr``; should one differ, the block is
+formatted by one ``%`` operation instead (a format string repeated once per line, applied to the
+flattened values) — the reference the tests compare with.
 """
 
 from __future__ import annotations
@@ -24,14 +25,15 @@ import numpy as np
 
 from ..errors import OptionError
 from ..posegraph import PoseGraph, wrap_angle
+from .floatfmt import int_fields, join_fields, repr_fields
 from .formats import check_format, g2o_to_toro
 from .output import open_output, same_file
 
-__all__ = ["write_graph", "format_records", "open_output", "same_file", "BLOCK"]
+__all__ = ["write_graph", "format_records", "format_records_py", "open_output", "same_file", "BLOCK"]
 
 logger = logging.getLogger("lago_cvx.io")
 
-#: Lines formatted by one ``%`` operation.
+#: Lines formatted at once.
 BLOCK = 1 << 15
 
 _LIMIT_INTEGRAL = 1e16  # below this, repr(x) of an integral float is str(int(x)) + ".0"
@@ -59,10 +61,9 @@ def _column_format(col: np.ndarray):
     return "%r", col
 
 
-def format_records(tag: str, ids: np.ndarray, values: np.ndarray) -> bytes:
-    """The lines ``TAG id… v1 v2 …`` for integer ``ids`` (k, n_ids) and float ``values`` (k, n_values),
-    formatted as one block (see the module docstring): bytes identical to
-    ``"".join(f"{tag}" + " %d" * n_ids + " %r" * n_values + "\\n" % row)``."""
+def format_records_py(tag: str, ids: np.ndarray, values: np.ndarray) -> bytes:
+    """``format_records`` by one ``%`` operation on a format string repeated once per line (the
+    reference: Python's own ``%d`` and ``%r``)."""
     k = ids.shape[0]
     if k == 0:
         return b""
@@ -76,12 +77,39 @@ def format_records(tag: str, ids: np.ndarray, values: np.ndarray) -> bytes:
         if column is not None:
             columns.append(column)
     line = " ".join(pieces) + "\n"
-    if not columns:
-        return (line.replace("%%", "%") * k).encode("ascii")
     args = np.empty((k, len(columns)), dtype=object)
     for c, column in enumerate(columns):
         args[:, c] = column  # int64 → Python int, float64 → Python float
     return ((line * k) % tuple(args.ravel())).encode("ascii")
+
+
+def format_records(tag: str, ids: np.ndarray, values: np.ndarray) -> bytes:
+    """The lines ``TAG id… v1 v2 …`` for integer ``ids`` (k, n_ids) and float ``values`` (k, n_values):
+    bytes identical to ``"".join(f"{tag}" + " %d" * n_ids + " %r" * n_values + "\n" % row)``,
+    formatted column by column (module docstring)."""
+    k = ids.shape[0]
+    if k == 0:
+        return b""
+    items, probes = [tag.encode("ascii")], []
+    for c in range(ids.shape[1]):
+        items += [b" ", int_fields(ids[:, c])]
+    for c in range(values.shape[1]):
+        col = np.ascontiguousarray(values[:, c], dtype=float)
+        bits = col.view(np.int64)
+        if (bits == bits[0]).all():
+            items.append(b" " + repr(float(col[0])).encode("ascii"))
+        else:
+            items += [b" ", repr_fields(col)]
+            probes.append(c)
+    text = join_fields(k, items)
+    if probes:  # guard: the first and the last line against Python's own formatting
+        first = text[:text.index(b"\n") + 1]
+        last = text[text.rindex(b"\n", 0, len(text) - 1) + 1:] if k > 1 else first
+        if (first != format_records_py(tag, ids[:1], values[:1])
+                or last != format_records_py(tag, ids[-1:], values[-1:])):
+            logger.debug("vectorized formatting disagrees with %%r; block formatted by Python")
+            return format_records_py(tag, ids, values)
+    return text
 
 
 def _blocks(tag: str, ids: np.ndarray, values: np.ndarray):
