@@ -131,6 +131,8 @@ def open_output(path):
 @contextlib.contextmanager
 def _stdout(shown: str):
     stream = sys.stdout
+    if stream is None:  # pythonw, or closed on purpose
+        raise OutputError("cannot write to standard output: there is none", path=shown)
     buffer = getattr(stream, "buffer", None)
     try:
         if buffer is not None:
