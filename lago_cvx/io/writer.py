@@ -117,6 +117,18 @@ def _blocks(tag: str, ids: np.ndarray, values: np.ndarray):
         yield format_records(tag, ids[start:start + BLOCK], values[start:start + BLOCK])
 
 
+def _edge_block(graph: PoseGraph, fmt: str, rows: slice):
+    """(ids (k, 2), values (k, 9): Δx Δy δ and the six stored information entries) of some edges."""
+    info, delta = graph.information[rows], graph.delta[rows]
+    if fmt == "g2o":
+        six = info[:, [0, 0, 0, 1, 1, 2], [0, 1, 2, 1, 2, 2]]
+    else:
+        t = g2o_to_toro(info, delta)
+        six = t[:, [0, 0, 1, 2, 0, 1], [0, 1, 1, 2, 2, 2]]
+    ids = np.column_stack([graph.ids[graph.tails[rows]], graph.ids[graph.heads[rows]]])
+    return ids, np.column_stack([graph.delta_l[rows], delta, six])
+
+
 def _checked_poses(path, graph: PoseGraph, poses):
     poses = np.asarray(poses, dtype=float)
     if poses.shape != (graph.n_poses, 3):
@@ -164,18 +176,10 @@ def write_graph(path, graph: PoseGraph, poses=None, *, format: str = "g2o",
 
     vtag = "VERTEX_SE2" if fmt == "g2o" else "VERTEX2"
     etag = "EDGE_SE2" if fmt == "g2o" else "EDGE2"
-    info = graph.information
-    if fmt == "g2o":
-        six = info[:, [0, 0, 0, 1, 1, 2], [0, 1, 2, 1, 2, 2]]
-    else:
-        t = g2o_to_toro(info, graph.delta)
-        six = t[:, [0, 0, 1, 2, 0, 1], [0, 1, 1, 2, 2, 2]]
-    eids = np.column_stack([graph.ids[graph.tails], graph.ids[graph.heads]])
-    evals = np.column_stack([graph.delta_l, graph.delta, six])
     with open_output(path) as f:
         if poses is not None:
             for block in _blocks(vtag, graph.ids[:, None], poses):
                 f.write(block)
-        for block in _blocks(etag, eids, evals):
-            f.write(block)
+        for start in range(0, graph.n_edges, BLOCK):  # edge arrays one block at a time: modest memory
+            f.write(format_records(etag, *_edge_block(graph, fmt, slice(start, start + BLOCK))))
     return Path(path)
