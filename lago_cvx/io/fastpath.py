@@ -18,10 +18,10 @@ cache), each by a fixed number of NumPy passes — never a Python step per line 
 All numbers are then converted at once: by SciPy's Matrix Market reader (``scipy.io.mmread``, the
 C++ *fast_matrix_market*: correctly rounded like ``float()``, multi-threaded; the body is presented as
 a one-column real array) when it is there and the file is large enough to repay importing it, else by
-``np.fromstring``. The reader turns ``-0`` into
-+0.0, so the sign of every token that starts with ``-`` is set afterwards (``float("-0.0")`` is −0.0). A few tokens per chunk are
-compared with ``float()`` bit for bit, so a misbehaving converter (say, a locale with a decimal comma)
-sends the file to the careful parser instead of giving wrong numbers.
+``np.fromstring``. That reader turns ``-0`` into +0.0, so the sign of every token that starts with
+``-`` is set afterwards (``float("-0.0")`` is −0.0). A few tokens per chunk are compared with
+``float()`` bit for bit, so a misbehaving converter (say, a locale with a decimal comma) sends the
+file to the careful parser instead of giving wrong numbers.
 
 Anything else — a leading ``+``, ``.5`` or ``5.``, indented lines, non-ASCII bytes outside comments,
 control characters, an unknown or misplaced tag, a wrong token count, an id beyond 2⁵³, a value that
@@ -60,7 +60,6 @@ _PAD = 16              # newline padding after a chunk: 8-byte tag words and nex
 _HEADER = 128          # room for the Matrix Market header before the body
 _EXACT_INT = 2.0 ** 53
 _DIGIT = np.uint8(48)
-_SIGNS = (43, 45)      # '+', '-'
 _MAX_SCAN = 10_000     # lines looked at to find the first data tag
 
 
@@ -371,6 +370,11 @@ def parse_fast(data: bytes, fmt_forced: str | None) -> Parsed | None:
         try:
             chunks.run()
         except _GiveUp:
+            return None
+        except MemoryError:
+            raise
+        except Exception as exc:  # a fault here must not cost the file: the careful parser reads it
+            logger.debug("fast path failed (%r); using the careful parser", exc)
             return None
         if chunks.n_tokens == 0:
             return None
