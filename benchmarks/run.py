@@ -6,7 +6,7 @@
                                                    # go to a temporary folder unless --out DIR is given)
     python benchmarks/run.py certify --sdp-timeout 900 --sdp-sizes-intel 1728 --sdp-sizes-csail
 
-Sections (each a module of this folder exposing ``run(args) -> str``; written to
+Sections (each a module of this folder exposing ``run(args) -> str`` — ``io`` is ``io_bench.py``; written to
 ``benchmarks/<section>.md`` — or ``--out DIR`` —, whose first line names the command, the machine and the
 date):
 
@@ -26,7 +26,10 @@ date):
 * ``theorem1`` — Theorem 1 measured on every dataset (the identity of eqs. (16)–(17) holds, the cost
   claim does not) and the first-order optimality of the full-information phases;
 * ``route``    — tree against chordal rounding and phase-3 against re-solved positions, alone and after
-  Gauss–Newton, on every dataset and on Manhattan worlds with rising rotation noise: the default route.
+  Gauss–Newton, on every dataset and on Manhattan worlds with rising rotation noise: the default route;
+* ``io``       — ``lago-cvx generate``, ``read_graph`` and ``write_graph`` at 10k, 100k and 1M poses, each in a
+  fresh process with its peak memory (``--io-baseline REV``: the same at an earlier revision, before/after;
+  ``--io-solve``: the whole ``lago-cvx solve -o`` pipeline too).
 
 Datasets are found through ``lago_cvx.datasets`` (``LAGO_CVX_DATASETS=DIR`` to point elsewhere than
 ``../shared/datasets``); a section that needs them says "skipped: datasets not found" without them.
@@ -46,7 +49,9 @@ from pathlib import Path
 
 import _bench
 
-SECTIONS = ("datasets", "scaling", "perf", "chordal", "certify", "integer", "theorem1", "route")
+SECTIONS = ("datasets", "scaling", "perf", "chordal", "certify", "integer", "theorem1", "route", "io")
+#: Sections whose module has another name (``io`` would be the standard library's).
+MODULE_OF = {"io": "io_bench"}
 
 
 def parser(modules: dict) -> argparse.ArgumentParser:
@@ -68,7 +73,7 @@ def parser(modules: dict) -> argparse.ArgumentParser:
 
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
-    modules = {name: importlib.import_module(name) for name in SECTIONS}
+    modules = {name: importlib.import_module(MODULE_OF.get(name, name)) for name in SECTIONS}
     ap = parser(modules)
     args = ap.parse_intermixed_args(argv)
     unknown = [s for s in args.sections if s not in SECTIONS]

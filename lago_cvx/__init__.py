@@ -25,7 +25,7 @@ from ._version import __version__
 
 #: public name → the module that defines it
 _EXPORTS = {
-    "errors": ["LagoError", "ParseError", "GraphError", "NumericalError", "OptionError", "SolverError",
+    "errors": ["LagoError", "ParseError", "OutputError", "GraphError", "NumericalError", "OptionError", "SolverError",
                "InfeasibleConstraintsError", "MissingSolverError", "ResourceLimitError", "SearchLimitError",
                "DatasetNotFound"],
     "solvers": ["ClarabelSettings", "IntegerSearch"],

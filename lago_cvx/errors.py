@@ -1,13 +1,15 @@
 """Every error lago_cvx raises on purpose is a ``LagoError``.
 
 The classes keep the built-in base they always had (``ValueError``, ``RuntimeError``, ``ImportError``,
-``FileNotFoundError``), so ``except ValueError`` in user code still catches a malformed file, and one
-``except LagoError`` catches everything the package reports. Each class carries the exit status the
-command line uses for it (``exit_status``), so the CLI maps errors to statuses in one place:
+``FileNotFoundError``, ``OSError``), so ``except ValueError`` in user code still catches a malformed file,
+``except OSError`` an output that cannot be written, and one ``except LagoError`` catches everything the
+package reports. Each class carries the exit status the command line uses for it (``exit_status``), so
+the CLI maps errors to statuses in one place:
 
 | class | built-in base | what happened | CLI exit |
 |---|---|---|---|
 | ``ParseError`` | ValueError | a file is malformed; the message starts with ``path:line:`` | 2 |
+| ``OutputError`` | OSError | an output cannot be written (missing directory, permission, read-only file system, a failed write such as ENOSPC, a directory, socket or block device named as the output); one line naming the path as given and the reason | 2 |
 | ``GraphError`` | ValueError | the graph is well-formed data but unusable (disconnected, broken odometric chain, unknown pose id) | 2 |
 | ``NumericalError`` | GraphError | the least-squares system is numerically singular | 2 |
 | ``NonFiniteError`` | NumericalError | an estimate or its χ² is not finite (the data overflow double precision) | 2 |
@@ -25,7 +27,7 @@ from __future__ import annotations
 import os
 
 __all__ = [
-    "LagoError", "ParseError", "GraphError", "NumericalError", "NonFiniteError", "OptionError",
+    "LagoError", "ParseError", "OutputError", "GraphError", "NumericalError", "NonFiniteError", "OptionError",
     "InfeasibleConstraintsError",
     "DatasetNotFound", "MissingSolverError", "ResourceLimitError", "SearchLimitError", "SolverError",
     "check_choice",
@@ -55,6 +57,29 @@ class ParseError(LagoError, ValueError):
         if self.line is None:
             return f"{self.path}: {self.problem}"
         return f"{self.path}:{self.line}: {self.problem}"
+
+
+class OutputError(LagoError, OSError):
+    """An output cannot be written. ``str(err)`` is one line, ``"cannot write {path}: {reason}"`` (or
+    the like), naming the path as the caller gave it — never a temporary file. Attributes: ``path``
+    (str or None) and ``errno`` (the operating system's error number, or None when the refusal is
+    lago_cvx's own, e.g. a directory named as the output)."""
+
+    def __init__(self, message: str, *, path=None, errno: int | None = None):
+        super().__init__(message)
+        self.message = " ".join(str(message).split("\n"))
+        self.path = None if path is None else (os.fspath(path) if isinstance(path, os.PathLike) else str(path))
+        self.errno = errno
+
+    def __str__(self) -> str:
+        return self.message
+
+    def __reduce__(self):
+        return _rebuild_output_error, (self.message, self.path, self.errno)
+
+
+def _rebuild_output_error(message, path, errno):
+    return OutputError(message, path=path, errno=errno)
 
 
 class GraphError(LagoError, ValueError):

@@ -177,11 +177,10 @@ def output_target(args, *, flag: str = "-o") -> str | None:
 
 
 def _same_file(a: str, b: str) -> bool:
-    """True when both paths name one existing file (through symbolic or hard links)."""
-    try:
-        return os.path.samefile(a, b)
-    except OSError:
-        return False
+    """True when both paths name one existing file (through symbolic or hard links): ``io.same_file``."""
+    from ..io.output import same_file
+
+    return same_file(a, b)
 
 
 def _check_writable(out: str, flag: str) -> None:

@@ -4,9 +4,11 @@ conversion of the information matrices. Reading is ``reader.py``, writing ``writ
 Formats
 =======
 Both formats are line based: one record per line, whitespace-separated tokens (spaces or tabs; LF or
-CRLF line ends). Blank lines and lines whose first non-blank character is ``#`` are skipped. Pose ids
-are integers; they need not be contiguous or start at 0 (``PoseGraph.ids`` keeps them, sorted, and
-edge endpoints become indices into it).
+CRLF line ends; a UTF-8 byte-order mark is skipped). A token that starts with ``#`` starts a comment that
+runs to the end of the line: blank lines and whole-line comments are skipped, and
+``EDGE_SE2 0 1 … 0 0 1   # odometry`` is the edge (a ``#`` inside a token, as in ``1#2``, is not a
+comment but a bad number). Pose ids are integers; they need not be contiguous or start at 0
+(``PoseGraph.ids`` keeps them, sorted, and edge endpoints become indices into it).
 
 **g2o** (``VERTEX_SE2`` / ``EDGE_SE2``)::
 
@@ -16,7 +18,8 @@ edge endpoints become indices into it).
 The edge carries pose j measured in the frame of pose i and the *upper triangle* (row-major, order
 x, y, θ) of the 3×3 information matrix Ω of the error ``e = [R_iᵀ(p_j − p_i) − Δˡ ; θ_j − θ_i − δ]``
 — the convention of :mod:`lago_cvx.posegraph`. ``FIX id [id ...]`` lines are legal g2o; they are
-validated (integer ids), logged at INFO level and otherwise ignored (LAGO picks its own anchor).
+validated (integer ids) and ignored, with one warning per file: the estimate is anchored at the smallest
+id (``lago(graph, anchor=ID)``, CLI ``--anchor ID``, choose another).
 
 **TORO / HOG-Man** (``VERTEX2`` / ``EDGE2``)::
 
@@ -25,7 +28,21 @@ validated (integer ids), logged at INFO level and otherwise ignored (LAGO picks 
 
 Same measurement, but the six information entries come in a different order (HOG-Man's
 ``inf_ff inf_fs inf_ss inf_rr inf_fr inf_sr``; in error messages the fields are called
-``Ixx Ixy Iyy Itt Ixt Iyt``, t standing for θ) **and in a different frame**.
+``Ixx Ixy Iyy Itt Ixt Iyt``, t standing for θ) **and in a different frame**. ``EQUIV i j`` lines (TORO:
+a request to collapse the edge i–j, which TORO itself applies only when asked to) are validated (two
+integer ids) and ignored, with one warning per file: every vertex and edge is kept as written.
+
+Some files in the wild store g2o records under the TORO tag: ``EDGE2 i j dx dy dθ I11 I12 I13 I22 I23
+I33`` (the g2o order and frame; e.g. ``w100_30.g2o`` and ``w20000.txt`` shipped with GTSAM). The order
+is never guessed: ``read_graph(path, edge2_order="g2o")`` reads every ``EDGE2`` line exactly like an
+``EDGE_SE2`` line, and when the TORO reading gives an information matrix that is not positive definite
+while every ``EDGE2`` line of the file would be positive definite in the g2o order, the error says so
+and names that option (and the other way round).
+
+Records of other kinds are recognized only to say what they are: landmark records (``LANDMARK2``,
+``BR``, ``VERTEX_XY``, ``EDGE_SE2_XY``, ``POINT2``, …) and 3-D records (``VERTEX_SE3:QUAT``,
+``EDGE_SE3:QUAT``, ``VERTEX3``, ``EDGE3``, …) are a ``ParseError`` at their line with a message naming
+the kind (:data:`NON_POSE_TAGS`).
 
 TORO → g2o information conversion
 ---------------------------------
@@ -54,8 +71,9 @@ import numpy as np
 from ..errors import OptionError
 from ..posegraph import rot2
 
-__all__ = ["FORMATS", "FORMAT_LABEL", "Spec", "SPECS", "FORMAT_SPECS", "TAGS_OF", "FIX", "G2O_INFO_INDEX",
-           "TORO_INFO_INDEX", "toro_to_g2o", "g2o_to_toro", "check_format"]
+__all__ = ["FORMATS", "FORMAT_LABEL", "Spec", "SPECS", "FORMAT_SPECS", "TAGS_OF", "FIX", "EQUIV", "G2O_INFO_INDEX",
+           "TORO_INFO_INDEX", "EDGE2_ORDERS", "NON_POSE_TAGS", "non_pose_problem", "toro_to_g2o", "g2o_to_toro",
+           "check_format", "check_edge2_order"]
 
 FORMATS = ("g2o", "toro")
 FORMAT_LABEL = {"g2o": "g2o", "toro": "TORO"}
@@ -84,6 +102,35 @@ FORMAT_SPECS = {"g2o": (SPECS["VERTEX_SE2"], SPECS["EDGE_SE2"]),   # (vertex, ed
                 "toro": (SPECS["VERTEX2"], SPECS["EDGE2"])}
 TAGS_OF = {"g2o": "VERTEX_SE2/EDGE_SE2", "toro": "VERTEX2/EDGE2"}
 FIX = "FIX"
+EQUIV = "EQUIV"
+#: How the six information entries of an ``EDGE2`` line are read: "toro" (the documented TORO order and
+#: frame, the default) or "g2o" (exactly like ``EDGE_SE2``).
+EDGE2_ORDERS = ("toro", "g2o")
+
+_PLANAR = "lago_cvx reads planar pose graphs (VERTEX_SE2/EDGE_SE2 or VERTEX2/EDGE2)"
+#: Tags of records that are not planar pose-graph records, by kind ("landmark" measurement,
+#: "landmark position", "3-D").
+NON_POSE_TAGS = {
+    **dict.fromkeys(["LANDMARK", "LANDMARK2", "BR", "EDGE_SE2_XY", "EDGE_SE2_POINTXY", "EDGE_BEARING_SE2_XY",
+                     "EDGE_SE2_POINTXY_BEARING", "EDGE_SE2_XY_CALIB", "EDGE_POINTXY", "EDGE_XY_PRIOR"],
+                    "landmark"),
+    **dict.fromkeys(["VERTEX_XY", "POINT2", "VERTEX_POINTXY"], "landmark position"),
+    **dict.fromkeys(["VERTEX_SE3:QUAT", "EDGE_SE3:QUAT", "VERTEX_SE3:EXPMAP", "EDGE_SE3:EXPMAP", "VERTEX3",
+                     "EDGE3", "VERTEX_SE3", "EDGE_SE3", "EDGE_SE3_PRIOR", "VERTEX_TRACKXYZ", "EDGE_SE3_TRACKXYZ",
+                     "VERTEX_XYZ", "PARAMS_SE3OFFSET"], "3-D"),
+}
+
+
+def non_pose_problem(tag: str) -> str | None:
+    """The message for a recognized non-pose-graph tag, or None."""
+    kind = NON_POSE_TAGS.get(tag)
+    if kind == "landmark":
+        return f"{tag!r} is a landmark measurement, not a pose–pose constraint: {_PLANAR}"
+    if kind == "landmark position":
+        return f"{tag!r} is a landmark position, not a pose: {_PLANAR}"
+    if kind == "3-D":
+        return f"{tag!r} is a 3-D record: LAGO here is planar (it reads VERTEX_SE2/EDGE_SE2 or VERTEX2/EDGE2)"
+    return None
 
 # Index maps from the six stored information entries to the symmetric 3×3 matrix (order x, y, θ).
 G2O_INFO_INDEX = np.array([[0, 1, 2], [1, 3, 4], [2, 4, 5]])   # I11 I12 I13 I22 I23 I33
@@ -111,6 +158,17 @@ def rotation_block(dtheta: np.ndarray) -> np.ndarray:
     T[:, :2, :2] = rot2(dtheta)
     T[:, 2, 2] = 1.0
     return T
+
+
+def check_edge2_order(edge2_order) -> str:
+    """The ``EDGE2`` information order to use: "toro" for None, else "toro" or "g2o" (``OptionError``
+    for anything else)."""
+    if edge2_order is None:
+        return "toro"
+    order = str(edge2_order).lower()
+    if order not in EDGE2_ORDERS:
+        raise OptionError(f"edge2_order must be None, 'toro' or 'g2o', got {edge2_order!r}")
+    return order
 
 
 def check_format(format) -> str | None:

@@ -1,21 +1,43 @@
-"""Writing g2o and TORO files (formats in ``formats.py``), replacing a file atomically."""
+"""Writing g2o and TORO files (formats in ``formats.py``; where the bytes go in ``output.py``).
+
+Numbers
+=======
+Ids are written with ``%d``, every other number exactly as ``repr`` writes it (the shortest string
+that reads back to the same double), so read → write → read reproduces a graph bit for bit.
+
+Speed
+=====
+Records are formatted in blocks of :data:`BLOCK` lines, column by column in NumPy, never line by line
+in Python: ``floatfmt.py`` finds the shortest digits of a whole column at once (``repr``'s, byte for
+byte; the few values it cannot decide with margin go to ``repr`` itself) and lays the columns out side
+by side; a column whose values are all equal (same bits) is one literal. As a guard, the first and last
+number of every column of every block are compared with ``repr``; should one differ, the block is
+formatted by one ``%`` operation instead (a format string repeated once per line, applied to the
+flattened values) — the reference the tests compare with.
+"""
 
 from __future__ import annotations
 
 import logging
 import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import OptionError
 from ..posegraph import PoseGraph, wrap_angle
+from .floatfmt import int_fields, join_fields, repr_fields
 from .formats import check_format, g2o_to_toro
+from .output import open_output, same_file
 
-__all__ = ["write_graph", "write_bytes"]
+__all__ = ["write_graph", "write_bytes", "format_records", "format_records_py", "open_output", "same_file", "BLOCK"]
 
 logger = logging.getLogger("lago_cvx.io")
+
+#: Lines formatted at once.
+BLOCK = 1 << 15
+
+_LIMIT_INTEGRAL = 1e16  # below this, repr(x) of an integral float is str(int(x)) + ".0"
 
 
 def _wrap_vertex_angles(theta: np.ndarray) -> np.ndarray:
@@ -26,45 +48,126 @@ def _wrap_vertex_angles(theta: np.ndarray) -> np.ndarray:
     return np.where(inside, theta, w)
 
 
-def _file_mode(path: Path) -> int:
-    """Permissions for the new file: the existing file's, else the usual 0666 & ~umask."""
-    try:
-        return os.stat(path).st_mode & 0o7777
-    except OSError:
-        pass
-    try:  # Linux: read the umask without changing it
-        with open("/proc/self/status") as f:
-            mask = next(int(ln.split()[1], 8) for ln in f if ln.startswith("Umask:"))
-    except (OSError, StopIteration, ValueError, IndexError):
-        mask = os.umask(0)  # elsewhere: the classic (briefly process-wide) set-and-restore
-        os.umask(mask)
-    return 0o666 & ~mask
+def _column_format(col: np.ndarray):
+    """(format piece, values for it or None) for one float column of a block, as ``repr`` would write
+    it: a literal when all values have the same bits, ``%d.0`` with int64 values when all are integral
+    (no −0.0) and below 1e16 in magnitude, else ``%r``."""
+    first = col[0]
+    bits = col.view(np.int64)
+    if (bits == bits[0]).all():
+        return repr(float(first)), None
+    if (np.abs(col) < _LIMIT_INTEGRAL).all() and (col == np.rint(col)).all() \
+            and not (np.signbit(col) & (col == 0.0)).any():
+        return "%d.0", col.astype(np.int64)
+    return "%r", col
+
+
+def format_records_py(tag: str, ids: np.ndarray, values: np.ndarray) -> bytes:
+    """``format_records`` by one ``%`` operation on a format string repeated once per line (the
+    reference: Python's own ``%d`` and ``%r``)."""
+    k = ids.shape[0]
+    if k == 0:
+        return b""
+    pieces, columns = [tag], []
+    for c in range(ids.shape[1]):
+        pieces.append("%d")
+        columns.append(ids[:, c])
+    for c in range(values.shape[1]):
+        piece, column = _column_format(np.ascontiguousarray(values[:, c]))
+        pieces.append(piece.replace("%", "%%") if column is None else piece)
+        if column is not None:
+            columns.append(column)
+    line = " ".join(pieces) + "\n"
+    args = np.empty((k, len(columns)), dtype=object)
+    for c, column in enumerate(columns):
+        args[:, c] = column  # int64 → Python int, float64 → Python float
+    return ((line * k) % tuple(args.ravel())).encode("ascii")
+
+
+def format_records(tag: str, ids: np.ndarray, values: np.ndarray) -> bytes:
+    """The lines ``TAG id… v1 v2 …`` for integer ``ids`` (k, n_ids) and float ``values`` (k, n_values):
+    bytes identical to ``"".join(f"{tag}" + " %d" * n_ids + " %r" * n_values + "\n" % row)``,
+    formatted column by column (module docstring)."""
+    k = ids.shape[0]
+    if k == 0:
+        return b""
+    items, probes = [tag.encode("ascii")], []
+    for c in range(ids.shape[1]):
+        items += [b" ", int_fields(ids[:, c])]
+    for c in range(values.shape[1]):
+        col = np.ascontiguousarray(values[:, c], dtype=float)
+        bits = col.view(np.int64)
+        if (bits == bits[0]).all():
+            items.append(b" " + repr(float(col[0])).encode("ascii"))
+        else:
+            items += [b" ", repr_fields(col)]
+            probes.append(c)
+    text = join_fields(k, items)
+    if probes:  # guard: the first and the last line against Python's own formatting
+        first = text[:text.index(b"\n") + 1]
+        last = text[text.rindex(b"\n", 0, len(text) - 1) + 1:] if k > 1 else first
+        if (first != format_records_py(tag, ids[:1], values[:1])
+                or last != format_records_py(tag, ids[-1:], values[-1:])):
+            logger.debug("vectorized formatting disagrees with %%r; block formatted by Python")
+            return format_records_py(tag, ids, values)
+    return text
+
+
+def _blocks(tag: str, ids: np.ndarray, values: np.ndarray):
+    for start in range(0, ids.shape[0], BLOCK):
+        yield format_records(tag, ids[start:start + BLOCK], values[start:start + BLOCK])
+
+
+def _edge_block(graph: PoseGraph, fmt: str, rows: slice):
+    """(ids (k, 2), values (k, 9): Δx Δy δ and the six stored information entries) of some edges."""
+    info, delta = graph.information[rows], graph.delta[rows]
+    if fmt == "g2o":
+        six = info[:, [0, 0, 0, 1, 1, 2], [0, 1, 2, 1, 2, 2]]
+    else:
+        t = g2o_to_toro(info, delta)
+        six = t[:, [0, 0, 1, 2, 0, 1], [0, 1, 1, 2, 2, 2]]
+    ids = np.column_stack([graph.ids[graph.tails[rows]], graph.ids[graph.heads[rows]]])
+    return ids, np.column_stack([graph.delta_l[rows], delta, six])
+
+
+def _checked_poses(path, graph: PoseGraph, poses):
+    poses = np.asarray(poses, dtype=float)
+    if poses.shape != (graph.n_poses, 3):
+        raise OptionError(f"poses must have shape ({graph.n_poses}, 3), got {poses.shape}")
+    bad = np.flatnonzero(~np.isfinite(poses).all(axis=1))
+    if bad.size:
+        k = int(bad[0])
+        shown = ", ".join(repr(float(v)) for v in poses[k])
+        raise OptionError(f"refusing to write {path}: {bad.size} of {graph.n_poses} poses are not finite "
+                          f"(first: id {int(graph.ids[k])} = ({shown})); nothing was written")
+    return poses
 
 
 def write_graph(path, graph: PoseGraph, poses=None, *, format: str = "g2o",
                 wrap_angles: bool = True) -> Path:
-    """Write ``graph`` as a g2o (default) or TORO file and return its path.
+    """Write ``graph`` as a g2o (default) or TORO file and return ``Path(path)``.
 
     Vertex lines come from ``poses`` ((n, 3)) if given, else from ``graph.initial``; with neither the
     file has edge lines only (poses that appear in no edge are then not represented). Ids are the
     graph's original ``ids``. Numbers are written with ``repr`` (shortest exact round trip), so
     read → write → read reproduces the graph bit for bit. Vertex angles outside [−π, π) are wrapped
     when ``wrap_angles``; edge angles δ are written as stored. TORO output converts the information
-    back to the TORO frame (Ω_toro = T Ω Tᵀ). The file is written to a temporary file in the same
-    directory and moved into place with ``os.replace`` (atomic).
+    back to the TORO frame (Ω_toro = T Ω Tᵀ).
+
+    ``path`` may be a file (written to a temporary file in the same directory and moved into place
+    atomically, keeping an existing file's permissions), a symbolic link (written through to its
+    target), a FIFO or character device (streamed), or ``"-"`` for standard output: the rules of
+    :func:`~lago_cvx.io.output.open_output`. Everything is checked before the target is touched:
+    non-finite poses, a wrong shape or format raise ``OptionError`` and nothing is written; a target
+    that cannot be written raises ``OutputError``.
     """
     fmt = check_format(format)
     if fmt is None:
         raise OptionError("format must be 'g2o' or 'toro'")
-    path = Path(path)
     if poses is None:
         poses = graph.initial
     if poses is not None:
-        poses = np.asarray(poses, dtype=float)
-        if poses.shape != (graph.n_poses, 3):
-            raise OptionError(f"poses must have shape ({graph.n_poses}, 3), got {poses.shape}")
-        if not np.isfinite(poses).all():
-            raise OptionError("poses must be finite")
+        poses = _checked_poses(path, graph, poses)
         if wrap_angles:
             poses = np.column_stack([poses[:, :2], _wrap_vertex_angles(poses[:, 2])])
     elif graph.n_edges == 0:
@@ -74,53 +177,20 @@ def write_graph(path, graph: PoseGraph, poses=None, *, format: str = "g2o",
 
     vtag = "VERTEX_SE2" if fmt == "g2o" else "VERTEX2"
     etag = "EDGE_SE2" if fmt == "g2o" else "EDGE2"
-    info = graph.information
-    if fmt == "g2o":
-        six = info[:, [0, 0, 0, 1, 1, 2], [0, 1, 2, 1, 2, 2]]
-    else:
-        t = g2o_to_toro(info, graph.delta)
-        six = t[:, [0, 0, 1, 2, 0, 1], [0, 1, 1, 2, 2, 2]]
-    ids = graph.ids.tolist()
-    parts = []
-    if poses is not None:
-        vfmt = vtag + " %d %r %r %r\n"
-        parts.extend(vfmt % (i, *p) for i, p in zip(ids, poses.tolist()))
-    efmt = etag + " %d %d" + " %r" * 9 + "\n"
-    eids = np.column_stack([graph.ids[graph.tails], graph.ids[graph.heads]]).tolist()
-    evals = np.column_stack([graph.delta_l, graph.delta, six]).tolist()
-    parts.extend(efmt % (*e, *v) for e, v in zip(eids, evals))
-    text = "".join(parts)
-
-    mode = _file_mode(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="ascii", newline="\n") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        os.chmod(tmp, mode)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
-    return path
+    with open_output(path) as f:
+        if poses is not None:
+            for block in _blocks(vtag, graph.ids[:, None], poses):
+                f.write(block)
+        for start in range(0, graph.n_edges, BLOCK):  # edge arrays one block at a time: modest memory
+            f.write(format_records(etag, *_edge_block(graph, fmt, slice(start, start + BLOCK))))
+    return Path(path)
 
 
-def write_bytes(path, data: bytes) -> None:
-    """Write ``data`` to ``path`` through a temporary file in the same directory, then an atomic rename."""
-    import tempfile
-
-    path = os.fspath(path)
-    d = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(dir=d, prefix=".lago-cvx-", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+def write_bytes(path, data: bytes) -> Path | None:
+    """Write ``data`` (a rendered figure, say) to ``path`` by the rules of :func:`open_output`: an atomic
+    replace of a regular file keeping its permissions, symbolic links written through, FIFOs and
+    character devices streamed, ``"-"`` for standard output; ``OutputError`` names the path otherwise.
+    Returns the path (``None`` for standard output)."""
+    with open_output(path) as f:
+        f.write(data)
+    return None if os.fspath(path) == "-" else Path(path)

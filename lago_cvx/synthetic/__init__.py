@@ -5,9 +5,10 @@ needed. Every generator
 
 * takes a ``seed`` and draws all randomness from one ``np.random.default_rng(seed)``, so the same
   arguments give bit-identical arrays (on the same NumPy version);
-* is vectorized (the Manhattan random walk is a tight scalar loop over pre-drawn random numbers;
-  loop-closure search uses ``scipy.spatial.cKDTree``), so 100 000 poses build in well under a
-  couple of seconds;
+* is vectorized (the Manhattan random walk composes pre-drawn turns by cumulative sums, block by
+  block, resolving only the steps that would leave the square one by one; loop-closure search uses
+  ``scipy.spatial.cKDTree``, or one sort when only revisits of the same grid point qualify), so a
+  million poses build in a few seconds;
 * returns a :class:`SyntheticWorld`: the :class:`~lago_cvx.posegraph.PoseGraph` (measurements as a
   real front end would report them) plus the true poses and the generator parameters.
 

@@ -27,34 +27,69 @@ def _manhattan_walk(n: int, p_turn: float, half: int, rng: np.random.Generator):
     Pose 0 is at the grid origin heading +x. At each step the robot first turns (straight, or ±90°
     with probability ``p_turn``), then moves one cell along its new heading — so an odometric turn
     reads ``(0, ±1, ±π/2)`` like M3500's. A move that would leave ``[−half, half]²`` is replaced by
-    the first feasible of: the other turns (random side first, then straight), then a U-turn (±π)."""
-    u = rng.random(n - 1).tolist()
-    side = np.where(rng.random(n - 1) < 0.5, 1, -1).tolist()
+    the first feasible of: the other turns (random side first, then straight), then a U-turn (±π).
+
+    Vectorized in blocks: the preferred turns of a block are composed by cumulative sums up to the
+    first step that would leave the square; that step is resolved as above, and the next block starts
+    after it (a few thousand such steps in a million). Same random numbers, same walk as a step-by-step
+    loop."""
+    u = rng.random(n - 1)
+    side = np.where(rng.random(n - 1) < 0.5, 1, -1)
+    preferred = np.where(u < p_turn, side, 0)
+    dx, dy = np.array(_DX), np.array(_DY)
+    xs, ys, ts = np.zeros(n, np.int64), np.zeros(n, np.int64), np.zeros(n, np.int64)
     x = y = d = 0
-    xs, ys, ts = [0], [0], [0]
-    dxs, dys = _DX, _DY
-    for k in range(n - 1):
-        s = side[k]
-        cands = (s, -s, 0, 2 * s) if u[k] < p_turn else (0, s, -s, 2 * s)
-        for t in cands:
-            dd = (d + t) & 3
-            nx = x + dxs[dd]
-            ny = y + dys[dd]
+    k, block = 0, 256  # steps done; size of the next block
+    while k < n - 1:
+        t = preferred[k:k + block]
+        dirs = (d + np.cumsum(t)) & 3
+        px, py = x + np.cumsum(dx[dirs]), y + np.cumsum(dy[dirs])
+        outside = (np.abs(px) > half) | (np.abs(py) > half)
+        j = int(np.argmax(outside)) if outside.any() else t.size
+        xs[k + 1:k + 1 + j], ys[k + 1:k + 1 + j], ts[k + 1:k + 1 + j] = px[:j], py[:j], t[:j]
+        if j:
+            x, y, d = int(px[j - 1]), int(py[j - 1]), int(dirs[j - 1])
+        k += j
+        if j == t.size:
+            block = min(2 * block, 1 << 16)
+            continue
+        s = int(side[k])  # step k would leave the square: try the other moves in order
+        for turn in ((s, -s, 0, 2 * s) if u[k] < p_turn else (0, s, -s, 2 * s)):
+            dd = (d + turn) & 3
+            nx, ny = x + _DX[dd], y + _DY[dd]
             if -half <= nx <= half and -half <= ny <= half:
                 break
         x, y, d = nx, ny, dd
-        xs.append(x)
-        ys.append(y)
-        ts.append(t)
-    return (np.array(xs, np.int64), np.array(ys, np.int64), np.cumsum(np.array(ts, np.int64)))
+        k += 1
+        xs[k], ys[k], ts[k] = x, y, turn
+        block = 256
+    return xs, ys, np.cumsum(ts)
 
 
-def _select_loop_closures(points, radius, min_separation, p_keep, max_per_pose, rng):
+def _same_cell_pairs(cells: np.ndarray) -> np.ndarray:
+    """All pairs (i, j), i < j, of indices with equal ``cells`` values, as an (k, 2) int64 array."""
+    order = np.argsort(cells, kind="stable")
+    sorted_cells = cells[order]
+    starts = np.flatnonzero(np.r_[True, sorted_cells[1:] != sorted_cells[:-1]])
+    ends = np.r_[starts[1:], cells.size]
+    group_end = np.repeat(ends, ends - starts)         # for each sorted position, the end of its group
+    later = group_end - np.arange(cells.size) - 1        # members after it in its group
+    first = np.repeat(np.arange(cells.size), later)
+    offset = np.arange(first.size) - np.repeat(np.cumsum(later) - later, later)
+    return np.column_stack([order[first], order[first + 1 + offset]])
+
+
+def _select_loop_closures(points, radius, min_separation, p_keep, max_per_pose, rng, cells=None):
     """Pairs (i, j), i < j, j − i ≥ min_separation, |p_i − p_j| ≤ radius; each kept with
     probability ``p_keep``, then at most ``max_per_pose`` (random ones) per head j.
 
-    Returns (tails, heads) int64 sorted by (head, tail). KD-tree search, no O(n²)."""
-    pairs = cKDTree(points).query_pairs(radius, output_type="ndarray").astype(np.int64)
+    Returns (tails, heads) int64 sorted by (head, tail). KD-tree search, no O(n²); or, when ``cells``
+    (integer ids of grid points) is given because the radius is below the grid spacing, the pairs of
+    equal cells — the same set, found by one sort."""
+    if cells is not None:
+        pairs = _same_cell_pairs(cells)
+    else:
+        pairs = cKDTree(points).query_pairs(radius, output_type="ndarray").astype(np.int64)
     if pairs.size == 0:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
     i = np.minimum(pairs[:, 0], pairs[:, 1])
@@ -155,9 +190,12 @@ def manhattan_world(n_poses=500, *, seed=0, sigma_xy=0.05, sigma_theta=0.02, ste
     gx, gy, quarter_turns = _manhattan_walk(n, p_turn, grid_extent // 2, rng)
     truth = np.column_stack([gx * step, gy * step, quarter_turns * (np.pi / 2)])
 
+    # Radius below the grid spacing (the default): only revisits of the same grid point qualify.
+    h = grid_extent // 2
+    cells = (gx + h) * (2 * h + 1) + (gy + h) if loop_closure_radius < step * (1 - 1e-9) else None
     lc_t, lc_h = _select_loop_closures(
         truth[:, :2], loop_closure_radius, int(min_loop_separation), p_loop_closure,
-        None if max_loop_closures_per_pose is None else int(max_loop_closures_per_pose), rng)
+        None if max_loop_closures_per_pose is None else int(max_loop_closures_per_pose), rng, cells)
     return trajectory_world(f"manhattan(n={n}, seed={seed})", truth, lc_t, lc_h, rng, params,
                             outlier_separation=int(min_loop_separation), outlier_scale=3.0 * step)
 
