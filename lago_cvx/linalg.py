@@ -35,13 +35,22 @@ SOLVER_BACKENDS = ("auto", "qdldl", "superlu", "cholmod")
 
 class Factor:
     """A factored sparse SPD matrix N of shape (dim, dim): ``factor.solve(rhs)`` solves N x = rhs
-    for rhs of shape (dim,) or (dim, r); ``factor.backend`` names the library used."""
+    for rhs of shape (dim,) or (dim, r); ``factor.backend`` names the library used.
+
+    ``matrix`` is N itself — whole and symmetric, in the factor's own numbering — or None when it is not
+    kept; it may be given as a function that builds it on first use."""
 
     def __init__(self, solve: Callable[[np.ndarray], np.ndarray], dim: int, backend: str, matrix=None):
         self._solve = solve
         self.dim = dim
         self.backend = backend
-        self.matrix = matrix
+        self._matrix = matrix
+
+    @property
+    def matrix(self):
+        if callable(self._matrix):
+            self._matrix = self._matrix()
+        return self._matrix
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         return self._solve(np.asarray(rhs, dtype=float))

@@ -179,15 +179,18 @@ class QdldlFactor(Factor):
         r_ = np.where(up, rows, cols)[~dup]
         c_ = np.where(up, cols, rows)[~dup]
         n = system.d * b
-        self.matrix = sp.csc_matrix((vals[~dup], (r_, c_)), shape=(n, n))
-        solver = qdldl.Solver(self.matrix, upper=True)
+        self.upper = upper = sp.csc_matrix((vals[~dup], (r_, c_)), shape=(n, n))
+        solver = qdldl.Solver(upper, upper=True)
 
         def solve(rhs: np.ndarray) -> np.ndarray:
             if rhs.ndim == 1:
                 return solver.solve(rhs)
             return np.column_stack([solver.solve(np.ascontiguousarray(rhs[:, j])) for j in range(rhs.shape[1])])
 
-        super().__init__(solve, n, "qdldl", self.matrix)
+        def whole() -> sp.csc_matrix:  # N = U + Uᵀ − diag(U), built only if someone asks for it
+            return sp.csc_matrix(upper + upper.T - sp.diags(upper.diagonal()))
+
+        super().__init__(solve, n, "qdldl", whole)
 
 
 #: Systems with at least this many unknowns (d·b) are factored by the multifrontal engine
@@ -212,7 +215,15 @@ class RenumberedFactor(Factor):
             out[vi] = factor.solve(rhs[vi])
             return out
 
-        super().__init__(solve, vi.size, factor.backend, getattr(factor, "matrix", None))
+        def renumbered():  # N in the system's numbering: entry (vi[k], vi[l]) = pose-major (k, l)
+            m = factor.matrix
+            if m is None:
+                return None
+            inv = np.empty_like(vi)
+            inv[vi] = np.arange(vi.size)
+            return sp.csc_matrix(m)[inv][:, inv]
+
+        super().__init__(solve, vi.size, factor.backend, renumbered)
 
 
 class GraphElimination:

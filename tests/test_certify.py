@@ -381,4 +381,7 @@ def test_sdp_on_a_tree_is_trivially_tight():
     res = C.solve_sdp(g, polish=True)
     assert res.n_core == 1 and res.lower_bound == 0.0 and res.gap == 0.0
     assert abs(res.value) < 1e-9 and res.cost_rounded < 1e-20
-    assert res.certificate.certified
+    # the relaxation is tight (gap 0), but the certificate's rule is relative: f ≈ 1e-24 is rounding, and
+    # (f − f*_lower)/f = 1 proves nothing at that scale — "bound too weak", as for any noise-free graph
+    cert = res.certificate
+    assert not cert.certified and cert.verdict.startswith("not certified: bound too weak"), cert.verdict

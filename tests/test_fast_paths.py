@@ -104,6 +104,34 @@ def test_pose_covariances_and_variances_match_the_dense_inverse():
         assert np.abs(var[free] - ref).max() <= 1e-9 * ref.max()
 
 
+def test_a_phase_factor_is_the_phase_matrix_in_its_own_numbering():
+    """``Phase.factor`` solves ``Phase.info`` and ``factor.matrix`` *is* ``info`` (whole, symmetric, same
+    numbering) — with QDLDL and with the engine — so ``linalg.block_diagonal_inverse`` on it gives the
+    covariance blocks (a renumbered, upper-triangular matrix once made it return nonsense)."""
+    from lago_cvx.linalg import block_diagonal_inverse
+
+    g = lc.manhattan_world(150, seed=6).graph
+    for engine_min in (ne.ENGINE_MIN, 0):
+        old = ne.ENGINE_MIN
+        ne.ENGINE_MIN = engine_min
+        try:
+            res = lc.lago(g, information="marginal", positions="phase3", regularization="tree")
+        finally:
+            ne.ENGINE_MIN = old
+        ph = res.phase3
+        info = ph.info.toarray()
+        if ph.factor.matrix is not None:
+            assert np.abs(ph.factor.matrix.toarray() - info).max() <= 1e-12 * np.abs(info).max()
+        x = np.random.default_rng(0).standard_normal(info.shape[0])
+        assert np.abs(info @ ph.factor.solve(x) - x).max() <= 1e-8 * np.abs(x).max()
+        d = g.n_poses - 1
+        free = np.delete(np.arange(g.n_poses), res.anchor_index)
+        rows = np.stack([2 * np.arange(d), 2 * np.arange(d) + 1, 2 * d + np.arange(d)], 1)
+        blocks = block_diagonal_inverse(ph.factor, rows)
+        cov = ph.pose_covariances()[free]
+        assert np.abs(blocks - cov).max() <= 1e-9 * np.abs(cov).max()
+
+
 def test_engine_and_qdldl_give_the_same_lago():
     """The multifrontal engine (forced) and QDLDL solve the same systems: LAGO's poses agree to 1e-10."""
     g = lc.manhattan_world(300, seed=2).graph
