@@ -30,6 +30,8 @@ date):
 * ``io``       — ``lago-cvx generate``, ``read_graph`` and ``write_graph`` at 10k, 100k and 1M poses, each in a
   fresh process with its peak memory (``--io-baseline REV``: the same at an earlier revision, before/after;
   ``--io-solve``: the whole ``lago-cvx solve -o`` pipeline too).
+* ``unseen``   — the default route on real graphs it was never tuned on (GTSAM's example graphs, and any
+  folder given with ``--unseen DIR``): χ² against the best Gauss–Newton minimum found.
 
 Datasets are found through ``lago_cvx.datasets`` (``LAGO_CVX_DATASETS=DIR`` to point elsewhere than
 ``../shared/datasets``); a section that needs them says "skipped: datasets not found" without them.
@@ -49,7 +51,7 @@ from pathlib import Path
 
 import _bench
 
-SECTIONS = ("datasets", "scaling", "perf", "chordal", "certify", "integer", "theorem1", "route", "io")
+SECTIONS = ("datasets", "scaling", "perf", "chordal", "certify", "integer", "theorem1", "route", "io", "unseen")
 #: Sections whose module has another name (``io`` would be the standard library's).
 MODULE_OF = {"io": "io_bench"}
 

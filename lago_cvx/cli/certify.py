@@ -7,8 +7,22 @@ import argparse
 import numpy as np
 
 from ..conventions import CERTIFY_TOL, SESYNC_COST_CONVENTION
-from .common import (EXIT_BAD_INPUT, EXIT_INTERNAL, EXIT_NOT_CERTIFIED, EXIT_OK, EXIT_RESOURCE, add_route_options,
-                     check_regularization, emit, integer_search, nonneg_int, output_target, write_estimate)
+from .common import (
+    EXIT_BAD_INPUT,
+    EXIT_INTERNAL,
+    EXIT_NOT_CERTIFIED,
+    EXIT_OK,
+    EXIT_RESOURCE,
+    add_input_options,
+    add_route_options,
+    check_regularization,
+    emit,
+    integer_search,
+    nonneg_int,
+    output_target,
+    read_input,
+    write_estimate,
+)
 
 
 def _tol_arg(value: str) -> float:
@@ -59,10 +73,9 @@ def _certify_lines(file, payload: dict) -> list[str]:
 def cmd_certify(args) -> int:
     from ..certification import certify_estimate
     from ..errors import GraphError
-    from ..io import read_graph
 
     out = output_target(args)
-    graph = read_graph(args.file)
+    graph = read_input(args)
     if graph.n_edges == 0:
         raise GraphError(f"{args.file}: the graph has {graph.n_poses} pose(s) and no edges: nothing to certify")
     check_regularization(graph, args.regularization)
@@ -98,6 +111,7 @@ def add_parser(sub) -> None:
                f"graph not connected,\nbad option, estimate not finite); {EXIT_RESOURCE} resource limit; "
                f"{EXIT_INTERNAL} internal error.")
     s.add_argument("file")
+    add_input_options(s)
     s.add_argument("-o", "--output", metavar="OUT", help="write the SE-Sync-refined estimate (the poses the "
                                                          "certificate is about) as g2o to OUT (- for standard output)")
     add_route_options(s)

@@ -102,6 +102,21 @@ def nonneg_float(value: str) -> float:
     return v
 
 
+def add_input_options(s) -> None:
+    """``--edge2-order``: how ``EDGE2`` lines store their six information entries (``read_graph``'s
+    ``edge2_order``)."""
+    s.add_argument("--edge2-order", choices=["toro", "g2o"], default=None, metavar="{toro,g2o}",
+                   help="how TORO EDGE2 lines store the information: toro (Ixx Ixy Iyy Itt Ixt Iyt, the "
+                        "default) or g2o (I11 I12 I13 I22 I23 I33, as some converted files do)")
+
+
+def read_input(args, path=None):
+    """Read ``path`` (default ``args.file``) with the command's input options."""
+    from ..io import read_graph
+
+    return read_graph(args.file if path is None else path, edge2_order=getattr(args, "edge2_order", None))
+
+
 def add_route_options(s, *, phases: bool = False, integer: bool = True) -> None:
     """--route and the choices it makes (left unset: the route's), and the integer search's limits."""
     s.add_argument("--route", choices=list(ROUTES), default="default", help=ROUTE_HELP)

@@ -8,17 +8,26 @@ from pathlib import Path
 
 import numpy as np
 
-from .common import (EXIT_OK, UsageError, add_route_options, emit, output_target, positive_float, positive_int,
-                     progress_callback, write_bytes)
+from .common import (
+    EXIT_OK,
+    UsageError,
+    add_input_options,
+    add_route_options,
+    emit,
+    output_target,
+    positive_float,
+    positive_int,
+    progress_callback,
+    read_input,
+    write_bytes,
+)
 
 FORMATS = ("png", "svg", "pdf")
 
 
-def _estimate_from_file(graph, path: str):
+def _estimate_from_file(graph, path: str, args):
     """The vertices of ``path`` reordered to ``graph``'s poses (matched by id)."""
-    from ..io import read_graph
-
-    est = read_graph(path)
+    est = read_input(args, path)
     if est.initial is None:
         raise UsageError(f"{path}: has no VERTEX lines, so it holds no estimate to plot")
     missing = np.setdiff1d(graph.ids, est.ids)
@@ -31,7 +40,6 @@ def _estimate_from_file(graph, path: str):
 def cmd_plot(args) -> int:
     from matplotlib.figure import Figure
 
-    from ..io import read_graph
     from ..plotting import plot_covariances, plot_edges, plot_trajectory
 
     out = output_target(args)
@@ -40,10 +48,10 @@ def cmd_plot(args) -> int:
     fmt = Path(out).suffix.lower().lstrip(".")
     if fmt not in FORMATS:
         raise UsageError(f"-o {out}: the file name must end in .png, .svg or .pdf")
-    graph = read_graph(args.file)
+    graph = read_input(args)
     res = None
     if args.estimate:
-        poses, label = _estimate_from_file(graph, args.estimate), f"estimate ({Path(args.estimate).name})"
+        poses, label = _estimate_from_file(graph, args.estimate, args), f"estimate ({Path(args.estimate).name})"
     else:
         from ..pipeline import lago
 
@@ -86,6 +94,7 @@ def add_parser(sub) -> None:
                                    "LAGO's estimate. --covariances adds the ellipses of LAGO's first-order pose "
                                    "covariances (eq. (15)), centred on the poses drawn.")
     s.add_argument("file")
+    add_input_options(s)
     s.add_argument("estimate", nargs="?", help="a file whose vertices are the estimate to draw")
     s.add_argument("-o", "--output", required=True, metavar="FIG", help="figure file: .png, .svg or .pdf")
     add_route_options(s, integer=False)

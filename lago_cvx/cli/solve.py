@@ -9,9 +9,23 @@ import numpy as np
 
 from ..errors import LagoError
 from ..routes import resolve_route
-from .common import (EXIT_OK, UsageError, add_route_options, check_finite, check_regularization, emit,
-                     integer_search, method_arg, nonneg_int, output_target, progress_callback, speak_cli,
-                     write_estimate)
+from .common import (
+    EXIT_OK,
+    UsageError,
+    add_input_options,
+    add_route_options,
+    check_finite,
+    check_regularization,
+    emit,
+    integer_search,
+    method_arg,
+    nonneg_int,
+    output_target,
+    progress_callback,
+    read_input,
+    speak_cli,
+    write_estimate,
+)
 
 _FIELD = r"\s*([^,]*)\s*"
 _SPEC = re.compile(r"^\s*([+-]?\d+)\s*:" + _FIELD + "," + _FIELD + "," + _FIELD + "$")
@@ -66,10 +80,10 @@ def _parse_anchors(specs) -> tuple[int | None, dict]:
 # ------------------------------------------------------------------------------------- info
 def cmd_info(args) -> int:
     from ..graph import connected_components, spanning_tree
-    from ..io import detect_format, read_graph
+    from ..io import detect_format
     from ..regularization import regularize
 
-    graph = read_graph(args.file)
+    graph = read_input(args)
     k, _ = connected_components(graph)
     payload = {
         "file": str(args.file), "format": detect_format(args.file),
@@ -117,7 +131,6 @@ def cmd_info(args) -> int:
 
 # ------------------------------------------------------------------------------------ solve
 def cmd_solve(args) -> int:
-    from ..io import read_graph
     from ..metrics import chi2
     from ..pipeline import compare_methods, lago
     from ..posegraph import compose
@@ -127,7 +140,7 @@ def cmd_solve(args) -> int:
 
     out = output_target(args)
     anchor, anchors = _parse_anchors(args.anchor)
-    graph = read_graph(args.file)
+    graph = read_input(args)
     check_regularization(graph, args.regularization)
     kw = dict(route=args.route, spanning_tree=args.spanning_tree, anchor=anchor, regularization=args.regularization,
               information=args.information, positions=args.positions, integer_search=integer_search(args))
@@ -209,12 +222,14 @@ def cmd_solve(args) -> int:
 def add_parsers(sub) -> None:
     s = sub.add_parser("info", help="counts of a pose-graph file")
     s.add_argument("file")
+    add_input_options(s)
     add_route_options(s)
     s.add_argument("--json", action="store_true", help="print one JSON object")
     s.set_defaults(func=cmd_info)
 
     s = sub.add_parser("solve", help="run LAGO on a file")
     s.add_argument("file")
+    add_input_options(s)
     s.add_argument("-o", "--output", metavar="OUT",
                    help="write the estimate as g2o to OUT (- for standard output; the summary then goes to "
                         "standard error). A regular file is replaced atomically, a link is written through, "

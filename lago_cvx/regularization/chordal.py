@@ -27,8 +27,11 @@ the 2m edge rows, (C2) is ‖M x − b‖² with the sparse whitened design
 Its normal matrix MᵀM is the "connection Laplacian" of the graph (Ω-weighted), positive definite for a
 connected graph with one anchored pose. The estimate is projected back to SO(2) by θ_i = atan2(r_i):
 since δ enters only through cos δ and sin δ, the result does not depend on any 2π wrapping of the data.
-``norms`` = ‖r_i‖ is a diagnostic: near 1 everywhere when the measurements are consistent (exactly 1 on
-noiseless data, where the relaxation is tight), small where they disagree.
+``norms`` = ‖r_i‖ is exactly 1 everywhere on noiseless data, where the relaxation is tight. With noise the
+lengths are not a per-pose confidence: the solution is the anchor's column of the inverse (complex)
+connection Laplacian, scaled to 1 at the anchor, so ‖r_i‖ falls with the distance from the anchor — and
+falls faster the more the cycles disagree — and moving the anchor changes the lengths by large factors
+while the directions θ_i barely move (lecture 08 §2 measures all three). Only the directions are used.
 
 This is the initialization used by SE-Sync and by Carlone et al.'s ICRA 2015 survey ("chordal
 relaxation"); here it only decides the integers of the seed's regularization (``regularize_chordal``);
@@ -79,7 +82,8 @@ class ChordalEstimate:
     """Solution of the chordal relaxation (C2).
 
     ``vectors`` (n, 2) the relaxed first columns r_i (anchor = (1, 0)); ``theta`` (n,) the projection
-    atan2(r_i) ∈ (−π, π] (anchor 0); ``norms`` (n,) ‖r_i‖ (1 = consistent, → 0 = contradicted);
+    atan2(r_i) ∈ (−π, π] (anchor 0); ``norms`` (n,) ‖r_i‖ (all 1 on noiseless
+    data; with noise they decay away from the anchor — a property of the anchor, not of pose i);
     ``cost`` the optimal value of (C2); ``anchor``; ``stats`` the least-squares solver's report
     (closed form only)."""
 
