@@ -29,7 +29,6 @@ compares the result with ``repr`` on millions of values of every kind.
 
 from __future__ import annotations
 
-from fractions import Fraction
 
 import numpy as np
 
@@ -40,18 +39,27 @@ _SPLIT = 134217729.0          # 2**27 + 1, Dekker's splitter
 _TOL = 1e-9                   # margin of every decision, in units of the 17th digit (S is good to 1e-14)
 _POW10 = 10 ** np.arange(19, dtype=np.int64)
 _POW10_U = np.array([10 ** i for i in range(20)], dtype=np.uint64)
-_QUADS = np.frombuffer("".join(f"{i:04d}" for i in range(10_000)).encode("ascii"), "<u4")  # "0000" … "9999"
+_QUADS = (np.arange(10_000)[:, None] // np.array([1000, 100, 10, 1]) % 10 + 48).astype(np.uint8).view("<u4")[:, 0]  # "0000" … "9999"
 _DIGITS = 24                  # width of the zero-padded digit rows (groups of four)
 _FALLBACK = 24                # longest repr of a double: -2.2250738585072014e-308
 
 
 def _table():
+    """10^k = hi + lo for every k of the range, hi the nearest double and lo the nearest double to the
+    rest — exact integer arithmetic, rounded once (CPython's int → float and int / int are correctly
+    rounded, as ``float(Fraction)`` is)."""
     hi = np.zeros(_KMAX - _KMIN + 1)
     lo = np.zeros_like(hi)
     for i, k in enumerate(range(_KMIN, _KMAX + 1)):
-        v = Fraction(10) ** k
-        h = float(v)
-        hi[i], lo[i] = h, float(v - Fraction(h))
+        if k >= 0:
+            v = 10 ** k
+            h = float(v)
+            hi[i], lo[i] = h, float(v - int(h))
+        else:
+            d10 = 10 ** -k
+            h = 1 / d10
+            num, den = h.as_integer_ratio()        # h = num / den exactly, den a power of two
+            hi[i], lo[i] = h, (den - num * d10) / (d10 * den)
     c = _SPLIT * hi
     hh = c - (c - hi)
     return hi, lo, hh, hi - hh
