@@ -167,3 +167,13 @@ def test_edge2_order_option_reads_what_the_hint_names(capsys, tmp_path, command)
     code, out, err = run(capsys, command, str(f), "--edge2-order", "g2o")
     assert code in (0, 3), err        # certify may exit 3 (not certified) on a 3-pose graph; it has read the file
     assert "error" not in err.lower()
+
+
+def test_verbose_is_accepted_before_and_after_the_command(capsys, tmp_path):
+    f = tmp_path / "g.g2o"
+    f.write_text("VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0\nEDGE_SE2 0 1 1 0 0 1 0 0 1 0 1\n")
+    for argv in (["-v", "solve", str(f)], ["solve", str(f), "-v"], ["solve", str(f), "-vv"]):
+        code, out, err = run(capsys, *argv)
+        assert code == 0 and "INFO" in err, (argv, err)
+    code, out, err = run(capsys, "solve", str(f))
+    assert code == 0 and "INFO" not in err

@@ -25,6 +25,9 @@ def build_parser() -> argparse.ArgumentParser:
     worlds.add_parsers(sub)
     data.add_parser(sub)
     plot.add_parser(sub)
+    for command in sub.choices.values():  # -v also after the command: lago-cvx solve FILE -v
+        command.add_argument("-v", "--verbose", action="count", default=0, dest="verbose_after",
+                             help="log progress (-vv for debug)")
     return p
 
 
@@ -60,7 +63,7 @@ def _configure_logging(verbose: int) -> None:
 def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    _configure_logging(args.verbose)
+    _configure_logging(args.verbose + getattr(args, "verbose_after", 0))
     try:
         import numpy as np
 
