@@ -36,11 +36,11 @@ import numpy as np
 from .linalg import solve_least_squares
 from .metrics import chi2, relative_difference
 from .pipeline import lago
-from .posegraph import PoseGraph
+from .posegraph import PoseGraph, rot2
 from .positions import resolve_positions
 from .result import LagoResult
 
-__all__ = ["Theorem1", "theorem1"]
+__all__ = ["Theorem1", "theorem1", "frozen_and_model"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -65,6 +65,10 @@ class Theorem1:
     chi2_resolved: float
     chi2_lago: float
     result: LagoResult
+
+    def poses(self, x: np.ndarray) -> np.ndarray:
+        """ρ = [p (interleaved); θ] (3d,) of the free poses → poses (n, 3), the anchor at the origin."""
+        return _poses(self.result, np.asarray(x, dtype=float))
 
 
 def _poses(result: LagoResult, x: np.ndarray) -> np.ndarray:
@@ -99,3 +103,26 @@ def theorem1(graph: PoseGraph, result: LagoResult | None = None, **lago_options)
         eq14_error=relative_difference(p_hat_poses, exact_p),
         chi2_suboptimal=chi2(graph, _poses(res, x_hat)), chi2_phase3=chi2(graph, _poses(res, ph3.x_star)),
         chi2_resolved=chi2(graph, resolved), chi2_lago=res.chi2, result=res)
+
+
+def frozen_and_model(result: LagoResult, poses: np.ndarray) -> tuple[float, float]:
+    """Where Theorem 1's claim breaks (module docstring): for ``poses`` (n, 3) in the anchor's frame, the
+    χ² of eq. (6) with each edge's position weight frozen at θ̂ — (R(θ̂_i) P_Δˡ R(θ̂_i)ᵀ)⁻¹ instead of
+    the same at the poses' own θ_i — with exact residuals, and the quadratic model of eq. (18): the same
+    weights, the residual p_j − p_i − R(θ_i)Δˡ linearised in θ_i around θ̂_i. Both include the rotational
+    term Σ (θ_j − θ_i − δ_reg)² / P_δ. ``result`` supplies θ̂ (phase 1), δ_reg and the per-edge 2×2
+    position covariances P_Δˡ (its ``uncertainty``)."""
+    g, unc = result.graph, result.uncertainty
+    poses = np.asarray(poses, dtype=float)
+    theta_hat = result.phase1.theta
+    Rh = rot2(theta_hat[g.tails])
+    weight = Rh @ np.linalg.inv(unc.cov_delta_l) @ np.swapaxes(Rh, 1, 2)       # frozen at θ̂: (m, 2, 2)
+    dp = poses[g.heads, :2] - poses[g.tails, :2]
+    exact = dp - np.einsum("kab,kb->ka", rot2(poses[g.tails, 2]), g.delta_l)
+    turned = np.einsum("kab,kb->ka", Rh, g.delta_l)                            # R(θ̂_i) Δˡ
+    perp = np.column_stack([-turned[:, 1], turned[:, 0]])                     # its derivative in θ_i
+    linear = dp - turned - perp * (poses[g.tails, 2] - theta_hat[g.tails])[:, None]
+    rot = float(np.sum((poses[g.heads, 2] - poses[g.tails, 2] - result.regularization.delta_reg) ** 2
+                       / unc.var_delta))
+    return (float(np.einsum("ka,kab,kb->", exact, weight, exact)) + rot,
+            float(np.einsum("ka,kab,kb->", linear, weight, linear)) + rot)

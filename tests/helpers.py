@@ -24,3 +24,23 @@ def graph_from_truth(truth, tails, heads, info=None) -> PoseGraph:
     if info is None:
         info = np.broadcast_to(np.diag([100.0, 100.0, 400.0]), (tails.size, 3, 3))
     return PoseGraph(truth.shape[0], tails, heads, meas[:, :2], meas[:, 2], info)
+
+
+def corrupt_tokens(rnd, base_lines, nasty):
+    """One or two random token corruptions of a file given as lines: a token (never the tag) replaced by
+    one of ``nasty`` (80 %), deleted (10 %) or one of ``nasty`` inserted before it (10 %). ``rnd`` a
+    ``random.Random``; returns the corrupted text."""
+    lines = [ln.split() for ln in base_lines]
+    for _ in range(rnd.randint(1, 2)):
+        r = rnd.randrange(len(lines))
+        if len(lines[r]) < 2:
+            continue
+        c = rnd.randrange(1, len(lines[r]))
+        op = rnd.random()
+        if op < 0.8:
+            lines[r][c] = rnd.choice(nasty)
+        elif op < 0.9:
+            del lines[r][c]
+        else:
+            lines[r].insert(c, rnd.choice(nasty))
+    return "\n".join(" ".join(t) for t in lines) + "\n"

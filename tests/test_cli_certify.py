@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 import lago_cvx.regularization
-from lago_cvx import cli, read_graph
+from lago_cvx import read_graph
 from lago_cvx.certification import CERTIFY_TOL, sesync_cost
 from lago_cvx.cli import EXIT_NOT_CERTIFIED, main
 from lago_cvx.regularization import REGULARIZATIONS

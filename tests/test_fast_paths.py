@@ -12,7 +12,7 @@ import pytest
 import lago_cvx as lc
 from lago_cvx import multifrontal as mf
 from lago_cvx import normal_equations as ne
-from lago_cvx.normal_equations import GraphElimination, matrix_blocks, plan_from_pattern
+from lago_cvx.normal_equations import GraphElimination, plan_from_pattern
 from lago_cvx.positions import PositionSolver, isotropic
 from lago_cvx.progress import Progress
 from lago_cvx.uncertainty import edge_uncertainty

@@ -11,6 +11,8 @@ import time
 
 import numpy as np
 import pytest
+
+from helpers import corrupt_tokens
 from lago_cvx.datasets import DATASET_TABLE
 from conftest import dataset_path
 
@@ -486,20 +488,7 @@ def test_fast_path_matches_token_by_token(tmp_path, monkeypatch):
 
     n_ok = 0
     for trial in range(400):
-        lines = [ln.split() for ln in base]
-        for _ in range(rnd.randint(1, 2)):
-            r = rnd.randrange(len(lines))
-            if len(lines[r]) < 2:
-                continue
-            c = rnd.randrange(1, len(lines[r]))
-            op = rnd.random()
-            if op < 0.8:
-                lines[r][c] = rnd.choice(NASTY)
-            elif op < 0.9:
-                del lines[r][c]
-            else:
-                lines[r].insert(c, rnd.choice(NASTY))
-        p = _write(tmp_path, "\n".join(" ".join(t) for t in lines) + "\n", f"f{trial}.g2o")
+        p = _write(tmp_path, corrupt_tokens(rnd, base, NASTY), f"f{trial}.g2o")
         fast = outcome(p)
         with monkeypatch.context() as mp:
             mp.setattr(lio.reader, "parse_fast", lambda data, fmt: None)

@@ -12,6 +12,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
+from helpers import corrupt_tokens
 from conftest import dataset_path
 from fuzzing import mutate, synthetic_seeds
 
@@ -125,18 +127,7 @@ def test_fast_path_on_token_corruptions(tmp_path, monkeypatch):
             + "".join(f"EDGE_SE2 {k} {k + 1} 1.5 -0.0 0.1 44.72 0 0 44.72 0 1e2\n" for k in range(5))).splitlines()
     n_fast = n_ok = 0
     for trial in range(500):
-        lines = [ln.split() for ln in base]
-        for _ in range(rnd.randint(1, 2)):
-            r = rnd.randrange(len(lines))
-            c = rnd.randrange(1, len(lines[r]))
-            op = rnd.random()
-            if op < 0.8:
-                lines[r][c] = rnd.choice(NASTY)
-            elif op < 0.9:
-                del lines[r][c]
-            else:
-                lines[r].insert(c, rnd.choice(NASTY))
-        p = _write(tmp_path, "\n".join(" ".join(t) for t in lines) + "\n", f"f{trial}.g2o")
+        p = _write(tmp_path, corrupt_tokens(rnd, base, NASTY), f"f{trial}.g2o")
         n_fast += parse_fast(p.read_bytes(), None) is not None
         fast = _outcome(p)
         careful = _outcome(p, monkeypatch, careful=True)

@@ -68,3 +68,21 @@ def test_where_the_claim_holds():
     g = lc.read_graph(dataset_path("se-sync/city10000.g2o"))
     t = theorem1(g)
     assert t.chi2_phase3 < 0.9 * t.chi2_suboptimal and t.identity_error < 1e-9
+
+
+def test_frozen_and_model_reduce_to_chi2_where_they_must():
+    """``frozen_and_model``: at x̂ the linearisation is exact (model = frozen = χ² there); with isotropic
+    translational information the weights do not turn, so frozen = χ² at any poses (x* included)."""
+    from lago_cvx import chi2, manhattan_world
+    from lago_cvx.theorem1 import frozen_and_model, theorem1
+
+    g = manhattan_world(200, seed=5).graph
+    assert np.allclose(g.information[:, 0, 0], g.information[:, 1, 1]) and np.all(g.information[:, 0, 1] == 0)
+    t = theorem1(g, regularization="tree", information="marginal", positions="phase3")
+    hat, star = t.poses(t.x_hat), t.poses(t.x_star)
+    frozen_hat, model_hat = frozen_and_model(t.result, hat)
+    assert model_hat == pytest.approx(frozen_hat, rel=1e-12)
+    assert frozen_hat == pytest.approx(chi2(g, hat), rel=1e-9)
+    frozen_star, model_star = frozen_and_model(t.result, star)
+    assert frozen_star == pytest.approx(chi2(g, star), rel=1e-9)
+    assert model_star != pytest.approx(frozen_star, rel=1e-12)   # away from θ̂ the model is only a model
