@@ -53,9 +53,8 @@ from lago_cvx.plotting import plot_covariances, plot_trajectory
 from lago_cvx.posegraph import rot2, wrap_angle
 from lago_cvx.positions import resolve_positions
 from lago_cvx.refinement import jacobian, odometry_guess
-from lago_cvx.solvers import LEAST_SQUARES, ClarabelSettings
-from lago_cvx.theorem1 import theorem1
-from _lecture import FULL, S, check, paper_lago, real, setup, show
+from lago_cvx.theorem1 import frozen_and_model, theorem1
+from _lecture import FULL, S, check, paper_lago, real, setup, show, solve_qp
 
 setup("04_phase3")
 
@@ -117,15 +116,6 @@ phase3 = cp.Problem(cp.Minimize(cp.sum_squares(W @ e)), [residual])
 print(phase3)
 
 W.value, z.value, Bt.value = res.phase2.W.toarray(), res.phase2.z, P.design_matrix(g).toarray()
-
-
-def solve_qp(problem):
-    """Solve with Clarabel as the package does (tolerances 1e-12, iterative refinement: solvers.LEAST_SQUARES)
-    but with Clarabel's default static regularization 1e-8 and its QDLDL factorization, which these
-    equality-constrained forms with dense parameters need; returns the status."""
-    kwargs = ClarabelSettings(static_regularization_constant=1e-8).over(LEAST_SQUARES).solver_kwargs()
-    problem.solve(solver=cp.CLARABEL, direct_solve_method="qdldl", **kwargs)
-    return problem.status
 
 
 TOL = 1e-8   # accepted relative disagreement with the closed form, for an "optimal" status at 1e-12 gaps
@@ -622,26 +612,9 @@ if measured:
 #    and CSAIL $\theta^*$ is *farther* from the optimum's orientations than $\hat\theta$.
 
 # %%
-def to_poses(x):
-    """ρ = [p (interleaved); θ] of the n free poses → (n+1, 3) poses with pose 0 at the origin."""
-    nn = x.size // 3
-    return np.vstack([np.zeros(3), np.column_stack([x[:2 * nn].reshape(nn, 2), x[2 * nn:]])])
-
-
-def frozen_and_model(gr, r, poses):
-    """χ² of eq. (6) with the position weights frozen at θ̂ (exact residuals), and the quadratic model of
-    eq. (18) (residuals linearised), both in χ² units, for poses (n+1, 3) in pose 0's frame."""
-    th_hat, unc = r.phase1.theta, r.uncertainty
-    Rh = rot2(th_hat[gr.tails])
-    om = Rh @ np.linalg.inv(unc.cov_delta_l) @ np.swapaxes(Rh, 1, 2)
-    pd = poses[gr.heads, :2] - poses[gr.tails, :2]
-    exact = pd - np.einsum("kab,kb->ka", rot2(poses[gr.tails, 2]), gr.delta_l)
-    delta_g = np.einsum("kab,kb->ka", Rh, gr.delta_l)
-    lin = pd - delta_g - (delta_g @ S.T) * (poses[gr.tails, 2] - th_hat[gr.tails])[:, None]
-    rot = np.sum((poses[gr.heads, 2] - poses[gr.tails, 2] - r.regularization.delta_reg) ** 2 / unc.var_delta)
-    return (np.einsum("ka,kab,kb->", exact, om, exact) + rot, np.einsum("ka,kab,kb->", lin, om, lin) + rot)
-
-
+# The first two measurements need χ² with the weights frozen at θ̂ and the quadratic model of (18): both are
+# `lago_cvx.theorem1.frozen_and_model(result, poses)` (read its source: a dozen lines of eqs. (6) and (18));
+# `Theorem1.poses(x)` turns a stacked ρ = [p; θ] into poses, the anchor at the origin.
 alphas = np.linspace(0.0, 1.0, 6)
 curves = {}
 print(f"{'file':30s} {'χ² frozen/model':>15s} {'χ²(ρ*)/frozen':>13s} {'anisotropy max, median':>22s} "
@@ -649,8 +622,8 @@ print(f"{'file':30s} {'χ² frozen/model':>15s} {'χ²(ρ*)/frozen':>13s} {'anis
       f"{'RMS θ̂, θ* − θ_opt':>18s}")
 for rel, (gr, t, opt) in measured.items():
     r = t.result
-    star = to_poses(t.x_star)
-    frozen, model = frozen_and_model(gr, r, star)
+    star = t.poses(t.x_star)
+    frozen, model = frozen_and_model(r, star)
     ev = np.linalg.eigvalsh(gr.information[:, :2, :2])
     tr = ev.sum(1)
     big = tr > 1e3 * np.median(tr)
@@ -683,8 +656,8 @@ for rel, (gr, t, opt) in measured.items():
     if rel in ("carlone/INTEL_P_toro.graph", "se-sync/CSAIL.g2o"):
         check(rms(th_star) > rms(th_hat) and cos < 0,
               f"{rel}: θ* is farther from the optimum's orientations than θ̂, the step pointing away (cos {cos:.2f})")
-    line = [lc.chi2(gr, to_poses(t.x_hat + a * (t.x_star - t.x_hat))) / opt.chi2 for a in alphas]
-    frozen_line = [frozen_and_model(gr, r, to_poses(t.x_hat + a * (t.x_star - t.x_hat)))[0] / opt.chi2 for a in alphas]
+    line = [lc.chi2(gr, t.poses(t.x_hat + a * (t.x_star - t.x_hat))) / opt.chi2 for a in alphas]
+    frozen_line = [frozen_and_model(r, t.poses(t.x_hat + a * (t.x_star - t.x_hat)))[0] / opt.chi2 for a in alphas]
     resolved = [lc.chi2(gr, resolve_positions(gr, th_hat + a * (th_star - th_hat), r.uncertainty).poses) / opt.chi2
                 for a in alphas]
     curves[rel] = (line, frozen_line, resolved)

@@ -41,21 +41,11 @@ from lago_cvx.datasets import REFERENCE_CHI2
 from lago_cvx.plotting import plot_edges, plot_trajectory
 from lago_cvx.regularization import regularize
 from lago_cvx.rounding import AMBIGUITY_MARGIN
-from lago_cvx.solvers import LEAST_SQUARES, ClarabelSettings
 from lago_cvx.uncertainty import edge_uncertainty
-from _lecture import FULL, check, paper_lago, real, setup, show
+from _lecture import FULL, check, paper_lago, real, setup, show, solve_qp
 
 setup("05_regularization")
 TWO_PI = 2 * np.pi
-
-
-def solve_qp(problem):
-    """Solve with Clarabel as the package does (tolerances 1e-12, iterative refinement: solvers.LEAST_SQUARES)
-    but with Clarabel's default static regularization 1e-8 and its QDLDL factorization, which these
-    equality-constrained forms with dense parameters need; returns the status."""
-    kwargs = ClarabelSettings(static_regularization_constant=1e-8).over(LEAST_SQUARES).solver_kwargs()
-    problem.solve(solver=cp.CLARABEL, direct_solve_method="qdldl", **kwargs)
-    return problem.status
 
 
 # %% [markdown]

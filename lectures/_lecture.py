@@ -116,3 +116,17 @@ def real(rel: str):
     except DatasetNotFound as exc:
         print(f"real datasets not found: skipping the {rel} cells ({exc})")
         return None
+
+
+def solve_qp(problem):
+    """Solve a cvxpy ``problem`` with Clarabel as the package does (tolerances 1e-12, iterative refinement:
+    ``solvers.LEAST_SQUARES``) but with Clarabel's default static regularization 1e-8 and its QDLDL
+    factorization, which the lectures' equality-constrained forms with dense parameters need; returns the
+    status."""
+    import cvxpy as cp
+
+    from lago_cvx.solvers import LEAST_SQUARES, ClarabelSettings
+
+    kwargs = ClarabelSettings(static_regularization_constant=1e-8).over(LEAST_SQUARES).solver_kwargs()
+    problem.solve(solver=cp.CLARABEL, direct_solve_method="qdldl", **kwargs)
+    return problem.status

@@ -19,30 +19,10 @@ from dataclasses import replace
 import numpy as np
 
 import lago_cvx as lc
-from lago_cvx.posegraph import rot2
-from lago_cvx.theorem1 import theorem1
-from _lecture import S, check, setup
+from lago_cvx.theorem1 import frozen_and_model, theorem1
+from _lecture import check, setup
 
 setup("04_phase3")
-
-
-def to_poses(x):
-    """ρ = [p (interleaved); θ] of the n free poses → (n+1, 3) poses with pose 0 at the origin."""
-    n = x.size // 3
-    return np.vstack([np.zeros(3), np.column_stack([x[:2 * n].reshape(n, 2), x[2 * n:]])])
-
-
-def frozen_and_model(gr, r, poses):
-    """χ² with the position weights frozen at θ̂ (exact residuals), and the quadratic model of eq. (18)."""
-    th_hat, unc = r.phase1.theta, r.uncertainty
-    Rh = rot2(th_hat[gr.tails])
-    om = Rh @ np.linalg.inv(unc.cov_delta_l) @ np.swapaxes(Rh, 1, 2)
-    pd = poses[gr.heads, :2] - poses[gr.tails, :2]
-    exact = pd - np.einsum("kab,kb->ka", rot2(poses[gr.tails, 2]), gr.delta_l)
-    delta_g = np.einsum("kab,kb->ka", Rh, gr.delta_l)
-    lin = pd - delta_g - (delta_g @ S.T) * (poses[gr.tails, 2] - th_hat[gr.tails])[:, None]
-    rot = np.sum((poses[gr.heads, 2] - poses[gr.tails, 2] - r.regularization.delta_reg) ** 2 / unc.var_delta)
-    return np.einsum("ka,kab,kb->", exact, om, exact) + rot, np.einsum("ka,kab,kb->", lin, om, lin) + rot
 
 
 FACTORS = [1.0, 1e2, 1e4, 1e6]
@@ -61,7 +41,7 @@ for mode in ("isotropic", "x only"):
                 info[pick, 0, 0] *= f
             gf = replace(g, information=info)
             t = theorem1(gf, regularization="tree", information="marginal", positions="phase3")
-            frozen, model = frozen_and_model(gf, t.result, to_poses(t.x_star))
+            frozen, model = frozen_and_model(t.result, t.poses(t.x_star))
             rows.append((t.chi2_phase3 / t.chi2_suboptimal, t.chi2_resolved / t.chi2_suboptimal,
                          t.chi2_phase3 / frozen, frozen / model))
             print(f"{mode:>9s} {seed:5d} {f:6.0e} {rows[-1][0]:13.3f} {rows[-1][1]:16.3f} {rows[-1][2]:13.3f} "
