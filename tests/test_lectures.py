@@ -303,6 +303,14 @@ def test_concordance_covers_the_paper():
     assert not missing, f"items of the paper without a row in {CONCORDANCE.name}: {missing}"
 
 
+def _cell_names(label: str, column: str, cell: str, example: str, problems: list) -> list:
+    """The backticked names of a concordance cell; a problem is noted when it names nothing."""
+    names = _backticked(cell)
+    if not names:
+        problems.append(f"{label}: {column} cell {cell!r} names nothing (use {example} or '— reason')")
+    return names
+
+
 def test_concordance_rows_hold():
     _jupytext()
     labels = seed_labels()
@@ -331,17 +339,11 @@ def test_concordance_rows_hold():
                 elif label not in section:
                     problems.append(f"{label}: {stem} §{k} does not contain {label!r}")
         if not package.startswith("—"):
-            names = _backticked(package)
-            if not names:
-                problems.append(f"{label}: package cell {package!r} names nothing (use `a.b.c` or '— reason')")
-            for name in names:
+            for name in _cell_names(label, "package", package, "`a.b.c`", problems):
                 if not DOTTED.match(name) or not _resolves(name):
                     problems.append(f"{label}: package name {name!r} does not import")
         if not tests.startswith("—"):
-            ids = _backticked(tests)
-            if not ids:
-                problems.append(f"{label}: tests cell {tests!r} names nothing (use `tests/f.py::test_x` or '— reason')")
-            for test_id in ids:
+            for test_id in _cell_names(label, "tests", tests, "`tests/f.py::test_x`", problems):
                 path, _, name = test_id.partition("::")
                 name = name.split("::")[-1].split("[")[0]
                 file = ROOT / path

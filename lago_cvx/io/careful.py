@@ -154,6 +154,17 @@ def unknown_tag(tag: str, fmt_forced: str | None) -> str:
     return f"unknown tag {_show(tag)} (expected {TAGS_OF['g2o']} or {TAGS_OF['toro']})"
 
 
+def floats_or_none(data: bytes) -> np.ndarray | None:
+    """The whitespace-separated decimal numbers of ``data`` as one float array (NumPy's C converter), or
+    None when it finds anything it cannot parse (older NumPy only warns about unparsed data)."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            return np.fromstring(data, dtype=float, sep=" ")
+    except (ValueError, DeprecationWarning):
+        return None
+
+
 def without_comment(line: str) -> str:
     """The line up to the first token that starts with ``#``."""
     m = _COMMENT_RE.search(line)
@@ -284,13 +295,8 @@ def _convert_fast(rec: _Records, spec: Spec) -> np.ndarray | None:
     ids = " ".join(rec.ids).encode("ascii")
     if data.translate(None, _NUM_CHARS) or ids.translate(None, _INT_CHARS):
         return None
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("error")  # older NumPy only warns about unparsed data
-            arr = np.fromstring(data, dtype=float, sep=" ")
-    except (ValueError, DeprecationWarning):
-        return None
-    if arr.size != k * n_fields:
+    arr = floats_or_none(data)
+    if arr is None or arr.size != k * n_fields:
         return None
     arr = arr.reshape(k, n_fields)
     if not np.isfinite(arr).all() or np.abs(arr[:, :n_ids]).max() >= _EXACT_INT:

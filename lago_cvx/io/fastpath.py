@@ -36,13 +36,12 @@ import mmap
 import os
 import sys
 import threading
-import warnings
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
 
-from .careful import BOM, Notes, Parsed, ignored_line, without_comment
+from .careful import BOM, Notes, Parsed, floats_or_none, ignored_line, without_comment
 from .formats import EQUIV, FIX, FORMAT_SPECS, SPECS
 
 __all__ = ["parse_fast", "CHUNK"]
@@ -317,14 +316,8 @@ def _convert(out: mmap.mmap, n_tokens: int, body_size: int) -> np.ndarray | None
                 return None
             values = np.asarray(values, dtype=float).reshape(-1)
             return values if values.size == n_tokens else None
-    body = out[_HEADER:_HEADER + body_size]
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("error")  # older NumPy only warns about unparsed data
-            values = np.fromstring(body, dtype=float, sep=" ")
-    except (ValueError, DeprecationWarning):
-        return None
-    return values if values.size == n_tokens else None
+    values = floats_or_none(out[_HEADER:_HEADER + body_size])
+    return values if values is not None and values.size == n_tokens else None
 
 
 def _header(n_tokens: int) -> bytes:
