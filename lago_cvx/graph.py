@@ -321,9 +321,24 @@ def _tree_from_parent(graph: PoseGraph, root: int, parent: np.ndarray, kind: str
 
 
 def _parent_from_edges(graph: PoseGraph, root: int, edges: np.ndarray) -> np.ndarray:
-    """Parent array of the tree formed by ``edges`` (must be a spanning tree), rooted at ``root``."""
+    """Parent array of the tree formed by ``edges`` (must be a spanning tree), rooted at ``root``. In a
+    tree every pose has one path to the root, so any traversal gives the same parents: a large tree
+    (a long odometric chain is a million levels of one pose) is rooted by ``csgraph``'s traversal in C,
+    a small one by ``_bfs_parents`` (no csgraph import)."""
     n = graph.n_poses
-    return _bfs_parents(n, graph.tails[edges], graph.heads[edges], root)
+    t, h = graph.tails[edges], graph.heads[edges]
+    if n < _CSGRAPH_TREE:
+        return _bfs_parents(n, t, h, root)
+    from scipy.sparse import csgraph
+
+    T = sp.csr_matrix((np.ones(t.size), (t, h)), shape=(n, n))
+    _, pred = csgraph.breadth_first_order(T, root, directed=False, return_predecessors=True)
+    return np.where(pred < 0, -1, pred).astype(np.int64)
+
+
+#: Trees of at least this many poses are rooted by ``scipy.sparse.csgraph`` (measured: a 1 000 000-pose
+#: odometric chain took 4.1 s level by level in ``_bfs_parents``).
+_CSGRAPH_TREE = 50_000
 
 
 def _broken_chain(graph: PoseGraph, odo: np.ndarray) -> str:

@@ -18,6 +18,7 @@ machine; benchmarks/datasets.md has the side-by-side numbers).
 
 from __future__ import annotations
 
+import contextlib
 import logging
 from typing import Callable
 
@@ -26,11 +27,49 @@ import scipy.sparse as sp
 
 from .errors import NumericalError, OptionError
 
-__all__ = ["Factor", "factorize", "solve_least_squares", "refine_normal_equations", "augmented_least_squares", "REFINEMENT_STEPS", "TRUST_TOLERANCE", "whitening_2x2", "block_diagonal_inverse", "SOLVER_BACKENDS"]
+__all__ = ["blas_threads", "Factor", "factorize", "solve_least_squares", "refine_normal_equations", "augmented_least_squares", "REFINEMENT_STEPS", "TRUST_TOLERANCE", "whitening_2x2", "block_diagonal_inverse", "SOLVER_BACKENDS"]
 
 log = logging.getLogger(__name__)
 
 SOLVER_BACKENDS = ("auto", "qdldl", "superlu", "cholmod")
+
+_BLAS: list = []  # threadpoolctl's controllers of the loaded BLAS libraries, found on first use
+
+
+@contextlib.contextmanager
+def blas_threads(n: int | None):
+    """Run a block with at most ``n`` BLAS threads (None: as many as configured on entry) and yield a
+    setter ``threads(k)`` that changes it inside the block (k None: back to the count on entry); the
+    count on entry is restored on exit.
+
+    Through threadpoolctl, which finds every loaded BLAS (NumPy and SciPy each carry an OpenBLAS).
+    Small dense kernels run faster on one thread: OpenBLAS's threads cost more than they give on
+    blocks of a few dozen rows, above all on a machine whose other core is busy."""
+    if not _BLAS:
+        import scipy.linalg  # noqa: F401  (loads SciPy's BLAS, so that it is found)
+
+        try:
+            from threadpoolctl import ThreadpoolController
+
+            found = ThreadpoolController().select(user_api="blas").lib_controllers
+        except Exception as exc:  # a dependency, but without it only speed is lost
+            log.debug("BLAS threads left as they are (%s)", exc)
+            found = []
+        _BLAS.append(found)
+    libs = [(lib, lib.num_threads) for lib in _BLAS[0]]
+    state = [None]
+
+    def threads(k: int | None) -> None:
+        if k != state[0]:
+            for lib, on_entry in libs:
+                lib.set_num_threads(on_entry if k is None else max(1, min(k, on_entry)))
+            state[0] = k
+
+    threads(n)
+    try:
+        yield threads
+    finally:
+        threads(None)
 
 
 class Factor:

@@ -49,7 +49,9 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from .block_factor import BlockFactor, inverse_blocks
 from .errors import NumericalError
+from .linalg import blas_threads
 
 __all__ = ["EliminationPlan", "BlockLayout", "BlockFactor", "plan_from_qdldl", "NotPositiveDefinite",
            "inverse_blocks"]
@@ -65,6 +67,11 @@ ZRELAX = (0.8, 0.1, 0.05)
 #: Fronts with at least this many pivot variables (k·b) are factored one at a time with exact sizes;
 #: smaller ones are padded and batched.
 SINGLE_FRONT = 96
+
+#: Fronts with at least this many pivot variables are factored with every BLAS thread; smaller ones
+#: with one (threads cost more than they give on small dense blocks: measured, the factorization of
+#: phase 3 of a 100 000-pose world took 5.0 s with two OpenBLAS threads and 0.9 s with one).
+THREADED_FRONT = 384
 
 #: Pose-count ladder the small fronts are padded to (steps of about 1.25).
 _LADDER = np.array([0, 1, 2, 3, 4, 5, 6, 7, 8, 10, 12, 14, 16, 20, 24, 28, 32, 40, 48, 56, 64, 80, 96, 112,
@@ -366,230 +373,110 @@ class BlockLayout:
 
     def factor(self, assembler: "BlockAssembler", blocks: np.ndarray, *, progress=None) -> "BlockFactor":
         """Factor N = Σ_q E_q blocks[q] by (MF) (blocks (q, b, b) at the assembler's pose pairs).
-        Raises ``NotPositiveDefinite`` if a pivot block is not positive definite."""
+        Raises ``NotPositiveDefinite`` if a pivot block is not positive definite.
+
+        Only lower triangles are kept: the assembly writes N's lower triangle, an update U_f is passed
+        on as its lower-triangle entries (rel is increasing, so they land in the parent's lower
+        triangle), and every kernel reads the lower triangle. A batch of small fronts is factored by
+        stacked LAPACK calls (one Python call per group); a large front by potrf, trsm and syrk, with
+        the BLAS threads ``blas_threads`` allows."""
         from scipy.linalg import blas, lapack
 
-        values, dest = assembler.scalars(blocks)
+        blocks = np.asarray(blocks, dtype=float).reshape(assembler.n_blocks, self.b, self.b)
         b, nG = self.b, len(self.groups)
         L11, Linv, X = [], [], []
-        update = [None] * self.plan.n_fronts  # U_f, until the parent has used it
-        for gi, g in enumerate(self.groups):
-            B, D, Kb = g.fronts.size, g.D, g.K * b
-            Rb = D - Kb
-            sl = slice(assembler.gptr[gi], assembler.gptr[gi + 1])
-            Fm = np.bincount(np.concatenate([dest[sl], g.pad_diag]),
-                             weights=np.concatenate([values[sl], np.ones(g.pad_diag.size)]),
-                             minlength=B * D * D).reshape(B, D, D)
-            c = np.empty((B, Kb, Kb))
-            ci = None if g.single else np.empty((B, Kb, Kb))
-            Xi = np.empty((B, Rb, Kb))
-            for s_, f in enumerate(g.fronts.tolist()):
-                A = Fm[s_]
-                for ch in self.children[f].tolist():  # extend-add
-                    rel = self.rel[ch]
-                    A[rel[:, None], rel] += update[ch]
-                    update[ch] = None
-                cf, info = lapack.dpotrf(A[:Kb, :Kb].T, lower=0, clean=1)  # Fortran view: upper = Lᵀ
-                if info != 0:
-                    raise NotPositiveDefinite(f"the matrix is not positive definite (front {f})")
-                c[s_] = cf.T
-                if ci is not None:
-                    ci[s_] = lapack.dtrtri(cf, lower=0)[0].T
+        update = [None] * self.plan.n_fronts  # lower-triangle entries of U_f, until the parent adds them
+        tri: dict = {}
+        work = np.empty(max((G.fronts.size * G.D * G.D for G in self.groups), default=0))
+        with blas_threads(1) as threads:
+            for gi, g in enumerate(self.groups):
+                B, D, Kb = g.fronts.size, g.D, g.K * b
+                Rb = D - Kb
+                dest, values = assembler.group(gi, blocks)
+                Fm = work[:B * D * D]  # one buffer for every group: no fresh pages to fault in
+                Fm.fill(0.0)
+                np.add.at(Fm, dest, values)
+                Fm[g.pad_diag] = 1.0
+                for s_, f in enumerate(g.fronts.tolist()):  # extend-add, flat indices into the front
+                    base = s_ * D * D
+                    for ch in self.children[f].tolist():
+                        rel = self.rel[ch]
+                        ii, jj = _tril(tri, rel.size)
+                        Fm[base + rel[ii] * D + rel[jj]] += update[ch]
+                        update[ch] = None
+                Fm = Fm.reshape(B, D, D)
+                if g.single:
+                    threads(None if Kb >= THREADED_FRONT else 1)
+                    A = Fm[0]
+                    cf, info = lapack.dpotrf(A[:Kb, :Kb].T, lower=0, clean=1)  # Fortran: upper = Lᵀ
+                    if info != 0:
+                        raise NotPositiveDefinite(f"the matrix is not positive definite (front {g.fronts[0]})")
+                    c, ci = cf.T[None], None
+                    Xi = np.empty((1, Rb, Kb))
+                    if Rb:
+                        Xt = blas.dtrsm(1.0, cf, A[Kb:, :Kb].T, side=0, lower=0, trans_a=1)  # Xᵀ (Kb, Rb)
+                        Xi[0] = Xt.T
+                        U = blas.dsyrk(-1.0, Xt, beta=1.0, c=A[Kb:, Kb:].T, trans=1, lower=0,
+                                       overwrite_c=1).T[None]  # upper of the transpose = lower of U
+                    threads(1)
+                else:
+                    try:
+                        c = np.linalg.cholesky(Fm[:, :Kb, :Kb])
+                    except np.linalg.LinAlgError:
+                        raise NotPositiveDefinite("the matrix is not positive definite (fronts "
+                                                  f"{g.fronts[0]}…{g.fronts[-1]})") from None
+                    ci = np.empty_like(c)
+                    for s_ in range(B):  # L_PP⁻¹ front by front (faster than a stacked general inverse)
+                        ci[s_] = lapack.dtrtri(c[s_].T, lower=0)[0].T
+                    Xi = Fm[:, Kb:, :Kb] @ np.swapaxes(ci, 1, 2)
+                    if Rb:
+                        U = Fm[:, Kb:, Kb:] - Xi @ np.swapaxes(Xi, 1, 2)
                 if Rb:
-                    Xi[s_] = blas.dtrsm(1.0, cf, A[Kb:, :Kb].T, side=0, lower=0, trans_a=1).T
-            if Rb:
-                U = Fm[:, Kb:, Kb:] - Xi @ np.swapaxes(Xi, 1, 2)
-                for s_, f in enumerate(g.fronts.tolist()):
-                    nv = self.rel[f].size
-                    update[f] = U[s_, :nv, :nv] if nv < Rb else U[s_]
-            L11.append(c)
-            Linv.append(ci)
-            X.append(Xi)
-            if progress is not None:
-                progress(gi + 1, nG)
+                    for s_, f in enumerate(g.fronts.tolist()):
+                        ii, jj = _tril(tri, self.rel[f].size)
+                        update[f] = U[s_][ii, jj]
+                L11.append(c)
+                Linv.append(ci)
+                X.append(Xi)
+                if progress is not None:
+                    progress(gi + 1, nG)
         return BlockFactor(self, L11, Linv, X)
 
 
+def _tril(cache: dict, n: int):
+    """``np.tril_indices(n)``, cached per n."""
+    t = cache.get(n)
+    if t is None:
+        t = cache[n] = np.tril_indices(n)
+    return t
+
+
 class BlockAssembler:
-    """Scalar destinations of b×b blocks at fixed pose pairs (computed once, reused for every matrix of
-    that pattern): ``scalars(blocks)`` → (values, flat destinations) sorted by group, ``gptr`` the
-    group boundaries."""
+    """Where b×b blocks at fixed pose pairs go in the fronts (computed once, reused for every matrix of
+    that pattern): the blocks sorted by group (``order``), each block's flat offset in its group buffer
+    (``offset``) and whether it is stored transposed (``transposed``); ``gptr`` the group boundaries.
+    A block is added whole at its place in the lower triangle; on a diagonal block that also writes
+    the upper triangle, which no kernel reads."""
 
     def __init__(self, layout: BlockLayout, prow, pcol):
         self.layout = layout
-        b = layout.b
         prow = np.asarray(prow, np.int64)
         pcol = np.asarray(pcol, np.int64)
-        g, off, D, tr = layout.block_targets(prow, pcol)
-        cr, cc = np.divmod(np.arange(b * b), b)  # entry (cr, cc) of the given block
-        # stored at (cr, cc) or, transposed, at (cc, cr)
-        rr = np.where(tr[:, None], cc[None, :], cr[None, :])
-        ccs = np.where(tr[:, None], cr[None, :], cc[None, :])
-        dest = off[:, None] + rr * D[:, None] + ccs
-        same = prow == pcol
-        keep = np.ones(dest.shape, bool)
-        keep[same] = (cr >= cc)[None, :]  # a diagonal block: its lower triangle only
-        gg = np.broadcast_to(g[:, None], dest.shape)
-        order = np.argsort(gg[keep], kind="stable")
-        self.src = np.flatnonzero(keep.reshape(-1))[order]  # index into blocks.reshape(-1)
-        self.dest = dest[keep][order]
-        self.gptr = np.searchsorted(gg[keep][order], np.arange(len(layout.groups) + 1))
+        g, off, _, tr = layout.block_targets(prow, pcol)
+        # a stable radix sort of the blocks on their (small integer) group
+        self.order = np.argsort(g.astype(np.int16 if len(layout.groups) < 2 ** 15 else np.int32), kind="stable")
+        self.offset = off[self.order]
+        self.transposed = tr[self.order]
+        self.gptr = np.r_[0, np.cumsum(np.bincount(g, minlength=len(layout.groups)))]
         self.n_blocks = prow.size
 
-    def scalars(self, blocks: np.ndarray):
-        blocks = np.asarray(blocks, dtype=float).reshape(self.n_blocks * self.layout.b ** 2)
-        return blocks[self.src], self.dest
-
-
-class BlockFactor:
-    """N = L Lᵀ by (MF): ``solve(rhs)`` for rhs (N,) or (N, r) in elimination-slot order (see
-    ``BlockLayout``); ``selected_inverse`` the entries of N⁻¹ on the pattern of L (T)."""
-
-    def __init__(self, layout: BlockLayout, L11, Linv, X):
-        self.layout = layout
-        self.L11, self.Linv, self.X = L11, Linv, X
-
-    def solve(self, rhs: np.ndarray, slots: np.ndarray) -> np.ndarray:
-        """Solve N x = rhs for rhs (N,) or (N, r) in a system's own variable numbering, ``slots`` its
-        elimination slots (``BlockLayout.slots``)."""
-        rhs = np.asarray(rhs, dtype=float)
-        return self.solve_slots(rhs[np.argsort(slots)])[slots]
-
-    def _levels(self):
-        """The factor regrouped for solves: per height of the front tree, all its fronts padded to the
-        level's largest pivot and row counts, with L_PP⁻¹ (identity on padding) and X (zero on padding)
-        — a solve then costs a few stacked products per level, whatever the number of fronts."""
-        from scipy.linalg import lapack
-
-        cache = self.__dict__.get("_level_cache")
-        if cache is not None:
-            return cache
-        lay = self.layout
-        b, N = lay.b, lay.N
-        height = lay.plan.height
-        levels = []
-        by_level: dict[int, list] = {}
-        for gi, g in enumerate(lay.groups):
-            by_level.setdefault(int(height[g.fronts[0]]), []).append(gi)
-        for h in sorted(by_level):
-            gis = by_level[h]
-            Kb = max(lay.groups[gi].K * b for gi in gis)
-            Rb = max(lay.groups[gi].R * b for gi in gis)
-            Bt = sum(lay.groups[gi].fronts.size for gi in gis)
-            Li = np.zeros((Bt, Kb, Kb))
-            Li[:, np.arange(Kb), np.arange(Kb)] = 1.0
-            X = np.zeros((Bt, Rb, Kb))
-            piv = np.full((Bt, Kb), N, np.int64)
-            rowv = np.full((Bt, Rb), N, np.int64)
-            o = 0
-            for gi in gis:
-                g = lay.groups[gi]
-                B, kb, rb = g.fronts.size, g.K * b, g.R * b
-                ci = self.Linv[gi]
-                if ci is None:
-                    ci = np.tril(lapack.dtrtri(self.L11[gi][0], lower=1)[0])[None]
-                Li[o:o + B, :kb, :kb] = ci
-                X[o:o + B, :rb, :kb] = self.X[gi]
-                piv[o:o + B, :kb] = g.piv
-                rowv[o:o + B, :rb] = g.rowv
-                o += B
-            levels.append((Li, X, piv, rowv))
-        self._level_cache = levels
-        return levels
-
-    def solve_slots(self, y: np.ndarray) -> np.ndarray:
-        """Solve N x = y with y (N,) or (N, r) indexed by elimination slots; returns x likewise."""
-        lay = self.layout
-        one = y.ndim == 1
-        r = 1 if one else y.shape[1]
-        Y = np.zeros((lay.N + 1, r))
-        Y[:-1] = y.reshape(lay.N, r)
-        levels = self._levels()
-        n1 = lay.N + 1
-        for Li, X, piv, rowv in levels:  # forward: z_P = L_PP⁻¹ y_P, y_R −= X z_P
-            z = Li @ Y[piv]
-            Y[piv] = z
-            if X.shape[1]:
-                upd = (X @ z).reshape(-1, r)
-                idx = rowv.reshape(-1)
-                for j in range(r):
-                    Y[:, j] -= np.bincount(idx, upd[:, j], minlength=n1)
-            Y[-1] = 0.0
-        for Li, X, piv, rowv in reversed(levels):  # back: x_P = L_PP⁻ᵀ (z_P − Xᵀ x_R)
-            z = Y[piv]
-            if X.shape[1]:
-                z = z - np.swapaxes(X, 1, 2) @ Y[rowv]
-            Y[piv] = np.swapaxes(Li, 1, 2) @ z
-            Y[-1] = 0.0
-        out = Y[:-1]
-        return out[:, 0] if one else out
-
-    def selected_inverse(self, *, progress=None):
-        """Σ = N⁻¹ on every front by (T), from the root down. Returns, per group, the dense front blocks
-        Σ_f (B, D, D) in the group's local variable order (zero on padded variables)."""
-        from scipy.linalg import lapack
-
-        lay = self.layout
-        nG = len(lay.groups)
-        sig: list = [None] * nG
-        for gi in range(nG - 1, -1, -1):
-            g = lay.groups[gi]
-            B, D, Kb = g.fronts.size, g.D, g.K * lay.b
-            Rb = D - Kb
-            c, ci, X = self.L11[gi], self.Linv[gi], self.X[gi]
-            if ci is None:
-                ci = np.tril(lapack.dtrtri(c[0], lower=1)[0])[None]
-            S = np.zeros((B, D, D))
-            if Rb:
-                SRR = np.zeros((B, Rb, Rb))
-                for s_, f in enumerate(g.fronts.tolist()):
-                    p = lay.plan.parent[f]
-                    rel = lay.rel[f]
-                    nv = rel.size
-                    SRR[s_, :nv, :nv] = sig[lay.group_of[p]][lay.slot_of_front[p]][rel[:, None], rel]
-                Y = X @ ci
-                SRP = -(SRR @ Y)
-                S[:, :Kb, :Kb] = np.swapaxes(ci, 1, 2) @ ci - np.swapaxes(Y, 1, 2) @ SRP
-                S[:, Kb:, Kb:] = SRR
-                S[:, Kb:, :Kb] = SRP
-                S[:, :Kb, Kb:] = np.swapaxes(SRP, 1, 2)
-            else:
-                S[:, :Kb, :Kb] = np.swapaxes(ci, 1, 2) @ ci
-            sig[gi] = S
-            if progress is not None:
-                progress(nG - gi, nG)
-        return sig
-
-
-def inverse_blocks(factor: BlockFactor, prow=None, pcol=None, *, progress=None):
-    """Blocks of Σ = N⁻¹ by selected inversion (T): ``diag`` (d, b, b) the b×b block of every pose (in
-    pose order) and, when ``prow``/``pcol`` (q,) are given — pose pairs on the pattern of L, e.g. the
-    ends of edges — ``pairs`` (q, b, b) with pairs[t] = Σ[prow[t], pcol[t]] (rows: prow's variables).
-    Returns ``(diag, pairs)`` (``pairs`` None without pairs)."""
-    lay = factor.layout
-    plan, b = lay.plan, lay.b
-    sig = factor.selected_inverse(progress=progress)
-    pose_at = np.empty(plan.d, np.int64)
-    pose_at[plan.position] = np.arange(plan.d)
-    diag = np.zeros((plan.d, b, b))
-    for g, S in zip(lay.groups, sig):
-        B, K = g.fronts.size, g.K
-        Sr = S[:, :K * b, :K * b].reshape(B, K, b, K, b)
-        t = np.arange(K)
-        blk = Sr[:, t, :, t, :]  # (K, B, b, b)
-        pos = g.piv[:, ::b].T  # (K, B) slots of component 0
-        ok = pos < lay.N
-        diag[pose_at[pos[ok] // b]] = blk[ok]
-    pairs = None
-    if prow is not None:
-        grp, off, D, tr = lay.block_targets(np.asarray(prow, np.int64), np.asarray(pcol, np.int64))
-        cr, cc = np.divmod(np.arange(b * b), b)
-        rr = np.where(tr[:, None], cc[None, :], cr[None, :])
-        ccs = np.where(tr[:, None], cr[None, :], cc[None, :])
-        flat = off[:, None] + rr * D[:, None] + ccs
-        pairs = np.empty((grp.size, b * b))
-        for gi in np.unique(grp):
-            sel = grp == gi
-            pairs[sel] = sig[gi].reshape(-1)[flat[sel]]
-        pairs = pairs.reshape(-1, b, b)
-    return diag, pairs
+    def group(self, gi: int, blocks: np.ndarray):
+        """(flat destinations, values) of group ``gi``'s blocks of ``blocks`` (q, b, b)."""
+        sl = slice(self.gptr[gi], self.gptr[gi + 1])
+        vals = blocks[self.order[sl]]
+        tr = self.transposed[sl]
+        if tr.any():
+            vals[tr] = np.swapaxes(vals[tr], 1, 2)
+        b, D = self.layout.b, self.layout.groups[gi].D
+        local = np.arange(b)[:, None] * D + np.arange(b)
+        return (self.offset[sl][:, None, None] + local).reshape(-1), vals.reshape(-1)

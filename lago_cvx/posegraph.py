@@ -24,6 +24,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .errors import GraphError, OptionError
+from .smallmat import spd_inverse
 
 __all__ = ["PoseGraph", "wrap_angle", "rot2", "compose", "between", "is_spd"]
 
@@ -187,8 +188,8 @@ class PoseGraph:
     # ------------------------------------------------------------ covariances
     @property
     def covariance(self) -> np.ndarray:
-        """Per-edge covariance Ω⁻¹, shape (m, 3, 3)."""
-        return np.linalg.inv(self.information)
+        """Per-edge covariance Ω⁻¹, shape (m, 3, 3) (closed form, ``lago_cvx.smallmat``)."""
+        return spd_inverse(self.information)
 
     # ------------------------------------------------------------ derivations
     def with_initial(self, poses) -> "PoseGraph":

@@ -28,6 +28,7 @@ import numpy as np
 
 from .linalg import whitening_2x2
 from .posegraph import PoseGraph
+from .smallmat import cholesky, spd_inverse
 from .routes import INFORMATION_MODES
 
 __all__ = ["EdgeUncertainty", "edge_uncertainty", "INFORMATION_MODES"]
@@ -76,13 +77,13 @@ def edge_uncertainty(graph: PoseGraph) -> EdgeUncertainty:
     if m == 0:
         z2, z3 = np.zeros((0, 2, 2)), np.zeros((0, 3, 3))
         return EdgeUncertainty(z2, np.zeros(0), z2, np.zeros(0), z3, z2, np.zeros((0, 2)))
-    cov = np.linalg.inv(info)
+    cov = spd_inverse(info)  # closed forms on the (m, 3, 3) stack (lago_cvx.smallmat)
     cov_l = cov[:, :2, :2]
     var_d = cov[:, 2, 2].copy()
-    info_l = _sym(np.linalg.inv(cov_l))
+    info_l = spd_inverse(np.ascontiguousarray(cov_l))
     info_pp = info[:, :2, :2]
-    shift = np.linalg.solve(info_pp, info[:, :2, 2:3])[..., 0]
-    sqrt_info = np.swapaxes(np.linalg.cholesky(info), 1, 2)  # UᵀU = Ω, U upper triangular
+    shift = np.einsum("kab,kb->ka", spd_inverse(np.ascontiguousarray(info_pp)), info[:, :2, 2])
+    sqrt_info = np.swapaxes(cholesky(info), 1, 2)  # UᵀU = Ω, U upper triangular
     return EdgeUncertainty(cov_delta_l=cov_l, var_delta=var_d, sqrt_info_delta_l=whitening_2x2(info_l),
                            sqrt_info_delta=1.0 / np.sqrt(var_d), sqrt_info=sqrt_info,
                            sqrt_info_pp=whitening_2x2(info_pp), shift=shift)

@@ -33,8 +33,10 @@ def block_size(request):
 def test_factor_solve_and_selected_inverse_match_dense(block_size, single_front, monkeypatch):
     """N = A2 W A2ᵀ ⊗ (random SPD b×b couplings): the multifrontal solve and the selected inverse (eq. (T))
     agree with numpy's dense solve and inverse to 1e-9 relative — diagonal pose blocks and the blocks of
-    every edge — on batched, single and mixed fronts."""
+    every edge — on batched, single and mixed fronts (all-single: every front with all BLAS threads)."""
     monkeypatch.setattr(mf, "SINGLE_FRONT", single_front)
+    if single_front == 8:
+        monkeypatch.setattr(mf, "THREADED_FRONT", 0)
     g = lc.manhattan_world(160, seed=3).graph
     b = block_size
     el = GraphElimination(g, 0)
@@ -60,6 +62,44 @@ def test_factor_solve_and_selected_inverse_match_dense(block_size, single_front,
     scale = np.abs(dref).max()
     assert np.abs(diag - dref).max() <= 1e-9 * scale
     assert np.abs(pairs - pref).max() <= 1e-9 * scale
+
+
+@pytest.mark.parametrize("single_front", [1, 10**9], ids=["single", "batched"])
+def test_an_indefinite_matrix_is_refused_by_name(single_front, monkeypatch):
+    """A matrix that is not positive definite raises ``NotPositiveDefinite`` (a ``NumericalError``) from
+    both kernels, the single-front potrf and the stacked Cholesky, never a raw LAPACK error."""
+    monkeypatch.setattr(mf, "SINGLE_FRONT", single_front)
+    g = lc.manhattan_world(120, seed=5).graph
+    el = GraphElimination(g, 0)
+    prow, pcol, keep = el.pairs
+    lay = el.plan.layout(3)
+    blocks = np.zeros((int(keep.sum()), 3, 3))
+    diag = prow[keep] == pcol[keep]
+    blocks[diag] = -np.eye(3)  # N = −(degree) I: negative definite
+    with pytest.raises(mf.NotPositiveDefinite, match="not positive definite"):
+        lay.factor(lay.assembler(prow[keep], pcol[keep]), blocks)
+
+
+def test_blas_threads_sets_and_restores_the_thread_count():
+    """``linalg.blas_threads`` limits every loaded BLAS inside its block, lets the block change the
+    limit, and restores the count it found — also when the block raises."""
+    threadpoolctl = pytest.importorskip("threadpoolctl")
+    from lago_cvx.linalg import blas_threads
+
+    def counts():
+        return [i["num_threads"] for i in threadpoolctl.threadpool_info() if i["user_api"] == "blas"]
+
+    before = counts()
+    with blas_threads(1) as threads:
+        assert set(counts()) == {1}
+        threads(None)
+        assert counts() == before
+        threads(1)
+        assert set(counts()) == {1}
+    assert counts() == before
+    with pytest.raises(RuntimeError), blas_threads(1):
+        raise RuntimeError("inside")
+    assert counts() == before
 
 
 def test_plan_is_a_valid_elimination():

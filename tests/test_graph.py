@@ -68,6 +68,22 @@ def test_spanning_trees_are_trees(kind):
     assert t.parent[0] == -1 and t.depth[0] == 0
 
 
+@pytest.mark.parametrize("kind", ["odometry", "bfs", "mst"])
+def test_large_trees_are_rooted_in_c_with_the_same_parents(kind, monkeypatch):
+    """Above ``graph._CSGRAPH_TREE`` poses a tree is rooted by csgraph's traversal instead of the
+    level-by-level walk: a tree has one path from each pose to the root, so parents, parent edges and
+    depths are the same whichever rooting runs."""
+    import lago_cvx.graph as G
+
+    g = manhattan_world(600, seed=4).graph
+    monkeypatch.setattr(G, "_CSGRAPH_TREE", 10**12)
+    ref = G.spanning_tree(g, kind)
+    monkeypatch.setattr(G, "_CSGRAPH_TREE", 0)
+    got = G.spanning_tree(g, kind)
+    for field in ("parent", "parent_edge", "forward", "depth", "tree_edges", "chords"):
+        assert np.array_equal(getattr(got, field), getattr(ref, field)), field
+
+
 def test_bfs_tree_has_shortest_depth():
     g = manhattan_world(400, seed=2).graph
     t = spanning_tree(g, "bfs", anchor=5)

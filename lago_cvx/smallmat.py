@@ -1,0 +1,85 @@
+r"""Closed forms on stacks of small symmetric matrices: one per edge, (m, k, k) with k = 2 or 3.
+
+NumPy's ``linalg`` calls LAPACK once per matrix of a stack, so inverting the 3×3 information of every
+edge of a 1 786 812-edge graph took 0.70 s and its Cholesky factors 0.21 s; the closed forms below do
+each in a few vectorized passes (tens of milliseconds). Symmetric positive definite input is assumed;
+a matrix whose closed form breaks down (a pivot ≤ 0 or not finite) is handed to ``numpy.linalg``
+instead, which gives the same answer or raises ``numpy.linalg.LinAlgError`` as before.
+
+* ``spd_inverse(A)`` — A⁻¹ = adj(A)/det(A) (cofactors of the symmetric matrix; the result symmetric).
+* ``cholesky(A)`` — lower L with L Lᵀ = A (the column-by-column recurrences of an unblocked Cholesky).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["spd_inverse", "cholesky"]
+
+
+def _redo(A: np.ndarray, out: np.ndarray, bad: np.ndarray, fn) -> np.ndarray:
+    if bad.any():
+        out[bad] = fn(A[bad])  # LAPACK for the few matrices the closed form cannot take (or its error)
+    return out
+
+
+def spd_inverse(A: np.ndarray) -> np.ndarray:
+    """Inverses of the symmetric positive definite matrices A (m, k, k), k ∈ {2, 3}; other k through
+    ``numpy.linalg.inv``. Only the lower triangle of A is read."""
+    A = np.asarray(A, dtype=float)
+    k = A.shape[-1]
+    if A.ndim != 3 or k not in (2, 3):
+        return np.linalg.inv(A)
+    out = np.empty_like(A)
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        det = _adjugate(A, out, k)
+    bad = ~(det > 0) | ~np.isfinite(out).all(axis=(1, 2))
+    return _redo(A, out, bad, np.linalg.inv)
+
+
+def _adjugate(A: np.ndarray, out: np.ndarray, k: int) -> np.ndarray:
+    """out = adj(A)/det(A) for symmetric A (m, k, k); returns det(A) (m,)."""
+    if k == 2:
+        a, b, d = A[:, 0, 0], A[:, 1, 0], A[:, 1, 1]
+        det = a * d - b * b
+        out[:, 0, 0], out[:, 1, 1] = d / det, a / det
+        out[:, 0, 1] = out[:, 1, 0] = -b / det
+    else:
+        a00, a10, a11 = A[:, 0, 0], A[:, 1, 0], A[:, 1, 1]
+        a20, a21, a22 = A[:, 2, 0], A[:, 2, 1], A[:, 2, 2]
+        c00 = a11 * a22 - a21 * a21
+        c10 = a21 * a20 - a10 * a22
+        c20 = a10 * a21 - a11 * a20
+        det = a00 * c00 + a10 * c10 + a20 * c20
+        out[:, 0, 0] = c00 / det
+        out[:, 1, 0] = out[:, 0, 1] = c10 / det
+        out[:, 2, 0] = out[:, 0, 2] = c20 / det
+        out[:, 1, 1] = (a00 * a22 - a20 * a20) / det
+        out[:, 2, 1] = out[:, 1, 2] = (a10 * a20 - a00 * a21) / det
+        out[:, 2, 2] = (a00 * a11 - a10 * a10) / det
+    return det
+
+
+def cholesky(A: np.ndarray) -> np.ndarray:
+    """Lower Cholesky factors L (m, k, k) of the SPD matrices A (m, k, k), k ∈ {2, 3}; other k through
+    ``numpy.linalg.cholesky``. Only the lower triangle of A is read. Raises ``numpy.linalg.LinAlgError``
+    if a matrix is not positive definite, as ``numpy.linalg.cholesky`` does."""
+    A = np.asarray(A, dtype=float)
+    k = A.shape[-1]
+    if A.ndim != 3 or k not in (2, 3):
+        return np.linalg.cholesky(A)
+    L = np.zeros_like(A)
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        l00 = np.sqrt(A[:, 0, 0])
+        l10 = A[:, 1, 0] / l00
+        l11 = np.sqrt(A[:, 1, 1] - l10 * l10)
+        L[:, 0, 0], L[:, 1, 0], L[:, 1, 1] = l00, l10, l11
+        pivots = [l00, l11]
+        if k == 3:
+            l20 = A[:, 2, 0] / l00
+            l21 = (A[:, 2, 1] - l20 * l10) / l11
+            l22 = np.sqrt(A[:, 2, 2] - l20 * l20 - l21 * l21)
+            L[:, 2, 0], L[:, 2, 1], L[:, 2, 2] = l20, l21, l22
+            pivots.append(l22)
+    bad = ~np.all([p > 0 for p in pivots], axis=0) | ~np.isfinite(L).all(axis=(1, 2))
+    return _redo(A, L, bad, np.linalg.cholesky)
