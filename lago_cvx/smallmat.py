@@ -33,7 +33,7 @@ def spd_inverse(A: np.ndarray) -> np.ndarray:
     out = np.empty_like(A)
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         det = _adjugate(A, out, k)
-    bad = ~(det > 0) | ~np.isfinite(out).all(axis=(1, 2))
+    bad = ~((det > 0) & np.isfinite(det)) | ~np.isfinite(out).all(axis=(1, 2))
     return _redo(A, out, bad, np.linalg.inv)
 
 
