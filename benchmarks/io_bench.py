@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import json
 import os
+import site
 import statistics
 import subprocess
 import sys
@@ -53,7 +54,8 @@ def _run(argv: list, env: dict) -> tuple[float, float, str]:
     raises on a non-zero exit."""
     t = time.perf_counter()
     with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
-        proc = subprocess.Popen(argv, env=env, stdout=out, stderr=err)
+        # not from the checkout: a child's sys.path starts with its working directory
+        proc = subprocess.Popen(argv, env=env, stdout=out, stderr=err, cwd=tempfile.gettempdir())
         _, status, usage = os.wait4(proc.pid, 0)
         wall = time.perf_counter() - t
         proc.returncode = os.waitstatus_to_exitcode(status)
@@ -65,17 +67,34 @@ def _run(argv: list, env: dict) -> tuple[float, float, str]:
 
 
 def _env(pythonpath: Path) -> dict:
+    """The children's environment: ``lago_cvx`` from ``pythonpath`` and everything else from this
+    interpreter's site-packages. The children run with ``python -S`` (``PY``), so that no ``.pth`` file is
+    read: an editable install's import hook would otherwise win over PYTHONPATH and the "baseline" would
+    silently be the working tree (``_check`` makes sure it is not; so does running the children outside
+    the checkout, ``_run``)."""
     env = dict(os.environ)
-    env["PYTHONPATH"] = str(pythonpath)
+    env["PYTHONPATH"] = os.pathsep.join([str(pythonpath), *site.getsitepackages()])
     return env
+
+
+#: How every child is started (see ``_env``).
+PY = [sys.executable, "-S"]
+
+
+def _check(env: dict, pythonpath: Path) -> None:
+    """Raise unless the children import ``lago_cvx`` from ``pythonpath``."""
+    _, _, out = _run([*PY, "-c", "import lago_cvx; print(lago_cvx.__file__)"], env)
+    where = Path(out.strip()).resolve()
+    if Path(pythonpath).resolve() not in where.parents:
+        raise RuntimeError(f"the children import lago_cvx from {where}, not from {pythonpath}")
 
 
 def _measure(n: int, repeat: int, folder: Path, env: dict, solve: bool) -> dict:
     path = folder / f"world{n}.g2o"
-    gen = [_run([sys.executable, "-m", "lago_cvx", "generate", "--poses", str(n), "-o", str(path)], env)
+    gen = [_run([*PY, "-m", "lago_cvx", "generate", "--poses", str(n), "-o", str(path)], env)
            for _ in range(repeat)]
-    reads = [_run([sys.executable, "-c", _READ, str(path)], env) for _ in range(repeat)]
-    writes = [_run([sys.executable, "-c", _WRITE, str(path), str(folder / "out.g2o")], env) for _ in range(repeat)]
+    reads = [_run([*PY, "-c", _READ, str(path)], env) for _ in range(repeat)]
+    writes = [_run([*PY, "-c", _WRITE, str(path), str(folder / "out.g2o")], env) for _ in range(repeat)]
     info = json.loads(reads[-1][2])
     row = {
         "poses": info["poses"], "edges": info["edges"], "mb": path.stat().st_size / 1e6,
@@ -85,7 +104,7 @@ def _measure(n: int, repeat: int, folder: Path, env: dict, solve: bool) -> dict:
         "write": statistics.median(json.loads(o)["seconds"] for _, _, o in writes),
     }
     if solve:
-        wall, peak, _ = _run([sys.executable, "-m", "lago_cvx", "solve", str(path), "-o", str(folder / "est.g2o"),
+        wall, peak, _ = _run([*PY, "-m", "lago_cvx", "solve", str(path), "-o", str(folder / "est.g2o"),
                               "--json"], env)
         row.update(solve=wall, solve_peak=peak)
     for f in folder.glob("*.g2o"):
@@ -111,6 +130,9 @@ def run(args) -> str:
     with tempfile.TemporaryDirectory(prefix="lago_bench_io_") as d:
         folder = Path(d)
         base = _baseline(args.io_baseline, folder) if args.io_baseline else None
+        _check(_env(root), root)
+        if base is not None:
+            _check(_env(base), base)
         for n in sizes:
             repeat = 1 if n >= 1_000_000 else args.repeat
             rows.append(_measure(n, repeat, folder, _env(root), args.io_solve))

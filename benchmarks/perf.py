@@ -4,7 +4,10 @@ step by step, in one process, and the marginal covariances.
 For se-sync/city10000.g2o and carlone/input_M3500_g2o.g2o: ``--repeat`` interleaved runs (ours default
 route, ours seed route, GTSAM) and their medians — interleaving keeps the ratio meaningful on a machine
 whose speed drifts. Then ``res.pose_covariances()`` (selected inversion on phase 3's factor, eq. (T) of
-``lago_cvx.multifrontal``) on city10000 and on a 100 000-pose Manhattan world.
+``lago_cvx.multifrontal``) on city10000 and on a 100 000-pose Manhattan world. Last, phase 3's solve
+(factor, refined solve; the engine's symbolic analysis included) by QDLDL and by the multifrontal engine
+on city10000 and on Manhattan worlds up to 1 000 000 poses: where ``normal_equations.ENGINE_MIN`` comes
+from.
 """
 
 from __future__ import annotations
@@ -13,17 +16,46 @@ import statistics
 import time
 
 import _bench
+import numpy as np
+
 from lago_cvx import lago, manhattan_world
+from lago_cvx.normal_equations import ENGINE_MIN, GraphElimination
 from lago_cvx.peers import gtsam_factor_graph, gtsam_lago, have_gtsam
 
 FILES = ("se-sync/city10000.g2o", "carlone/input_M3500_g2o.g2o")
 STEPS = ("tree", "regularization", "phase1", "phase2", "phase3", "positions", "total")
 COV_WORLD = 100_000
+ENGINE_WORLDS = (30_000, 100_000, 300_000, 1_000_000)
 
 
 def add_arguments(group) -> None:
     group.add_argument("--cov-poses", type=int, default=None,
                        help=f"poses of the synthetic world timed for pose_covariances (default {COV_WORLD})")
+    group.add_argument("--engine-poses", type=int, nargs="*", default=None,
+                       help="Manhattan worlds on which phase 3's solve is timed with QDLDL and with the "
+                            f"multifrontal engine (default {' '.join(map(str, ENGINE_WORLDS))})")
+
+
+def phase3_solvers(graph, repeat: int) -> tuple[float, float, float]:
+    """Seconds of phase 3's solve (eq. (15), seed route) by QDLDL and by the multifrontal engine (fresh
+    symbolic analysis each run: plan, layout, assembler), medians of ``repeat``; and the largest
+    difference of the two solutions relative to ‖x‖∞."""
+    res = lago(graph, route="seed")
+    system = res.phase2.edges
+    a = res.anchor_index
+    weights = res.uncertainty.info_delta
+    out, xs = {}, {}
+    for engine in (False, True):
+        def once():
+            el = GraphElimination(graph, a, weights=weights)  # phase 1's analysis: not timed
+            t = time.perf_counter()
+            x, _, _ = el.solve(system, factor=el.factor(system, engine=engine))
+            return time.perf_counter() - t, x
+        runs = [once() for _ in range(repeat)]
+        out[engine] = statistics.median(r[0] for r in runs)
+        xs[engine] = runs[-1][1]
+    diff = float(np.abs(xs[True] - xs[False]).max() / np.abs(xs[False]).max())
+    return out[False], out[True], diff
 
 
 def run(args) -> str:
@@ -59,6 +91,20 @@ def run(args) -> str:
     t, _ = _bench.median_time(res.pose_covariances, 1)
     cov_rows.append([f"manhattan_world({n}, seed=0)", n, f"{t:.3f}"])
     print("  " + " | ".join(map(str, cov_rows[-1])), flush=True)
+    eng_rows = []
+    graphs = [] if skipped else [(rel, g) for rel, g in _bench.each_dataset(FILES[:1])]
+    sizes = args.engine_poses if args.engine_poses is not None else ((10_000, 30_000) if args.quick else ENGINE_WORLDS)
+    graphs += [(f"manhattan_world({n}, seed=0)", None, n) for n in sizes]
+    for item in graphs:
+        name, g = item[0], item[1]
+        if g is None:
+            g = manhattan_world(item[2], seed=0).graph
+        reps = args.repeat if g.n_poses <= 100_000 else 1
+        tq, te, diff = phase3_solvers(g, reps)
+        eng_rows.append([name, g.n_poses, 3 * (g.n_poses - 1), f"{tq:.3f}", f"{te:.3f}", f"{te / tq:.2f}",
+                         f"{diff:.1e}", "engine" if 3 * (g.n_poses - 1) >= ENGINE_MIN else "QDLDL"])
+        print("  " + " | ".join(map(str, eng_rows[-1])), flush=True)
+        del g
     head = ["file", *(f"{k} [ms]" for k in STEPS), "seed route [ms]", "GTSAM initialize [ms]", "default / GTSAM",
             "seed / GTSAM", "χ² default"]
     return "\n".join([
@@ -72,5 +118,13 @@ def run(args) -> str:
         "`res.pose_covariances()`: every 3×3 pose block of phase 3's (Ω*)⁻¹ by selected inversion "
         "(Takahashi's recurrences on the multifrontal factor, `lago_cvx.multifrontal`), median of "
         f"{max(1, args.repeat // 2)} run(s) (the world: one run).", "",
-        _bench.table(["graph", "poses", "pose_covariances [s]"], cov_rows),
+        _bench.table(["graph", "poses", "pose_covariances [s]"], cov_rows), "",
+        "## Phase 3's solve: QDLDL against the multifrontal engine", "",
+        "Phase 3 of the seed route (eq. (15), 3(n − 1) unknowns): factorization and refined solve, by QDLDL "
+        "(AMD and LDLᵀ in C) and by the multifrontal engine (`lago_cvx.multifrontal`; its symbolic analysis "
+        f"— plan, layout, assembler — timed too), median of {args.repeat} runs up to 100 000 poses, one run "
+        "above. LAGO uses the engine from `normal_equations.ENGINE_MIN` = "
+        f"{ENGINE_MIN:,} unknowns. rel. diff = ‖x_engine − x_QDLDL‖∞ / ‖x_QDLDL‖∞.", "",
+        _bench.table(["graph", "poses", "unknowns", "QDLDL [s]", "engine [s]", "engine / QDLDL", "rel. diff",
+                      "LAGO uses"], eng_rows),
     ])
