@@ -17,29 +17,30 @@ import numpy as np
 __all__ = ["spd_inverse", "cholesky"]
 
 
-def _redo(A: np.ndarray, out: np.ndarray, bad: np.ndarray, fn) -> np.ndarray:
+def _closed_form(A, kernel, lapack) -> np.ndarray:
+    """``kernel(A, out) -> ok (m,)`` on a stack A (m, k, k) of 2×2 or 3×3 matrices, ``lapack`` (the
+    ``numpy.linalg`` function) on every matrix the kernel did not take — and on any other shape."""
+    A = np.asarray(A, dtype=float)
+    if A.ndim != 3 or A.shape[-1] not in (2, 3):
+        return lapack(A)
+    out = np.zeros_like(A)
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        ok = kernel(A, out)
+    bad = ~ok | ~np.isfinite(out).all(axis=(1, 2))
     if bad.any():
-        out[bad] = fn(A[bad])  # LAPACK for the few matrices the closed form cannot take (or its error)
+        out[bad] = lapack(A[bad])  # the same answer, or numpy's LinAlgError
     return out
 
 
 def spd_inverse(A: np.ndarray) -> np.ndarray:
     """Inverses of the symmetric positive definite matrices A (m, k, k), k ∈ {2, 3}; other k through
     ``numpy.linalg.inv``. Only the lower triangle of A is read."""
-    A = np.asarray(A, dtype=float)
-    k = A.shape[-1]
-    if A.ndim != 3 or k not in (2, 3):
-        return np.linalg.inv(A)
-    out = np.empty_like(A)
-    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        det = _adjugate(A, out, k)
-    bad = ~((det > 0) & np.isfinite(det)) | ~np.isfinite(out).all(axis=(1, 2))
-    return _redo(A, out, bad, np.linalg.inv)
+    return _closed_form(A, _adjugate, np.linalg.inv)
 
 
-def _adjugate(A: np.ndarray, out: np.ndarray, k: int) -> np.ndarray:
-    """out = adj(A)/det(A) for symmetric A (m, k, k); returns det(A) (m,)."""
-    if k == 2:
+def _adjugate(A: np.ndarray, out: np.ndarray) -> np.ndarray:
+    """out = adj(A)/det(A) for symmetric A (m, k, k); True where det(A) is positive and finite."""
+    if A.shape[-1] == 2:
         a, b, d = A[:, 0, 0], A[:, 1, 0], A[:, 1, 1]
         det = a * d - b * b
         out[:, 0, 0], out[:, 1, 1] = d / det, a / det
@@ -57,29 +58,27 @@ def _adjugate(A: np.ndarray, out: np.ndarray, k: int) -> np.ndarray:
         out[:, 1, 1] = (a00 * a22 - a20 * a20) / det
         out[:, 2, 1] = out[:, 1, 2] = (a10 * a20 - a00 * a21) / det
         out[:, 2, 2] = (a00 * a11 - a10 * a10) / det
-    return det
+    return (det > 0) & np.isfinite(det)
 
 
 def cholesky(A: np.ndarray) -> np.ndarray:
     """Lower Cholesky factors L (m, k, k) of the SPD matrices A (m, k, k), k ∈ {2, 3}; other k through
     ``numpy.linalg.cholesky``. Only the lower triangle of A is read. Raises ``numpy.linalg.LinAlgError``
     if a matrix is not positive definite, as ``numpy.linalg.cholesky`` does."""
-    A = np.asarray(A, dtype=float)
-    k = A.shape[-1]
-    if A.ndim != 3 or k not in (2, 3):
-        return np.linalg.cholesky(A)
-    L = np.zeros_like(A)
-    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        l00 = np.sqrt(A[:, 0, 0])
-        l10 = A[:, 1, 0] / l00
-        l11 = np.sqrt(A[:, 1, 1] - l10 * l10)
-        L[:, 0, 0], L[:, 1, 0], L[:, 1, 1] = l00, l10, l11
-        pivots = [l00, l11]
-        if k == 3:
-            l20 = A[:, 2, 0] / l00
-            l21 = (A[:, 2, 1] - l20 * l10) / l11
-            l22 = np.sqrt(A[:, 2, 2] - l20 * l20 - l21 * l21)
-            L[:, 2, 0], L[:, 2, 1], L[:, 2, 2] = l20, l21, l22
-            pivots.append(l22)
-    bad = ~np.all([p > 0 for p in pivots], axis=0) | ~np.isfinite(L).all(axis=(1, 2))
-    return _redo(A, L, bad, np.linalg.cholesky)
+    return _closed_form(A, _cholesky, np.linalg.cholesky)
+
+
+def _cholesky(A: np.ndarray, L: np.ndarray) -> np.ndarray:
+    """L Lᵀ = A column by column (L zero on entry); True where every pivot is positive."""
+    l00 = np.sqrt(A[:, 0, 0])
+    l10 = A[:, 1, 0] / l00
+    l11 = np.sqrt(A[:, 1, 1] - l10 * l10)
+    L[:, 0, 0], L[:, 1, 0], L[:, 1, 1] = l00, l10, l11
+    ok = (l00 > 0) & (l11 > 0)
+    if A.shape[-1] == 3:
+        l20 = A[:, 2, 0] / l00
+        l21 = (A[:, 2, 1] - l20 * l10) / l11
+        l22 = np.sqrt(A[:, 2, 2] - l20 * l20 - l21 * l21)
+        L[:, 2, 0], L[:, 2, 1], L[:, 2, 2] = l20, l21, l22
+        ok &= l22 > 0
+    return ok
