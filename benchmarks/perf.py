@@ -36,6 +36,34 @@ def add_arguments(group) -> None:
                             f"multifrontal engine (default {' '.join(map(str, ENGINE_WORLDS))})")
 
 
+def _have_cholmod() -> bool:
+    try:
+        import sksparse.cholmod  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def _cholmod_blas() -> str:
+    """The BLAS the loaded CHOLMOD uses, as threadpoolctl sees it: a BLAS library loaded from outside
+    NumPy's and SciPy's wheels (the system's, which SuiteSparse links to)."""
+    from threadpoolctl import threadpool_info
+
+    libs = [f"{i['internal_api']} {i.get('version') or ''} ({i['filepath']})"
+            for i in threadpool_info() if i["user_api"] == "blas" and ".libs" not in i["filepath"]]
+    return "; ".join(libs) or "no optimized BLAS threadpoolctl recognizes (Debian's reference BLAS?)"
+
+
+def phase3_cholmod(system, repeat: int) -> float:
+    """Seconds of the same solve by CHOLMOD (the ``cholmod`` extra): MᵀM formed, factored (supernodal,
+    its default ordering) and refined by ``linalg.solve_least_squares``; median of ``repeat``."""
+    from lago_cvx.linalg import solve_least_squares
+
+    M = system.sparse()
+    c = system.c.reshape(-1)
+    return _bench.median_time(lambda: solve_least_squares(M, c, backend="cholmod"), repeat)[0]
+
+
 def phase3_solvers(graph, repeat: int) -> tuple[float, float, float]:
     """Seconds of phase 3's solve (eq. (15), seed route) by QDLDL and by the multifrontal engine (fresh
     symbolic analysis each run: plan, layout, assembler), medians of ``repeat``; and the largest
@@ -92,6 +120,8 @@ def run(args) -> str:
     cov_rows.append([f"manhattan_world({n}, seed=0)", n, f"{t:.3f}"])
     print("  " + " | ".join(map(str, cov_rows[-1])), flush=True)
     eng_rows = []
+    cholmod = _have_cholmod()
+    blas = _cholmod_blas() if cholmod else "CHOLMOD not installed"
     graphs = [] if skipped else [(rel, g) for rel, g in _bench.each_dataset(FILES[:1])]
     sizes = args.engine_poses if args.engine_poses is not None else ((10_000, 30_000) if args.quick else ENGINE_WORLDS)
     graphs += [(f"manhattan_world({n}, seed=0)", None, n) for n in sizes]
@@ -101,8 +131,9 @@ def run(args) -> str:
             g = manhattan_world(item[2], seed=0).graph
         reps = args.repeat if g.n_poses <= 100_000 else 1
         tq, te, diff = phase3_solvers(g, reps)
-        eng_rows.append([name, g.n_poses, 3 * (g.n_poses - 1), f"{tq:.3f}", f"{te:.3f}", f"{te / tq:.2f}",
-                         f"{diff:.1e}", "engine" if 3 * (g.n_poses - 1) >= ENGINE_MIN else "QDLDL"])
+        tc = phase3_cholmod(lago(g, route="seed").phase2.edges, reps) if cholmod else float("nan")
+        eng_rows.append([name, g.n_poses, 3 * (g.n_poses - 1), f"{tq:.3f}", f"{te:.3f}", _bench.fmt(tc, ".3f"),
+                         f"{te / tq:.2f}", f"{diff:.1e}", "engine" if 3 * (g.n_poses - 1) >= ENGINE_MIN else "QDLDL"])
         print("  " + " | ".join(map(str, eng_rows[-1])), flush=True)
         del g
     head = ["file", *(f"{k} [ms]" for k in STEPS), "seed route [ms]", "GTSAM initialize [ms]", "default / GTSAM",
@@ -124,7 +155,11 @@ def run(args) -> str:
         "(AMD and LDLᵀ in C) and by the multifrontal engine (`lago_cvx.multifrontal`; its symbolic analysis "
         f"— plan, layout, assembler — timed too), median of {args.repeat} runs up to 100 000 poses, one run "
         "above. LAGO uses the engine from `normal_equations.ENGINE_MIN` = "
-        f"{ENGINE_MIN:,} unknowns. rel. diff = ‖x_engine − x_QDLDL‖∞ / ‖x_QDLDL‖∞.", "",
-        _bench.table(["graph", "poses", "unknowns", "QDLDL [s]", "engine [s]", "engine / QDLDL", "rel. diff",
-                      "LAGO uses"], eng_rows),
+        f"{ENGINE_MIN:,} unknowns. rel. diff = ‖x_engine − x_QDLDL‖∞ / ‖x_QDLDL‖∞. CHOLMOD (the optional "
+        "`cholmod` extra, `backend=\"cholmod\"`: MᵀM formed, supernodal factorization, the same refinement; "
+        "– when scikit-sparse is not installed) runs on whatever BLAS the system's SuiteSparse is linked "
+        "to: on Debian that is the reference BLAS unless an optimized one is installed "
+        f"(`apt-get install libopenblas0-pthread`). In this run: {blas}.", "",
+        _bench.table(["graph", "poses", "unknowns", "QDLDL [s]", "engine [s]", "CHOLMOD [s]", "engine / QDLDL",
+                      "rel. diff", "LAGO uses"], eng_rows),
     ])
