@@ -11,9 +11,11 @@ Backends:
   used for selected inverses (marginal covariances).
 * ``"cholmod"`` — CHOLMOD through scikit-sparse, an optional extra (lazy import; GPL parts).
 
-``"auto"`` picks QDLDL (else SuperLU). CHOLMOD is used only when asked for: measured here it was not
-faster than QDLDL on these systems (city10000: 0.92 s vs 0.80 s for the whole LAGO step, on a loaded
-machine; benchmarks/datasets.md has the side-by-side numbers).
+``"auto"`` picks QDLDL (else SuperLU); the closed forms send systems of 250 000 unknowns and more to the
+multifrontal engine instead (``normal_equations.ENGINE_MIN``). CHOLMOD is used only when asked for. Its
+speed depends on the BLAS the system's SuiteSparse is linked to: on Debian's reference BLAS it was slower
+than QDLDL (phase 3 at 100 000 poses: 2.7 s against 1.9–2.1 s), on OpenBLAS it is the fastest at every
+size measured (1M poses: 21.7 s against the engine's 26.4 s; benchmarks/perf.md, last table).
 """
 
 from __future__ import annotations
