@@ -337,7 +337,7 @@ def _parent_from_edges(graph: PoseGraph, root: int, edges: np.ndarray) -> np.nda
 
 
 #: Trees of at least this many poses are rooted by ``scipy.sparse.csgraph`` (measured: a 1 000 000-pose
-#: odometric chain took 4.1 s level by level in ``_bfs_parents``).
+#: odometric chain took 3.4 s level by level in ``_bfs_parents``, 0.03 s this way).
 _CSGRAPH_TREE = 50_000
 
 

@@ -195,10 +195,11 @@ class QdldlFactor(Factor):
 
 #: Systems with at least this many unknowns (d·b) are factored by the multifrontal engine
 #: (``lago_cvx.multifrontal``), smaller ones by QDLDL, whose C loop has no per-front Python cost.
-#: Measured on phase 3 (factor, solve and refinement, the engine's symbolic steps included; 2 cores):
-#: city10000 (30 k unknowns) 0.15 s QDLDL against 0.27 s; a 30 000-pose world (90 k) 0.44 against 0.58;
-#: 100 000 poses (300 k) 1.8 against 1.6; 300 000 poses (900 k) 6.0 against 4.5; 1 000 000 poses (3 M)
-#: 63 against about 20. ``GraphElimination.factor(engine=...)`` forces either.
+#: Measured on phase 3 (factor, solve and refinement, the engine's symbolic steps included; 2 cores;
+#: benchmarks/perf.md, last table, two runs): city10000 (30 k unknowns) 0.12 s QDLDL against 0.19 s;
+#: a 30 000-pose world (90 k) 0.36–0.44 against 0.45–0.50; 100 000 poses (300 k) 1.7–1.8 against
+#: 1.35–1.5; 300 000 poses (900 k) 7.4–7.8 against 5.7–6.5; 1 000 000 poses (3 M) 58–61 against 21–26.
+#: ``GraphElimination.factor(engine=...)`` forces either.
 ENGINE_MIN = 250_000
 
 
