@@ -14,7 +14,10 @@ date):
   time per step, cvxpy against the closed form, Gauss–Newton from LAGO and from odometry, GTSAM's
   ``lago.initialize`` side by side (when the ``gtsam`` extra is installed);
 * ``perf``     — the LAGO step against GTSAM's ``lago.initialize`` step by step on city10000 and
-  input_M3500 (interleaved runs), and ``pose_covariances`` on city10000 and a 100 000-pose world;
+  input_M3500 (interleaved runs), ``pose_covariances`` on city10000 and a 100 000-pose world, and
+  phase 3's solve by QDLDL, the multifrontal engine and (if installed) CHOLMOD up to 1M poses;
+* ``endtoend`` — ``lago-cvx solve FILE -o OUT`` against GTSAM's script (``../shared/bench/gtsam_lago.py``)
+  as whole processes, alternating, on city10000 and input_M3500;
 * ``scaling``  — the graph machinery and closed-form LAGO on synthetic Manhattan worlds up to 100 000
   poses, cvxpy on some of them, the log–log slope of time against edges;
 * ``chordal``  — tree rounding against the chordal regularizer, on every dataset and over rising
@@ -51,7 +54,8 @@ from pathlib import Path
 
 import _bench
 
-SECTIONS = ("datasets", "scaling", "perf", "chordal", "certify", "integer", "theorem1", "route", "io", "unseen")
+SECTIONS = ("datasets", "scaling", "perf", "endtoend", "chordal", "certify", "integer", "theorem1", "route", "io",
+            "unseen")
 #: Sections whose module has another name (``io`` would be the standard library's).
 MODULE_OF = {"io": "io_bench"}
 
