@@ -1,6 +1,6 @@
 """The benchmark suite: one entry point, one Markdown result file per section.
 
-    python benchmarks/run.py                       # every section, committed settings (≈ 7 min, 2 cores)
+    python benchmarks/run.py                       # every section, committed settings (≈ 45 min, 2 cores)
     python benchmarks/run.py datasets scaling      # some sections
     python benchmarks/run.py --quick               # every section in about a minute (smoke test; results
                                                    # go to a temporary folder unless --out DIR is given)
