@@ -158,8 +158,10 @@ def inverse_blocks(factor: BlockFactor, prow=None, pcol=None, *, progress=None):
         ccs = np.where(tr[:, None], cr[None, :], cc[None, :])
         flat = off[:, None] + rr * D[:, None] + ccs
         pairs = np.empty((grp.size, b * b))
-        for gi in np.unique(grp):
-            sel = grp == gi
-            pairs[sel] = sig[gi].reshape(-1)[flat[sel]]
+        order = np.argsort(grp, kind="stable")  # the pairs group by group, one pass each
+        cuts = np.flatnonzero(np.diff(grp[order])) + 1
+        for sel in np.split(order, cuts):
+            if sel.size:
+                pairs[sel] = sig[grp[sel[0]]].reshape(-1)[flat[sel]]
         pairs = pairs.reshape(-1, b, b)
     return diag, pairs

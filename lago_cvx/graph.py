@@ -30,6 +30,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import scipy.sparse as sp
 
+from .arrays import unique_sorted
 from .errors import GraphError, OptionError
 from .posegraph import PoseGraph, rot2
 
@@ -83,8 +84,8 @@ def _neighbours(n: int, tails: np.ndarray, heads: np.ndarray) -> tuple[np.ndarra
     ``scipy.sparse.csgraph``'s undirected traversals visit them, so trees come out identical."""
     t = np.asarray(tails, np.int64)
     h = np.asarray(heads, np.int64)
-    out = np.unique(t * n + h)
-    inn = np.unique(h * n + t)
+    out = unique_sorted(t * n + h)
+    inn = unique_sorted(h * n + t)
     src = np.concatenate([out // n, inn // n])
     dst = np.concatenate([out % n, inn % n])
     part = np.concatenate([np.zeros(out.size, np.int8), np.ones(inn.size, np.int8)])
@@ -402,7 +403,7 @@ def spanning_tree(graph: PoseGraph, kind="bfs", *, anchor=None) -> SpanningTree:
         if edges.shape != (graph.n_edges,):
             raise OptionError(f"a boolean tree mask must have shape ({graph.n_edges},)")
         edges = np.flatnonzero(edges)
-    edges = np.unique(edges.astype(np.int64))
+    edges = unique_sorted(edges.astype(np.int64))
     if edges.size != n - 1 or edges.min() < 0 or edges.max() >= graph.n_edges:
         raise GraphError(f"a spanning tree of {n} poses has {n - 1} distinct edges in 0..{graph.n_edges - 1}; "
                          f"got {edges.size}")

@@ -1,6 +1,7 @@
 """The closed-form 2×2 / 3×3 kernels (``lago_cvx.smallmat``) against ``numpy.linalg``: same inverses and
 Cholesky factors on well- and ill-conditioned stacks, LAPACK's answer where the closed form breaks down
-(overflow), and the same ``LinAlgError`` on a matrix that is not positive definite."""
+(overflow), and the same ``LinAlgError`` on a matrix that is not positive definite; and
+``arrays.unique_sorted`` against ``numpy.unique``."""
 
 from __future__ import annotations
 
@@ -50,3 +51,12 @@ def test_other_sizes_go_to_numpy():
     big = np.stack([np.kron(np.eye(2), a) for a in A])  # 6 × 6
     assert np.allclose(spd_inverse(big), np.linalg.inv(big))
     assert np.allclose(cholesky(big), np.linalg.cholesky(big))
+
+
+def test_unique_sorted_is_numpys_unique():
+    from lago_cvx.arrays import unique_sorted
+
+    rng = np.random.default_rng(3)
+    for a in (rng.integers(0, 50, 1000), rng.integers(0, 10**12, 5000), np.zeros(0, np.int64),
+              np.array([7]), rng.integers(-5, 5, (20, 3))):
+        assert np.array_equal(unique_sorted(a), np.unique(a))

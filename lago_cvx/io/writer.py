@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..arrays import unique_sorted
 from ..errors import OptionError
 from ..posegraph import PoseGraph, wrap_angle
 from .floatfmt import int_fields, join_fields, repr_fields
@@ -172,7 +173,7 @@ def write_graph(path, graph: PoseGraph, poses=None, *, format: str = "g2o",
             poses = np.column_stack([poses[:, :2], _wrap_vertex_angles(poses[:, 2])])
     elif graph.n_edges == 0:
         raise OptionError("nothing to write: the graph has no edges and no poses were given")
-    elif np.unique(np.concatenate([graph.tails, graph.heads])).size < graph.n_poses:
+    elif unique_sorted(np.concatenate([graph.tails, graph.heads])).size < graph.n_poses:
         logger.warning("%s: writing an edge-only file; poses that appear in no edge are lost", path)
 
     vtag = "VERTEX_SE2" if fmt == "g2o" else "VERTEX2"
