@@ -90,6 +90,8 @@ def test_blas_threads_sets_and_restores_the_thread_count():
         return [i["num_threads"] for i in threadpoolctl.threadpool_info() if i["user_api"] == "blas"]
 
     before = counts()
+    if not before:
+        pytest.skip("threadpoolctl finds no BLAS it can control in this build of NumPy/SciPy")
     with blas_threads(1) as threads:
         assert set(counts()) == {1}
         threads(None)
