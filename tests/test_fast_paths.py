@@ -84,6 +84,8 @@ def test_blas_threads_sets_and_restores_the_thread_count():
     """``linalg.blas_threads`` limits every loaded BLAS inside its block, lets the block change the
     limit, and restores the count it found — also when the block raises."""
     threadpoolctl = pytest.importorskip("threadpoolctl")
+    import scipy.linalg  # noqa: F401  (its BLAS loaded before counting, as blas_threads loads it)
+
     from lago_cvx.linalg import blas_threads
 
     def counts():
