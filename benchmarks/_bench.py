@@ -21,7 +21,9 @@ import os
 import platform
 import shlex
 import statistics
+import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -39,6 +41,23 @@ SAME_EDGES = frozenset({"gtsam/orientationsNoisyToyGraph.txt", "gtsam/optimizedN
 
 #: The dataset files the sections report, in the order of ``lago_cvx.datasets.DATASET_TABLE``.
 FILES = tuple(rel for rel in DATASET_FILES if rel not in SAME_EDGES)
+
+
+# ----------------------------------------------------------------------------- child processes
+def run_child(argv: list, *, env: dict | None = None, cwd=None) -> tuple[float, float, str]:
+    """(wall seconds, peak resident MiB, stdout) of one child process, its peak memory from ``wait4``;
+    raises on a non-zero exit with the end of its standard error."""
+    t = time.perf_counter()
+    with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
+        proc = subprocess.Popen(argv, env=env, stdout=out, stderr=err, cwd=cwd)
+        _, status, usage = os.wait4(proc.pid, 0)
+        wall = time.perf_counter() - t
+        code = os.waitstatus_to_exitcode(status)
+        out.seek(0)
+        err.seek(0)
+        if code:
+            raise RuntimeError(f"{' '.join(map(str, argv))} failed ({code}): {err.read().decode()[-500:]}")
+        return wall, usage.ru_maxrss / 1024, out.read().decode()
 
 
 # ------------------------------------------------------------------------------------- the machine

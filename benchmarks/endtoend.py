@@ -16,7 +16,6 @@ import statistics
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 import _bench
@@ -26,16 +25,9 @@ GTSAM_SCRIPT = _bench.HERE.parent.parent / "shared" / "bench" / "gtsam_lago.py"
 
 
 def _run(argv: list) -> tuple[float, float]:
-    """(wall seconds, peak resident MiB) of one child process; raises on a non-zero exit."""
-    t = time.perf_counter()
-    with tempfile.TemporaryFile() as err:
-        proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=err)
-        _, status, usage = os.wait4(proc.pid, 0)
-        wall = time.perf_counter() - t
-        if os.waitstatus_to_exitcode(status):
-            err.seek(0)
-            raise RuntimeError(f"{' '.join(map(str, argv))} failed: {err.read().decode()[-400:]}")
-    return wall, usage.ru_maxrss / 1024
+    """(wall seconds, peak resident MiB) of one child process (``_bench.run_child``)."""
+    wall, peak, _ = _bench.run_child(argv)
+    return wall, peak
 
 
 def _have_gtsam() -> bool:

@@ -24,7 +24,6 @@ import statistics
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 import _bench
@@ -50,20 +49,8 @@ def add_arguments(group) -> None:
 
 
 def _run(argv: list, env: dict) -> tuple[float, float, str]:
-    """(wall seconds, peak resident MiB, stdout) of one child process (its peak memory from ``wait4``);
-    raises on a non-zero exit."""
-    t = time.perf_counter()
-    with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
-        # not from the checkout: a child's sys.path starts with its working directory
-        proc = subprocess.Popen(argv, env=env, stdout=out, stderr=err, cwd=tempfile.gettempdir())
-        _, status, usage = os.wait4(proc.pid, 0)
-        wall = time.perf_counter() - t
-        proc.returncode = os.waitstatus_to_exitcode(status)
-        out.seek(0)
-        err.seek(0)
-        if proc.returncode:
-            raise RuntimeError(f"{' '.join(map(str, argv))} failed ({proc.returncode}): {err.read().decode()[-500:]}")
-        return wall, usage.ru_maxrss / 1024, out.read().decode()
+    """``_bench.run_child`` outside the checkout: a child's sys.path starts with its working directory."""
+    return _bench.run_child(argv, env=env, cwd=tempfile.gettempdir())
 
 
 def _env(pythonpath: Path) -> dict:

@@ -25,8 +25,9 @@ final elimination order) and update rows R_f (later poses, sorted); R_f ⊂ P_pa
 
 L's block column of P_f is [L_PP; X_f]. Fronts at the same height of the front tree are independent;
 those of similar size are padded to a common size (identity on padded pivots, zero padded rows) and
-factored together by stacked LAPACK/BLAS calls, so the Python cost is per group of fronts, not per front.
-Large fronts are factored one by one with exact sizes (``potrf``/``trsm``).
+factored together by stacked calls (Cholesky, products), with a few NumPy calls per front left (the
+extend-add of its children, L_PP⁻¹ by ``trtri``). Large fronts are factored one by one with exact sizes
+(``potrf``/``trsm``/``syrk``) on every BLAS thread, small ones on one (``linalg.blas_threads``).
 
 **Solve** N x = y: forward L_PP z_P = y_P, y_R −= X z_P (leaves up); back x_P = L_PP⁻ᵀ(z_P − Xᵀx_R).
 
