@@ -10,6 +10,7 @@ from .._version import __version__
 from ..errors import LagoError
 from . import certify, data, plot, solve, worlds
 from .common import EXIT_INTERNAL, EXIT_TABLE, debug_enabled, speak_cli
+from .startup import defer_unused_numpy_modules
 
 log = logging.getLogger("lago_cvx")
 
@@ -61,6 +62,13 @@ def _configure_logging(verbose: int) -> None:
 
 
 def main(argv=None) -> int:
+    """Run one ``lago-cvx`` command; ``argv=None`` means the process's own command line.
+
+    Only then (the console entry point) are NumPy's unused submodules made lazy before SciPy loads
+    (:mod:`lago_cvx.cli.startup`); an in-process caller passing ``argv`` keeps its import state.
+    """
+    if argv is None:
+        defer_unused_numpy_modules()
     parser = build_parser()
     args = parser.parse_args(argv)
     _configure_logging(args.verbose + getattr(args, "verbose_after", 0))
