@@ -30,7 +30,7 @@ import scipy.sparse as sp
 
 from .graph import free_poses
 from .linalg import Factor, augmented_least_squares, refine_normal_equations
-from .multifrontal import BlockFactor, EliminationPlan, NotPositiveDefinite, plan_from_qdldl
+from .multifrontal import BlockFactor, EliminationPlan, plan_from_qdldl
 from .posegraph import PoseGraph
 from .progress import Progress
 

@@ -64,7 +64,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .graph import _reduced_incidence, free_poses
-from .linalg import Factor, block_diagonal_inverse, factorize, refine_normal_equations, solve_least_squares
+from .linalg import Factor, refine_normal_equations, solve_least_squares
 from .block_factor import inverse_blocks
 from .normal_equations import EdgeSystem, GraphElimination, PoseFactor, RenumberedFactor, matrix_blocks, plan_from_pattern
 from .posegraph import PoseGraph, rot2
