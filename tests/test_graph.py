@@ -170,20 +170,31 @@ def test_scales_to_100k_edges():
         assert t.tree_edges.size == g.n_poses - 1
 
 
-def test_numpy_traversals_equal_scipy_csgraph():
+@pytest.mark.parametrize("narrow", [0, 3, 64])
+def test_numpy_traversals_equal_scipy_csgraph(narrow, monkeypatch):
     """The BFS tree and the component labels are computed in NumPy (importing ``scipy.sparse.csgraph`` costs
     the command line ~0.15 s); they must be exactly what ``csgraph`` gives: same parents (neighbours in
-    csgraph's order: out-edges then in-edges, ascending), same labels."""
+    csgraph's order: out-edges then in-edges, ascending), same labels. ``narrow`` is the widest level
+    walked in Python: 0 vectorizes every level, 3 switches between the two kinds of step often (chains
+    glued to stars below), 64 is the default."""
     import scipy.sparse as sp
     from scipy.sparse import csgraph
 
+    from lago_cvx import graph as graph_module
     from lago_cvx.graph import _bfs_parents, connected_components
 
+    monkeypatch.setattr(graph_module, "_NARROW_LEVEL", narrow)
     rng = np.random.default_rng(0)
     for trial in range(40):
         n = int(rng.integers(2, 300))
         m = int(rng.integers(1, 3 * n))
         t, h = rng.integers(0, n, m), rng.integers(0, n, m)
+        if trial % 4 == 0:  # a chain, a star at its end, chains out of the star's leaves
+            c = n // 3
+            hub = c
+            leaves = np.arange(c + 1, n)
+            t = np.r_[np.arange(c), np.full(min(8, leaves.size), hub), leaves[:-8]]
+            h = np.r_[np.arange(1, c + 1), leaves[:8], leaves[8:]]
         keep = t != h
         t, h = t[keep], h[keep]
         if t.size == 0:
