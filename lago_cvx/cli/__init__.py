@@ -5,7 +5,8 @@ Sub-commands: ``info``, ``solve``, ``certify``, ``generate``, ``demo``, ``datase
 cannot be written, an estimate that is not finite), 3 (``certify``) not certified, 4 a resource limit on
 valid input, 1 internal error. Errors are one line ``lago-cvx: error: …`` on stderr, never a traceback
 (``LAGO_CVX_DEBUG=1`` shows one). Modules: ``common`` (shared options, output targets, printing),
-``solve`` (info, solve), ``certify``, ``worlds`` (generate, demo), ``data`` (datasets), ``plot``, ``main``.
+``solve`` (info, solve), ``certify``, ``worlds`` (generate, demo), ``data`` (datasets), ``plot``, ``main``,
+``startup`` (the console process's start-up: NumPy submodules SciPy only enumerates are made lazy).
 """
 
 from .common import EXIT_BAD_INPUT, EXIT_INTERNAL, EXIT_NOT_CERTIFIED, EXIT_OK, EXIT_RESOURCE, UsageError
