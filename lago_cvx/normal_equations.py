@@ -196,8 +196,9 @@ class QdldlFactor(Factor):
 #: Systems with at least this many unknowns (d·b) are factored by the multifrontal engine
 #: (``lago_cvx.multifrontal``), smaller ones by QDLDL, whose C loop has no per-front Python cost.
 #: Measured on phase 3 (factor, solve and refinement, the engine's symbolic steps included; 2 cores;
-#: benchmarks/perf.md, last table, two runs): city10000 (30 k unknowns) 0.12 s QDLDL against 0.19 s;
-#: a 30 000-pose world (90 k) 0.36–0.44 against 0.45–0.50; 100 000 poses (300 k) 1.7–1.8 against
+#: benchmarks/perf.md's last table, two runs up to commit 59fd2cd; a later run in a slow hour of the
+#: machine took 1.5–2.1× these times, with the same crossover): city10000 (30 k unknowns) 0.12 s QDLDL
+#: against 0.19 s; a 30 000-pose world (90 k) 0.36–0.44 against 0.45–0.50; 100 000 poses (300 k) 1.7–1.8 against
 #: 1.35–1.5; 300 000 poses (900 k) 7.4–7.8 against 5.7–6.5; 1 000 000 poses (3 M) 58–61 against 21–26.
 #: ``GraphElimination.factor(engine=...)`` forces either.
 ENGINE_MIN = 250_000
