@@ -67,10 +67,8 @@ for route in ("default", "seed"):
     f = getattr(res.phase3.factor, "pose_major", None)
     if getattr(f, "blocks", None) is not None:
         out[route + "_flops"] = f.blocks.layout.plan.flops(3)
-    elif getattr(f, "upper", None) is not None:  # QDLDL's input: the upper triangle of phase 3's N
-        import qdldl
-        L = qdldl.Solver(f.upper, upper=True).factors()[0]
-        out[route + "_flops"] = float(((np.diff(L.indptr) + 1.0) ** 2).sum())
+    elif hasattr(f, "flops"):  # QDLDL: Σ colcount² of its L
+        out[route + "_flops"] = f.flops()
     # this process's own high-water mark: VmHWM (ru_maxrss would include the parent's, copied at fork)
     with open("/proc/self/status") as fh:
         out[route + "_rss"] = next(int(ln.split()[1]) for ln in fh if ln.startswith("VmHWM:")) * 1024

@@ -15,7 +15,10 @@ design M (mq × db), its normal matrix N = MᵀM has the b×b blocks
 the anchor-reduced pose graph's pattern for every b. ``EdgeSystem`` holds (E) as arrays (m, q, b) and
 applies M and Mᵀ edge by edge (no sparse matrix is built); ``GraphElimination`` holds the pose-level
 symbolic analysis of one graph and anchor (``lago_cvx.multifrontal``), computed once and shared by every
-system LAGO solves on that graph, and solves (E) by the corrected semi-normal equations
+system LAGO solves on that graph. Below ``ENGINE_MIN`` unknowns N is factored by QDLDL in that same
+pose-level order, expanded to b components per pose (``BlockUpperPattern``: the upper triangle's CSC
+pattern and a scatter map, built once per b; ``lago_cvx.ldl``), above it by the multifrontal engine.
+Either way (E) is solved by the corrected semi-normal equations
 (``lago_cvx.linalg.refine_normal_equations``), falling back to the augmented system as
 ``lago_cvx.linalg.solve_least_squares`` does.
 """
@@ -34,7 +37,7 @@ from .multifrontal import BlockFactor, EliminationPlan, plan_from_qdldl
 from .posegraph import PoseGraph
 from .progress import Progress
 
-__all__ = ["plan_from_pattern", "matrix_blocks", "EdgeSystem", "GraphElimination", "PoseFactor", "QdldlFactor", "RenumberedFactor", "ENGINE_MIN"]
+__all__ = ["plan_from_pattern", "matrix_blocks", "EdgeSystem", "GraphElimination", "PoseFactor", "BlockUpperPattern", "QdldlFactor", "RenumberedFactor", "ENGINE_MIN"]
 
 log = logging.getLogger(__name__)
 
@@ -157,15 +160,120 @@ class PoseFactor(Factor):
         super().__init__(solve, slots.size, "multifrontal")
 
 
-class QdldlFactor(Factor):
-    """A system of (N) assembled as an upper-triangular CSC (pose-major variables i·b + c) and factored by
-    QDLDL (AMD + LDLᵀ in C): below ``ENGINE_MIN`` unknowns faster than the multifrontal engine, whose
-    Python cost per level of fronts does not pay there."""
+class BlockUpperPattern:
+    """The upper triangle of (N)'s pattern with b×b blocks, in elimination order, as the CSC that
+    ``ldl.LDLPattern`` factors, and the map that scatters ``EdgeSystem.normal_blocks()`` into its values.
 
-    def __init__(self, system: "EdgeSystem", pairs, keep):
+    ``position`` (d,) each free pose's place in the elimination order (variable (i, c) gets slot
+    position[i]·b + c); ``pairs`` (prow, pcol, keep) as ``GraphElimination.pairs``. Pose column J of the
+    upper triangle holds the poses I ≤ J joined to it (increasing, J itself last); scalar column (J, c)
+    holds, for each off-diagonal pose I, the rows I·b + 0 … b−1, then J·b + 0 … c. The block of pair
+    (prow, pcol) lands as is when prow is eliminated first, transposed otherwise; of a diagonal block
+    only the upper half (r ≤ c) is stored. ``values(blocks)`` sums every block's entries into place by one
+    ``np.bincount`` (no COO → CSC conversion per system); ``ldl`` the symbolic analysis, shared by every
+    system with this b."""
+
+    def __init__(self, position: np.ndarray, pairs, b: int):
+        from .ldl import LDLPattern
+
+        prow, pcol, keep = pairs
+        d = int(position.size)
+        m = prow.size // 3  # pairs: tail diagonals, head diagonals, (head, tail) off-diagonals
+        self.b = b
+        pose_at = np.empty(d, np.int64)
+        pose_at[position] = np.arange(d)
+        comp = np.arange(b)
+        self.slots = (position[:, None] * b + comp).reshape(-1)  # slot of pose-major variable i·b + c
+        self.order = (pose_at[:, None] * b + comp).reshape(-1)  # pose-major variable in each slot
+        # the off-diagonal pose entries (I < J in elimination order), each once, by column J then row I
+        t, h = pcol[2 * m:], prow[2 * m:]
+        both = np.flatnonzero((t >= 0) & (h >= 0))
+        st, sh = position[t[both]], position[h[both]]
+        swap = sh > st  # the head eliminated later: its block row becomes the column
+        key = np.where(swap, sh * d + st, st * d + sh)  # J·d + I
+        srt = np.argsort(key, kind="stable")
+        ks = key[srt]
+        new_entry = np.ones(ks.size, bool)
+        new_entry[1:] = ks[1:] != ks[:-1]
+        uk = ks[new_entry]
+        inv = np.empty(key.size, np.int64)
+        inv[srt] = np.cumsum(new_entry) - 1
+        uJ, uI = uk // d, uk % d
+        offc = np.bincount(uJ, minlength=d)  # off-diagonal poses of each pose column
+        rank = np.arange(uk.size) - np.searchsorted(uJ, uJ)  # place of each entry in its pose column
+        base = np.r_[0, np.cumsum(b * b * offc + b * (b + 1) // 2)]
+        colstart = base[:-1, None] + comp * (offc[:, None] * b) + comp * (comp + 1) // 2  # (d, b): column (J, c)
+        self.indptr = np.r_[colstart.reshape(-1), base[-1]]
+        self.nnz = nnz = int(base[-1])
+        R, C = np.divmod(np.arange(b * b), b)  # block entry (R, C) at flat index R·b + C
+        lower = R > C
+        # destinations of a block's b² entries: at each pose column's diagonal (upper half only; pose
+        # rows in elimination order, a last row for the anchor: discarded) ...
+        dj = colstart[:, C] + (offc * b)[:, None] + R
+        dj[:, lower] = nnz
+        diag = np.empty((d + 1, b * b), np.int64)  # row = free pose index, row d = the anchor
+        np.take(dj, position, axis=0, out=diag[:d])
+        diag[d] = nnz
+        # ... and at each off-diagonal pose entry, as is and transposed (entry (r, c) → (c, r))
+        U = uk.size
+        off = np.take(colstart, uJ, axis=0)[:, C] + (rank * b)[:, None] + R
+        table = np.empty((2 * U + 1, b * b), np.int64)
+        table[:U] = off
+        table[U:2 * U] = off[:, C * b + R]
+        table[2 * U] = nnz
+        which = np.full(m, 2 * U, np.int64)  # edges with an end at the anchor: discarded
+        which[both] = inv + swap * U
+        dest = np.empty((3 * m, b * b), np.int64)  # np.take with out=: NumPy's fancy-index gathers are slower
+        np.take(diag, np.where(pcol[:2 * m] >= 0, pcol[:2 * m], d), axis=0, out=dest[:2 * m])
+        np.take(table, which, axis=0, out=dest[2 * m:])
+        self.dest = dest.reshape(-1)
+        # the pattern's rows, scattered to the same places
+        indices = np.empty(nnz, np.int64)
+        indices[off] = uI[:, None] * b + R
+        indices[dj[:, ~lower]] = np.arange(d)[:, None] * b + R[~lower]
+        self.ldl = LDLPattern(self.indptr, indices)
+
+    @property
+    def indices(self) -> np.ndarray:
+        return self.ldl.indices
+
+    def values(self, blocks: np.ndarray) -> np.ndarray:
+        """The upper triangle's values (nnz,) from ``blocks`` (3m, b, b) of ``EdgeSystem.normal_blocks``."""
+        return np.bincount(self.dest, weights=blocks.reshape(-1), minlength=self.nnz + 1)[:self.nnz]
+
+    def matrix(self, data: np.ndarray) -> sp.csc_matrix:
+        """The whole symmetric matrix (pose-major numbering) with upper-triangle values ``data``."""
+        n = self.slots.size
+        U = sp.csc_matrix((data, self.ldl.indices, self.indptr), shape=(n, n))
+        N = sp.csc_matrix(U + U.T - sp.diags(U.diagonal()))
+        return sp.csc_matrix(N[self.slots][:, self.slots])
+
+
+class QdldlFactor(Factor):
+    """A system of (N) factored by QDLDL's LDLᵀ in C: below ``ENGINE_MIN`` unknowns faster than the
+    multifrontal engine, whose Python cost per level of fronts does not pay there.
+
+    With ``pattern`` (a ``BlockUpperPattern``, when ``ldl.available()``): the values scattered into the
+    pattern's upper triangle and factored in the pose-level elimination order by QDLDL's C routines
+    (``lago_cvx.ldl``), the symbolic analysis shared. Without: assembled as an upper-triangular CSC
+    (pose-major variables i·b + c) and factored by ``qdldl.Solver``, which orders it by AMD first."""
+
+    def __init__(self, system: "EdgeSystem", pairs, keep, *, pattern: BlockUpperPattern | None = None):
+        b = system.b
+        n = system.d * b
+        if pattern is not None:
+            data = pattern.values(system.normal_blocks())
+            ldl = pattern.ldl.factor(data)
+            order, slots = pattern.order, pattern.slots
+            self._flops = pattern.ldl.flops
+
+            def solve(rhs: np.ndarray) -> np.ndarray:
+                return ldl.solve(rhs[order])[slots]
+
+            super().__init__(solve, n, "qdldl", lambda: pattern.matrix(data))
+            return
         import qdldl
 
-        b = system.b
         prow, pcol = pairs
         blocks = system.normal_blocks()[keep]
         pr, pc = prow[keep], pcol[keep]
@@ -178,8 +286,7 @@ class QdldlFactor(Factor):
         dup = (pr == pc)[:, None].repeat(b * b, 1).reshape(-1) & lo  # diagonal blocks: lower half is a copy
         r_ = np.where(up, rows, cols)[~dup]
         c_ = np.where(up, cols, rows)[~dup]
-        n = system.d * b
-        self.upper = upper = sp.csc_matrix((vals[~dup], (r_, c_)), shape=(n, n))
+        upper = sp.csc_matrix((vals[~dup], (r_, c_)), shape=(n, n))
         solver = qdldl.Solver(upper, upper=True)
 
         def solve(rhs: np.ndarray) -> np.ndarray:
@@ -190,16 +297,30 @@ class QdldlFactor(Factor):
         def whole() -> sp.csc_matrix:  # N = U + Uᵀ − diag(U), built only if someone asks for it
             return sp.csc_matrix(upper + upper.T - sp.diags(upper.diagonal()))
 
+        def flops() -> float:
+            L = solver.factors()[0]
+            return float(((np.diff(L.indptr) + 1.0) ** 2).sum())
+
+        self._flops = flops
         super().__init__(solve, n, "qdldl", whole)
+
+    def flops(self) -> float:
+        """Σ colcount² over the columns of L (diagonal included): the factorization's multiply–adds."""
+        return self._flops()
 
 
 #: Systems with at least this many unknowns (d·b) are factored by the multifrontal engine
 #: (``lago_cvx.multifrontal``), smaller ones by QDLDL, whose C loop has no per-front Python cost.
 #: Measured on phase 3 (factor, solve and refinement, the engine's symbolic steps included; 2 cores;
-#: benchmarks/perf.md's last table, two runs up to commit 59fd2cd; a later run in a slow hour of the
-#: machine took 1.5–2.1× these times, with the same crossover): city10000 (30 k unknowns) 0.12 s QDLDL
-#: against 0.19 s; a 30 000-pose world (90 k) 0.36–0.44 against 0.45–0.50; 100 000 poses (300 k) 1.7–1.8 against
-#: 1.35–1.5; 300 000 poses (900 k) 7.4–7.8 against 5.7–6.5; 1 000 000 poses (3 M) 58–61 against 21–26.
+#: benchmarks/perf.md's last table, two runs up to commit 59fd2cd, when QDLDL still ran its own AMD):
+#: city10000 (30 k unknowns) 0.12 s QDLDL against 0.19 s; a 30 000-pose world (90 k) 0.36–0.44 against
+#: 0.45–0.50; 100 000 poses (300 k) 1.7–1.8 against 1.35–1.5; 300 000 poses (900 k) 7.4–7.8 against
+#: 5.7–6.5; 1 000 000 poses (3 M) 58–61 against 21–26. QDLDL in the pose order (``lago_cvx.ldl``, no AMD
+#: of its own) moved the crossover of the factorization alone up to 150 000–200 000 poses (one run,
+#: perf.phase3_solvers: 30 000 poses 0.48 against 0.79 s, 100 000 1.84 against 2.45, 200 000 5.7 against
+#: 5.1), but the threshold stays: at 100 000 poses whole LAGO runs took 3.9 s either way (within the
+#: machine's noise), and the engine's factor is what ``Phase3.pose_covariances`` inverts in place
+#: (1.2–1.6 s, against 3.5–4.0 s when a QDLDL-factored phase 3 must be refactored for it).
 #: ``GraphElimination.factor(engine=...)`` forces either.
 ENGINE_MIN = 250_000
 
@@ -254,7 +375,7 @@ class GraphElimination:
         self._lo = np.minimum(self.tails, self.heads)[both]
         self._hi = np.maximum(self.tails, self.heads)[both]
         self._plan = None
-        self._qdldl_pattern = None
+        self._upper_patterns = {}
         if d == 0:
             self._plan = EliminationPlan(0, np.zeros(0, np.int64), np.zeros(1, np.int64), np.zeros(1, np.int64),
                                          np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64))
@@ -286,6 +407,31 @@ class GraphElimination:
         return self._plan
 
     @property
+    def elimination_position(self) -> np.ndarray:
+        """(d,) each free pose's place in the elimination order: the AMD order of the weighted Laplacian's
+        QDLDL factorization when there is one (no plan built), else the plan's."""
+        if "_position" not in self.__dict__:
+            if self.laplacian is not None:
+                perm = self.laplacian[0].factors()[2]
+                pos = np.empty(self.d, np.int64)
+                pos[np.asarray(perm, np.int64)] = np.arange(self.d)
+                self._position = pos
+            else:
+                self._position = self.plan.position
+        return self._position
+
+    def upper_pattern(self, b: int) -> BlockUpperPattern | None:
+        """The ``BlockUpperPattern`` of the systems with b×b blocks (built once per b), or None when QDLDL's
+        C routines cannot be called directly (``ldl.available()``)."""
+        from . import ldl
+
+        if not ldl.available():
+            return None
+        if b not in self._upper_patterns:
+            self._upper_patterns[b] = BlockUpperPattern(self.elimination_position, self.pairs, b)
+        return self._upper_patterns[b]
+
+    @property
     def pairs(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(prow, pcol, keep) of the blocks ``EdgeSystem.normal_blocks`` returns: tail diagonals, head
         diagonals, (head, tail) off-diagonals; ``keep`` (3m,) those between free poses."""
@@ -306,7 +452,7 @@ class GraphElimination:
         b = system.b
         if not (engine if engine is not None else system.d * b >= ENGINE_MIN):
             prow, pcol, keep = self.pairs
-            return QdldlFactor(system, (prow, pcol), keep)
+            return QdldlFactor(system, (prow, pcol), keep, pattern=self.upper_pattern(b))
         if b not in self._assemblers:
             prow, pcol, keep = self.pairs
             lay = self.plan.layout(b)

@@ -1,0 +1,157 @@
+r"""QDLDL's sparse LDLᵀ factorization in an ordering given by the caller.
+
+The ``qdldl`` package (a dependency of cvxpy, and the KKT solver of OSQP and Clarabel) exposes one
+Python entry point, ``qdldl.Solver(A)``, which always computes AMD on the scalar matrix before
+factoring. LAGO's systems do not need that: every system of a graph has b×b blocks on the pattern of
+the anchor-reduced pose graph, whose fill-reducing ordering is computed once at the pose level
+(``normal_equations.GraphElimination``, AMD of the d × d pose Laplacian) and serves b = 1, 2, 3 alike.
+Repeating AMD on the 3d × 3d scalar matrix of phase 3 costs as much as half the numeric factorization
+and finds no better ordering: on se-sync/city10000.g2o L has 1 015 974 entries under scalar AMD and
+1 016 856 under the pose ordering expanded to 3 components per pose.
+
+So this module calls QDLDL's three C routines directly through ``ctypes``, on an upper-triangular CSC
+already in elimination order:
+
+    QDLDL_etree(n, Ap, Ai, work, Lnz, etree)            elimination tree, column counts of L
+    QDLDL_factor(n, Ap, Ai, Ax, Lp, Li, Lx, D, Dinv, Lnz, etree, bwork, iwork, fwork)     A = (I+L) D (I+L)ᵀ
+    QDLDL_solve(n, Lp, Li, Lx, Dinv, x)                  x ← A⁻¹x in place
+
+(the C API of QDLDL, ``qdldl.h``; no allocation inside, every array allocated here with NumPy). The
+symbolic part (``LDLPattern``: etree and column counts) is kept and reused by every factorization with
+the same pattern.
+
+**ABI check.** The routines are looked up in the ``qdldl`` extension module's shared object. Its
+integer and float types are fixed when the package is built; the package's own C++ class
+``qdldl::Solver(QDLDL_int, QDLDL_int*, QDLDL_int*, QDLDL_float*)`` is exported under the mangled name
+``_ZN5qdldl6SolverC1ExPxS1_Pd``, which spells QDLDL_int = ``long long`` (x) and QDLDL_float =
+``double`` (d). ``available()`` is True only when that symbol and the three routines are all present;
+otherwise (another build or version of qdldl) callers use ``qdldl.Solver`` as before. QDLDL_bool's
+size is not part of that check: its work array is allocated with 8 bytes per entry, enough for any
+boolean type.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import logging
+
+import numpy as np
+
+from .errors import NumericalError
+
+__all__ = ["available", "LDLPattern", "LDLFactor"]
+
+log = logging.getLogger(__name__)
+
+#: The C++ constructor whose mangled name fixes QDLDL_int = long long and QDLDL_float = double.
+_ABI_SYMBOL = "_ZN5qdldl6SolverC1ExPxS1_Pd"
+
+_LIB: list = []  # [ctypes library or None], resolved on first use
+
+
+def _library():
+    """The ``qdldl`` extension module as a ``ctypes`` library with typed routines, or None."""
+    if not _LIB:
+        lib = None
+        try:
+            import qdldl
+
+            cand = ctypes.CDLL(qdldl.__file__)
+            if all(hasattr(cand, s) for s in (_ABI_SYMBOL, "QDLDL_etree", "QDLDL_factor", "QDLDL_solve")):
+                ptr, i64 = ctypes.c_void_p, ctypes.c_longlong
+                cand.QDLDL_etree.restype = i64
+                cand.QDLDL_etree.argtypes = [i64] + [ptr] * 5
+                cand.QDLDL_factor.restype = i64
+                cand.QDLDL_factor.argtypes = [i64] + [ptr] * 13
+                cand.QDLDL_solve.restype = None
+                cand.QDLDL_solve.argtypes = [i64] + [ptr] * 5
+                lib = cand
+            else:
+                log.info("qdldl's C routines are not exported as expected: using qdldl.Solver (with its AMD)")
+        except Exception as exc:  # no qdldl, or a shared object ctypes cannot open
+            log.info("qdldl's C routines unavailable (%s): using qdldl.Solver", exc)
+        _LIB.append(lib)
+    return _LIB[0]
+
+
+def available() -> bool:
+    """True when QDLDL's C routines can be called directly (module docstring, "ABI check")."""
+    return _library() is not None
+
+
+def _p(a: np.ndarray) -> int:
+    return a.ctypes.data
+
+
+class LDLPattern:
+    """The symbolic analysis of an n × n symmetric matrix given by its upper triangle in CSC form:
+    ``indptr`` (n+1,), ``indices`` (nnz,) (rows increasing within a column, the diagonal present in every
+    column), already in elimination order. Holds QDLDL's elimination tree and the column counts ``Lnz``
+    (n,) of L (strictly below the diagonal); ``nnz_L`` their sum. Raises ``NumericalError`` if QDLDL
+    rejects the pattern (an entry below the diagonal, or an empty column)."""
+
+    def __init__(self, indptr: np.ndarray, indices: np.ndarray):
+        lib = _library()
+        if lib is None:
+            raise RuntimeError("QDLDL's C routines are not available (ldl.available() is False)")
+        self.n = n = int(indptr.size - 1)
+        self.indptr = np.ascontiguousarray(indptr, dtype=np.int64)
+        self.indices = np.ascontiguousarray(indices, dtype=np.int64)
+        self.etree = np.empty(n, np.int64)
+        self.Lnz = np.empty(n, np.int64)
+        work = np.empty(n, np.int64)
+        total = lib.QDLDL_etree(n, _p(self.indptr), _p(self.indices), _p(work), _p(self.Lnz), _p(self.etree))
+        if total < 0:
+            raise NumericalError(f"QDLDL_etree rejected the pattern (status {total}): not upper triangular "
+                                 "or an empty column")
+        self.nnz_L = int(total)
+
+    def flops(self) -> float:
+        """Σ over the columns of L of colcount² (diagonal included): the multiply–adds of the
+        factorization."""
+        return float(((self.Lnz + 1.0) ** 2).sum())
+
+    def factor(self, data: np.ndarray) -> "LDLFactor":
+        """Factor the matrix with values ``data`` (nnz,) on this pattern."""
+        return LDLFactor(self, data)
+
+
+class LDLFactor:
+    """A = (I + L) D (I + L)ᵀ by ``QDLDL_factor`` on an ``LDLPattern``; ``solve(rhs)`` for rhs (n,) or
+    (n, r) in the pattern's (elimination) numbering. Raises ``NumericalError`` when a pivot D_jj is zero
+    (QDLDL's status −1), as ``qdldl.Solver`` does; ``n_positive`` the number of positive pivots (n for a
+    numerically positive definite A)."""
+
+    def __init__(self, pattern: LDLPattern, data: np.ndarray):
+        lib = _library()
+        n = pattern.n
+        self.pattern = pattern
+        self._lib = lib
+        Ax = np.ascontiguousarray(data, dtype=float)
+        if Ax.size != pattern.indices.size:
+            raise ValueError(f"{Ax.size} values for a pattern of {pattern.indices.size} entries")
+        self.Lp = np.empty(n + 1, np.int64)
+        self.Li = np.empty(max(pattern.nnz_L, 1), np.int64)
+        self.Lx = np.empty(max(pattern.nnz_L, 1))
+        self.D = np.empty(n)
+        self.Dinv = np.empty(n)
+        bwork = np.empty(n, np.int64)  # QDLDL_bool[n]; 8 bytes each covers any boolean type
+        iwork = np.empty(3 * n, np.int64)
+        fwork = np.empty(n)
+        status = lib.QDLDL_factor(n, _p(pattern.indptr), _p(pattern.indices), _p(Ax), _p(self.Lp), _p(self.Li),
+                                  _p(self.Lx), _p(self.D), _p(self.Dinv), _p(pattern.Lnz), _p(pattern.etree),
+                                  _p(bwork), _p(iwork), _p(fwork))
+        if status < 0:
+            raise NumericalError("QDLDL_factor: a zero pivot (the matrix is not quasi-definite in floating point)")
+        self.n_positive = int(status)
+
+    def solve(self, rhs: np.ndarray) -> np.ndarray:
+        n = self.pattern.n
+        x = np.array(rhs, dtype=float, order="F")  # a copy; each column contiguous
+        if x.shape[0] != n:
+            raise ValueError(f"right-hand side of {x.shape[0]} rows for a {n} × {n} factor")
+        cols = x.reshape(n, -1, order="F")
+        for j in range(cols.shape[1]):
+            col = cols[:, j]
+            self._lib.QDLDL_solve(n, _p(self.Lp), _p(self.Li), _p(self.Lx), _p(self.Dinv), _p(col))
+        return x

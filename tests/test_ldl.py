@@ -1,0 +1,165 @@
+"""QDLDL called directly in the pose-level elimination order (``lago_cvx.ldl``,
+``normal_equations.BlockUpperPattern``): the scattered upper triangle is exactly MᵀM, the factor solves
+like a dense solve, its column counts are the symbolic fill of that order, bad input is refused by name,
+and LAGO gives the same answer through ``qdldl.Solver`` (the fallback when the C routines are not
+exported as expected)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+import lago_cvx as lc
+from lago_cvx import ldl
+from lago_cvx import normal_equations as ne
+from lago_cvx.errors import NumericalError
+from lago_cvx.normal_equations import GraphElimination
+
+from helpers import graph_from_truth
+
+pytestmark = pytest.mark.skipif(not ldl.available(), reason="qdldl's C routines are not exported by this build")
+
+
+def _graph_with_parallel_edges(anchor_index):
+    """A small graph with parallel edges in both directions, loops through the anchor and a pose whose
+    only edges touch the anchor."""
+    rng = np.random.default_rng(4)
+    truth = np.c_[rng.uniform(-5, 5, (9, 2)), rng.uniform(-np.pi, np.pi, 9)]
+    tails = [0, 1, 2, 3, 4, 5, 6, 7, 2, 3, 5, 0, 6, 1, 8, 8]
+    heads = [1, 2, 3, 4, 5, 6, 7, 2, 1, 2, 1, 4, 3, 2, 0, anchor_index if anchor_index != 8 else 0]
+    g = graph_from_truth(truth, np.array(tails), np.array(heads))
+    return g
+
+
+def _random_system(el, b, seed):
+    rng = np.random.default_rng(seed)
+    m = el.tails.size
+    return ne.EdgeSystem(el.tails, el.heads, rng.standard_normal((m, b + 1, b)), rng.standard_normal((m, b + 1, b)),
+                         rng.standard_normal((m, b + 1)), el.d)
+
+
+@pytest.mark.parametrize("b", [1, 2, 3])
+@pytest.mark.parametrize("anchor_index", [0, 4])
+def test_scattered_upper_triangle_is_the_normal_matrix(b, anchor_index):
+    """``BlockUpperPattern``: indptr/indices a valid upper-triangular CSC (sorted rows, diagonal last in
+    every column), and the values it scatters from ``normal_blocks`` give MᵀM exactly as SciPy forms it,
+    parallel edges summed and blocks of edges whose later-eliminated end is the head transposed."""
+    g = _graph_with_parallel_edges(anchor_index)
+    el = GraphElimination(g, anchor_index)
+    system = _random_system(el, b, seed=b)
+    pat = el.upper_pattern(b)
+    n = el.d * b
+    ip, ix = pat.indptr, pat.indices
+    assert ip[0] == 0 and ip[-1] == pat.nnz == ix.size
+    for j in range(n):
+        col = ix[ip[j]:ip[j + 1]]
+        assert np.all(np.diff(col) > 0) and col[-1] == j
+    M = system.sparse()
+    N = (M.T @ M).toarray()
+    assert np.allclose(pat.matrix(pat.values(system.normal_blocks())).toarray(), N, rtol=1e-14, atol=1e-13)
+    # in elimination order: the upper triangle of N permuted by the slots
+    U = sp.csc_matrix((pat.values(system.normal_blocks()), ix, ip), shape=(n, n)).toarray()
+    perm = pat.order
+    assert np.allclose(U, np.triu(N[np.ix_(perm, perm)]), rtol=1e-14, atol=1e-13)
+
+
+@pytest.mark.parametrize("b", [1, 2, 3])
+def test_factor_solves_like_a_dense_solve(b):
+    """The QDLDL factor in the pose order solves N x = y (one and several right-hand sides) to 1e-10
+    relative against numpy, and ``GraphElimination.factor`` uses it (backend "qdldl")."""
+    g = lc.manhattan_world(150, seed=2).graph
+    el = GraphElimination(g, 0)
+    system = _random_system(el, b, seed=7)
+    M = system.sparse().toarray()
+    N = M.T @ M
+    f = el.factor(system, engine=False)
+    assert isinstance(f, ne.QdldlFactor) and f.backend == "qdldl"
+    rng = np.random.default_rng(1)
+    y = rng.standard_normal(el.d * b)
+    Y = rng.standard_normal((el.d * b, 3))
+    scale = np.abs(np.linalg.solve(N, y)).max()
+    assert np.abs(f.solve(y) - np.linalg.solve(N, y)).max() <= 1e-10 * scale
+    X = f.solve(Y)
+    assert X.shape == (el.d * b, 3)
+    assert np.abs(X - np.linalg.solve(N, Y)).max() <= 1e-10 * np.abs(X).max()
+    assert np.allclose(f.matrix.toarray(), N, rtol=1e-13, atol=1e-12)
+
+
+def _symbolic_column_counts(U: np.ndarray) -> np.ndarray:
+    """Entries strictly below the diagonal in each column of L, by eliminating the pattern of the dense
+    symmetric matrix with upper triangle U column by column (the graph model of elimination)."""
+    n = U.shape[0]
+    S = (U != 0) | (U != 0).T
+    counts = np.zeros(n, np.int64)
+    for j in range(n):
+        below = np.flatnonzero(S[j + 1:, j]) + j + 1
+        counts[j] = below.size
+        S[np.ix_(below, below)] = True  # the fill: the later neighbours of j become a clique
+    return counts
+
+
+def test_column_counts_are_the_fill_of_the_pose_order():
+    """``LDLPattern.Lnz`` equals the symbolic fill of the given order (no reordering inside), and
+    ``QdldlFactor.flops`` is Σ (count + 1)²."""
+    g = lc.manhattan_world(60, seed=1).graph
+    el = GraphElimination(g, 0)
+    pat = el.upper_pattern(2)
+    n = el.d * 2
+    U = sp.csc_matrix((np.ones(pat.nnz), pat.indices, pat.indptr), shape=(n, n)).toarray()
+    counts = _symbolic_column_counts(U)
+    assert np.array_equal(pat.ldl.Lnz, counts)
+    assert pat.ldl.nnz_L == counts.sum()
+    f = el.factor(_random_system(el, 2, seed=0), engine=False)
+    assert f.flops() == pytest.approx(float(((counts + 1.0) ** 2).sum()))
+
+
+def test_bad_patterns_and_zero_pivots_are_refused_by_name():
+    """A pattern that is not upper triangular, or a column without its diagonal, raises NumericalError
+    from QDLDL_etree; a zero pivot raises it from QDLDL_factor — never a crash or a silent answer."""
+    lower = sp.csc_matrix(np.array([[1.0, 0.0], [1.0, 1.0]]))
+    with pytest.raises(NumericalError, match="not upper triangular"):
+        ldl.LDLPattern(lower.indptr, lower.indices)
+    empty = sp.csc_matrix((np.ones(1), np.array([0]), np.array([0, 1, 1])), shape=(2, 2))
+    with pytest.raises(NumericalError, match="not upper triangular"):
+        ldl.LDLPattern(empty.indptr, empty.indices)
+    U = sp.csc_matrix(np.array([[1.0, 1.0], [0.0, 1.0]]))  # [[1, 1], [1, 1]]: second pivot 0
+    pat = ldl.LDLPattern(U.indptr, U.indices)
+    with pytest.raises(NumericalError, match="zero pivot"):
+        pat.factor(U.data)
+    with pytest.raises(ValueError, match="values for a pattern"):
+        pat.factor(np.ones(5))
+
+
+def test_missing_symbols_fall_back_to_qdldl_solver(monkeypatch):
+    """When the ABI symbol is not exported (another build of qdldl) ``available()`` is False and LAGO
+    factors through ``qdldl.Solver``; both routes give the same estimate (1e-12) on a real-size world,
+    default and seed routes."""
+    g = lc.manhattan_world(400, seed=3).graph
+    direct = {r: lc.lago(g, route=r) for r in ("default", "seed")}
+    monkeypatch.setattr(ldl, "_ABI_SYMBOL", "no_such_symbol_in_qdldl")
+    monkeypatch.setattr(ldl, "_LIB", [])
+    assert not ldl.available()
+    el = GraphElimination(g, 0)
+    assert el.upper_pattern(3) is None
+    for r, ref in direct.items():
+        res = lc.lago(g, route=r)
+        assert res.phase3.factor.backend == "qdldl"
+        assert np.abs(res.poses - ref.poses).max() <= 1e-12 * np.abs(ref.poses).max()
+        assert res.chi2 == pytest.approx(ref.chi2, rel=1e-12)
+    monkeypatch.setattr(ldl, "_LIB", [])  # the next caller looks again
+
+
+def test_one_pattern_per_block_size_is_shared():
+    """The pattern (and its etree) is built once per b for a graph and shared by every system of that
+    size; the values differ per system."""
+    g = lc.manhattan_world(80, seed=6).graph
+    el = GraphElimination(g, 0)
+    assert el.upper_pattern(2) is el.upper_pattern(2)
+    assert el.upper_pattern(2) is not el.upper_pattern(3)
+    s1, s2 = _random_system(el, 2, 1), _random_system(el, 2, 2)
+    f1, f2 = el.factor(s1, engine=False), el.factor(s2, engine=False)
+    y = np.ones(el.d * 2)
+    for s, f in ((s1, f1), (s2, f2)):
+        M = s.sparse()
+        assert np.allclose((M.T @ M) @ f.solve(y), y, atol=1e-8)
