@@ -5,8 +5,9 @@ For se-sync/city10000.g2o and carlone/input_M3500_g2o.g2o: ``--repeat`` interlea
 route, ours seed route, GTSAM) and their medians — interleaving keeps the ratio meaningful on a machine
 whose speed drifts. Then ``res.pose_covariances()`` (selected inversion on phase 3's factor, eq. (T) of
 ``lago_cvx.multifrontal``) on city10000 and on a 100 000-pose Manhattan world. Last, phase 3's solve
-(factor, refined solve; the engine's symbolic analysis included) by QDLDL and by the multifrontal engine
-on city10000 and on Manhattan worlds up to 1 000 000 poses: where ``normal_equations.ENGINE_MIN`` comes
+(factor, refined solve; the engine's symbolic analysis included) by QDLDL in the pose-level order, by
+``qdldl.Solver`` (its own AMD first: the path before ``lago_cvx.ldl``) and by the multifrontal engine on
+city10000 and on Manhattan worlds up to 1 000 000 poses: where ``normal_equations.ENGINE_MIN`` comes
 from.
 """
 
@@ -64,28 +65,43 @@ def phase3_cholmod(system, repeat: int) -> float:
     return _bench.median_time(lambda: solve_least_squares(M, c, backend="cholmod"), repeat)[0]
 
 
-def phase3_solvers(graph, repeat: int, *, cholmod: bool) -> tuple[float, float, float, float]:
-    """Seconds of phase 3's solve (eq. (15), seed route) by QDLDL, by the multifrontal engine (fresh
-    symbolic analysis each run: plan, layout, assembler) and by CHOLMOD (nan unless ``cholmod``),
-    medians of ``repeat``; and the largest difference of the QDLDL and engine solutions relative to
-    ‖x‖∞. One LAGO run provides the system all three solve."""
+#: Largest world whose phase 3 is also timed through ``qdldl.Solver`` (QDLDL with its own AMD, the path
+#: before ``lago_cvx.ldl``): above it that takes minutes and decides nothing.
+SOLVER_MAX_POSES = 300_000
+
+
+def phase3_solvers(graph, repeat: int, *, cholmod: bool) -> tuple[float, float, float, float, float]:
+    """Seconds of phase 3's solve (eq. (15), seed route) by QDLDL in the pose-level order (``lago_cvx.ldl``),
+    by the multifrontal engine (fresh symbolic analysis each run: plan, layout, assembler), by
+    ``qdldl.Solver`` (QDLDL ordering the scalar matrix by its own AMD; nan above ``SOLVER_MAX_POSES``) and by
+    CHOLMOD (nan unless ``cholmod``), medians of ``repeat``; and the largest difference of the QDLDL and
+    engine solutions relative to ‖x‖∞. One LAGO run provides the system all of them solve."""
+    from lago_cvx import ldl
+
     res = lago(graph, route="seed")
     system = res.phase2.edges
     a = res.anchor_index
     weights = res.uncertainty.info_delta
     out, xs = {}, {}
-    for engine in (False, True):
+    modes = ["direct", "engine"] + (["solver"] if graph.n_poses <= SOLVER_MAX_POSES else [])
+    for mode in modes:
         def once():
             el = GraphElimination(graph, a, weights=weights)  # phase 1's analysis: not timed
             t = time.perf_counter()
-            x, _, _ = el.solve(system, factor=el.factor(system, engine=engine))
+            x, _, _ = el.solve(system, factor=el.factor(system, engine=mode == "engine"))
             return time.perf_counter() - t, x
-        runs = [once() for _ in range(repeat)]
-        out[engine] = statistics.median(r[0] for r in runs)
-        xs[engine] = runs[-1][1]
-    diff = float(np.abs(xs[True] - xs[False]).max() / np.abs(xs[False]).max())
+        saved = list(ldl._LIB)
+        if mode == "solver":
+            ldl._LIB[:] = [None]  # as if the C routines were not exported: qdldl.Solver
+        try:
+            runs = [once() for _ in range(repeat)]
+        finally:
+            ldl._LIB[:] = saved
+        out[mode] = statistics.median(r[0] for r in runs)
+        xs[mode] = runs[-1][1]
+    diff = float(np.abs(xs["engine"] - xs["direct"]).max() / np.abs(xs["direct"]).max())
     tc = phase3_cholmod(system, repeat) if cholmod else float("nan")
-    return out[False], out[True], tc, diff
+    return out["direct"], out["engine"], out.get("solver", float("nan")), tc, diff
 
 
 def run(args) -> str:
@@ -132,9 +148,10 @@ def run(args) -> str:
         if g is None:
             g = manhattan_world(item[2], seed=0).graph
         reps = args.repeat if g.n_poses <= 100_000 else 1
-        tq, te, tc, diff = phase3_solvers(g, reps, cholmod=cholmod)
-        eng_rows.append([name, g.n_poses, 3 * (g.n_poses - 1), f"{tq:.3f}", f"{te:.3f}", _bench.fmt(tc, ".3f"),
-                         f"{te / tq:.2f}", f"{diff:.1e}", "engine" if 3 * (g.n_poses - 1) >= ENGINE_MIN else "QDLDL"])
+        tq, te, ts, tc, diff = phase3_solvers(g, reps, cholmod=cholmod)
+        eng_rows.append([name, g.n_poses, 3 * (g.n_poses - 1), f"{tq:.3f}", _bench.fmt(ts, ".3f"), f"{te:.3f}",
+                         _bench.fmt(tc, ".3f"), f"{te / tq:.2f}", f"{diff:.1e}",
+                         "engine" if 3 * (g.n_poses - 1) >= ENGINE_MIN else "QDLDL"])
         print("  " + " | ".join(map(str, eng_rows[-1])), flush=True)
         del g
     head = ["file", *(f"{k} [ms]" for k in STEPS), "seed route [ms]", "GTSAM initialize [ms]", "default / GTSAM",
@@ -153,7 +170,10 @@ def run(args) -> str:
         _bench.table(["graph", "poses", "pose_covariances [s]"], cov_rows), "",
         "## Phase 3's solve: QDLDL against the multifrontal engine", "",
         "Phase 3 of the seed route (eq. (15), 3(n − 1) unknowns): factorization and refined solve, by QDLDL "
-        "(AMD and LDLᵀ in C) and by the multifrontal engine (`lago_cvx.multifrontal`; its symbolic analysis "
+        "(LDLᵀ in C, called in the pose-level AMD order: `lago_cvx.ldl`, the upper triangle scattered from a "
+        "pattern whose build is timed too), by `qdldl.Solver` (the same LDLᵀ after QDLDL's own AMD of the "
+        f"scalar matrix: the path before `lago_cvx.ldl`, and the fallback; – above {SOLVER_MAX_POSES:,} poses) "
+        "and by the multifrontal engine (`lago_cvx.multifrontal`; its symbolic analysis "
         f"— plan, layout, assembler — timed too), median of {args.repeat} runs up to 100 000 poses, one run "
         "above. LAGO uses the engine from `normal_equations.ENGINE_MIN` = "
         f"{ENGINE_MIN:,} unknowns. rel. diff = ‖x_engine − x_QDLDL‖∞ / ‖x_QDLDL‖∞. CHOLMOD (the optional "
@@ -161,6 +181,7 @@ def run(args) -> str:
         "– when scikit-sparse is not installed) runs on whatever BLAS the system's SuiteSparse is linked "
         "to: on Debian that is the reference BLAS unless an optimized one is installed "
         f"(`apt-get install libopenblas0-pthread`). In this run: {blas}.", "",
-        _bench.table(["graph", "poses", "unknowns", "QDLDL [s]", "engine [s]", "CHOLMOD [s]", "engine / QDLDL",
+        _bench.table(["graph", "poses", "unknowns", "QDLDL [s]", "qdldl.Solver [s]", "engine [s]", "CHOLMOD [s]",
+                      "engine / QDLDL",
                       "rel. diff", "LAGO uses"], eng_rows),
     ])
