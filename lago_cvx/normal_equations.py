@@ -212,7 +212,7 @@ class BlockUpperPattern:
         dj = colstart[:, C] + (offc * b)[:, None] + R
         dj[:, lower] = nnz
         diag = np.empty((d + 1, b * b), np.int64)  # row = free pose index, row d = the anchor
-        np.take(dj, position, axis=0, out=diag[:d])
+        np.take(dj, position, axis=0, out=diag[:d], mode="clip")
         diag[d] = nnz
         # ... and at each off-diagonal pose entry, as is and transposed (entry (r, c) → (c, r))
         U = uk.size
@@ -223,9 +223,11 @@ class BlockUpperPattern:
         table[2 * U] = nnz
         which = np.full(m, 2 * U, np.int64)  # edges with an end at the anchor: discarded
         which[both] = inv + swap * U
-        dest = np.empty((3 * m, b * b), np.int64)  # np.take with out=: NumPy's fancy-index gathers are slower
-        np.take(diag, np.where(pcol[:2 * m] >= 0, pcol[:2 * m], d), axis=0, out=dest[:2 * m])
-        np.take(table, which, axis=0, out=dest[2 * m:])
+        # np.take into out= (NumPy's fancy-index gathers are slower); mode="clip" as every index is in range by
+        # construction and mode="raise" would buffer out
+        dest = np.empty((3 * m, b * b), np.int64)
+        np.take(diag, np.where(pcol[:2 * m] >= 0, pcol[:2 * m], d), axis=0, out=dest[:2 * m], mode="clip")
+        np.take(table, which, axis=0, out=dest[2 * m:], mode="clip")
         self.dest = dest.reshape(-1)
         # the pattern's rows, scattered to the same places
         indices = np.empty(nnz, np.int64)
