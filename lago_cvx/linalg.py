@@ -11,10 +11,10 @@ Backends:
   used for selected inverses (marginal covariances).
 * ``"cholmod"`` — CHOLMOD through scikit-sparse, an optional extra (lazy import; GPL parts).
 
-``"auto"`` picks QDLDL (else SuperLU). The closed forms do not come through here: below 250 000 unknowns
-they call QDLDL's C routines directly in the pose-level elimination order (``lago_cvx.ldl``, no AMD of
-QDLDL's own), from 250 000 on the multifrontal engine (``normal_equations.ENGINE_MIN``). CHOLMOD is used only when asked for. Its
-speed depends on the BLAS the system's SuiteSparse is linked to: on Debian's reference BLAS it was slower
+``"auto"`` picks QDLDL (else SuperLU). The closed forms do not come through here: below 1 200 000
+unknowns they call QDLDL's C routines directly in the pose-level elimination order (``lago_cvx.ldl``, no
+AMD of QDLDL's own), from there on the multifrontal engine (``normal_equations.ENGINE_MIN``). CHOLMOD is
+used only when asked for. Its speed depends on the BLAS the system's SuiteSparse is linked to: on Debian's reference BLAS it was slower
 than QDLDL (phase 3 at 100 000 poses: 2.7 s against 1.9–2.1 s), on OpenBLAS it is the fastest at every
 size measured (1M poses: 21.7 s against the engine's 26.4 s; benchmarks/perf.md's last table as of
 commit 59fd2cd, ``git show 59fd2cd:benchmarks/perf.md``).

@@ -260,9 +260,11 @@ class QdldlFactor(Factor):
     (``lago_cvx.ldl``), the symbolic analysis shared. Without: assembled as an upper-triangular CSC
     (pose-major variables i·b + c) and factored by ``qdldl.Solver``, which orders it by AMD first."""
 
-    def __init__(self, system: "EdgeSystem", pairs, keep, *, pattern: BlockUpperPattern | None = None):
+    def __init__(self, system: "EdgeSystem", pairs, keep, *, pattern: BlockUpperPattern | None = None,
+                 elimination: "GraphElimination | None" = None):
         b = system.b
         n = system.d * b
+        self._system, self._elimination = system, elimination
         if pattern is not None:
             data = pattern.values(system.normal_blocks())
             ldl = pattern.ldl.factor(data)
@@ -310,21 +312,28 @@ class QdldlFactor(Factor):
         """Σ colcount² over the columns of L (diagonal included): the factorization's multiply–adds."""
         return self._flops()
 
+    def engine_factor(self) -> "PoseFactor | None":
+        """The same matrix factored by the multifrontal engine on the graph's shared pose-level plan (what
+        the selected inversion of ``Phase3.pose_covariances`` needs), or None without the elimination."""
+        if self._elimination is None:
+            return None
+        return self._elimination.factor(self._system, engine=True)
+
 
 #: Systems with at least this many unknowns (d·b) are factored by the multifrontal engine
-#: (``lago_cvx.multifrontal``), smaller ones by QDLDL, whose C loop has no per-front Python cost.
-#: Measured on phase 3 (factor, solve and refinement, the engine's symbolic steps included; 2 cores;
-#: benchmarks/perf.md's last table, two runs up to commit 59fd2cd, when QDLDL still ran its own AMD):
-#: city10000 (30 k unknowns) 0.12 s QDLDL against 0.19 s; a 30 000-pose world (90 k) 0.36–0.44 against
-#: 0.45–0.50; 100 000 poses (300 k) 1.7–1.8 against 1.35–1.5; 300 000 poses (900 k) 7.4–7.8 against
-#: 5.7–6.5; 1 000 000 poses (3 M) 58–61 against 21–26. QDLDL in the pose order (``lago_cvx.ldl``, no AMD
-#: of its own) moved the crossover of the factorization alone up to 150 000–200 000 poses (one run,
-#: perf.phase3_solvers: 30 000 poses 0.48 against 0.79 s, 100 000 1.84 against 2.45, 200 000 5.7 against
-#: 5.1), but the threshold stays: at 100 000 poses whole LAGO runs took 3.9 s either way (within the
-#: machine's noise), and the engine's factor is what ``Phase3.pose_covariances`` inverts in place
-#: (1.2–1.6 s, against 3.5–4.0 s when a QDLDL-factored phase 3 must be refactored for it).
-#: ``GraphElimination.factor(engine=...)`` forces either.
-ENGINE_MIN = 250_000
+#: (``lago_cvx.multifrontal``), smaller ones by QDLDL in the pose-level order (``lago_cvx.ldl``), whose C
+#: loop has no per-front Python cost. Measured (2 cores, a slow day of the shared machine; phase 3 from
+#: benchmarks/perf.md's last table, two runs; b = 1, 2 by factor plus refined solve of the isotropic
+#: positions and the chordal system, two runs each, the symbolic steps included):
+#:   b = 3, 100 000 poses (300 k unknowns): QDLDL 1.7–1.9 s, engine 2.0–2.7;
+#:   b = 3, 300 000 poses (900 k): 7.4–8.3 against 9.9–10.8;  b = 3, 1 000 000 poses (3 M): 70 against 37;
+#:   b = 2, 300 000 poses (600 k): 2.1–2.8 against 3.0–5.1;  b = 2, 1 000 000 poses (2 M): 22 against 17–19;
+#:   b = 1, 300 000 poses: 1.2–1.3 against 2.6–4.1;  b = 1, 1 000 000 poses (1 M): 3.2–3.9 against 6.1–10.4.
+#: Every system below 1.2 M unknowns was faster by QDLDL, every one above by the engine. (Before QDLDL
+#: was called in the pose order it ran its own AMD and the crossover was 250 000 unknowns.)
+#: ``GraphElimination.factor(engine=...)`` forces either; ``Phase3.pose_covariances`` refactors a QDLDL
+#: system by the engine for its selected inversion (``QdldlFactor.engine_factor``).
+ENGINE_MIN = 1_200_000
 
 
 class RenumberedFactor(Factor):
@@ -454,7 +463,7 @@ class GraphElimination:
         b = system.b
         if not (engine if engine is not None else system.d * b >= ENGINE_MIN):
             prow, pcol, keep = self.pairs
-            return QdldlFactor(system, (prow, pcol), keep, pattern=self.upper_pattern(b))
+            return QdldlFactor(system, (prow, pcol), keep, pattern=self.upper_pattern(b), elimination=self)
         if b not in self._assemblers:
             prow, pcol, keep = self.pairs
             lay = self.plan.layout(b)

@@ -435,6 +435,8 @@ class Phase3:
 
         with Progress("pose covariances", callback=progress, logger=log) as tracker:
             pm = getattr(self.factor, "pose_major", None)
+            if hasattr(pm, "engine_factor"):  # QDLDL's: the same system by the engine, on the shared plan
+                pm = pm.engine_factor()
             if isinstance(pm, PoseFactor):
                 blocks = inverse_blocks(pm.blocks, progress=lambda i, k: tracker.update(i, k))[0]
             else:
