@@ -165,7 +165,9 @@ def run(args) -> str:
         skipped or _bench.table(head, rows), "",
         "## Marginal covariances", "",
         "`res.pose_covariances()`: every 3×3 pose block of phase 3's (Ω*)⁻¹ by selected inversion "
-        "(Takahashi's recurrences on the multifrontal factor, `lago_cvx.multifrontal`), median of "
+        "(Takahashi's recurrences on the multifrontal factor, `lago_cvx.multifrontal`: phase 3's own from "
+        "`ENGINE_MIN` unknowns, below it phase 3's system factored again by the engine on the graph's shared "
+        "plan, which is timed too), median of "
         f"{max(1, args.repeat // 2)} run(s) (the world: one run).", "",
         _bench.table(["graph", "poses", "pose_covariances [s]"], cov_rows), "",
         "## Phase 3's solve: QDLDL against the multifrontal engine", "",

@@ -126,7 +126,8 @@ def test_plan_is_a_valid_elimination():
 
 def test_pose_covariances_and_variances_match_the_dense_inverse():
     """LAGO's pose covariances (phase 3, eq. (15)) and phase-1 variances by selected inversion = blocks of
-    the dense inverse, to 1e-9 relative, on a full-information world and with the engine forced."""
+    the dense inverse, to 1e-9 relative, on a full-information world: phase 3 factored by QDLDL (the
+    covariances then factor it again by the engine) and with the engine forced."""
     g = _full_info_world(200, 4)
     for engine_min in (ne.ENGINE_MIN, 0):
         old = ne.ENGINE_MIN
@@ -135,6 +136,8 @@ def test_pose_covariances_and_variances_match_the_dense_inverse():
             res = lc.lago(g)
         finally:
             ne.ENGINE_MIN = old
+        # below ENGINE_MIN phase 3 is QDLDL's and the covariances refactor it by the engine
+        assert isinstance(res.phase3.factor.pose_major, ne.QdldlFactor if engine_min else ne.PoseFactor)
         cov = res.phase3.pose_covariances()
         full = np.linalg.inv(res.phase3.info.toarray())
         d = g.n_poses - 1
