@@ -88,7 +88,8 @@ class LDLPattern:
     ``indptr`` (n+1,), ``indices`` (nnz,) (rows increasing within a column, the diagonal present in every
     column), already in elimination order. Holds QDLDL's elimination tree and the column counts ``Lnz``
     (n,) of L (strictly below the diagonal); ``nnz_L`` their sum. Raises ``NumericalError`` if QDLDL
-    rejects the pattern (an entry below the diagonal, or an empty column)."""
+    rejects the pattern (an entry below the diagonal, an empty column, a column whose last entry is not
+    its diagonal)."""
 
     def __init__(self, indptr: np.ndarray, indices: np.ndarray):
         lib = _library()
@@ -102,8 +103,8 @@ class LDLPattern:
         work = np.empty(n, np.int64)
         total = lib.QDLDL_etree(n, _p(self.indptr), _p(self.indices), _p(work), _p(self.Lnz), _p(self.etree))
         if total < 0:
-            raise NumericalError(f"QDLDL_etree rejected the pattern (status {total}): not upper triangular "
-                                 "or an empty column")
+            raise NumericalError(f"QDLDL_etree rejected the pattern (status {total}): not upper triangular, "
+                                 "an empty column, or a column whose last entry is not its diagonal")
         self.nnz_L = int(total)
 
     def flops(self) -> float:
@@ -111,18 +112,29 @@ class LDLPattern:
         factorization."""
         return float(((self.Lnz + 1.0) ** 2).sum())
 
-    def factor(self, data: np.ndarray) -> "LDLFactor":
-        """Factor the matrix with values ``data`` (nnz,) on this pattern."""
-        return LDLFactor(self, data)
+    def factor(self, data: np.ndarray, *, progress=None) -> "LDLFactor":
+        """Factor the matrix with values ``data`` (nnz,) on this pattern; ``progress(done, total)`` as
+        ``LDLFactor`` reports it."""
+        return LDLFactor(self, data, progress=progress)
+
+
+#: Seconds between two looks at a running factorization when progress is asked for.
+PROGRESS_POLL = 0.25
 
 
 class LDLFactor:
     """A = (I + L) D (I + L)ᵀ by ``QDLDL_factor`` on an ``LDLPattern``; ``solve(rhs)`` for rhs (n,) or
     (n, r) in the pattern's (elimination) numbering. Raises ``NumericalError`` when a pivot D_jj is zero
     (QDLDL's status −1), as ``qdldl.Solver`` does; ``n_positive`` the number of positive pivots (n for a
-    numerically positive definite A)."""
+    numerically positive definite A).
 
-    def __init__(self, pattern: LDLPattern, data: np.ndarray):
+    ``progress(done, total)``, when given, is called while the factorization runs: QDLDL computes L row
+    by row (up-looking) and writes D_kk⁻¹ when row k is done, so the C call runs in a worker thread
+    (``ctypes`` releases the GIL) while this one looks every ``PROGRESS_POLL`` s at how many of those are
+    written; the rows done are weighted by (count of L's column + 1)², the column's share of the
+    multiply–adds, so the fraction is an estimate of the work done, not of the time."""
+
+    def __init__(self, pattern: LDLPattern, data: np.ndarray, *, progress=None):
         lib = _library()
         n = pattern.n
         self.pattern = pattern
@@ -138,12 +150,52 @@ class LDLFactor:
         bwork = np.empty(n, np.int64)  # QDLDL_bool[n]; 8 bytes each covers any boolean type
         iwork = np.empty(3 * n, np.int64)
         fwork = np.empty(n)
-        status = lib.QDLDL_factor(n, _p(pattern.indptr), _p(pattern.indices), _p(Ax), _p(self.Lp), _p(self.Li),
-                                  _p(self.Lx), _p(self.D), _p(self.Dinv), _p(pattern.Lnz), _p(pattern.etree),
-                                  _p(bwork), _p(iwork), _p(fwork))
+        args = (n, _p(pattern.indptr), _p(pattern.indices), _p(Ax), _p(self.Lp), _p(self.Li), _p(self.Lx),
+                _p(self.D), _p(self.Dinv), _p(pattern.Lnz), _p(pattern.etree), _p(bwork), _p(iwork), _p(fwork))
+        if progress is None or n == 0:
+            status = lib.QDLDL_factor(*args)
+        else:
+            status = self._factor_watched(lib, args, progress, (Ax, bwork, iwork, fwork))
         if status < 0:
             raise NumericalError("QDLDL_factor: a zero pivot (the matrix is not quasi-definite in floating point)")
         self.n_positive = int(status)
+
+    def _factor_watched(self, lib, args, progress, keep_alive) -> int:
+        """``QDLDL_factor(*args)`` in a worker thread, ``progress`` fed from the rows done (class
+        docstring). ``keep_alive`` holds the work arrays the call points into until it returns."""
+        import threading
+
+        self.Dinv.fill(np.nan)  # QDLDL writes Dinv[k] once, when row k is done
+        work = np.cumsum((self.pattern.Lnz + 1.0) ** 2)
+        total = float(work[-1])
+        status = []
+        worker = threading.Thread(target=lambda: status.append(lib.QDLDL_factor(*args)), daemon=True,
+                                  name="qdldl-factor")
+        worker.start()
+        raised = None
+        try:
+            progress(0.0, total)
+            while True:
+                worker.join(PROGRESS_POLL)
+                if not worker.is_alive():
+                    break
+                pending = np.isnan(self.Dinv)
+                done = int(pending.argmax()) if pending.any() else pending.size  # the first row not done yet
+                progress(float(work[done - 1]) if done else 0.0, total)
+        except BaseException as exc:  # a failing callback, Ctrl-C: raised once the C call has returned
+            raised = exc
+        while worker.is_alive():  # the call cannot be interrupted and writes into arrays held here
+            try:
+                worker.join()
+            except BaseException as exc:
+                raised = raised or exc
+        del keep_alive
+        if raised is not None:
+            raise raised
+        if not status:  # the thread ended without a result (cannot happen short of a crash in C)
+            raise NumericalError("QDLDL_factor did not return")
+        progress(total, total)
+        return int(status[0])
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         n = self.pattern.n

@@ -257,17 +257,18 @@ class QdldlFactor(Factor):
 
     With ``pattern`` (a ``BlockUpperPattern``, when ``ldl.available()``): the values scattered into the
     pattern's upper triangle and factored in the pose-level elimination order by QDLDL's C routines
-    (``lago_cvx.ldl``), the symbolic analysis shared. Without: assembled as an upper-triangular CSC
-    (pose-major variables i·b + c) and factored by ``qdldl.Solver``, which orders it by AMD first."""
+    (``lago_cvx.ldl``), the symbolic analysis shared; ``progress(done, total)`` fed while QDLDL runs.
+    Without: assembled as an upper-triangular CSC (pose-major variables i·b + c) and factored by
+    ``qdldl.Solver``, which orders it by AMD first (no progress from inside)."""
 
     def __init__(self, system: "EdgeSystem", pairs, keep, *, pattern: BlockUpperPattern | None = None,
-                 elimination: "GraphElimination | None" = None):
+                 elimination: "GraphElimination | None" = None, progress=None):
         b = system.b
         n = system.d * b
         self._system, self._elimination = system, elimination
         if pattern is not None:
             data = pattern.values(system.normal_blocks())
-            ldl = pattern.ldl.factor(data)
+            ldl = pattern.ldl.factor(data, progress=progress)
             order, slots = pattern.order, pattern.slots
             self._flops = pattern.ldl.flops
 
@@ -464,7 +465,8 @@ class GraphElimination:
         b = system.b
         if not (engine if engine is not None else system.d * b >= ENGINE_MIN):
             prow, pcol, keep = self.pairs
-            return QdldlFactor(system, (prow, pcol), keep, pattern=self.upper_pattern(b), elimination=self)
+            return QdldlFactor(system, (prow, pcol), keep, pattern=self.upper_pattern(b), elimination=self,
+                               progress=progress)
         if b not in self._assemblers:
             prow, pcol, keep = self.pairs
             lay = self.plan.layout(b)

@@ -130,8 +130,7 @@ class PositionSolver:
             A, B = (-s).reshape(m, 1, 1), s.reshape(m, 1, 1)
             # x and y: two right-hand sides of one d × d system (c (m, 1, 2))
             system = EdgeSystem(el.tails, el.heads, A, B, (s[:, None] * gk).reshape(m, 1, 2), d)
-            if self._factor is None and d:
-                self._factor = el.factor(system)
+            # factored on the first call (inside solve: with its progress), reused by every later θ
             x, self._factor, stats = el.solve(system, factor=self._factor, stage="positions")
             p = x[:, 0, :]
             factor = self._factor

@@ -163,3 +163,47 @@ def test_one_pattern_per_block_size_is_shared():
     for s, f in ((s1, f1), (s2, f2)):
         M = s.sparse()
         assert np.allclose((M.T @ M) @ f.solve(y), y, atol=1e-8)
+
+
+def test_progress_is_reported_while_qdldl_runs(monkeypatch):
+    """With a progress callback the factorization runs in a worker thread and reports (done, total):
+    0 first, total last, never decreasing, and the factor is bit for bit the one of the plain call."""
+    monkeypatch.setattr(ldl, "PROGRESS_POLL", 0.0)
+    g = lc.manhattan_world(3000, seed=8).graph
+    el = GraphElimination(g, 0)
+    pat = el.upper_pattern(3)
+    data = pat.values(_random_system(el, 3, seed=5).normal_blocks())
+    calls = []
+    watched = pat.ldl.factor(data, progress=lambda done, total: calls.append((done, total)))
+    plain = pat.ldl.factor(data)
+    total = calls[0][1]
+    assert total == pytest.approx(pat.ldl.flops())
+    assert calls[0][0] == 0.0 and calls[-1] == (total, total)
+    done = [c[0] for c in calls]
+    assert all(a <= b for a, b in zip(done, done[1:]))
+    for name in ("Lp", "Li", "Lx", "D", "Dinv"):
+        assert np.array_equal(getattr(watched, name), getattr(plain, name))
+    # and through the elimination, as LAGO calls it
+    seen = []
+    el.factor(_random_system(el, 3, seed=6), engine=False, progress=lambda i, n: seen.append(i / n))
+    assert seen[0] == 0.0 and seen[-1] == 1.0
+
+
+def test_a_failing_progress_callback_waits_for_qdldl(monkeypatch):
+    """An exception from the callback is raised only after the C call has returned (it writes into
+    arrays this side holds), and the pattern stays usable."""
+    monkeypatch.setattr(ldl, "PROGRESS_POLL", 0.0)
+    g = lc.manhattan_world(2000, seed=9).graph
+    el = GraphElimination(g, 0)
+    pat = el.upper_pattern(3)
+    data = pat.values(_random_system(el, 3, seed=1).normal_blocks())
+
+    def boom(done, total):
+        raise RuntimeError("stop")
+
+    with pytest.raises(RuntimeError, match="stop"):
+        pat.ldl.factor(data, progress=boom)
+    import threading
+    assert not any(t.name == "qdldl-factor" and t.is_alive() for t in threading.enumerate())
+    f = pat.ldl.factor(data)
+    assert f.n_positive == pat.ldl.n
