@@ -125,6 +125,29 @@ class EdgeSystem:
         Bt = np.ascontiguousarray(np.swapaxes(self.B, 1, 2))
         return np.concatenate([At @ self.A, Bt @ self.B, Bt @ self.A])
 
+    def normal_entries(self) -> np.ndarray:
+        """The same blocks entry by entry, (3, b, b, m): [k, r, c] the (r, c) entries of the k-th kind
+        (A_kᵀA_k, B_kᵀB_k, B_kᵀA_k) for every edge, each a sum over the q rows of products of length-m
+        vectors. For small m faster than the stacked products of ``normal_blocks`` (NumPy pays per 3×3
+        matrix there: city10000's phase 3 8.7 ms against 13 ms, the chordal 2×2 blocks 4 against 9 ms;
+        equal at 1.8 M edges)."""
+        m, q, b = self.A.shape
+        At = np.ascontiguousarray(self.A.transpose(1, 2, 0))  # (q, b, m)
+        Bt = np.ascontiguousarray(self.B.transpose(1, 2, 0))
+        out = np.empty((3, b, b, m))
+        tmp = np.empty(m)
+        for k, X, Y, symmetric in ((0, At, At, True), (1, Bt, Bt, True), (2, Bt, At, False)):
+            for r in range(b):
+                for c in range(r if symmetric else 0, b):
+                    o = out[k, r, c]
+                    np.multiply(X[0, r], Y[0, c], out=o)
+                    for t in range(1, q):
+                        np.multiply(X[t, r], Y[t, c], out=tmp)
+                        o += tmp
+                    if symmetric and c > r:
+                        out[k, c, r] = o
+        return out
+
     def sparse(self, var_index: np.ndarray | None = None) -> sp.csr_matrix:
         """M as a sparse (m·q) × (d·b) matrix, columns ``var_index`` (d, b) (default pose-major)."""
         m, q, b = self.A.shape
@@ -243,6 +266,14 @@ class BlockUpperPattern:
         """The upper triangle's values (nnz,) from ``blocks`` (3m, b, b) of ``EdgeSystem.normal_blocks``."""
         return np.bincount(self.dest, weights=blocks.reshape(-1), minlength=self.nnz + 1)[:self.nnz]
 
+    def values_from_entries(self, entries: np.ndarray) -> np.ndarray:
+        """The same from ``entries`` (3, b, b, m) of ``EdgeSystem.normal_entries`` (the map reordered to
+        that layout once)."""
+        if "_dest_entries" not in self.__dict__:
+            b2 = self.b * self.b
+            self._dest_entries = self.dest.reshape(3, -1, b2).transpose(0, 2, 1).reshape(-1)
+        return np.bincount(self._dest_entries, weights=entries.reshape(-1), minlength=self.nnz + 1)[:self.nnz]
+
     def matrix(self, data: np.ndarray) -> sp.csc_matrix:
         """The whole symmetric matrix (pose-major numbering) with upper-triangle values ``data``."""
         n = self.slots.size
@@ -267,7 +298,7 @@ class QdldlFactor(Factor):
         n = system.d * b
         self._system, self._elimination = system, elimination
         if pattern is not None:
-            data = pattern.values(system.normal_blocks())
+            data = pattern.values_from_entries(system.normal_entries())
             ldl = pattern.ldl.factor(data, progress=progress)
             order, slots = pattern.order, pattern.slots
             self._flops = pattern.ldl.flops

@@ -207,3 +207,22 @@ def test_a_failing_progress_callback_waits_for_qdldl(monkeypatch):
     assert not any(t.name == "qdldl-factor" and t.is_alive() for t in threading.enumerate())
     f = pat.ldl.factor(data)
     assert f.n_positive == pat.ldl.n
+
+
+@pytest.mark.parametrize("q", [1, 2, 4])
+@pytest.mark.parametrize("b", [1, 2, 3])
+def test_normal_entries_are_the_normal_blocks(b, q):
+    """``EdgeSystem.normal_entries`` (entry by entry) holds the blocks of ``normal_blocks`` (stacked
+    products) to rounding, and the pattern scatters both to the same values."""
+    g = _graph_with_parallel_edges(0)
+    el = GraphElimination(g, 0)
+    rng = np.random.default_rng(b * 10 + q)
+    m = el.tails.size
+    system = ne.EdgeSystem(el.tails, el.heads, rng.standard_normal((m, q, b)), rng.standard_normal((m, q, b)),
+                           rng.standard_normal((m, q)), el.d)
+    blocks = system.normal_blocks()
+    entries = system.normal_entries()
+    assert entries.shape == (3, b, b, m)
+    np.testing.assert_allclose(entries.transpose(0, 3, 1, 2).reshape(3 * m, b, b), blocks, rtol=1e-14, atol=1e-14)
+    pat = el.upper_pattern(b)
+    np.testing.assert_allclose(pat.values_from_entries(entries), pat.values(blocks), rtol=1e-14, atol=1e-14)
