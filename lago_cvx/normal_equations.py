@@ -355,11 +355,12 @@ class QdldlFactor(Factor):
 #: Systems with at least this many unknowns (d·b) are factored by the multifrontal engine
 #: (``lago_cvx.multifrontal``), smaller ones by QDLDL in the pose-level order (``lago_cvx.ldl``), whose C
 #: loop has no per-front Python cost. Measured (2 cores, a slow day of the shared machine; phase 3 from
-#: benchmarks/perf.md's last table, three runs; b = 1, 2 by factor plus refined solve of the isotropic
+#: benchmarks/perf.md's last table, four runs; b = 1, 2 by factor plus refined solve of the isotropic
 #: positions and the chordal system, two runs each, the symbolic steps included):
-#:   b = 3, 100 000 poses (300 k unknowns): QDLDL 1.7–1.9 s, engine 2.0–2.7;
-#:   b = 3, 300 000 poses (900 k): 7.4–8.6 against 8.0–10.8 (QDLDL faster in two runs of three: parity);
-#:   b = 3, 1 000 000 poses (3 M): 70–85 against 37–38;
+#:   b = 3, 100 000 poses (300 k unknowns): QDLDL 1.7–1.9 s, engine 2.0–2.8;
+#:   b = 3, 300 000 poses (900 k): 7.4–9.0 against 8.0–10.8 (QDLDL faster in two runs of four, the
+#:   engine in one, equal in one: parity);
+#:   b = 3, 1 000 000 poses (3 M): 70–85 against 37–42;
 #:   b = 2, 300 000 poses (600 k): 2.1–2.8 against 3.0–5.1;  b = 2, 1 000 000 poses (2 M): 22 against 17–19;
 #:   b = 1, 300 000 poses: 1.2–1.3 against 2.6–4.1;  b = 1, 1 000 000 poses (1 M): 3.2–3.9 against 6.1–10.4.
 #: So the threshold sits between 1 M and 2 M unknowns, at phase 3's parity around 300 000 poses. (Before
