@@ -192,9 +192,10 @@ class BlockUpperPattern:
     upper triangle holds the poses I ≤ J joined to it (increasing, J itself last); scalar column (J, c)
     holds, for each off-diagonal pose I, the rows I·b + 0 … b−1, then J·b + 0 … c. The block of pair
     (prow, pcol) lands as is when prow is eliminated first, transposed otherwise; of a diagonal block
-    only the upper half (r ≤ c) is stored. ``values(blocks)`` sums every block's entries into place by one
-    ``np.bincount`` (no COO → CSC conversion per system); ``ldl`` the symbolic analysis, shared by every
-    system with this b."""
+    only the upper half (r ≤ c) is stored. ``values_from_entries`` sums every block's entries into place by
+    one ``np.bincount`` over the map ``dest`` (3·b²·m,), entry-major as ``EdgeSystem.normal_entries``
+    (no COO → CSC conversion per system); ``ldl`` the symbolic analysis, shared by every system with this
+    b."""
 
     def __init__(self, position: np.ndarray, pairs, b: int):
         from .ldl import LDLPattern
@@ -251,7 +252,9 @@ class BlockUpperPattern:
         dest = np.empty((3 * m, b * b), np.int64)
         np.take(diag, np.where(pcol[:2 * m] >= 0, pcol[:2 * m], d), axis=0, out=dest[:2 * m], mode="clip")
         np.take(table, which, axis=0, out=dest[2 * m:], mode="clip")
-        self.dest = dest.reshape(-1)
+        # kept entry-major, the layout of EdgeSystem.normal_entries: (3, b², m)
+        self.dest = np.ascontiguousarray(dest.reshape(3, m, b * b).transpose(0, 2, 1)).reshape(-1)
+        del dest
         # the pattern's rows, scattered to the same places
         indices = np.empty(nnz, np.int64)
         indices[off] = uI[:, None] * b + R
@@ -262,17 +265,15 @@ class BlockUpperPattern:
     def indices(self) -> np.ndarray:
         return self.ldl.indices
 
-    def values(self, blocks: np.ndarray) -> np.ndarray:
-        """The upper triangle's values (nnz,) from ``blocks`` (3m, b, b) of ``EdgeSystem.normal_blocks``."""
-        return np.bincount(self.dest, weights=blocks.reshape(-1), minlength=self.nnz + 1)[:self.nnz]
-
     def values_from_entries(self, entries: np.ndarray) -> np.ndarray:
-        """The same from ``entries`` (3, b, b, m) of ``EdgeSystem.normal_entries`` (the map reordered to
-        that layout once)."""
-        if "_dest_entries" not in self.__dict__:
-            b2 = self.b * self.b
-            self._dest_entries = self.dest.reshape(3, -1, b2).transpose(0, 2, 1).reshape(-1)
-        return np.bincount(self._dest_entries, weights=entries.reshape(-1), minlength=self.nnz + 1)[:self.nnz]
+        """The upper triangle's values (nnz,) from ``entries`` (3, b, b, m) of ``EdgeSystem.normal_entries``."""
+        entries = np.ascontiguousarray(entries)
+        return np.bincount(self.dest, weights=entries.reshape(-1), minlength=self.nnz + 1)[:self.nnz]
+
+    def values(self, blocks: np.ndarray) -> np.ndarray:
+        """The same from ``blocks`` (3m, b, b) of ``EdgeSystem.normal_blocks`` (reordered entry-major)."""
+        b = self.b
+        return self.values_from_entries(blocks.reshape(3, -1, b, b).transpose(0, 2, 3, 1))
 
     def matrix(self, data: np.ndarray) -> sp.csc_matrix:
         """The whole symmetric matrix (pose-major numbering) with upper-triangle values ``data``."""
