@@ -359,8 +359,8 @@ class QdldlFactor(Factor):
 #: benchmarks/perf.md's last table, four runs; b = 1, 2 by factor plus refined solve of the isotropic
 #: positions and the chordal system, two runs each, the symbolic steps included):
 #:   b = 3, 100 000 poses (300 k unknowns): QDLDL 1.7–1.9 s, engine 2.0–2.8;
-#:   b = 3, 300 000 poses (900 k): 7.4–9.0 against 8.0–10.8 (QDLDL faster in two runs of four, the
-#:   engine in one, equal in one: parity);
+#:   b = 3, 300 000 poses (900 k): 7.4–11.6 against 7.7–10.8 over six runs (four of perf.md, two of
+#:   the seed route with ENGINE_MIN switched): means 9.0 and 9.1, parity;
 #:   b = 3, 1 000 000 poses (3 M): 70–85 against 37–42;
 #:   b = 2, 300 000 poses (600 k): 2.1–2.8 against 3.0–5.1;  b = 2, 1 000 000 poses (2 M): 22 against 17–19;
 #:   b = 1, 300 000 poses: 1.2–1.3 against 2.6–4.1;  b = 1, 1 000 000 poses (1 M): 3.2–3.9 against 6.1–10.4.
