@@ -40,7 +40,7 @@ import numpy as np
 
 from .errors import NumericalError
 
-__all__ = ["available", "LDLPattern", "LDLFactor"]
+__all__ = ["available", "LDLPattern", "LDLFactor", "column_work"]
 
 log = logging.getLogger(__name__)
 
@@ -84,6 +84,12 @@ def _p(a: np.ndarray) -> int:
     return a.ctypes.data
 
 
+def column_work(counts: np.ndarray) -> np.ndarray:
+    """(count + 1)² for the strictly-lower entry counts (n,) of L's columns: each column's multiply–adds in
+    the factorization (their sum is Σ colcount², the flop count quoted throughout)."""
+    return (np.asarray(counts, dtype=float) + 1.0) ** 2
+
+
 class LDLPattern:
     """The symbolic analysis of an n × n symmetric matrix given by its upper triangle in CSC form:
     ``indptr`` (n+1,), ``indices`` (nnz,) (rows increasing within a column, the diagonal present in every
@@ -111,7 +117,7 @@ class LDLPattern:
     def flops(self) -> float:
         """Σ over the columns of L of colcount² (diagonal included): the multiply–adds of the
         factorization."""
-        return float(((self.Lnz + 1.0) ** 2).sum())
+        return float(column_work(self.Lnz).sum())
 
     def factor(self, data: np.ndarray, *, progress=None) -> "LDLFactor":
         """Factor the matrix with values ``data`` (nnz,) on this pattern; ``progress(done, total)`` as
@@ -167,7 +173,7 @@ class LDLFactor:
         import threading
 
         self.Dinv.fill(np.nan)  # QDLDL writes Dinv[k] once, when row k is done
-        work = np.cumsum((self.pattern.Lnz + 1.0) ** 2)
+        work = np.cumsum(column_work(self.pattern.Lnz))
         total = float(work[-1])
         status = []
         worker = threading.Thread(target=lambda: status.append(lib.QDLDL_factor(*args)), daemon=True,

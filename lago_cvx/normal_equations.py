@@ -183,6 +183,11 @@ class PoseFactor(Factor):
         super().__init__(solve, slots.size, "multifrontal")
 
 
+def _whole_from_upper(U: sp.spmatrix) -> sp.csc_matrix:
+    """The symmetric matrix whose upper triangle (diagonal included) is ``U``: U + Uᵀ − diag(U)."""
+    return sp.csc_matrix(U + U.T - sp.diags(U.diagonal()))
+
+
 class BlockUpperPattern:
     """The upper triangle of (N)'s pattern with b×b blocks, in elimination order, as the CSC that
     ``ldl.LDLPattern`` factors, and the map that scatters ``EdgeSystem.normal_blocks()`` into its values.
@@ -278,8 +283,7 @@ class BlockUpperPattern:
     def matrix(self, data: np.ndarray) -> sp.csc_matrix:
         """The whole symmetric matrix (pose-major numbering) with upper-triangle values ``data``."""
         n = self.slots.size
-        U = sp.csc_matrix((data, self.ldl.indices, self.indptr), shape=(n, n))
-        N = sp.csc_matrix(U + U.T - sp.diags(U.diagonal()))
+        N = _whole_from_upper(sp.csc_matrix((data, self.ldl.indices, self.indptr), shape=(n, n)))
         return sp.csc_matrix(N[self.slots][:, self.slots])
 
 
@@ -331,12 +335,14 @@ class QdldlFactor(Factor):
                 return solver.solve(rhs)
             return np.column_stack([solver.solve(np.ascontiguousarray(rhs[:, j])) for j in range(rhs.shape[1])])
 
-        def whole() -> sp.csc_matrix:  # N = U + Uᵀ − diag(U), built only if someone asks for it
-            return sp.csc_matrix(upper + upper.T - sp.diags(upper.diagonal()))
+        def whole() -> sp.csc_matrix:  # built only if someone asks for it
+            return _whole_from_upper(upper)
 
         def flops() -> float:
             L = solver.factors()[0]
-            return float(((np.diff(L.indptr) + 1.0) ** 2).sum())
+            from .ldl import column_work
+
+            return float(column_work(np.diff(L.indptr)).sum())
 
         self._flops = flops
         super().__init__(solve, n, "qdldl", whole)
