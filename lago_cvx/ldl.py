@@ -114,6 +114,31 @@ class LDLPattern:
                                  "an empty column, or a column whose last entry is not its diagonal")
         self.nnz_L = int(total)
 
+    @classmethod
+    def expanded(cls, pose: "LDLPattern", b: int, indptr: np.ndarray, indices: np.ndarray) -> "LDLPattern":
+        """The analysis of ``pose``'s pattern with every entry expanded to a dense b×b block (a diagonal
+        entry to the block's upper half), variable (pose J, component c) numbered J·b + c; ``indptr``,
+        ``indices`` that expanded pattern. No second ``QDLDL_etree``: with dense blocks the fill is the
+        pose-level fill, so column (J, c) of L holds components c+1 … b−1 of pose J and every component of
+        each pose in column J of the pose-level L, i.e.
+
+            Lnz[J·b + c] = b·Lnz_pose[J] + (b − 1 − c),   parent (J, c + 1) for c < b − 1,
+            and (parent_pose(J), 0) for c = b − 1 (none at a root).
+
+        ``tests/test_ldl.py`` holds it equal to ``QDLDL_etree`` on the expanded pattern."""
+        if _library() is None:
+            raise RuntimeError("QDLDL's C routines are not available (ldl.available() is False)")
+        self = cls.__new__(cls)
+        self.n = pose.n * b
+        self.indptr = np.ascontiguousarray(indptr, dtype=np.int64)
+        self.indices = np.ascontiguousarray(indices, dtype=np.int64)
+        comp = np.arange(b)
+        self.Lnz = (b * pose.Lnz[:, None] + (b - 1 - comp)).reshape(-1)
+        up = np.where(pose.etree >= 0, pose.etree * b, -1)  # parent of each pose's last component
+        self.etree = np.where(comp < b - 1, (np.arange(pose.n)[:, None] * b + comp + 1), up[:, None]).reshape(-1)
+        self.nnz_L = int(self.Lnz.sum())
+        return self
+
     def flops(self) -> float:
         """Σ over the columns of L of colcount² (diagonal included): the multiply–adds of the
         factorization."""

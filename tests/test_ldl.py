@@ -114,6 +114,21 @@ def test_column_counts_are_the_fill_of_the_pose_order():
     assert f.flops() == pytest.approx(float(((counts + 1.0) ** 2).sum()))
 
 
+@pytest.mark.parametrize("b", [1, 2, 3])
+@pytest.mark.parametrize("anchor_index", [0, 4])
+def test_expanded_analysis_is_qdldl_etree_of_the_expanded_pattern(b, anchor_index):
+    """``LDLPattern.expanded`` (the pose-level elimination tree and column counts expanded to b×b blocks)
+    is exactly what ``QDLDL_etree`` computes on the b-expanded pattern, on a world and on a graph with
+    parallel edges, loops through the anchor and a pose joined only to the anchor."""
+    for g in (lc.manhattan_world(80, seed=5).graph, _graph_with_parallel_edges(anchor_index)):
+        el = GraphElimination(g, anchor_index)
+        pat = el.upper_pattern(b)
+        direct = ldl.LDLPattern(pat.indptr, pat.indices)
+        assert np.array_equal(pat.ldl.etree, direct.etree)
+        assert np.array_equal(pat.ldl.Lnz, direct.Lnz)
+        assert pat.ldl.nnz_L == direct.nnz_L and pat.ldl.n == direct.n
+
+
 def test_bad_patterns_and_zero_pivots_are_refused_by_name():
     """A pattern that is not upper triangular, or a column without its diagonal, raises NumericalError
     from QDLDL_etree; a zero pivot raises it from QDLDL_factor — never a crash or a silent answer."""
