@@ -169,7 +169,11 @@ def _polish(graph, theta_hat, theta_star, unc, aid, method, backend, settings, p
         pos, problems["positions"] = positions_from_problem(graph, theta, unc, anchor=aid, settings=settings)
         return pos
 
-    return polish(graph, theta_hat, theta_star, unc, solve_positions=solve_positions)
+    many = None
+    if method == "closed_form" and backend == "auto" and solver is not None and solver.elim.anchor_index == \
+            graph.anchor_index(aid):
+        many = solver.many  # both first trials as right-hand sides of one system (isotropic information)
+    return polish(graph, theta_hat, theta_star, unc, solve_positions=solve_positions, solve_many=many)
 
 
 def compare_methods(graph: PoseGraph, *, solver_settings: ClarabelSettings | None = None, anchors=None,

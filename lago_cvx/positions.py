@@ -120,28 +120,45 @@ class PositionSolver:
         return Ri, gk
 
     def __call__(self, theta, *, anchor_position=(0.0, 0.0)) -> "Positions":
-        g, el = self.graph, self.elim
-        theta = np.asarray(theta, dtype=float)
+        return self.many([theta], anchor_position=anchor_position)[0]
+
+    def many(self, thetas, *, anchor_position=(0.0, 0.0)) -> list["Positions"]:
+        """(P) for each orientation vector of ``thetas`` (a sequence of (n,)). With isotropic information
+        they are right-hand sides of one system, solved together (one refinement for all: x and y of
+        every θ, c (m, 1, 2·len(thetas))); otherwise one system per θ."""
+        el = self.elim
         p0 = np.asarray(anchor_position, dtype=float).reshape(2)
-        m, d = g.n_edges, el.d
+        thetas = [np.asarray(theta, dtype=float) for theta in thetas]
+        if not self.isotropic:
+            return [self._general(theta, p0) for theta in thetas]
+        m, d = self.graph.n_edges, el.d
+        s = self.unc.sqrt_info_pp[:, 0, 0]  # √s_k
+        A, B = (-s).reshape(m, 1, 1), s.reshape(m, 1, 1)
+        c = np.stack([s[:, None] * self._targets(theta, p0)[1] for theta in thetas], axis=2)  # (m, 2, k)
+        system = EdgeSystem(el.tails, el.heads, A, B, c.reshape(m, 1, 2 * len(thetas)), d)
+        # factored on the first call (inside solve: with its progress), reused by every later θ
+        x, self._factor, stats = el.solve(system, factor=self._factor, stage="positions")
+        x = x.reshape(d, 2, len(thetas))
+
+        def info():
+            return sp.kron(_laplacian(el, s * s), sp.identity(2), format="csr")
+
+        return [Positions(_poses(self.graph, theta, el.anchor_index, x[:, :, i].reshape(-1), p0), info,
+                          el.anchor_index, self._factor, stats) for i, theta in enumerate(thetas)]
+
+    def _general(self, theta: np.ndarray, p0: np.ndarray) -> "Positions":
+        """(P) at one θ with general information: the 2d × 2d system of weights C_k R(θ_i)ᵀ."""
+        g, el = self.graph, self.elim
+        d = el.d
         Ri, gk = self._targets(theta, p0)
-        if self.isotropic:
-            s = self.unc.sqrt_info_pp[:, 0, 0]  # √s_k
-            A, B = (-s).reshape(m, 1, 1), s.reshape(m, 1, 1)
-            # x and y: two right-hand sides of one d × d system (c (m, 1, 2))
-            system = EdgeSystem(el.tails, el.heads, A, B, (s[:, None] * gk).reshape(m, 1, 2), d)
-            # factored on the first call (inside solve: with its progress), reused by every later θ
-            x, self._factor, stats = el.solve(system, factor=self._factor, stage="positions")
-            p = x[:, 0, :]
-            factor = self._factor
-            info = (lambda: sp.kron(_laplacian(el, s * s), sp.identity(2), format="csr"))
-        else:
-            Wk = self.unc.sqrt_info_pp @ np.swapaxes(Ri, 1, 2)  # C_k R(θ_i)ᵀ
-            system = EdgeSystem(el.tails, el.heads, -Wk, Wk, np.einsum("kab,kb->ka", Wk, gk), d)
-            x, factor, stats = el.solve(system, stage="positions")
-            p = x
-            info = (lambda: (system.sparse().T @ system.sparse()).tocsr())
-        return Positions(_poses(g, theta, el.anchor_index, p.reshape(-1), p0), info, el.anchor_index, factor,
+        Wk = self.unc.sqrt_info_pp @ np.swapaxes(Ri, 1, 2)  # C_k R(θ_i)ᵀ
+        system = EdgeSystem(el.tails, el.heads, -Wk, Wk, np.einsum("kab,kb->ka", Wk, gk), d)
+        x, factor, stats = el.solve(system, stage="positions")
+
+        def info():
+            return (system.sparse().T @ system.sparse()).tocsr()
+
+        return Positions(_poses(g, theta, el.anchor_index, x.reshape(-1), p0), info, el.anchor_index, factor,
                          stats)
 
 
@@ -224,7 +241,7 @@ class Polish:
 
 
 def polish(graph: PoseGraph, theta_hat, theta_star, unc: EdgeUncertainty, *, solve_positions, objective=None,
-           max_halvings: int = MAX_HALVINGS) -> Polish:
+           max_halvings: int = MAX_HALVINGS, solve_many=None) -> Polish:
     """Positions by (P) at phase 3's orientations θ*, guarded by phase 1's θ̂.
 
     Let F(θ) = χ²(positions of (P) at θ, θ), the cost with the positions eliminated exactly. Phase 3's
@@ -234,16 +251,19 @@ def polish(graph: PoseGraph, theta_hat, theta_star, unc: EdgeUncertainty, *, sol
     orientations). Then the step is halved (at most ``max_halvings`` times) until F drops below F(θ̂),
     and the best θ seen is kept: F(result) ≤ min(F(θ*), F(θ̂)) ≤ χ²(phase 3) always. Usually F(θ*) ≤
     F(θ̂) and the cost is two solves of (P). ``solve_positions(theta) -> Positions`` solves (P) (closed
-    form or cvxpy); ``objective(poses)`` is the cost compared (default χ²; the variants add their priors)."""
+    form or cvxpy); ``solve_many(thetas) -> list[Positions]``, when given, solves the first two trials
+    together (``PositionSolver.many``); ``objective(poses)`` is the cost compared (default χ²; the
+    variants add their priors)."""
     from .metrics import chi2
 
     cost = (lambda poses: chi2(graph, poses)) if objective is None else objective
     theta_hat = np.asarray(theta_hat, dtype=float)
     step = np.asarray(theta_star, dtype=float) - theta_hat
-    best = solve_positions(theta_hat + step)
-    trials = [(1.0, cost(best.poses))]
-    base = solve_positions(theta_hat)
-    trials.append((0.0, cost(base.poses)))
+    if solve_many is not None:
+        best, base = solve_many([theta_hat + step, theta_hat])
+    else:
+        best, base = solve_positions(theta_hat + step), solve_positions(theta_hat)
+    trials = [(1.0, cost(best.poses)), (0.0, cost(base.poses))]
     alpha = 1.0
     if trials[0][1] > trials[1][1]:
         best, alpha = base, 0.0

@@ -105,6 +105,31 @@ def test_polish_is_the_exact_position_minimiser(information):
     assert lc.chi2(g, other) > lc.chi2(g, pos.poses)
 
 
+@pytest.mark.parametrize("information", ["diagonal", "full"])
+def test_positions_for_several_orientations_at_once(information):
+    """``PositionSolver.many`` (the polish's first two trials in one call): with isotropic information
+    the θ's are right-hand sides of one system, otherwise one system each; either way every answer is
+    the single-θ solve's, to rounding."""
+    from lago_cvx.normal_equations import GraphElimination
+    from lago_cvx.positions import PositionSolver
+
+    g = lc.random_graph(40, 90, seed=4, information=information, sigma_xy=0.1, sigma_theta=0.05).graph
+    res = lc.lago(g)
+    unc = res.uncertainty
+    solver = PositionSolver(g, unc, GraphElimination(g, res.anchor_index))
+    assert solver.isotropic == (information == "diagonal")
+    rng = np.random.default_rng(3)
+    thetas = [res.phase3.poses[:, 2], res.phase1.theta, res.phase1.theta + 0.05 * rng.standard_normal(g.n_poses)]
+    together = solver.many(thetas, anchor_position=(1.5, -2.0))
+    assert len(together) == 3
+    for theta, pos in zip(thetas, together):
+        alone = resolve_positions(g, theta, unc, anchor=res.anchor, anchor_position=(1.5, -2.0))
+        assert np.allclose(pos.poses, alone.poses, rtol=1e-12, atol=1e-12)
+    # what the polish kept is the solve at the orientations it chose
+    chosen = solver.many([res.phase1.theta + res.polish.alpha * (res.phase3.poses[:, 2] - res.phase1.theta)])[0]
+    assert relative_difference(chosen.poses, res.polish.positions.poses) < 1e-12
+
+
 @settings(max_examples=30, deadline=None, derandomize=True, database=None)
 @given(n=st.integers(3, 30), extra=st.integers(0, 40), seed=st.integers(0, 10_000),
        information=st.sampled_from(["diagonal", "full"]), scale=st.sampled_from([0.01, 0.3, 1.0, 3.0]))
