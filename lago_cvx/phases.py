@@ -211,9 +211,10 @@ def phase1_closed_form(graph: PoseGraph, delta_reg, unc: EdgeUncertainty, *, anc
     if elim.laplacian is not None:
         solver, Lap = elim.laplacian
         factor = Factor(solver.solve, d, "qdldl", None)
+        op = system.operator()
         x, stats, trusted = refine_normal_equations(
-            factor.solve, lambda v: system.matvec(v.reshape(d, 1)).reshape(-1),
-            lambda r: system.rmatvec(r.reshape(-1, 1)).reshape(-1), system.c.reshape(-1))
+            factor.solve, lambda v: op.matvec(v.reshape(d, 1)).reshape(-1),
+            lambda r: op.rmatvec(r.reshape(-1, 1)).reshape(-1), system.c.reshape(-1))
         if not trusted:
             x, factor, stats = elim.solve(system, stage="phase 1")
         info = (lambda: (Lap + Lap.T - sp.diags(Lap.diagonal())).tocsr())

@@ -285,3 +285,25 @@ def test_chordal_warns_only_on_an_ambiguous_rounding(caplog):
         res = lc.lago(_ambiguous_pair_graph(1.0))  # disagreeing, but far from a tie
     assert res.regularization.ambiguous.size == 0
     assert not [r for r in caplog.records if r.levelno >= logging.WARNING]
+
+
+@pytest.mark.parametrize("q, b, extra", [(1, 1, ()), (3, 3, ()), (2, 2, (4,)), (4, 3, (2, 3))])
+def test_edge_operator_is_the_sparse_matrix(q, b, extra):
+    """``EdgeSystem.matvec``/``rmatvec`` (component-major products and one bincount, ``EdgeOperator``)
+    equal M x and Mᵀ r with M the system's sparse matrix, for one and several right-hand sides, edges
+    at the anchor (−1) at either end and parallel edges."""
+    rng = np.random.default_rng(q * 10 + b)
+    m, d = 60, 17
+    tails, heads = rng.integers(-1, d, m), rng.integers(-1, d, m)
+    tails[:5], heads[:5] = 3, 7  # parallel edges
+    system = ne.EdgeSystem(tails, heads, rng.standard_normal((m, q, b)), rng.standard_normal((m, q, b)),
+                           rng.standard_normal((m, q)), d)
+    M = system.sparse().toarray()
+    k = int(np.prod(extra, dtype=int))
+    x = rng.standard_normal((d, b) + extra)
+    r = rng.standard_normal((m, q) + extra)
+    op = system.operator()
+    for mv, rv in ((system.matvec(x), system.rmatvec(r)), (op.matvec(x), op.rmatvec(r))):
+        assert mv.shape == (m, q) + extra and rv.shape == (d, b) + extra
+        assert np.allclose(mv.reshape(m * q, k), M @ x.reshape(d * b, k), rtol=1e-13, atol=1e-13)
+        assert np.allclose(rv.reshape(d * b, k), M.T @ r.reshape(m * q, k), rtol=1e-13, atol=1e-13)
