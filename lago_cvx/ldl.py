@@ -144,10 +144,10 @@ class LDLPattern:
         factorization."""
         return float(column_work(self.Lnz).sum())
 
-    def factor(self, data: np.ndarray, *, progress=None) -> "LDLFactor":
-        """Factor the matrix with values ``data`` (nnz,) on this pattern; ``progress(done, total)`` as
-        ``LDLFactor`` reports it."""
-        return LDLFactor(self, data, progress=progress)
+    def factor(self, data: np.ndarray, *, progress=None, meanwhile=None) -> "LDLFactor":
+        """Factor the matrix with values ``data`` (nnz,) on this pattern; ``progress(done, total)`` and
+        ``meanwhile()`` as ``LDLFactor`` takes them."""
+        return LDLFactor(self, data, progress=progress, meanwhile=meanwhile)
 
 
 #: Seconds between two looks at a running factorization when progress is asked for.
@@ -164,9 +164,12 @@ class LDLFactor:
     by row (up-looking) and writes D_kk⁻¹ when row k is done, so the C call runs in a worker thread
     (``ctypes`` releases the GIL) while this one looks every ``PROGRESS_POLL`` s at how many of those are
     written; the rows done are weighted by (count of L's column + 1)², the column's share of the
-    multiply–adds, so the fraction is an estimate of the work done, not of the time."""
+    multiply–adds, so the fraction is an estimate of the work done, not of the time.
 
-    def __init__(self, pattern: LDLPattern, data: np.ndarray, *, progress=None):
+    ``meanwhile()``, when given, is called in this thread while the worker factors: independent work
+    (another system's pattern or factorization, ``GraphElimination.defer``) done on the second core."""
+
+    def __init__(self, pattern: LDLPattern, data: np.ndarray, *, progress=None, meanwhile=None):
         lib = _library()
         n = pattern.n
         self.pattern = pattern
@@ -184,30 +187,35 @@ class LDLFactor:
         fwork = np.empty(n)
         args = (n, _p(pattern.indptr), _p(pattern.indices), _p(Ax), _p(self.Lp), _p(self.Li), _p(self.Lx),
                 _p(self.D), _p(self.Dinv), _p(pattern.Lnz), _p(pattern.etree), _p(bwork), _p(iwork), _p(fwork))
-        if progress is None or n == 0:
+        if (progress is None and meanwhile is None) or n == 0:
             status = lib.QDLDL_factor(*args)
         else:
-            status = self._factor_watched(lib, args, progress, (Ax, bwork, iwork, fwork))
+            status = self._factor_watched(lib, args, progress, (Ax, bwork, iwork, fwork), meanwhile)
         if status < 0:
             raise NumericalError("QDLDL_factor: a zero pivot (the matrix is not quasi-definite in floating point)")
         self.n_positive = int(status)
 
-    def _factor_watched(self, lib, args, progress, keep_alive) -> int:
-        """``QDLDL_factor(*args)`` in a worker thread, ``progress`` fed from the rows done (class
-        docstring). ``keep_alive`` holds the work arrays the call points into until it returns."""
+    def _factor_watched(self, lib, args, progress, keep_alive, meanwhile=None) -> int:
+        """``QDLDL_factor(*args)`` in a worker thread, ``meanwhile()`` run here first, then ``progress`` fed
+        from the rows done (class docstring). ``keep_alive`` holds the work arrays the call points into
+        until it returns."""
         import threading
 
-        self.Dinv.fill(np.nan)  # QDLDL writes Dinv[k] once, when row k is done
-        work = np.cumsum(column_work(self.pattern.Lnz))
-        total = float(work[-1])
+        if progress is not None:
+            self.Dinv.fill(np.nan)  # QDLDL writes Dinv[k] once, when row k is done
+            work = np.cumsum(column_work(self.pattern.Lnz))
+            total = float(work[-1])
         status = []
         worker = threading.Thread(target=lambda: status.append(lib.QDLDL_factor(*args)), daemon=True,
                                   name="qdldl-factor")
         worker.start()
         raised = None
         try:
-            progress(0.0, total)
-            while True:
+            if meanwhile is not None:
+                meanwhile()
+            if progress is not None:
+                progress(0.0, total)
+            while progress is not None:
                 worker.join(PROGRESS_POLL)
                 if not worker.is_alive():
                     break
@@ -226,7 +234,8 @@ class LDLFactor:
             raise raised
         if not status:  # the thread ended without a result (cannot happen short of a crash in C)
             raise NumericalError("QDLDL_factor did not return")
-        progress(total, total)
+        if progress is not None:
+            progress(total, total)
         return int(status[0])
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:

@@ -376,7 +376,8 @@ class QdldlFactor(Factor):
         self._system, self._elimination = system, elimination
         if pattern is not None:
             data = pattern.values_from_entries(system.normal_entries())
-            ldl = pattern.ldl.factor(data, progress=progress)
+            meanwhile = elimination.deferred_work() if elimination is not None else None
+            ldl = pattern.ldl.factor(data, progress=progress, meanwhile=meanwhile)
             order, slots = pattern.order, pattern.slots
             self._flops = pattern.ldl.flops
 
@@ -501,6 +502,7 @@ class GraphElimination:
         self._plan = None
         self._upper_patterns = {}
         self._pose_pattern = None
+        self._deferred: list = []
         if d == 0:
             self._plan = EliminationPlan(0, np.zeros(0, np.int64), np.zeros(1, np.int64), np.zeros(1, np.int64),
                                          np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64))
@@ -544,6 +546,28 @@ class GraphElimination:
             else:
                 self._position = self.plan.position
         return self._position
+
+    def defer(self, task) -> None:
+        """Register ``task()``, work LAGO will need later on this graph (a pattern, a θ-independent
+        factorization), to be done while QDLDL factors another system in a worker thread: on the second
+        core, as ``ctypes`` releases the GIL. A task that fails is dropped (logged); whoever needs its
+        result later computes it then and meets the error there."""
+        self._deferred.append(task)
+
+    def deferred_work(self):
+        """A callable running the deferred tasks (in order, each once), or None when there are none."""
+        if not self._deferred:
+            return None
+
+        def run():
+            tasks, self._deferred = self._deferred, []  # taken first: a task that factors starts no other
+            for task in tasks:
+                try:
+                    task()
+                except Exception as exc:  # redone, and raised, where it is needed
+                    log.debug("deferred %r failed (%s): done when needed", task, exc)
+
+        return run
 
     def upper_pattern(self, b: int) -> BlockUpperPattern | None:
         """The ``BlockUpperPattern`` of the systems with b×b blocks (built once per b), or None when QDLDL's

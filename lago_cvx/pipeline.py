@@ -109,6 +109,12 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
     unc = edge_uncertainty(graph)
     elim = GraphElimination(graph, a, weights=unc.info_delta) if method == "closed_form" and backend == "auto" \
         else None
+    pos_solver = None
+    if elim is not None:  # done beside the first QDLDL factorization that runs (the chordal relaxation's)
+        elim.defer(lambda: elim.upper_pattern(3))  # phase 3's pattern
+        if choice["positions"] == "resolve":
+            pos_solver = PositionSolver(graph, unc, elim)
+            elim.defer(pos_solver.prefactor)  # the polish's θ-independent factorization (isotropic information)
     t_elim = time.perf_counter() - t
 
     t = time.perf_counter()
@@ -142,7 +148,8 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
     t = time.perf_counter()
     pol, poses = None, ph3.poses
     if choice["positions"] == "resolve":
-        pol = _polish(graph, ph1.theta, ph3.poses[:, 2], unc, aid, method, backend, solver_settings, problems, elim)
+        pol = _polish(graph, ph1.theta, ph3.poses[:, 2], unc, aid, method, backend, solver_settings, problems, elim,
+                      pos_solver)
         poses = pol.poses
     timings["positions"] = time.perf_counter() - t
 
@@ -158,10 +165,13 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
                       positions=choice["positions"], polish=pol)
 
 
-def _polish(graph, theta_hat, theta_star, unc, aid, method, backend, settings, problems, elim=None) -> Polish:
+def _polish(graph, theta_hat, theta_star, unc, aid, method, backend, settings, problems, elim=None,
+            solver=None) -> Polish:
     """The position polish in closed form or as cvxpy problems (the last one solved is kept). In closed
-    form one ``PositionSolver`` serves every trial (isotropic information: one factorization for all)."""
-    solver = PositionSolver(graph, unc, elim) if elim is not None else None
+    form one ``PositionSolver`` (``solver``, or a new one) serves every trial (isotropic information: one
+    factorization for all)."""
+    if solver is None and elim is not None:
+        solver = PositionSolver(graph, unc, elim)
 
     def solve_positions(theta):
         if method == "closed_form":

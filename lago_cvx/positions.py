@@ -122,6 +122,20 @@ class PositionSolver:
     def __call__(self, theta, *, anchor_position=(0.0, 0.0)) -> "Positions":
         return self.many([theta], anchor_position=anchor_position)[0]
 
+    def _isotropic_system(self, c: np.ndarray) -> EdgeSystem:
+        """The isotropic system (x and y of every θ as right-hand sides c (m, 1, r)): weights √s_k."""
+        m = self.graph.n_edges
+        s = self.unc.sqrt_info_pp[:, 0, 0]  # √s_k
+        return EdgeSystem(self.elim.tails, self.elim.heads, (-s).reshape(m, 1, 1), s.reshape(m, 1, 1), c,
+                          self.elim.d)
+
+    def prefactor(self) -> None:
+        """Factor the isotropic system before the first θ is known (its matrix does not depend on θ):
+        ``lago`` defers it (``GraphElimination.defer``) to run beside another factorization."""
+        if self.isotropic and self._factor is None and self.elim.d:
+            system = self._isotropic_system(np.zeros((self.graph.n_edges, 1, 1)))
+            self._factor = self.elim.factor(system)
+
     def many(self, thetas, *, anchor_position=(0.0, 0.0)) -> list["Positions"]:
         """(P) for each orientation vector of ``thetas`` (a sequence of (n,)). With isotropic information
         they are right-hand sides of one system, solved together (one refinement for all: x and y of
@@ -133,9 +147,8 @@ class PositionSolver:
             return [self._general(theta, p0) for theta in thetas]
         m, d = self.graph.n_edges, el.d
         s = self.unc.sqrt_info_pp[:, 0, 0]  # √s_k
-        A, B = (-s).reshape(m, 1, 1), s.reshape(m, 1, 1)
         c = np.stack([s[:, None] * self._targets(theta, p0)[1] for theta in thetas], axis=2)  # (m, 2, k)
-        system = EdgeSystem(el.tails, el.heads, A, B, c.reshape(m, 1, 2 * len(thetas)), d)
+        system = self._isotropic_system(c.reshape(m, 1, 2 * len(thetas)))
         # factored on the first call (inside solve: with its progress), reused by every later θ
         x, self._factor, stats = el.solve(system, factor=self._factor, stage="positions")
         x = x.reshape(d, 2, len(thetas))

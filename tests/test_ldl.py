@@ -241,3 +241,30 @@ def test_normal_entries_are_the_normal_blocks(b, q):
     np.testing.assert_allclose(entries.transpose(0, 3, 1, 2).reshape(3 * m, b, b), blocks, rtol=1e-13, atol=1e-13)
     pat = el.upper_pattern(b)
     np.testing.assert_allclose(pat.values_from_entries(entries), pat.values(blocks), rtol=1e-13, atol=1e-12)
+
+
+def test_deferred_work_runs_beside_the_factorization(monkeypatch):
+    """``GraphElimination.defer``: the tasks run (once, in order, in the calling thread) while QDLDL
+    factors the next system in a worker thread; the factor is bitwise the one without them; a task
+    that raises is dropped without touching the factorization; LAGO defers phase 3's pattern and the
+    polish's θ-independent factorization and gives bitwise the same estimate either way."""
+    import threading
+
+    g = lc.manhattan_world(300, seed=6).graph
+    el = GraphElimination(g, 0)
+    system = _random_system(el, 2, seed=3)
+    alone = el.factor(system, engine=False)
+    ran = []
+    el.defer(lambda: ran.append(("first", threading.current_thread() is threading.main_thread())))
+    el.defer(lambda: 1 / 0)
+    el.defer(lambda: ran.append(("pattern", el.upper_pattern(3) is not None)))
+    beside = el.factor(system, engine=False)
+    assert ran == [("first", True), ("pattern", True)] and el.deferred_work() is None
+    y = np.random.default_rng(0).standard_normal(el.d * 2)
+    assert np.array_equal(alone.solve(y), beside.solve(y))
+    assert 3 in el._upper_patterns
+    # in LAGO: the same answer with the deferral switched off
+    with_defer = lc.lago(g)
+    monkeypatch.setattr(GraphElimination, "deferred_work", lambda self: None)
+    without = lc.lago(g)
+    assert np.array_equal(with_defer.poses, without.poses)
