@@ -554,6 +554,10 @@ class GraphElimination:
         result later computes it then and meets the error there."""
         self._deferred.append(task)
 
+    def cancel_deferred(self) -> None:
+        """Drop the tasks not run yet (no QDLDL factorization came to run them beside)."""
+        self._deferred = []
+
     def deferred_work(self):
         """A callable running the deferred tasks (in order, each once), or None when there are none."""
         if not self._deferred:

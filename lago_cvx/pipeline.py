@@ -132,6 +132,9 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
         ph1, problems["phase1"] = P.phase1_from_problem(graph, reg.delta_reg, unc, anchor=aid,
                                                         settings=solver_settings)
     timings["phase1"] = time.perf_counter() - t + t_elim
+    at_theta_hat = {}
+    if pos_solver is not None and pos_solver.isotropic:  # the polish's θ̂ trial, beside phase 3's factorization
+        elim.defer(lambda: at_theta_hat.setdefault("base", pos_solver(ph1.theta)))
 
     t = time.perf_counter()
     ph2 = P.phase2(graph, ph1.theta, unc, anchor=aid, information=choice["information"], delta_reg=reg.delta_reg,
@@ -141,6 +144,8 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
     t = time.perf_counter()
     if method == "closed_form":
         ph3 = P.phase3_closed_form(graph, ph2, backend=backend, elimination=elim, progress=progress)
+        if elim is not None:
+            elim.cancel_deferred()  # not run (phase 3 by the multifrontal engine): done when needed
     else:
         ph3, problems["phase3"] = P.phase3_from_problem(graph, ph2, settings=solver_settings)
     timings["phase3"] = time.perf_counter() - t
@@ -149,7 +154,7 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
     pol, poses = None, ph3.poses
     if choice["positions"] == "resolve":
         pol = _polish(graph, ph1.theta, ph3.poses[:, 2], unc, aid, method, backend, solver_settings, problems, elim,
-                      pos_solver)
+                      pos_solver, at_theta_hat.get("base"))
         poses = pol.poses
     timings["positions"] = time.perf_counter() - t
 
@@ -166,10 +171,10 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
 
 
 def _polish(graph, theta_hat, theta_star, unc, aid, method, backend, settings, problems, elim=None,
-            solver=None) -> Polish:
+            solver=None, base=None) -> Polish:
     """The position polish in closed form or as cvxpy problems (the last one solved is kept). In closed
     form one ``PositionSolver`` (``solver``, or a new one) serves every trial (isotropic information: one
-    factorization for all)."""
+    factorization for all); ``base`` the trial at θ̂ when it was solved already."""
     if solver is None and elim is not None:
         solver = PositionSolver(graph, unc, elim)
 
@@ -183,7 +188,7 @@ def _polish(graph, theta_hat, theta_star, unc, aid, method, backend, settings, p
     if method == "closed_form" and backend == "auto" and solver is not None and solver.elim.anchor_index == \
             graph.anchor_index(aid):
         many = solver.many  # both first trials as right-hand sides of one system (isotropic information)
-    return polish(graph, theta_hat, theta_star, unc, solve_positions=solve_positions, solve_many=many)
+    return polish(graph, theta_hat, theta_star, unc, solve_positions=solve_positions, solve_many=many, base=base)
 
 
 def compare_methods(graph: PoseGraph, *, solver_settings: ClarabelSettings | None = None, anchors=None,

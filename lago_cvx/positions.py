@@ -254,7 +254,7 @@ class Polish:
 
 
 def polish(graph: PoseGraph, theta_hat, theta_star, unc: EdgeUncertainty, *, solve_positions, objective=None,
-           max_halvings: int = MAX_HALVINGS, solve_many=None) -> Polish:
+           max_halvings: int = MAX_HALVINGS, solve_many=None, base: "Positions | None" = None) -> Polish:
     """Positions by (P) at phase 3's orientations θ*, guarded by phase 1's θ̂.
 
     Let F(θ) = χ²(positions of (P) at θ, θ), the cost with the positions eliminated exactly. Phase 3's
@@ -265,14 +265,17 @@ def polish(graph: PoseGraph, theta_hat, theta_star, unc: EdgeUncertainty, *, sol
     and the best θ seen is kept: F(result) ≤ min(F(θ*), F(θ̂)) ≤ χ²(phase 3) always. Usually F(θ*) ≤
     F(θ̂) and the cost is two solves of (P). ``solve_positions(theta) -> Positions`` solves (P) (closed
     form or cvxpy); ``solve_many(thetas) -> list[Positions]``, when given, solves the first two trials
-    together (``PositionSolver.many``); ``objective(poses)`` is the cost compared (default χ²; the
-    variants add their priors)."""
+    together (``PositionSolver.many``); ``base``, when given, is (P) at θ̂ solved already (``lago``
+    solves it beside phase 3's factorization); ``objective(poses)`` is the cost compared (default χ²;
+    the variants add their priors)."""
     from .metrics import chi2
 
     cost = (lambda poses: chi2(graph, poses)) if objective is None else objective
     theta_hat = np.asarray(theta_hat, dtype=float)
     step = np.asarray(theta_star, dtype=float) - theta_hat
-    if solve_many is not None:
+    if base is not None:
+        best = solve_positions(theta_hat + step)
+    elif solve_many is not None:
         best, base = solve_many([theta_hat + step, theta_hat])
     else:
         best, base = solve_positions(theta_hat + step), solve_positions(theta_hat)

@@ -268,3 +268,24 @@ def test_deferred_work_runs_beside_the_factorization(monkeypatch):
     monkeypatch.setattr(GraphElimination, "deferred_work", lambda self: None)
     without = lc.lago(g)
     assert np.array_equal(with_defer.poses, without.poses)
+
+
+def test_deferred_tasks_left_over_are_dropped(monkeypatch):
+    """When phase 3 goes to the multifrontal engine no QDLDL factorization runs the deferred tasks: LAGO
+    drops them after phase 3, so the polish factors its system once (not again inside a task beside
+    itself) and the estimate is the all-QDLDL one."""
+    g = lc.manhattan_world(400, seed=1).graph
+    reference = lc.lago(g, route="seed", positions="resolve")  # no chordal factorization to run tasks beside
+    d = g.n_poses - 1
+    sizes = []
+    original = ldl.LDLFactor.__init__
+
+    def counting(self, pattern, data, **kw):
+        sizes.append(pattern.n)
+        original(self, pattern, data, **kw)
+
+    monkeypatch.setattr(ldl.LDLFactor, "__init__", counting)
+    monkeypatch.setattr(ne, "ENGINE_MIN", 2 * d + 1)  # b = 3 by the engine, b = 1 and 2 by QDLDL
+    res = lc.lago(g, route="seed", positions="resolve")
+    assert sizes == [d]  # the polish's system, once
+    assert np.allclose(res.poses, reference.poses, rtol=0, atol=1e-12)
