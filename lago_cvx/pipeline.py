@@ -99,23 +99,33 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
     timings, problems = {}, {}
     t_all = time.perf_counter()
 
-    t = time.perf_counter()
-    tree = build_tree(graph, choice["spanning_tree"], anchor=aid)
-    timings["tree"] = time.perf_counter() - t
-
     # The pose-level elimination, shared by every closed-form system: AMD and the factorization of phase 1's
     # Ω_θ = A2 P_δ⁻¹ A2ᵀ (QDLDL), the elimination tree and fronts (lago_cvx.multifrontal); timed as phase 1.
+    # QDLDL's binding releases the GIL, so it runs in a worker thread while this one builds the tree.
     t = time.perf_counter()
     unc = edge_uncertainty(graph)
-    elim = GraphElimination(graph, a, weights=unc.info_delta) if method == "closed_form" and backend == "auto" \
-        else None
+    elim_job = _Beside(lambda: GraphElimination(graph, a, weights=unc.info_delta)) \
+        if method == "closed_form" and backend == "auto" else None
+    t_elim = time.perf_counter() - t
+
+    t = time.perf_counter()
+    try:
+        tree = build_tree(graph, choice["spanning_tree"], anchor=aid)
+    except BaseException:
+        if elim_job is not None:
+            elim_job.join()
+        raise
+    timings["tree"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    elim = elim_job.result() if elim_job is not None else None
     pos_solver = None
     if elim is not None:  # done beside the first QDLDL factorization that runs (the chordal relaxation's)
         elim.defer(lambda: elim.upper_pattern(3))  # phase 3's pattern
         if choice["positions"] == "resolve":
             pos_solver = PositionSolver(graph, unc, elim)
             elim.defer(pos_solver.prefactor)  # the polish's θ-independent factorization (isotropic information)
-    t_elim = time.perf_counter() - t
+    t_elim += time.perf_counter() - t
 
     t = time.perf_counter()
     reg = regularize(graph, tree, regularization=choice["regularization"], margin=margin, method=method,
@@ -168,6 +178,34 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
                       tree=tree, regularization=reg, uncertainty=unc, phase1=ph1, phase2=ph2, phase3=ph3,
                       timings=timings, problems=problems, route=route_name, information=choice["information"],
                       positions=choice["positions"], polish=pol)
+
+
+class _Beside:
+    """``fn()`` run in a worker thread (for work that releases the GIL, beside this thread's own):
+    ``result()`` waits for it and returns its value or raises its exception."""
+
+    def __init__(self, fn):
+        import threading
+
+        self._value, self._error = None, None
+
+        def run():
+            try:
+                self._value = fn()
+            except BaseException as exc:  # handed to whoever asks for the result
+                self._error = exc
+
+        self._thread = threading.Thread(target=run, daemon=True, name="lago-beside")
+        self._thread.start()
+
+    def join(self) -> None:
+        self._thread.join()
+
+    def result(self):
+        self._thread.join()
+        if self._error is not None:
+            raise self._error
+        return self._value
 
 
 def _polish(graph, theta_hat, theta_star, unc, aid, method, backend, settings, problems, elim=None,

@@ -143,3 +143,22 @@ def test_odometric_tree_lands_in_wrong_basin_on_m3500a():
     assert odo.regularization.ambiguous.size > 0 and bfs.regularization.ambiguous.size == 0
     assert odo.chi2 > 10 * bfs.chi2
     assert bfs.chi2 / REFERENCE_CHI2["carlone/input_M3500a_g2o.g2o"] < 1.02
+
+
+def test_elimination_beside_the_tree_and_its_errors():
+    """``lago`` builds the pose-level elimination in a worker thread while it builds the tree
+    (``pipeline._Beside``): a disconnected graph still raises the tree's ``GraphError``, naming the
+    components, with no worker left running; an exception in the worker reaches the caller."""
+    import threading
+
+    from lago_cvx.pipeline import _Beside
+
+    truth = np.array([[0, 0, 0], [1, 0, 0], [5, 5, 0], [6, 5, 0]], float)
+    g = graph_from_truth(truth, np.array([0, 2]), np.array([1, 3]))
+    with pytest.raises(GraphError, match="not connected"):
+        lago(g)
+    assert not any(t.name == "lago-beside" and t.is_alive() for t in threading.enumerate())
+    job = _Beside(lambda: 1 / 0)
+    with pytest.raises(ZeroDivisionError):
+        job.result()
+    assert _Beside(lambda: 42).result() == 42
