@@ -36,6 +36,7 @@ from .linalg import Factor, augmented_least_squares, refine_normal_equations
 from .multifrontal import BlockFactor, EliminationPlan, plan_from_qdldl
 from .posegraph import PoseGraph
 from .progress import Progress
+from .upper_pattern import BlockUpperPattern, PoseUpperPattern, _whole_from_upper
 
 __all__ = ["plan_from_pattern", "matrix_blocks", "EdgeSystem", "EdgeOperator", "GraphElimination", "PoseFactor", "BlockUpperPattern", "PoseUpperPattern", "QdldlFactor", "RenumberedFactor", "ENGINE_MIN"]
 
@@ -230,133 +231,6 @@ class PoseFactor(Factor):
             return blocks.solve_slots(rhs[order])[slots]
 
         super().__init__(solve, slots.size, "multifrontal")
-
-
-def _whole_from_upper(U: sp.spmatrix) -> sp.csc_matrix:
-    """The symmetric matrix whose upper triangle (diagonal included) is ``U``: U + Uᵀ − diag(U)."""
-    return sp.csc_matrix(U + U.T - sp.diags(U.diagonal()))
-
-
-class PoseUpperPattern:
-    """The part of every ``BlockUpperPattern`` of one graph that does not depend on b, computed once: the
-    off-diagonal pose entries of N's upper triangle in elimination order, and the pose-level upper CSC
-    (d × d) with its ``ldl.LDLPattern`` (elimination tree and column counts, which each b expands).
-
-    ``position`` (d,) each free pose's place in the elimination order; ``pairs`` (prow, pcol, keep) as
-    ``GraphElimination.pairs``. The off-diagonal entries (I < J in elimination order), each once, sorted
-    by column J then row I: ``uJ``, ``uI`` (U,), ``rank`` (U,) each one's place in its pose column,
-    ``offc`` (d,) the count per pose column; ``which`` (m,) the entry of each edge's off-diagonal block,
-    + U where it is stored transposed (the head eliminated later), 2U for an edge at the anchor."""
-
-    def __init__(self, position: np.ndarray, pairs):
-        from .ldl import LDLPattern
-
-        prow, pcol, _ = pairs
-        self.position = position
-        self.d = d = int(position.size)
-        self.m = m = prow.size // 3  # pairs: tail diagonals, head diagonals, (head, tail) off-diagonals
-        self.tails, self.heads = pcol[:m], pcol[m:2 * m]
-        t, h = pcol[2 * m:], prow[2 * m:]
-        both = np.flatnonzero((t >= 0) & (h >= 0))
-        st, sh = position[t[both]], position[h[both]]
-        swap = sh > st  # the head eliminated later: its block row becomes the column
-        key = np.where(swap, sh * d + st, st * d + sh)  # J·d + I
-        srt = np.argsort(key, kind="stable")
-        ks = key[srt]
-        new_entry = np.ones(ks.size, bool)
-        new_entry[1:] = ks[1:] != ks[:-1]
-        uk = ks[new_entry]
-        inv = np.empty(key.size, np.int64)
-        inv[srt] = np.cumsum(new_entry) - 1
-        self.uJ, self.uI = uJ, uI = uk // d, uk % d
-        self.U = U = uk.size
-        self.offc = offc = np.bincount(uJ, minlength=d)
-        self.rank = rank = np.arange(U) - np.searchsorted(uJ, uJ)
-        self.which = np.full(m, 2 * U, np.int64)  # edges with an end at the anchor: discarded
-        self.which[both] = inv + swap * U
-        indptr = np.r_[0, np.cumsum(offc + 1)]
-        indices = np.empty(indptr[-1], np.int64)
-        indices[indptr[uJ] + rank] = uI
-        indices[indptr[1:] - 1] = np.arange(d)
-        self.ldl = LDLPattern(indptr, indices)
-
-
-class BlockUpperPattern:
-    """The upper triangle of (N)'s pattern with b×b blocks, in elimination order, as the CSC that
-    ``ldl.LDLPattern`` factors, and the map that scatters ``EdgeSystem.normal_blocks()`` into its values.
-
-    Built from the graph's ``PoseUpperPattern`` ``pose`` (variable (i, c) gets slot position[i]·b + c).
-    Pose column J of the upper triangle holds the poses I ≤ J joined to it (increasing, J itself last);
-    scalar column (J, c) holds, for each off-diagonal pose I, the rows I·b + 0 … b−1, then J·b + 0 … c.
-    The block of pair (prow, pcol) lands as is when prow is eliminated first, transposed otherwise; of a
-    diagonal block only the upper half (r ≤ c) is stored. ``values_from_entries`` sums every block's
-    entries into place by one ``np.bincount`` over the map ``dest`` (3·b²·m,), entry-major as
-    ``EdgeSystem.normal_entries`` (no COO → CSC conversion per system); ``ldl`` the symbolic analysis,
-    the pose-level one expanded to b components (``ldl.LDLPattern.expanded``), shared by every system
-    with this b."""
-
-    def __init__(self, pose: PoseUpperPattern, b: int):
-        from .ldl import LDLPattern
-
-        position, d, m, U = pose.position, pose.d, pose.m, pose.U
-        offc, uJ, rank = pose.offc, pose.uJ, pose.rank
-        self.b = b
-        pose_at = np.empty(d, np.int64)
-        pose_at[position] = np.arange(d)
-        comp = np.arange(b)
-        self.slots = (position[:, None] * b + comp).reshape(-1)  # slot of pose-major variable i·b + c
-        self.order = (pose_at[:, None] * b + comp).reshape(-1)  # pose-major variable in each slot
-        base = np.r_[0, np.cumsum(b * b * offc + b * (b + 1) // 2)]
-        colstart = base[:-1, None] + comp * (offc[:, None] * b) + comp * (comp + 1) // 2  # (d, b): column (J, c)
-        self.indptr = np.r_[colstart.reshape(-1), base[-1]]
-        self.nnz = nnz = int(base[-1])
-        R, C = np.divmod(np.arange(b * b), b)  # block entry (R, C) at flat index R·b + C
-        lower = R > C
-        # destinations of a block's b² entries, entry-major (b², ·): at each pose column's diagonal (upper
-        # half only; pose rows in elimination order, a last column for the anchor: discarded) ...
-        dj = colstart[:, C].T + offc * b + R[:, None]  # (b², d) by elimination position
-        dj[lower] = nnz
-        diag = np.empty((b * b, d + 1), np.int64)  # column = free pose index, column d = the anchor
-        np.take(dj, position, axis=1, out=diag[:, :d], mode="clip")
-        diag[:, d] = nnz
-        # ... and at each off-diagonal pose entry, as is and transposed (entry (r, c) → (c, r))
-        off = np.take(colstart.T, uJ, axis=1)[C] + rank * b + R[:, None]  # (b², U)
-        table = np.empty((b * b, 2 * U + 1), np.int64)
-        table[:, :U] = off
-        table[:, U:2 * U] = off[C * b + R]
-        table[:, 2 * U] = nnz
-        # kept entry-major, the layout of EdgeSystem.normal_entries: (3, b², m); np.take into out= (NumPy's
-        # fancy-index gathers are slower), mode="clip" as every index is in range by construction
-        dest = np.empty((3, b * b, m), np.int64)
-        np.take(diag, np.where(pose.tails >= 0, pose.tails, d), axis=1, out=dest[0], mode="clip")
-        np.take(diag, np.where(pose.heads >= 0, pose.heads, d), axis=1, out=dest[1], mode="clip")
-        np.take(table, pose.which, axis=1, out=dest[2], mode="clip")
-        self.dest = dest.reshape(-1)
-        # the pattern's rows, scattered to the same places
-        indices = np.empty(nnz, np.int64)
-        indices[off] = pose.uI * b + R[:, None]
-        indices[dj[~lower]] = np.arange(d) * b + R[~lower][:, None]
-        self.ldl = pose.ldl if b == 1 else LDLPattern.expanded(pose.ldl, b, self.indptr, indices)
-
-    @property
-    def indices(self) -> np.ndarray:
-        return self.ldl.indices
-
-    def values_from_entries(self, entries: np.ndarray) -> np.ndarray:
-        """The upper triangle's values (nnz,) from ``entries`` (3, b, b, m) of ``EdgeSystem.normal_entries``."""
-        entries = np.ascontiguousarray(entries)
-        return np.bincount(self.dest, weights=entries.reshape(-1), minlength=self.nnz + 1)[:self.nnz]
-
-    def values(self, blocks: np.ndarray) -> np.ndarray:
-        """The same from ``blocks`` (3m, b, b) of ``EdgeSystem.normal_blocks`` (reordered entry-major)."""
-        b = self.b
-        return self.values_from_entries(blocks.reshape(3, -1, b, b).transpose(0, 2, 3, 1))
-
-    def matrix(self, data: np.ndarray) -> sp.csc_matrix:
-        """The whole symmetric matrix (pose-major numbering) with upper-triangle values ``data``."""
-        n = self.slots.size
-        N = _whole_from_upper(sp.csc_matrix((data, self.ldl.indices, self.indptr), shape=(n, n)))
-        return sp.csc_matrix(N[self.slots][:, self.slots])
 
 
 class QdldlFactor(Factor):
