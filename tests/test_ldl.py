@@ -1,5 +1,5 @@
 """QDLDL called directly in the pose-level elimination order (``lago_cvx.ldl``,
-``normal_equations.BlockUpperPattern``): the scattered upper triangle is exactly MᵀM, the factor solves
+``upper_pattern.BlockUpperPattern``): the scattered upper triangle is exactly MᵀM, the factor solves
 like a dense solve, its column counts are the symbolic fill of that order, bad input is refused by name,
 and LAGO gives the same answer through ``qdldl.Solver`` (the fallback when the C routines are not
 exported as expected)."""
