@@ -167,8 +167,9 @@ class EdgeSystem:
 class EdgeOperator:
     """M x and Mᵀ r of an ``EdgeSystem`` (E), component-major: A, B kept as (q, b, m) and the ends with the
     anchor mapped to row d, so every product is b·q multiply–adds of length-m vectors (several times
-    faster than ``np.einsum`` over (m, q, b)) and Mᵀ's scatter-add one ``np.bincount``. Built once per
-    solve (``GraphElimination.solve``, phase 1), not kept with the system."""
+    faster than ``np.einsum`` over (m, q, b)) and Mᵀ's scatter-add one ``np.bincount`` per component and
+    right-hand side. Built once per solve (``GraphElimination.solve``, phase 1), not kept with the
+    system."""
 
     def __init__(self, system: EdgeSystem):
         self.m, self.q, self.b = system.A.shape
@@ -177,7 +178,7 @@ class EdgeOperator:
         self.Bt = np.ascontiguousarray(system.B.transpose(1, 2, 0))
         self.t = np.where(system.tails < 0, self.d, system.tails)
         self.h = np.where(system.heads < 0, self.d, system.heads)
-        self._index = {}
+        self.ends = np.concatenate([self.t, self.h])  # (2m,): the tails, then the heads
 
     def matvec(self, x: np.ndarray) -> np.ndarray:
         """M x (m, q[, r]) for x (d, b[, r])."""
@@ -210,12 +211,11 @@ class EdgeOperator:
             for s_ in range(1, q):
                 ut += At[s_, c] * rt[s_]
                 uh += Bt[s_, c] * rt[s_]
-        idx = self._index.get(k)
-        if idx is None:  # row (c, j) of u lands in bin (c·k + j)·(d + 1) + pose
-            idx = self._index[k] = (np.arange(b * k)[:, None] * (self.d + 1) +
-                                    np.concatenate([self.t, self.h])).reshape(-1)
-        out = np.bincount(idx, u.reshape(-1), minlength=b * k * (self.d + 1)).reshape(b, *extra, self.d + 1)
-        return np.ascontiguousarray(np.moveaxis(out[..., :self.d], -1, 0))
+        rows = u.reshape(b * k, 2 * m)
+        out = np.empty((b * k, self.d))
+        for i in range(b * k):  # one bincount per (component, right-hand side) over the shared ends
+            out[i] = np.bincount(self.ends, rows[i], minlength=self.d + 1)[:self.d]
+        return np.ascontiguousarray(np.moveaxis(out.reshape(b, *extra, self.d), -1, 0))
 
 
 class PoseFactor(Factor):
