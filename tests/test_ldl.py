@@ -247,7 +247,7 @@ def test_deferred_work_runs_beside_the_factorization(monkeypatch):
     """``GraphElimination.defer``: the tasks run (once, in order, in the calling thread) while QDLDL
     factors the next system in a worker thread; the factor is bitwise the one without them; a task
     that raises is dropped without touching the factorization; LAGO defers phase 3's pattern and the
-    polish's θ-independent factorization and gives bitwise the same estimate either way."""
+    polish's θ-independent factorization and gives the same estimate either way."""
     import threading
 
     g = lc.manhattan_world(300, seed=6).graph
@@ -266,8 +266,8 @@ def test_deferred_work_runs_beside_the_factorization(monkeypatch):
     # in LAGO: the same answer with the deferral switched off
     with_defer = lc.lago(g)
     monkeypatch.setattr(GraphElimination, "deferred_work", lambda self: None)
-    without = lc.lago(g)
-    assert np.array_equal(with_defer.poses, without.poses)
+    without = lc.lago(g)  # the polish's two trials then solved together: the same to rounding
+    assert np.allclose(with_defer.poses, without.poses, rtol=1e-12, atol=1e-12)
 
 
 def test_deferred_tasks_left_over_are_dropped(monkeypatch):
