@@ -198,6 +198,13 @@ def test_progress_is_reported_while_qdldl_runs(monkeypatch):
     assert all(a <= b for a, b in zip(done, done[1:]))
     for name in ("Lp", "Li", "Lx", "D", "Dinv"):
         assert np.array_equal(getattr(watched, name), getattr(plain, name))
+    # with work beside it as well: run once, before the progress, and the same factor
+    beside, order = [], []
+    both = pat.ldl.factor(data, progress=lambda done, total: order.append("progress"),
+                          meanwhile=lambda: (beside.append(1), order.append("meanwhile")))
+    assert beside == [1] and order[0] == "meanwhile" and order.count("meanwhile") == 1 and len(order) >= 3
+    for name in ("Lp", "Li", "Lx", "D", "Dinv"):
+        assert np.array_equal(getattr(both, name), getattr(plain, name))
     # and through the elimination, as LAGO calls it
     seen = []
     el.factor(_random_system(el, 3, seed=6), engine=False, progress=lambda i, n: seen.append(i / n))
@@ -218,6 +225,8 @@ def test_a_failing_progress_callback_waits_for_qdldl(monkeypatch):
 
     with pytest.raises(RuntimeError, match="stop"):
         pat.ldl.factor(data, progress=boom)
+    with pytest.raises(RuntimeError, match="beside"):  # so does one from the work beside it
+        pat.ldl.factor(data, meanwhile=lambda: (_ for _ in ()).throw(RuntimeError("beside")))
     import threading
     assert not any(t.name == "qdldl-factor" and t.is_alive() for t in threading.enumerate())
     f = pat.ldl.factor(data)
