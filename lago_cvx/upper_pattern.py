@@ -117,11 +117,14 @@ class BlockUpperPattern:
         np.take(diag, np.where(pose.heads >= 0, pose.heads, d), axis=1, out=dest[1], mode="clip")
         np.take(table, pose.which, axis=1, out=dest[2], mode="clip")
         self.dest = dest.reshape(-1)
+        if b == 1:  # the pose-level pattern itself
+            self.ldl = pose.ldl
+            return
         # the pattern's rows, scattered to the same places
         indices = np.empty(nnz, np.int64)
         indices[off] = pose.uI * b + R[:, None]
         indices[dj[~lower]] = np.arange(d) * b + R[~lower][:, None]
-        self.ldl = pose.ldl if b == 1 else LDLPattern.expanded(pose.ldl, b, self.indptr, indices)
+        self.ldl = LDLPattern.expanded(pose.ldl, b, self.indptr, indices)
 
     @property
     def indices(self) -> np.ndarray:
