@@ -33,12 +33,13 @@ import scipy.sparse as sp
 
 from .graph import free_poses
 from .linalg import Factor, augmented_least_squares, refine_normal_equations
+from . import compiled
 from .multifrontal import BlockFactor, EliminationPlan, plan_from_qdldl
 from .posegraph import PoseGraph
 from .progress import Progress
 from .upper_pattern import BlockUpperPattern, PoseUpperPattern, _whole_from_upper
 
-__all__ = ["plan_from_pattern", "matrix_blocks", "EdgeSystem", "EdgeOperator", "GraphElimination", "PoseFactor", "BlockUpperPattern", "PoseUpperPattern", "QdldlFactor", "RenumberedFactor", "ENGINE_MIN"]
+__all__ = ["plan_from_pattern", "matrix_blocks", "EdgeSystem", "EdgeOperator", "GraphElimination", "PoseFactor", "BlockUpperPattern", "PoseUpperPattern", "QdldlFactor", "RenumberedFactor", "CompiledPoseFactor", "ENGINE_MIN", "COMPILED_MIN"]
 
 log = logging.getLogger(__name__)
 
@@ -233,6 +234,30 @@ class PoseFactor(Factor):
         super().__init__(solve, slots.size, "multifrontal")
 
 
+class CompiledPoseFactor(Factor):
+    """A system of (N) factored by the compiled multifrontal engine (``lago_cvx.compiled``):
+    ``solve(rhs)`` for rhs (d·b,) or (d·b, r) pose-major; ``compiled`` the ``compiled.CompiledFactor``."""
+
+    def __init__(self, factor, slots: np.ndarray, system: "EdgeSystem", elimination: "GraphElimination"):
+        self.compiled = factor
+        self._system, self._elimination = system, elimination
+        order = np.argsort(slots)
+
+        def solve(rhs: np.ndarray) -> np.ndarray:
+            return factor.solve_slots(rhs[order])[slots]
+
+        super().__init__(solve, slots.size, "compiled")
+
+    def flops(self) -> float:
+        """Σ colcount² over the columns of L (the fronts' explicit zeros included)."""
+        return self.compiled.flops()
+
+    def engine_factor(self) -> "PoseFactor":
+        """The same matrix factored by the NumPy engine on the same plan, whose ``BlockFactor`` the
+        selected inversion of ``Phase3.pose_covariances`` reads."""
+        return self._elimination.factor(self._system, engine=True)
+
+
 class QdldlFactor(Factor):
     """A system of (N) factored by QDLDL's LDLᵀ in C: below ``ENGINE_MIN`` unknowns faster than the
     multifrontal engine, whose Python cost per level of fronts does not pay there.
@@ -322,6 +347,10 @@ class QdldlFactor(Factor):
 #: ``GraphElimination.factor(engine=...)`` forces either; ``Phase3.pose_covariances`` refactors a QDLDL
 #: system by the engine for its selected inversion (``QdldlFactor.engine_factor``).
 ENGINE_MIN = 1_200_000
+
+#: Systems with at least this many unknowns are factored by the compiled engine (``lago_cvx.compiled``)
+#: when Numba can be imported (it then takes the place of the NumPy engine above ``ENGINE_MIN`` too).
+COMPILED_MIN = 300_000
 
 
 class RenumberedFactor(Factor):
@@ -474,11 +503,22 @@ class GraphElimination:
         """Elimination slot of each pose-major variable i·b + c."""
         return (self.plan.position[:, None] * b + np.arange(b)).reshape(-1)
 
-    def factor(self, system: EdgeSystem, *, progress=None, engine: bool | None = None) -> Factor:
-        """Factor the normal matrix (N) of ``system``: by the multifrontal engine (a ``PoseFactor``) when
-        ``engine`` (default: at least ``ENGINE_MIN`` unknowns), else by QDLDL (a ``QdldlFactor``).
-        Raises ``multifrontal.NotPositiveDefinite`` (or QDLDL's error) if N is not numerically SPD."""
+    def factor(self, system: EdgeSystem, *, progress=None, engine: bool | str | None = None) -> Factor:
+        """Factor the normal matrix (N) of ``system``. ``engine`` None (the default) picks by size: the
+        compiled multifrontal engine (a ``CompiledPoseFactor``, ``lago_cvx.compiled``) from
+        ``COMPILED_MIN`` unknowns when Numba can be imported, else the NumPy multifrontal engine (a
+        ``PoseFactor``) from ``ENGINE_MIN``, QDLDL (a ``QdldlFactor``) below; ``"compiled"``, True (the
+        NumPy engine) or False (QDLDL) force one. Raises ``multifrontal.NotPositiveDefinite`` (or
+        QDLDL's error) if N is not numerically SPD."""
         b = system.b
+        if engine == "compiled" or (engine is None and system.d * b >= COMPILED_MIN and compiled.available()):
+            if ("compiled", b) not in self._assemblers:
+                prow, pcol, _ = self.pairs
+                lay = self.plan.compiled_layout(b)
+                self._assemblers["compiled", b] = (lay, lay.assembler(prow, pcol))
+            lay, asm = self._assemblers["compiled", b]
+            cf = lay.factor(asm, system.A, system.B, progress=progress)
+            return CompiledPoseFactor(cf, self.slots(b), system, self)
         if not (engine if engine is not None else system.d * b >= ENGINE_MIN):
             prow, pcol, keep = self.pairs
             return QdldlFactor(system, (prow, pcol), keep, pattern=self.upper_pattern(b), elimination=self,

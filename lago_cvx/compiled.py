@@ -1,0 +1,662 @@
+r"""The multifrontal block Cholesky of ``lago_cvx.multifrontal``, front by front in compiled code (Numba).
+
+Same symbolic analysis (the pose-level ``EliminationPlan``: AMD order, fronts with pivot poses P_f and
+update rows R_f, each front's rows ⊂ its parent's), same equations (MF):
+
+    F_f = [[F_PP, ·], [F_RP, F_RR]] = N's entries in the columns P_f + Σ_children U_c   (extend-add)
+    L_PP = chol(F_PP),    X_f = F_RP L_PP⁻ᵀ,    U_f = F_RR − X_f X_fᵀ                          (MF)
+
+but each front is handled where NumPy's engine pays a Python call (or several) per front or per group:
+the whole loop over the fronts (postorder, children's updates on a stack, popped by their parent) is a
+Numba-compiled function. A front's dense kernel is a right-looking loop for small fronts and LAPACK's
+``potrf`` with BLAS's ``trsm``/``syrk`` for large ones (SciPy's own LAPACK/BLAS through
+``scipy.linalg.cython_lapack``/``cython_blas``, so the BLAS NumPy and SciPy load is the one used).
+At a million poses the NumPy engine spends most of phase 3 in Python's cost per small front (85 000 of
+them); here that cost is a few hundred nanoseconds.
+
+Storage. Variables are numbered by elimination slot, pose-major: slot = position·b + component (as in
+``multifrontal.BlockLayout``). Front f has k = |P_f|·b pivot and r = |R_f|·b update variables,
+D = k + r; its block column [L_PP; X_f] of L is kept column-major, D × k, at ``L[Lptr[f]:Lptr[f+1]]``
+(the strict upper triangle of L_PP is left as the factorization left it and never read).
+
+**Solve** N x = y (``CompiledFactor.solve_slots``): forward L z = y front by front (leaves up), back
+Lᵀ x = z (root down), each front's triangle and rectangle by compiled loops.
+
+**Two cores.** The compiled loop releases the GIL: the front tree's largest subtrees are split until
+none holds more than 1/16 of the work, dealt to ``THREADS`` worker threads (each with its own front
+buffer and stack, one BLAS thread), and the fronts above them are factored afterwards in the calling
+thread, the children's updates copied across from the workers' stacks (``CompiledLayout.schedule``).
+
+Numba is imported only when a factorization runs (``available()`` tells whether it can be): import
+lago_cvx, the CLI's start-up and every system below ``normal_equations.COMPILED_MIN`` unknowns never
+load it. Compiled functions are cached on disk (``cache=True``, in ``__pycache__`` beside this file or
+Numba's user cache), so only the first run on a machine compiles (about 10 s). LAPACK/BLAS are called by
+address (``_pointer_call``): the addresses are arguments looked up in each process, which keeps the
+compiled code cacheable.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+
+from .linalg import blas_threads
+
+__all__ = ["available", "CompiledLayout", "CompiledAssembler", "CompiledFactor"]
+
+log = logging.getLogger(__name__)
+
+#: A front whose k·D² (twice its multiply–adds) is below this is factored by a compiled right-looking
+#: loop; a larger one by LAPACK/BLAS (potrf, trsm, syrk), called by address from the compiled loop.
+SMALL_WORK = 50_000
+
+#: Fronts with at least this many pivot variables run BLAS on every thread; the others on one.
+THREADED_FRONT = 384
+
+#: Threads sharing the factorization's subtrees (the machine's cores, at most 2 here), and the least
+#: work (Σ k·D² over the fronts) for which it is shared at all.
+THREADS = 2
+PARALLEL_WORK = 5e8
+
+#: Each compiled call factors at most this share of the fronts (progress is reported between calls).
+CHUNK = 0.02
+
+_KERNELS: list = []
+
+
+def available() -> bool:
+    """True when Numba can be imported (the compiled engine can run)."""
+    try:
+        _kernels()
+    except Exception as exc:  # ImportError, or a Numba that cannot compile here
+        log.debug("compiled engine unavailable (%s)", exc)
+        return False
+    return True
+
+
+def _addresses() -> np.ndarray:
+    """(3,) int64: the addresses of SciPy's LAPACK ``dpotrf`` and BLAS ``dtrsm``, ``dsyrk`` (Fortran
+    calling convention: every argument by pointer, 32-bit integers)."""
+    from numba.extending import get_cython_function_address as address
+
+    return np.array([address("scipy.linalg.cython_lapack", "dpotrf"), address("scipy.linalg.cython_blas", "dtrsm"),
+                     address("scipy.linalg.cython_blas", "dsyrk")], np.int64)
+
+
+def _pointer_call(n: int):
+    """A Numba intrinsic calling the function at an address with ``n`` pointer arguments, all given as
+    integers (so compiled code that calls LAPACK/BLAS by address can be cached on disk: the addresses
+    are arguments, looked up in each process)."""
+    from llvmlite import ir
+    from numba import types
+    from numba.extending import intrinsic
+
+    def codegen(context, builder, signature, values):
+        p = ir.IntType(8).as_pointer()
+        fnty = ir.FunctionType(ir.VoidType(), [p] * n)
+        fn = builder.inttoptr(values[0], fnty.as_pointer())
+        builder.call(fn, [builder.inttoptr(v, p) for v in values[1:]])
+        return context.get_dummy_value()
+
+    def typer(typingctx, *args):
+        return types.void(*([types.intp] * (n + 1))), codegen
+
+    names = ", ".join(f"a{i}" for i in range(n + 1))  # Numba types intrinsics by their named parameters
+    scope = {"typer": typer}
+    exec(f"def _call{n}(typingctx, {names}):\n    return typer(typingctx, {names})\n", scope)
+    return intrinsic(scope[f"_call{n}"])
+
+
+def _kernels():
+    """The compiled kernels (built on first use, cached on disk; Numba imported here only)."""
+    if _KERNELS:
+        return _KERNELS[0]
+    from numba import njit
+
+    _call5, _call10, _call11 = _pointer_call(5), _pointer_call(10), _pointer_call(11)
+
+    @njit(nogil=True, cache=True)
+    def assemble(f, b, fptr, rptr, rel, nchild, bptr, border, bli, blj, btr, A, B, F, stack, st_front,
+                 st_off, state):
+        """Front f's matrix in F (column-major D × D, lower triangle): N's blocks in its pivot columns,
+        each computed here from its edge's A_k, B_k (m, q, b) as eq. (N) writes it (pair index
+        e = kind·m + k: kind 0 A_kᵀA_k, 1 B_kᵀB_k, 2 B_kᵀA_k), then the extend-add of its children's
+        updates, popped from the stack. Returns D."""
+        k = (fptr[f + 1] - fptr[f]) * b
+        r = (rptr[f + 1] - rptr[f]) * b
+        D = k + r
+        F[:D * D] = 0.0
+        m = A.shape[0]
+        nq = A.shape[1]
+        for q in range(bptr[f], bptr[f + 1]):
+            kind = border[q] // m
+            e = border[q] - kind * m
+            X = B[e] if kind >= 1 else A[e]  # the block is Xᵀ Y
+            Y = B[e] if kind == 1 else A[e]
+            li = bli[q] * b
+            lj = blj[q] * b
+            for i in range(b):
+                for j in range(b):
+                    v = 0.0
+                    if btr[q]:
+                        for s in range(nq):
+                            v += X[s, j] * Y[s, i]
+                    else:
+                        for s in range(nq):
+                            v += X[s, i] * Y[s, j]
+                    F[(li + i) + (lj + j) * D] += v
+        top = state[0]
+        nc = nchild[f]
+        for s in range(top - nc, top):
+            c = st_front[s]
+            off = st_off[s]
+            r0 = rptr[c]
+            pc = rptr[c + 1] - r0
+            rc = pc * b
+            for jp in range(pc):  # column pose of the child's update, then its components
+                for jc in range(b):
+                    jj = jp * b + jc
+                    dst = (rel[r0 + jp] * b + jc) * D
+                    src = off + jj * rc
+                    # the column's first pose: components jc … b − 1 only (lower triangle)
+                    base = dst + rel[r0 + jp] * b
+                    for ic in range(jc, b):
+                        F[base + ic] += stack[src + jp * b + ic]
+                    for ip in range(jp + 1, pc):
+                        base = dst + rel[r0 + ip] * b
+                        sb = src + ip * b
+                        for ic in range(b):
+                            F[base + ic] += stack[sb + ic]
+        state[0] = top - nc
+        return D
+
+    @njit(nogil=True, cache=True)
+    def finish(f, b, fptr, rptr, Lptr, L, F, stack, st_front, st_off, state):
+        """Keep front f's block column [L_PP; X] in L and push its update U (lower triangle) on the stack."""
+        k = (fptr[f + 1] - fptr[f]) * b
+        r = (rptr[f + 1] - rptr[f]) * b
+        D = k + r
+        L[Lptr[f]:Lptr[f] + D * k] = F[:D * k]
+        if r > 0:
+            top = state[0]
+            off = st_off[top]
+            for j in range(r):
+                src = (k + j) * D + k
+                dst = off + j * r
+                for i in range(j, r):
+                    stack[dst + i] = F[src + i]
+            st_front[top] = f
+            st_off[top + 1] = off + r * r
+            state[0] = top + 1
+
+    @njit(nogil=True, cache=True)
+    def dense(F, D, k):
+        """Partial Cholesky of the column-major D × D front F (lower triangle), right-looking: L_PP, X and
+        U in place (eq. (MF)). Returns 0, or j + 1 when pivot j is not positive."""
+        for j in range(k):
+            cj = j * D
+            djj = F[cj + j]
+            if not djj > 0.0:
+                return j + 1
+            djj = np.sqrt(djj)
+            F[cj + j] = djj
+            inv = 1.0 / djj
+            for i in range(j + 1, D):
+                F[cj + i] *= inv
+            for c in range(j + 1, D):
+                a = F[cj + c]
+                if a != 0.0:
+                    cc = c * D
+                    for i in range(c, D):
+                        F[cc + i] -= F[cj + i] * a
+        return 0
+
+    @njit(nogil=True, cache=True)
+    def dense_blas(F, D, k, fn, iv, dv):
+        """(MF) on the column-major D × D front F by LAPACK/BLAS through the addresses ``fn`` (potrf, trsm,
+        syrk of SciPy's ``cython_lapack``/``cython_blas``): L_PP = potrf(F_PP), X = trsm(F_RP, L_PP),
+        U = syrk(F_RR, X), all in place. ``iv`` (8,) int32 and ``dv`` (2,) float work arrays.
+        Returns LAPACK's info (0: done)."""
+        r = D - k
+        iv[0] = k
+        iv[1] = D
+        iv[2] = r
+        iv[3] = 0
+        iv[4] = 76  # 'L'  (the characters as 4-byte integers: Fortran reads their first byte)
+        iv[5] = 82  # 'R'
+        iv[6] = 84  # 'T'
+        iv[7] = 78  # 'N'
+        dv[0] = 1.0
+        dv[1] = -1.0
+        p_iv = iv.ctypes.data
+        p_dv = dv.ctypes.data
+        base = F.ctypes.data
+        _call5(fn[0], p_iv + 16, p_iv, base, p_iv + 4, p_iv + 12)
+        if iv[3] != 0:
+            return iv[3]
+        if r > 0:
+            _call11(fn[1], p_iv + 20, p_iv + 16, p_iv + 24, p_iv + 28, p_iv + 8, p_iv, p_dv, base, p_iv + 4,
+                    base + 8 * k, p_iv + 4)
+            _call10(fn[2], p_iv + 16, p_iv + 28, p_iv + 8, p_iv, p_dv + 8, base + 8 * k, p_iv + 4, p_dv,
+                    base + 8 * (k + k * D), p_iv + 4)
+        return 0
+
+    @njit(nogil=True, cache=True)
+    def run(f0, f1, big, b, fptr, rptr, rel, nchild, Lptr, bptr, border, bli, blj, btr, A, B, L, F, stack,
+            st_front, st_off, state, small_work, fn):
+        """Fronts f0, f0 + 1, … of (MF) in postorder, up to f1 or the first front marked ``big`` (left to
+        the caller, which gives it more BLAS threads): a front with k·D² below ``small_work`` by the
+        right-looking loop, a larger one by LAPACK/BLAS (``dense_blas``). Returns the front it stopped at, or −(f + 1) for a front whose pivot block is not
+        positive definite."""
+        iv = np.zeros(8, np.int32)
+        dv = np.zeros(2)
+        for f in range(f0, f1):
+            if big[f]:
+                return f
+            D = assemble(f, b, fptr, rptr, rel, nchild, bptr, border, bli, blj, btr, A, B, F, stack,
+                         st_front, st_off, state)
+            k = (fptr[f + 1] - fptr[f]) * b
+            if k * D * D >= small_work:
+                if dense_blas(F, D, k, fn, iv, dv) != 0:
+                    return -(f + 1)
+            elif dense(F, D, k) != 0:
+                return -(f + 1)
+            finish(f, b, fptr, rptr, Lptr, L, F, stack, st_front, st_off, state)
+        return f1
+
+    @njit(nogil=True, cache=True)
+    def solve(Y, b, fptr, rptr, rows, Lptr, L, rmax):
+        """N x = y in place for Y (nrhs, slots): forward L z = y (z_P = L_PP⁻¹ y_P, y_R −= X z_P), back
+        Lᵀ x = z (x_P = L_PP⁻ᵀ(z_P − Xᵀ x_R)), front by front; y_R gathered into and scattered from a
+        local vector, so the inner loops run down L's contiguous columns."""
+        nf = fptr.size - 1
+        nr = Y.shape[0]
+        slot = np.empty(rmax, np.int64)
+        t = np.empty(rmax)
+        for f in range(nf):
+            k = (fptr[f + 1] - fptr[f]) * b
+            pr = rptr[f + 1] - rptr[f]
+            r = pr * b
+            D = k + r
+            s0 = fptr[f] * b
+            base = Lptr[f]
+            for p in range(pr):
+                for c in range(b):
+                    slot[p * b + c] = rows[rptr[f] + p] * b + c
+            for c in range(nr):
+                y = Y[c]
+                t[:r] = 0.0
+                for j in range(k):
+                    col = base + j * D
+                    v = y[s0 + j] / L[col + j]
+                    y[s0 + j] = v
+                    if v != 0.0:
+                        for i in range(j + 1, k):
+                            y[s0 + i] -= L[col + i] * v
+                        for i in range(r):
+                            t[i] += L[col + k + i] * v
+                for i in range(r):
+                    y[slot[i]] -= t[i]
+        for f in range(nf - 1, -1, -1):
+            k = (fptr[f + 1] - fptr[f]) * b
+            pr = rptr[f + 1] - rptr[f]
+            r = pr * b
+            D = k + r
+            s0 = fptr[f] * b
+            base = Lptr[f]
+            for p in range(pr):
+                for c in range(b):
+                    slot[p * b + c] = rows[rptr[f] + p] * b + c
+            for c in range(nr):
+                y = Y[c]
+                for i in range(r):
+                    t[i] = y[slot[i]]
+                for j in range(k - 1, -1, -1):
+                    col = base + j * D
+                    v = y[s0 + j]
+                    for i in range(j + 1, k):
+                        v -= L[col + i] * y[s0 + i]
+                    for i in range(r):
+                        v -= L[col + k + i] * t[i]
+                    y[s0 + j] = v / L[col + j]
+
+    @njit(nogil=True, cache=True)
+    def stack_peak(seq, nchild, sizes):
+        """The most stack entries alive at once while the fronts ``seq`` are factored in that order, each
+        popping its children's updates and pushing its own (``sizes`` (F,) its r²); updates never popped
+        (subtree roots whose parent is not in ``seq``) stay to the end."""
+        nf = seq.size
+        lev = np.zeros(nf + 1, np.int64)
+        top = 0
+        peak = 0
+        for t in range(nf):
+            f = seq[t]
+            top -= nchild[f]
+            if top < 0:
+                top = 0
+            if sizes[f] > 0:
+                lev[top + 1] = lev[top] + sizes[f]
+                top += 1
+                if lev[top] > peak:
+                    peak = lev[top]
+        return peak
+
+    @njit(nogil=True, cache=True)
+    def subtrees(parent, work):
+        """For fronts in postorder: each subtree's total ``work`` and its first front (the subtree of f is
+        the range first[f] … f)."""
+        n = parent.size
+        total = work.copy()
+        first = np.arange(n)
+        for f in range(n):
+            p = parent[f]
+            if p >= 0:
+                total[p] += total[f]
+                if first[f] < first[p]:
+                    first[p] = first[f]
+        return total, first
+
+    @njit(nogil=True, cache=True)
+    def push(src, off, size, stack, st_front, st_off, state, f):
+        """Push front f's update, ``src[off:off + size]`` (another stack's), onto this stack."""
+        top = state[0]
+        o = st_off[top]
+        stack[o:o + size] = src[off:off + size]
+        st_front[top] = f
+        st_off[top + 1] = o + size
+        state[0] = top + 1
+
+    @njit(nogil=True, cache=True)
+    def one(f, b, fptr, rptr, Lptr, L, F, D, fn):
+        """A front already assembled in F, by LAPACK/BLAS, kept in L (the caller pushes its update)."""
+        iv = np.zeros(8, np.int32)
+        dv = np.zeros(2)
+        return dense_blas(F, D, (fptr[f + 1] - fptr[f]) * b, fn, iv, dv)
+
+    _KERNELS.append(dict(assemble=assemble, finish=finish, run=run, solve=solve, stack_peak=stack_peak,
+                         one=one, subtrees=subtrees, push=push, fn=_addresses()))
+    return _KERNELS[0]
+
+
+class CompiledLayout:
+    """The plan's fronts expanded to b×b blocks for the compiled kernels: ``Lptr`` (F + 1,) where each
+    front's D × k block column of L starts; ``rel`` the extend-add map (each update row pose's local pose
+    index in its parent's front: pivots 0 … k−1, then k + its rank among the parent's rows); ``nchild``
+    (F,) the children (updates on the stack) each front pops."""
+
+    def __init__(self, plan, b: int):
+        self.plan = plan
+        self.b = b = int(b)
+        self.N = plan.d * b
+        k, r = plan.pivots.astype(np.int64), plan.n_rows.astype(np.int64)
+        F = plan.n_fronts
+        self.fptr = np.ascontiguousarray(plan.fptr, np.int64)
+        self.rptr = np.ascontiguousarray(plan.rptr, np.int64)
+        self.rows = np.ascontiguousarray(plan.rows, np.int64)
+        K, R = k * b, r * b
+        D = K + R
+        self.Lptr = np.r_[0, np.cumsum(D * K)].astype(np.int64)
+        self.nchild = np.bincount(plan.parent[plan.parent >= 0], minlength=F).astype(np.int64)
+        rf = np.repeat(np.arange(F), r)
+        par = plan.parent[rf]
+        rel = np.full(rf.size, -1, np.int64)
+        ok = par >= 0
+        if ok.any():
+            rel[ok] = self._pose_local(par[ok], self.rows[ok])
+        self.rel = rel
+        work = K.astype(float) * D * D
+        self.max_front = int(D.max() ** 2) if F else 0
+        self.rmax = int(R.max()) if F else 0
+        self.work = work
+
+    def _pose_local(self, f: np.ndarray, pos: np.ndarray) -> np.ndarray:
+        """Local pose index of position ``pos`` in front ``f`` (pivots 0 … k−1, rows k + rank)."""
+        plan = self.plan
+        is_piv = (pos >= plan.fptr[f]) & (pos < plan.fptr[f + 1])
+        d = max(plan.d, 1)
+        fr = np.repeat(np.arange(plan.n_fronts), plan.n_rows)
+        rank = np.searchsorted(fr * d + plan.rows, f * d + pos) - plan.rptr[f]
+        return np.where(is_piv, pos - plan.fptr[f], plan.pivots[f] + rank)
+
+    def slots(self, var_index: np.ndarray) -> np.ndarray:
+        """Elimination slot of every variable of a system numbered by ``var_index`` (d, b)."""
+        var_index = np.asarray(var_index, np.int64).reshape(self.plan.d, self.b)
+        out = np.empty(self.N, np.int64)
+        out[var_index.reshape(-1)] = (self.plan.position[:, None] * self.b + np.arange(self.b)).reshape(-1)
+        return out
+
+    def assembler(self, prow: np.ndarray, pcol: np.ndarray) -> "CompiledAssembler":
+        return CompiledAssembler(self, prow, pcol)
+
+    def factor(self, assembler: "CompiledAssembler", A: np.ndarray, B: np.ndarray, *,
+               progress=None) -> "CompiledFactor":
+        """Factor the normal matrix (N) of the edge system with blocks ``A``, ``B`` (m, q, b) (its ends
+        those the assembler was built on) by (MF), fronts in postorder. With ``THREADS`` > 1 and enough
+        work, disjoint subtrees of the front tree are factored at once in worker threads (the compiled
+        loop releases the GIL; one BLAS thread each), then the fronts above them (``schedule``) in this
+        thread, large ones with every BLAS thread. ``progress(done, total)`` gets the multiply–adds done.
+        Raises ``multifrontal.NotPositiveDefinite`` if a pivot block is not positive definite."""
+        import threading
+
+        kern = _kernels()
+        A = np.ascontiguousarray(A, dtype=float)
+        B = np.ascontiguousarray(B, dtype=float)
+        L = np.empty(int(self.Lptr[-1]))
+        data = (assembler.bptr, assembler.order, assembler.li, assembler.lj, assembler.transposed, A, B)
+        sched = self.schedule
+        total = float(self.work.sum())
+        done = [0.0]
+
+        def report():
+            if progress is not None and total > 0:
+                progress(min(done[0], total), total)
+
+        with blas_threads(1) as threads:
+            if sched is None:
+                _Front(self, kern, data, L, self.plan.n_fronts, np.arange(self.plan.n_fronts)).fronts(
+                    0, self.plan.n_fronts, threads, done, report)
+                return CompiledFactor(self, L)
+            roots_of, top, first, ext = sched
+            workers = [_Front(self, kern, data, L, self.plan.n_fronts,
+                              np.concatenate([np.arange(first[r], r + 1) for r in roots]) if len(roots) else
+                              np.zeros(0, np.int64)) for roots in roots_of]
+            errors: list = []
+
+            def work(w, roots):
+                try:
+                    for r in roots:
+                        w.fronts(int(first[r]), int(r) + 1, None, done, None)
+                except BaseException as exc:  # raised in the calling thread
+                    errors.append(exc)
+
+            jobs = [threading.Thread(target=work, args=(w, roots), daemon=True, name="lago-fronts")
+                    for w, roots in zip(workers, roots_of)]
+            for j in jobs:
+                j.start()
+            for j in jobs:
+                while j.is_alive():
+                    j.join(0.25)
+                    report()
+            if errors:
+                raise errors[0]
+            where = {}  # subtree root → (its worker, offset, size) of its update
+            for w in workers:
+                for t in range(int(w.state[0])):
+                    where[int(w.st_front[t])] = (w, int(w.st_off[t]), int(w.st_off[t + 1] - w.st_off[t]))
+            main = _Front(self, kern, data, L, self.plan.n_fronts, top, ext=(ext, where))
+            for f in top.tolist():
+                for c in ext.get(f, ()):
+                    w, off, size = where[c]
+                    kern["push"](w.stack, off, size, main.stack, main.st_front, main.st_off, main.state, c)
+                main.fronts(f, f + 1, threads, done, report)
+        return CompiledFactor(self, L)
+
+    @property
+    def schedule(self):
+        """How the fronts are shared among ``THREADS`` threads, or None to factor them in one: the front
+        tree's largest subtrees are split (their root joins ``top``, the fronts left to this thread) until
+        none holds more than 1/16 of the work, then dealt to the threads largest first. Returns
+        (roots per thread, top fronts in postorder, first front of each subtree, {top front: its children
+        that are subtree roots})."""
+        if "_schedule" in self.__dict__:
+            return self._schedule
+        import heapq
+
+        plan = self.plan
+        total = float(self.work.sum())
+        self._schedule = None
+        if THREADS < 2 or total < PARALLEL_WORK or plan.n_fronts < 2:
+            return None
+        W, first = _kernels()["subtrees"](plan.parent, self.work)
+        kids = np.argsort(plan.parent, kind="stable")
+        nroot = int((plan.parent < 0).sum())
+        cptr = np.r_[0, np.cumsum(np.bincount(plan.parent[plan.parent >= 0], minlength=plan.n_fronts))]
+        children = kids[nroot:]
+        heap = [(-W[r], int(r)) for r in np.flatnonzero(plan.parent < 0)]
+        heapq.heapify(heap)
+        top = []
+        while heap and -heap[0][0] > total / 16:
+            _, f = heapq.heappop(heap)
+            top.append(f)
+            for c in children[cptr[f]:cptr[f + 1]].tolist():
+                heapq.heappush(heap, (-W[c], c))
+        roots = sorted((f for _, f in heap), key=lambda f: -W[f])
+        load = [0.0] * THREADS
+        roots_of = [[] for _ in range(THREADS)]
+        for r in roots:  # largest first, to the least loaded thread
+            i = int(np.argmin(load))
+            roots_of[i].append(r)
+            load[i] += W[r]
+        roots_of = [np.array(sorted(x), np.int64) for x in roots_of]
+        rootset = set(roots)
+        ext = {}
+        for f in top:
+            ext[f] = [c for c in children[cptr[f]:cptr[f + 1]].tolist() if c in rootset]
+        self._schedule = (roots_of, np.array(sorted(top), np.int64), first, ext)
+        log.debug("compiled engine: %d subtrees on %d threads (work %s), %d fronts above them", len(roots),
+                  THREADS, [f"{x / total:.2f}" for x in load], len(top))
+        return self._schedule
+
+    @property
+    def big(self) -> np.ndarray:
+        """(F,) bool: the fronts factored with every BLAS thread (k at least ``THREADED_FRONT``)."""
+        if "_big" not in self.__dict__:
+            self._big = self.plan.pivots * self.b >= THREADED_FRONT
+        return self._big
+
+    @property
+    def none_big(self) -> np.ndarray:
+        """(F,) bool, all False: a worker thread factors every front of its subtrees on one BLAS thread."""
+        if "_none_big" not in self.__dict__:
+            self._none_big = np.zeros(self.plan.n_fronts, bool)
+        return self._none_big
+
+
+class _Front:
+    """One thread's working set for (MF): its front buffer, its stack of updates (sized by simulating
+    the fronts ``seq`` it will factor, in order), and the loop over a range of fronts."""
+
+    def __init__(self, layout: CompiledLayout, kern, data, L, nf, seq, *, ext=None):
+        self.layout, self.kern, self.data, self.L = layout, kern, data, L
+        R = layout.plan.n_rows.astype(np.int64) * layout.b
+        sizes = R * R
+        seq = np.asarray(seq, np.int64)
+        if ext is None:
+            need = int(kern["stack_peak"](seq, layout.nchild, sizes))
+        else:  # the top fronts: their subtree-root children's updates pushed just before them
+            peak = 0
+            used = [0]  # the stack's entry ends, bottom first
+            for f in seq.tolist():
+                for c in ext[0].get(f, ()):
+                    used.append(used[-1] + int(sizes[c]))
+                peak = max(peak, used[-1])
+                pop = int(layout.nchild[f])
+                del used[len(used) - pop:]
+                if sizes[f]:
+                    used.append(used[-1] + int(sizes[f]))
+                peak = max(peak, used[-1])
+            need = peak
+        self.F = np.empty(max(layout.max_front, 1))
+        self.stack = np.empty(max(need, 1))
+        self.st_front = np.zeros(nf + 1, np.int64)
+        self.st_off = np.zeros(nf + 2, np.int64)
+        self.state = np.zeros(1, np.int64)
+
+    def fronts(self, f0: int, f1: int, threads, done: list, report) -> None:
+        """Fronts f0 … f1 − 1 (whole subtrees, or a top front whose children's updates are on this
+        stack): small runs inside one compiled call; with ``threads`` (this thread sets the BLAS thread
+        count) a large front alone, on every BLAS thread. ``done[0]`` += their work."""
+        from .multifrontal import NotPositiveDefinite
+
+        lay, kern = self.layout, self.kern
+        run, assemble, finish, one, fn = kern["run"], kern["assemble"], kern["finish"], kern["one"], kern["fn"]
+        b = lay.b
+        common = (b, lay.fptr, lay.rptr, lay.rel, lay.nchild)
+        big = lay.big if threads is not None else lay.none_big
+        step = max(int(lay.plan.n_fronts * CHUNK), 1)
+        bufs = (self.F, self.stack, self.st_front, self.st_off, self.state)
+        f = f0
+        while f < f1:
+            stop = run(f, min(f + step, f1), big, *common, lay.Lptr, *self.data, self.L, *bufs, SMALL_WORK, fn)
+            if stop < 0:
+                raise NotPositiveDefinite(f"the matrix is not positive definite (front {-stop - 1})")
+            done[0] += float(lay.work[f:stop].sum())
+            f = stop
+            if f < f1 and big[f]:
+                D = assemble(f, *common, *self.data, *bufs)
+                threads(None)
+                if one(f, b, lay.fptr, lay.rptr, lay.Lptr, self.L, self.F, D, fn) != 0:
+                    raise NotPositiveDefinite(f"the matrix is not positive definite (front {f})")
+                threads(1)
+                finish(f, b, lay.fptr, lay.rptr, lay.Lptr, self.L, *bufs)
+                done[0] += float(lay.work[f])
+                f += 1
+            if report is not None:
+                report()
+
+
+class CompiledAssembler:
+    """Where the blocks of (N) go (computed once per graph and b): the pose pairs ``prow``, ``pcol`` (3m,)
+    of ``GraphElimination.pairs`` — tail diagonals, head diagonals, (head, tail) — those with an end at
+    the anchor (−1) dropped, sorted by the front whose pivot columns hold them (``bptr`` (F + 1,)
+    boundaries, ``order`` their pair index kind·m + k), each at local block row ``li``, column ``lj`` of
+    its front, ``transposed`` where the stored (lower) block is the pair's block transposed."""
+
+    def __init__(self, layout: CompiledLayout, prow, pcol):
+        plan = layout.plan
+        prow = np.asarray(prow, np.int64)
+        pcol = np.asarray(pcol, np.int64)
+        idx = np.flatnonzero((prow >= 0) & (pcol >= 0))
+        pr, pc = plan.position[prow[idx]], plan.position[pcol[idx]]
+        tr = pr < pc
+        lo, hi = np.where(tr, pr, pc), np.where(tr, pc, pr)
+        f = np.searchsorted(plan.fptr, lo, side="right") - 1
+        order = np.argsort(f, kind="stable")
+        f = f[order]
+        self.order = idx[order].astype(np.int64)
+        self.li = layout._pose_local(f, hi[order]).astype(np.int64)
+        self.lj = (lo[order] - plan.fptr[f]).astype(np.int64)
+        self.transposed = tr[order]
+        self.bptr = np.r_[0, np.cumsum(np.bincount(f, minlength=plan.n_fronts))].astype(np.int64)
+
+
+class CompiledFactor:
+    """N = L Lᵀ from ``CompiledLayout.factor``: ``solve_slots(y)`` for y (N,) or (N, r) in elimination
+    slots."""
+
+    def __init__(self, layout: CompiledLayout, L: np.ndarray):
+        self.layout = layout
+        self.L = L
+
+    def solve_slots(self, y: np.ndarray) -> np.ndarray:
+        """Solve N x = y for y (N,) or (N, r) in elimination slots; x likewise."""
+        solve = _kernels()["solve"]
+        lay = self.layout
+        one = y.ndim == 1
+        Y = np.array(y.reshape(lay.N, -1).T, dtype=float, order="C")  # (r, N): each right-hand side contiguous
+        solve(Y, lay.b, lay.fptr, lay.rptr, lay.rows, lay.Lptr, self.L, lay.rmax)
+        return Y[0] if one else Y.T
+
+    def flops(self) -> float:
+        return self.layout.plan.flops(self.layout.b)

@@ -1,0 +1,179 @@
+"""The compiled multifrontal engine (lago_cvx.compiled) held to dense linear algebra, to the NumPy engine
+and to QDLDL inside LAGO: every kernel path (the right-looking loop, LAPACK/BLAS by address, a large front
+on every BLAS thread), one thread and subtrees shared between two, the stack sizes, refusal of a matrix
+that is not positive definite, progress, and that importing the package loads no Numba."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import lago_cvx as lc
+from lago_cvx import compiled as C
+from lago_cvx import multifrontal as mf
+from lago_cvx import normal_equations as ne
+from lago_cvx.normal_equations import GraphElimination
+
+pytestmark = pytest.mark.skipif(not C.available(), reason="Numba cannot be imported here")
+
+
+@pytest.fixture(params=["loops", "blas", "blas-threaded"])
+def kernel(request, monkeypatch):
+    """Which dense kernel factors the fronts: all by the compiled loop, all by LAPACK/BLAS called from
+    compiled code, or by LAPACK/BLAS with every front handed to the caller for every BLAS thread."""
+    if request.param == "loops":
+        monkeypatch.setattr(C, "SMALL_WORK", 10**18)
+    else:
+        monkeypatch.setattr(C, "SMALL_WORK", 0)
+    if request.param == "blas-threaded":
+        monkeypatch.setattr(C, "THREADED_FRONT", 0)
+    return request.param
+
+
+@pytest.fixture(params=[1, 2], ids=["one-thread", "two-threads"])
+def threads(request, monkeypatch):
+    """One thread, or the subtrees shared between two threads whatever the work (PARALLEL_WORK 0)."""
+    monkeypatch.setattr(C, "THREADS", request.param)
+    monkeypatch.setattr(C, "PARALLEL_WORK", 0.0)
+    return request.param
+
+
+def _random_system(g, b, seed=0, anchor=0):
+    el = GraphElimination(g, anchor)
+    rng = np.random.default_rng(seed)
+    m = g.n_edges
+    A = rng.standard_normal((m, b + 1, b))
+    B = rng.standard_normal((m, b + 1, b))
+    return el, ne.EdgeSystem(el.tails, el.heads, A, B, rng.standard_normal((m, b + 1)), el.d)
+
+
+@pytest.mark.parametrize("b", [1, 2, 3])
+def test_compiled_factor_solves_like_dense_algebra(b, kernel, threads):
+    """N = MᵀM of a random edge system (E) on a 300-pose world: the compiled factor's solve of one and of
+    three right-hand sides equals numpy's dense solve to 1e-10 relative, by every kernel path, on one
+    thread and on two."""
+    g = lc.manhattan_world(300, seed=5).graph
+    el, system = _random_system(g, b, seed=b)
+    f = el.factor(system, engine="compiled")
+    assert isinstance(f, ne.CompiledPoseFactor)
+    if threads == 2:
+        assert f.compiled.layout.schedule is not None
+    M = system.sparse().toarray()
+    N = M.T @ M
+    rng = np.random.default_rng(1)
+    rhs = rng.standard_normal(el.d * b)
+    ref = np.linalg.solve(N, rhs)
+    assert np.abs(f.solve(rhs) - ref).max() <= 1e-10 * np.abs(ref).max()
+    R = rng.standard_normal((el.d * b, 3))
+    refR = np.linalg.solve(N, R)
+    assert np.abs(f.solve(R) - refR).max() <= 1e-10 * np.abs(refR).max()
+
+
+def test_compiled_factor_is_the_numpy_engines_factor(threads):
+    """The same plan factored by both engines: the compiled L's block columns equal the NumPy engine's
+    [L_PP; X] front by front (to rounding), so both are the same Cholesky factor of eq. (MF)."""
+    g = lc.manhattan_world(200, seed=8).graph
+    el, system = _random_system(g, 3, seed=4)
+    cf = el.factor(system, engine="compiled").compiled
+    pf = el.factor(system, engine=True).blocks
+    lay, plan = cf.layout, el.plan
+    L = np.zeros((lay.N, lay.N))
+    for f in range(plan.n_fronts):
+        k, r = plan.pivots[f] * 3, plan.n_rows[f] * 3
+        D = k + r
+        col = cf.L[lay.Lptr[f]:lay.Lptr[f] + D * k].reshape(k, D).T  # column-major D × k
+        piv = np.arange(plan.fptr[f] * 3, plan.fptr[f + 1] * 3)
+        rows = (plan.rows[plan.rptr[f]:plan.rptr[f + 1]][:, None] * 3 + np.arange(3)).reshape(-1)
+        L[np.ix_(piv, piv)] = np.tril(col[:k])
+        L[np.ix_(rows, piv)] = col[k:]
+    N = L @ L.T
+    dense = system.sparse().toarray()
+    order = np.argsort(el.slots(3))  # slot → pose-major variable
+    ref = (dense.T @ dense)[np.ix_(order, order)]
+    assert np.abs(N - ref).max() <= 1e-10 * np.abs(ref).max()
+    x = np.random.default_rng(0).standard_normal(lay.N)
+    assert np.allclose(cf.solve_slots(x), pf.solve_slots(x), rtol=0, atol=1e-9 * np.abs(pf.solve_slots(x)).max())
+
+
+def test_stack_sizes_hold_every_update(threads):
+    """The stacks are sized by simulation, not guessed: the factorization of a 2000-pose world runs with
+    exactly those sizes (NumPy raises if a push overruns), and the simulated peak of the whole postorder
+    equals the largest sum of live updates computed here in Python."""
+    g = lc.manhattan_world(2000, seed=2).graph
+    el, system = _random_system(g, 3)
+    lay = el.plan.compiled_layout(3)
+    R2 = (el.plan.n_rows * 3) ** 2
+    live, peak = [], 0
+    for f in range(el.plan.n_fronts):
+        c = int(lay.nchild[f])
+        if c:
+            del live[-c:]
+        if R2[f]:
+            live.append(int(R2[f]))
+        peak = max(peak, sum(live))
+    seq = np.arange(el.plan.n_fronts)
+    assert C._kernels()["stack_peak"](seq, lay.nchild, R2.astype(np.int64)) == peak
+    el.factor(system, engine="compiled")
+
+
+@pytest.mark.parametrize("where", ["loops", "blas"])
+def test_a_matrix_that_is_not_positive_definite_is_refused(where, monkeypatch):
+    """A system whose normal matrix is singular (a pose's block zeroed: every edge term of pose 7
+    removed) raises multifrontal.NotPositiveDefinite naming a front, from the compiled loop and from
+    LAPACK alike; LAGO's solve then falls back to the augmented system (tested elsewhere)."""
+    monkeypatch.setattr(C, "SMALL_WORK", 10**18 if where == "loops" else 0)
+    g = lc.manhattan_world(120, seed=1).graph
+    el, system = _random_system(g, 2)
+    A, B = system.A.copy(), system.B.copy()
+    A[el.tails == 7] = 0.0
+    B[el.heads == 7] = 0.0
+    bad = ne.EdgeSystem(el.tails, el.heads, A, B, system.c, el.d)
+    with pytest.raises(mf.NotPositiveDefinite, match="not positive definite"):
+        el.factor(bad, engine="compiled")
+
+
+def test_lago_by_the_compiled_engine_equals_lago_by_qdldl(monkeypatch):
+    """Every closed-form system of LAGO (chordal relaxation, phase 1 where it is refactored, phase 3, the
+    position re-solve) through the compiled engine (COMPILED_MIN 0) gives the estimate QDLDL gives, to
+    1e-10 relative, by the default and the seed route; the covariances through it equal QDLDL's."""
+    g = lc.manhattan_world(1500, seed=11).graph
+    for route in ("default", "seed"):
+        ref = lc.lago(g, route=route)
+        monkeypatch.setattr(ne, "COMPILED_MIN", 0)
+        res = lc.lago(g, route=route)
+        monkeypatch.setattr(ne, "COMPILED_MIN", 10**12)
+        assert res.phase3.factor.pose_major.backend == "compiled"
+        assert ref.phase3.factor.pose_major.backend == "qdldl"
+        scale = np.abs(ref.poses).max()
+        assert np.abs(res.poses - ref.poses).max() <= 1e-10 * scale
+        assert res.chi2 == pytest.approx(ref.chi2, rel=1e-10)
+    cov = res.phase3.pose_covariances()
+    cov_ref = ref.phase3.pose_covariances()
+    assert np.abs(cov - cov_ref).max() <= 1e-9 * np.abs(cov_ref).max()
+
+
+def test_factor_reports_its_progress(monkeypatch):
+    """``progress(done, total)`` goes up to the total work, never down, from one thread or two."""
+    g = lc.manhattan_world(800, seed=6).graph
+    el, system = _random_system(g, 3)
+    for t in (1, 2):
+        monkeypatch.setattr(C, "THREADS", t)
+        monkeypatch.setattr(C, "PARALLEL_WORK", 0.0)
+        seen = []
+        el.plan.__dict__.pop("_compiled_layouts", None)
+        el._assemblers.clear()
+        el.factor(system, engine="compiled", progress=lambda i, n: seen.append((i, n)))
+        assert seen and seen[-1][0] == pytest.approx(seen[-1][1])
+        assert all(b[0] >= a[0] for a, b in zip(seen, seen[1:]))
+
+
+def test_import_and_small_systems_load_no_numba():
+    """``import lago_cvx`` and LAGO on a graph below COMPILED_MIN never import Numba (its import and the
+    first call of cached kernels cost about half a second)."""
+    code = ("import sys, lago_cvx as lc; g = lc.manhattan_world(300, seed=0).graph; lc.lago(g); "
+            "print('numba' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"
