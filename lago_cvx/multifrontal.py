@@ -155,15 +155,6 @@ class EliminationPlan:
         # column t of a front (t = 0 … kb−1) has kb − t + rb entries (diagonal included)
         return float((k * (k + 1) * (2 * k + 1) / 6 + k * (k + 1) * r + k * r * r).sum())
 
-    def compiled_layout(self, b: int):
-        """The ``compiled.CompiledLayout`` of this plan with b×b blocks (built once per b)."""
-        from .compiled import CompiledLayout
-
-        cache = self.__dict__.setdefault("_compiled_layouts", {})
-        if b not in cache:
-            cache[b] = CompiledLayout(self, b)
-        return cache[b]
-
     def layout(self, b: int) -> "BlockLayout":
         cache = self.__dict__.setdefault("_layouts", {})
         if b not in cache:

@@ -514,7 +514,7 @@ class GraphElimination:
         if engine == "compiled" or (engine is None and system.d * b >= COMPILED_MIN and compiled.available()):
             if ("compiled", b) not in self._assemblers:
                 prow, pcol, _ = self.pairs
-                lay = self.plan.compiled_layout(b)
+                lay = compiled.CompiledLayout.of(self.plan, b)
                 self._assemblers["compiled", b] = (lay, lay.assembler(prow, pcol))
             lay, asm = self._assemblers["compiled", b]
             cf = lay.factor(asm, system.A, system.B, progress=progress)

@@ -104,7 +104,7 @@ def test_stack_sizes_hold_every_update(threads):
     equals the largest sum of live updates computed here in Python."""
     g = lc.manhattan_world(2000, seed=2).graph
     el, system = _random_system(g, 3)
-    lay = el.plan.compiled_layout(3)
+    lay = C.CompiledLayout.of(el.plan, 3)
     R2 = (el.plan.n_rows * 3) ** 2
     live, peak = [], 0
     for f in range(el.plan.n_fronts):
@@ -115,7 +115,7 @@ def test_stack_sizes_hold_every_update(threads):
             live.append(int(R2[f]))
         peak = max(peak, sum(live))
     seq = np.arange(el.plan.n_fronts)
-    assert C._kernels()["stack_peak"](seq, lay.nchild, R2.astype(np.int64)) == peak
+    assert C.kernels()["stack_peak"](seq, lay.nchild, R2.astype(np.int64)) == peak
     el.factor(system, engine="compiled")
 
 
