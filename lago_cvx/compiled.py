@@ -16,8 +16,9 @@ them); here that cost is a few hundred nanoseconds.
 
 Storage. Variables are numbered by elimination slot, pose-major: slot = position·b + component (as in
 ``multifrontal.BlockLayout``). Front f has k = |P_f|·b pivot and r = |R_f|·b update variables,
-D = k + r; its block column [L_PP; X_f] of L is kept column-major, D × k, at ``L[Lptr[f]:Lptr[f+1]]``
-(the strict upper triangle of L_PP is left as the factorization left it and never read).
+D = k + r; its block column [L_PP; X_f] of L is kept column by column from ``L[Lptr[f]]`` on, column j
+holding rows j … D − 1 (packed: entry (i, j) at Lptr[f] + j·D − j(j+1)/2 + i; the strict upper triangle
+of L_PP is not stored).
 
 **Solve** N x = y (``CompiledFactor.solve_slots``): forward L z = y front by front (leaves up), back
 Lᵀ x = z (root down), each front's triangle and rectangle by compiled loops.
@@ -42,7 +43,6 @@ import logging
 import numpy as np
 
 from .linalg import blas_threads
-from .compiled_kernels import kernels
 from .multifrontal import NotPositiveDefinite
 
 __all__ = ["available", "CompiledLayout", "CompiledAssembler", "CompiledFactor"]
@@ -64,6 +64,13 @@ PARALLEL_WORK = 5e8
 #: Each compiled call factors at most this share of the fronts (progress is reported between calls).
 CHUNK = 0.02
 
+def kernels() -> dict:
+    """The compiled kernels (``lago_cvx.compiled_kernels``, which imports Numba: loaded on first use)."""
+    from .compiled_kernels import KERNELS
+
+    return KERNELS
+
+
 def available() -> bool:
     """True when Numba can be imported (the compiled engine can run)."""
     try:
@@ -76,7 +83,7 @@ def available() -> bool:
 
 class CompiledLayout:
     """The plan's fronts expanded to b×b blocks for the compiled kernels: ``Lptr`` (F + 1,) where each
-    front's D × k block column of L starts; ``rel`` the extend-add map (each update row pose's local pose
+    front's packed block column of L starts; ``rel`` the extend-add map (each update row pose's local pose
     index in its parent's front: pivots 0 … k−1, then k + its rank among the parent's rows); ``nchild``
     (F,) the children (updates on the stack) each front pops."""
 
@@ -100,7 +107,7 @@ class CompiledLayout:
         self.rows = np.ascontiguousarray(plan.rows, np.int64)
         K, R = k * b, r * b
         D = K + R
-        self.Lptr = np.r_[0, np.cumsum(D * K)].astype(np.int64)
+        self.Lptr = np.r_[0, np.cumsum(D * K - K * (K - 1) // 2)].astype(np.int64)
         self.nchild = np.bincount(plan.parent[plan.parent >= 0], minlength=F).astype(np.int64)
         rf = np.repeat(np.arange(F), r)
         par = plan.parent[rf]

@@ -4,16 +4,16 @@ extend-add of a front, its dense partial Cholesky (a right-looking loop, or LAPA
 and the bookkeeping of the update stacks (their simulated peak, the subtrees of the front tree, copying
 an update between stacks). Storage and equations: ``lago_cvx.compiled``'s docstring.
 
-Numba is imported by ``kernels()`` only, on first use.
+This module imports Numba: ``lago_cvx.compiled.kernels()`` imports it on first use only. The kernels
+are module-level functions (not closures), so Numba's on-disk cache finds them again in a new process.
 """
 
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
-__all__ = ["kernels"]
-
-_KERNELS: list = []
+__all__ = ["KERNELS"]
 
 
 def _addresses() -> np.ndarray:
@@ -49,272 +49,274 @@ def _pointer_call(n: int):
     return intrinsic(scope[f"_call{n}"])
 
 
-def kernels():
-    """The compiled kernels (built on first use, cached on disk; Numba imported here only)."""
-    if _KERNELS:
-        return _KERNELS[0]
-    from numba import njit
+_call5, _call10, _call11 = _pointer_call(5), _pointer_call(10), _pointer_call(11)
 
-    _call5, _call10, _call11 = _pointer_call(5), _pointer_call(10), _pointer_call(11)
 
-    @njit(nogil=True, cache=True)
-    def assemble(f, b, fptr, rptr, rel, nchild, bptr, border, bli, blj, btr, A, B, F, stack, st_front,
-                 st_off, state):
-        """Front f's matrix in F (column-major D × D, lower triangle): N's blocks in its pivot columns,
-        each computed here from its edge's A_k, B_k (m, q, b) as eq. (N) writes it (pair index
-        e = kind·m + k: kind 0 A_kᵀA_k, 1 B_kᵀB_k, 2 B_kᵀA_k), then the extend-add of its children's
-        updates, popped from the stack. Returns D."""
-        k = (fptr[f + 1] - fptr[f]) * b
-        r = (rptr[f + 1] - rptr[f]) * b
-        D = k + r
-        F[:D * D] = 0.0
-        m = A.shape[0]
-        nq = A.shape[1]
-        for q in range(bptr[f], bptr[f + 1]):
-            kind = border[q] // m
-            e = border[q] - kind * m
-            X = B[e] if kind >= 1 else A[e]  # the block is Xᵀ Y
-            Y = B[e] if kind == 1 else A[e]
-            li = bli[q] * b
-            lj = blj[q] * b
-            for i in range(b):
-                for j in range(b):
-                    v = 0.0
-                    if btr[q]:
-                        for s in range(nq):
-                            v += X[s, j] * Y[s, i]
-                    else:
-                        for s in range(nq):
-                            v += X[s, i] * Y[s, j]
-                    F[(li + i) + (lj + j) * D] += v
+@njit(nogil=True, cache=True)
+def assemble(f, b, fptr, rptr, rel, nchild, bptr, border, bli, blj, btr, A, B, F, stack, st_front,
+             st_off, state):
+    """Front f's matrix in F (column-major D × D, lower triangle): N's blocks in its pivot columns,
+    each computed here from its edge's A_k, B_k (m, q, b) as eq. (N) writes it (pair index
+    e = kind·m + k: kind 0 A_kᵀA_k, 1 B_kᵀB_k, 2 B_kᵀA_k), then the extend-add of its children's
+    updates, popped from the stack. Returns D."""
+    k = (fptr[f + 1] - fptr[f]) * b
+    r = (rptr[f + 1] - rptr[f]) * b
+    D = k + r
+    F[:D * D] = 0.0
+    m = A.shape[0]
+    nq = A.shape[1]
+    for q in range(bptr[f], bptr[f + 1]):
+        kind = border[q] // m
+        e = border[q] - kind * m
+        X = B[e] if kind >= 1 else A[e]  # the block is Xᵀ Y
+        Y = B[e] if kind == 1 else A[e]
+        li = bli[q] * b
+        lj = blj[q] * b
+        for i in range(b):
+            for j in range(b):
+                v = 0.0
+                if btr[q]:
+                    for s in range(nq):
+                        v += X[s, j] * Y[s, i]
+                else:
+                    for s in range(nq):
+                        v += X[s, i] * Y[s, j]
+                F[(li + i) + (lj + j) * D] += v
+    top = state[0]
+    nc = nchild[f]
+    for s in range(top - nc, top):
+        c = st_front[s]
+        off = st_off[s]
+        r0 = rptr[c]
+        pc = rptr[c + 1] - r0
+        rc = pc * b
+        for jp in range(pc):  # column pose of the child's update, then its components
+            for jc in range(b):
+                jj = jp * b + jc
+                dst = (rel[r0 + jp] * b + jc) * D
+                src = off + jj * rc
+                # the column's first pose: components jc … b − 1 only (lower triangle)
+                base = dst + rel[r0 + jp] * b
+                for ic in range(jc, b):
+                    F[base + ic] += stack[src + jp * b + ic]
+                for ip in range(jp + 1, pc):
+                    base = dst + rel[r0 + ip] * b
+                    sb = src + ip * b
+                    for ic in range(b):
+                        F[base + ic] += stack[sb + ic]
+    state[0] = top - nc
+    return D
+
+@njit(nogil=True, cache=True)
+def finish(f, b, fptr, rptr, Lptr, L, F, stack, st_front, st_off, state):
+    """Keep front f's block column [L_PP; X] in L (packed columns) and push its update U (lower
+    triangle) on the stack."""
+    k = (fptr[f + 1] - fptr[f]) * b
+    r = (rptr[f + 1] - rptr[f]) * b
+    D = k + r
+    base = Lptr[f]
+    for j in range(k):  # column j of [L_PP; X], rows j … D − 1 (packed: no strict upper triangle)
+        dst = base + j * D - j * (j + 1) // 2
+        src = j * D
+        for i in range(j, D):
+            L[dst + i] = F[src + i]
+    if r > 0:
         top = state[0]
-        nc = nchild[f]
-        for s in range(top - nc, top):
-            c = st_front[s]
-            off = st_off[s]
-            r0 = rptr[c]
-            pc = rptr[c + 1] - r0
-            rc = pc * b
-            for jp in range(pc):  # column pose of the child's update, then its components
-                for jc in range(b):
-                    jj = jp * b + jc
-                    dst = (rel[r0 + jp] * b + jc) * D
-                    src = off + jj * rc
-                    # the column's first pose: components jc … b − 1 only (lower triangle)
-                    base = dst + rel[r0 + jp] * b
-                    for ic in range(jc, b):
-                        F[base + ic] += stack[src + jp * b + ic]
-                    for ip in range(jp + 1, pc):
-                        base = dst + rel[r0 + ip] * b
-                        sb = src + ip * b
-                        for ic in range(b):
-                            F[base + ic] += stack[sb + ic]
-        state[0] = top - nc
-        return D
-
-    @njit(nogil=True, cache=True)
-    def finish(f, b, fptr, rptr, Lptr, L, F, stack, st_front, st_off, state):
-        """Keep front f's block column [L_PP; X] in L and push its update U (lower triangle) on the stack."""
-        k = (fptr[f + 1] - fptr[f]) * b
-        r = (rptr[f + 1] - rptr[f]) * b
-        D = k + r
-        L[Lptr[f]:Lptr[f] + D * k] = F[:D * k]
-        if r > 0:
-            top = state[0]
-            off = st_off[top]
-            for j in range(r):
-                src = (k + j) * D + k
-                dst = off + j * r
-                for i in range(j, r):
-                    stack[dst + i] = F[src + i]
-            st_front[top] = f
-            st_off[top + 1] = off + r * r
-            state[0] = top + 1
-
-    @njit(nogil=True, cache=True)
-    def dense(F, D, k):
-        """Partial Cholesky of the column-major D × D front F (lower triangle), right-looking: L_PP, X and
-        U in place (eq. (MF)). Returns 0, or j + 1 when pivot j is not positive."""
-        for j in range(k):
-            cj = j * D
-            djj = F[cj + j]
-            if not djj > 0.0:
-                return j + 1
-            djj = np.sqrt(djj)
-            F[cj + j] = djj
-            inv = 1.0 / djj
-            for i in range(j + 1, D):
-                F[cj + i] *= inv
-            for c in range(j + 1, D):
-                a = F[cj + c]
-                if a != 0.0:
-                    cc = c * D
-                    for i in range(c, D):
-                        F[cc + i] -= F[cj + i] * a
-        return 0
-
-    @njit(nogil=True, cache=True)
-    def dense_blas(F, D, k, fn, iv, dv):
-        """(MF) on the column-major D × D front F by LAPACK/BLAS through the addresses ``fn`` (potrf, trsm,
-        syrk of SciPy's ``cython_lapack``/``cython_blas``): L_PP = potrf(F_PP), X = trsm(F_RP, L_PP),
-        U = syrk(F_RR, X), all in place. ``iv`` (8,) int32 and ``dv`` (2,) float work arrays.
-        Returns LAPACK's info (0: done)."""
-        r = D - k
-        iv[0] = k
-        iv[1] = D
-        iv[2] = r
-        iv[3] = 0
-        iv[4] = 76  # 'L'  (the characters as 4-byte integers: Fortran reads their first byte)
-        iv[5] = 82  # 'R'
-        iv[6] = 84  # 'T'
-        iv[7] = 78  # 'N'
-        dv[0] = 1.0
-        dv[1] = -1.0
-        p_iv = iv.ctypes.data
-        p_dv = dv.ctypes.data
-        base = F.ctypes.data
-        _call5(fn[0], p_iv + 16, p_iv, base, p_iv + 4, p_iv + 12)
-        if iv[3] != 0:
-            return iv[3]
-        if r > 0:
-            _call11(fn[1], p_iv + 20, p_iv + 16, p_iv + 24, p_iv + 28, p_iv + 8, p_iv, p_dv, base, p_iv + 4,
-                    base + 8 * k, p_iv + 4)
-            _call10(fn[2], p_iv + 16, p_iv + 28, p_iv + 8, p_iv, p_dv + 8, base + 8 * k, p_iv + 4, p_dv,
-                    base + 8 * (k + k * D), p_iv + 4)
-        return 0
-
-    @njit(nogil=True, cache=True)
-    def run(f0, f1, big, b, fptr, rptr, rel, nchild, Lptr, bptr, border, bli, blj, btr, A, B, L, F, stack,
-            st_front, st_off, state, small_work, fn):
-        """Fronts f0, f0 + 1, … of (MF) in postorder, up to f1 or the first front marked ``big`` (left to
-        the caller, which gives it more BLAS threads): a front with k·D² below ``small_work`` by the
-        right-looking loop, a larger one by LAPACK/BLAS (``dense_blas``). Returns the front it stopped at, or −(f + 1) for a front whose pivot block is not
-        positive definite."""
-        iv = np.zeros(8, np.int32)
-        dv = np.zeros(2)
-        for f in range(f0, f1):
-            if big[f]:
-                return f
-            D = assemble(f, b, fptr, rptr, rel, nchild, bptr, border, bli, blj, btr, A, B, F, stack,
-                         st_front, st_off, state)
-            k = (fptr[f + 1] - fptr[f]) * b
-            if k * D * D >= small_work:
-                if dense_blas(F, D, k, fn, iv, dv) != 0:
-                    return -(f + 1)
-            elif dense(F, D, k) != 0:
-                return -(f + 1)
-            finish(f, b, fptr, rptr, Lptr, L, F, stack, st_front, st_off, state)
-        return f1
-
-    @njit(nogil=True, cache=True)
-    def solve(Y, b, fptr, rptr, rows, Lptr, L, rmax):
-        """N x = y in place for Y (nrhs, slots): forward L z = y (z_P = L_PP⁻¹ y_P, y_R −= X z_P), back
-        Lᵀ x = z (x_P = L_PP⁻ᵀ(z_P − Xᵀ x_R)), front by front; y_R gathered into and scattered from a
-        local vector, so the inner loops run down L's contiguous columns."""
-        nf = fptr.size - 1
-        nr = Y.shape[0]
-        slot = np.empty(rmax, np.int64)
-        t = np.empty(rmax)
-        for f in range(nf):
-            k = (fptr[f + 1] - fptr[f]) * b
-            pr = rptr[f + 1] - rptr[f]
-            r = pr * b
-            D = k + r
-            s0 = fptr[f] * b
-            base = Lptr[f]
-            for p in range(pr):
-                for c in range(b):
-                    slot[p * b + c] = rows[rptr[f] + p] * b + c
-            for c in range(nr):
-                y = Y[c]
-                t[:r] = 0.0
-                for j in range(k):
-                    col = base + j * D
-                    v = y[s0 + j] / L[col + j]
-                    y[s0 + j] = v
-                    if v != 0.0:
-                        for i in range(j + 1, k):
-                            y[s0 + i] -= L[col + i] * v
-                        for i in range(r):
-                            t[i] += L[col + k + i] * v
-                for i in range(r):
-                    y[slot[i]] -= t[i]
-        for f in range(nf - 1, -1, -1):
-            k = (fptr[f + 1] - fptr[f]) * b
-            pr = rptr[f + 1] - rptr[f]
-            r = pr * b
-            D = k + r
-            s0 = fptr[f] * b
-            base = Lptr[f]
-            for p in range(pr):
-                for c in range(b):
-                    slot[p * b + c] = rows[rptr[f] + p] * b + c
-            for c in range(nr):
-                y = Y[c]
-                for i in range(r):
-                    t[i] = y[slot[i]]
-                for j in range(k - 1, -1, -1):
-                    col = base + j * D
-                    v = y[s0 + j]
-                    for i in range(j + 1, k):
-                        v -= L[col + i] * y[s0 + i]
-                    for i in range(r):
-                        v -= L[col + k + i] * t[i]
-                    y[s0 + j] = v / L[col + j]
-
-    @njit(nogil=True, cache=True)
-    def stack_peak(seq, nchild, sizes):
-        """The most stack entries alive at once while the fronts ``seq`` are factored in that order, each
-        popping its children's updates and pushing its own (``sizes`` (F,) its r²); updates never popped
-        (subtree roots whose parent is not in ``seq``) stay to the end."""
-        nf = seq.size
-        lev = np.zeros(nf + 1, np.int64)
-        top = 0
-        peak = 0
-        for t in range(nf):
-            f = seq[t]
-            top -= nchild[f]
-            if top < 0:
-                top = 0
-            if sizes[f] > 0:
-                lev[top + 1] = lev[top] + sizes[f]
-                top += 1
-                if lev[top] > peak:
-                    peak = lev[top]
-        return peak
-
-    @njit(nogil=True, cache=True)
-    def subtrees(parent, work):
-        """For fronts in postorder: each subtree's total ``work`` and its first front (the subtree of f is
-        the range first[f] … f)."""
-        n = parent.size
-        total = work.copy()
-        first = np.arange(n)
-        for f in range(n):
-            p = parent[f]
-            if p >= 0:
-                total[p] += total[f]
-                if first[f] < first[p]:
-                    first[p] = first[f]
-        return total, first
-
-    @njit(nogil=True, cache=True)
-    def push(src, off, size, stack, st_front, st_off, state, f):
-        """Push front f's update, ``src[off:off + size]`` (another stack's), onto this stack."""
-        top = state[0]
-        o = st_off[top]
-        stack[o:o + size] = src[off:off + size]
+        off = st_off[top]
+        for j in range(r):
+            src = (k + j) * D + k
+            dst = off + j * r
+            for i in range(j, r):
+                stack[dst + i] = F[src + i]
         st_front[top] = f
-        st_off[top + 1] = o + size
+        st_off[top + 1] = off + r * r
         state[0] = top + 1
 
-    @njit(nogil=True, cache=True)
-    def one(f, b, fptr, rptr, Lptr, L, F, D, fn):
-        """A front already assembled in F, by LAPACK/BLAS, kept in L (the caller pushes its update)."""
-        iv = np.zeros(8, np.int32)
-        dv = np.zeros(2)
-        return dense_blas(F, D, (fptr[f + 1] - fptr[f]) * b, fn, iv, dv)
+@njit(nogil=True, cache=True)
+def dense(F, D, k):
+    """Partial Cholesky of the column-major D × D front F (lower triangle), right-looking: L_PP, X and
+    U in place (eq. (MF)). Returns 0, or j + 1 when pivot j is not positive."""
+    for j in range(k):
+        cj = j * D
+        djj = F[cj + j]
+        if not djj > 0.0:
+            return j + 1
+        djj = np.sqrt(djj)
+        F[cj + j] = djj
+        inv = 1.0 / djj
+        for i in range(j + 1, D):
+            F[cj + i] *= inv
+        for c in range(j + 1, D):
+            a = F[cj + c]
+            if a != 0.0:
+                cc = c * D
+                for i in range(c, D):
+                    F[cc + i] -= F[cj + i] * a
+    return 0
 
-    _KERNELS.append(dict(assemble=assemble, finish=finish, run=run, solve=solve, stack_peak=stack_peak,
-                         one=one, subtrees=subtrees, push=push, fn=_addresses()))
-    return _KERNELS[0]
+@njit(nogil=True, cache=True)
+def dense_blas(F, D, k, fn, iv, dv):
+    """(MF) on the column-major D × D front F by LAPACK/BLAS through the addresses ``fn`` (potrf, trsm,
+    syrk of SciPy's ``cython_lapack``/``cython_blas``): L_PP = potrf(F_PP), X = trsm(F_RP, L_PP),
+    U = syrk(F_RR, X), all in place. ``iv`` (8,) int32 and ``dv`` (2,) float work arrays.
+    Returns LAPACK's info (0: done)."""
+    r = D - k
+    iv[0] = k
+    iv[1] = D
+    iv[2] = r
+    iv[3] = 0
+    iv[4] = 76  # 'L'  (the characters as 4-byte integers: Fortran reads their first byte)
+    iv[5] = 82  # 'R'
+    iv[6] = 84  # 'T'
+    iv[7] = 78  # 'N'
+    dv[0] = 1.0
+    dv[1] = -1.0
+    p_iv = iv.ctypes.data
+    p_dv = dv.ctypes.data
+    base = F.ctypes.data
+    _call5(fn[0], p_iv + 16, p_iv, base, p_iv + 4, p_iv + 12)
+    if iv[3] != 0:
+        return iv[3]
+    if r > 0:
+        _call11(fn[1], p_iv + 20, p_iv + 16, p_iv + 24, p_iv + 28, p_iv + 8, p_iv, p_dv, base, p_iv + 4,
+                base + 8 * k, p_iv + 4)
+        _call10(fn[2], p_iv + 16, p_iv + 28, p_iv + 8, p_iv, p_dv + 8, base + 8 * k, p_iv + 4, p_dv,
+                base + 8 * (k + k * D), p_iv + 4)
+    return 0
+
+@njit(nogil=True, cache=True)
+def run(f0, f1, big, b, fptr, rptr, rel, nchild, Lptr, bptr, border, bli, blj, btr, A, B, L, F, stack,
+        st_front, st_off, state, small_work, fn):
+    """Fronts f0, f0 + 1, … of (MF) in postorder, up to f1 or the first front marked ``big`` (left to
+    the caller, which gives it more BLAS threads): a front with k·D² below ``small_work`` by the
+    right-looking loop, a larger one by LAPACK/BLAS (``dense_blas``). Returns the front it stopped at, or −(f + 1) for a front whose pivot block is not
+    positive definite."""
+    iv = np.zeros(8, np.int32)
+    dv = np.zeros(2)
+    for f in range(f0, f1):
+        if big[f]:
+            return f
+        D = assemble(f, b, fptr, rptr, rel, nchild, bptr, border, bli, blj, btr, A, B, F, stack,
+                     st_front, st_off, state)
+        k = (fptr[f + 1] - fptr[f]) * b
+        if k * D * D >= small_work:
+            if dense_blas(F, D, k, fn, iv, dv) != 0:
+                return -(f + 1)
+        elif dense(F, D, k) != 0:
+            return -(f + 1)
+        finish(f, b, fptr, rptr, Lptr, L, F, stack, st_front, st_off, state)
+    return f1
+
+@njit(nogil=True, cache=True)
+def solve(Y, b, fptr, rptr, rows, Lptr, L, rmax):
+    """N x = y in place for Y (nrhs, slots): forward L z = y (z_P = L_PP⁻¹ y_P, y_R −= X z_P), back
+    Lᵀ x = z (x_P = L_PP⁻ᵀ(z_P − Xᵀ x_R)), front by front; y_R gathered into and scattered from a
+    local vector, so the inner loops run down L's contiguous columns."""
+    nf = fptr.size - 1
+    nr = Y.shape[0]
+    slot = np.empty(rmax, np.int64)
+    t = np.empty(rmax)
+    for f in range(nf):
+        k = (fptr[f + 1] - fptr[f]) * b
+        pr = rptr[f + 1] - rptr[f]
+        r = pr * b
+        D = k + r
+        s0 = fptr[f] * b
+        base = Lptr[f]
+        for p in range(pr):
+            for c in range(b):
+                slot[p * b + c] = rows[rptr[f] + p] * b + c
+        for c in range(nr):
+            y = Y[c]
+            t[:r] = 0.0
+            for j in range(k):
+                col = base + j * D - j * (j + 1) // 2  # entry (i, j) at col + i
+                v = y[s0 + j] / L[col + j]
+                y[s0 + j] = v
+                if v != 0.0:
+                    for i in range(j + 1, k):
+                        y[s0 + i] -= L[col + i] * v
+                    for i in range(r):
+                        t[i] += L[col + k + i] * v
+            for i in range(r):
+                y[slot[i]] -= t[i]
+    for f in range(nf - 1, -1, -1):
+        k = (fptr[f + 1] - fptr[f]) * b
+        pr = rptr[f + 1] - rptr[f]
+        r = pr * b
+        D = k + r
+        s0 = fptr[f] * b
+        base = Lptr[f]
+        for p in range(pr):
+            for c in range(b):
+                slot[p * b + c] = rows[rptr[f] + p] * b + c
+        for c in range(nr):
+            y = Y[c]
+            for i in range(r):
+                t[i] = y[slot[i]]
+            for j in range(k - 1, -1, -1):
+                col = base + j * D - j * (j + 1) // 2  # entry (i, j) at col + i
+                v = y[s0 + j]
+                for i in range(j + 1, k):
+                    v -= L[col + i] * y[s0 + i]
+                for i in range(r):
+                    v -= L[col + k + i] * t[i]
+                y[s0 + j] = v / L[col + j]
+
+@njit(nogil=True, cache=True)
+def stack_peak(seq, nchild, sizes):
+    """The most stack entries alive at once while the fronts ``seq`` are factored in that order, each
+    popping its children's updates and pushing its own (``sizes`` (F,) its r²); updates never popped
+    (subtree roots whose parent is not in ``seq``) stay to the end."""
+    nf = seq.size
+    lev = np.zeros(nf + 1, np.int64)
+    top = 0
+    peak = 0
+    for t in range(nf):
+        f = seq[t]
+        top -= nchild[f]
+        if top < 0:
+            top = 0
+        if sizes[f] > 0:
+            lev[top + 1] = lev[top] + sizes[f]
+            top += 1
+            if lev[top] > peak:
+                peak = lev[top]
+    return peak
+
+@njit(nogil=True, cache=True)
+def subtrees(parent, work):
+    """For fronts in postorder: each subtree's total ``work`` and its first front (the subtree of f is
+    the range first[f] … f)."""
+    n = parent.size
+    total = work.copy()
+    first = np.arange(n)
+    for f in range(n):
+        p = parent[f]
+        if p >= 0:
+            total[p] += total[f]
+            if first[f] < first[p]:
+                first[p] = first[f]
+    return total, first
+
+@njit(nogil=True, cache=True)
+def push(src, off, size, stack, st_front, st_off, state, f):
+    """Push front f's update, ``src[off:off + size]`` (another stack's), onto this stack."""
+    top = state[0]
+    o = st_off[top]
+    stack[o:o + size] = src[off:off + size]
+    st_front[top] = f
+    st_off[top + 1] = o + size
+    state[0] = top + 1
+
+@njit(nogil=True, cache=True)
+def one(f, b, fptr, rptr, Lptr, L, F, D, fn):
+    """A front already assembled in F, by LAPACK/BLAS, kept in L (the caller pushes its update)."""
+    iv = np.zeros(8, np.int32)
+    dv = np.zeros(2)
+    return dense_blas(F, D, (fptr[f + 1] - fptr[f]) * b, fn, iv, dv)
+
+
+#: The kernels by name, and ``fn`` the LAPACK/BLAS addresses of this process.
+KERNELS = dict(assemble=assemble, finish=finish, run=run, solve=solve, stack_peak=stack_peak, one=one,
+               subtrees=subtrees, push=push, fn=_addresses())

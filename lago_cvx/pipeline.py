@@ -117,21 +117,38 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
         raise
     timings["tree"] = time.perf_counter() - t
 
-    t = time.perf_counter()
-    elim = elim_job.result() if elim_job is not None else None
-    pos_solver = None
-    if elim is not None:  # done beside the first QDLDL factorization that runs (the chordal relaxation's)
-        elim.defer(lambda: elim.upper_pattern(3))  # phase 3's pattern
-        if choice["positions"] == "resolve":
-            pos_solver = PositionSolver(graph, unc, elim)
-            elim.defer(pos_solver.prefactor)  # the polish's θ-independent factorization (isotropic information)
-    t_elim += time.perf_counter() - t
+    elim, pos_solver = None, None
+
+    def elimination():  # wait for the worker, then register what runs beside the first QDLDL factorization
+        nonlocal elim, pos_solver
+        elim = elim_job.result() if elim_job is not None else None
+        if elim is not None:  # (the chordal relaxation's, or phase 3's)
+            elim.defer(lambda: elim.upper_pattern(3))  # phase 3's pattern
+            if choice["positions"] == "resolve":
+                pos_solver = PositionSolver(graph, unc, elim)
+                elim.defer(pos_solver.prefactor)  # the polish's θ-independent factorization (isotropic)
+
+    # Only the chordal regularizer factors on the shared elimination: the others run while it is built.
+    early = choice["regularization"] == "chordal"
+    if early:
+        t = time.perf_counter()
+        elimination()
+        t_elim += time.perf_counter() - t
 
     t = time.perf_counter()
-    reg = regularize(graph, tree, regularization=choice["regularization"], margin=margin, method=method,
-                     backend=backend, settings=solver_settings, search=integer_search, progress=progress,
-                     uncertainty=unc, elimination=elim)
+    try:
+        reg = regularize(graph, tree, regularization=choice["regularization"], margin=margin, method=method,
+                         backend=backend, settings=solver_settings, search=integer_search, progress=progress,
+                         uncertainty=unc, elimination=elim)
+    except BaseException:
+        if elim_job is not None and not early:
+            elim_job.join()
+        raise
     timings["regularization"] = time.perf_counter() - t
+    if not early:
+        t = time.perf_counter()
+        elimination()
+        t_elim += time.perf_counter() - t
     if reg.problem is not None:
         problems[reg.regularization] = reg.problem  # "chordal" or "integer"
 

@@ -84,7 +84,10 @@ def test_compiled_factor_is_the_numpy_engines_factor(threads):
     for f in range(plan.n_fronts):
         k, r = plan.pivots[f] * 3, plan.n_rows[f] * 3
         D = k + r
-        col = cf.L[lay.Lptr[f]:lay.Lptr[f] + D * k].reshape(k, D).T  # column-major D × k
+        col = np.zeros((D, k))  # packed columns: column j holds rows j … D − 1
+        for j in range(k):
+            start = lay.Lptr[f] + j * D - j * (j - 1) // 2
+            col[j:, j] = cf.L[start:start + D - j]
         piv = np.arange(plan.fptr[f] * 3, plan.fptr[f + 1] * 3)
         rows = (plan.rows[plan.rptr[f]:plan.rptr[f + 1]][:, None] * 3 + np.arange(3)).reshape(-1)
         L[np.ix_(piv, piv)] = np.tril(col[:k])
