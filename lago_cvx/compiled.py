@@ -123,12 +123,8 @@ class CompiledLayout:
 
     def _pose_local(self, f: np.ndarray, pos: np.ndarray) -> np.ndarray:
         """Local pose index of position ``pos`` in front ``f`` (pivots 0 … k−1, rows k + rank)."""
-        plan = self.plan
-        is_piv = (pos >= plan.fptr[f]) & (pos < plan.fptr[f + 1])
-        d = max(plan.d, 1)
-        fr = np.repeat(np.arange(plan.n_fronts), plan.n_rows)
-        rank = np.searchsorted(fr * d + plan.rows, f * d + pos) - plan.rptr[f]
-        return np.where(is_piv, pos - plan.fptr[f], plan.pivots[f] + rank)
+        return kernels()["pose_local"](np.ascontiguousarray(f, np.int64), np.ascontiguousarray(pos, np.int64),
+                                       self.fptr, self.rptr, self.rows)
 
     def slots(self, var_index: np.ndarray) -> np.ndarray:
         """Elimination slot of every variable of a system numbered by ``var_index`` (d, b)."""
@@ -169,9 +165,7 @@ class CompiledLayout:
                     0, self.plan.n_fronts, threads, done, report)
                 return CompiledFactor(self, L)
             roots_of, top, first, ext = sched
-            workers = [_Front(self, kern, data, L, self.plan.n_fronts,
-                              np.concatenate([np.arange(first[r], r + 1) for r in roots]) if len(roots) else
-                              np.zeros(0, np.int64)) for roots in roots_of]
+            workers = [_Front(self, kern, data, L, self.plan.n_fronts, seq) for seq in self.worker_fronts]
             errors: list = []
 
             def work(w, roots):
@@ -248,6 +242,22 @@ class CompiledLayout:
         log.debug("compiled engine: %d subtrees on %d threads (work %s), %d fronts above them", len(roots),
                   THREADS, [f"{x / total:.2f}" for x in load], len(top))
         return self._schedule
+
+    @property
+    def worker_fronts(self) -> list:
+        """Per worker thread of ``schedule``, its fronts in the order it factors them (its subtrees, each
+        in postorder)."""
+        if "_worker_fronts" not in self.__dict__:
+            roots_of, _, first, _ = self.schedule
+            self._worker_fronts = [np.concatenate([np.arange(first[r], r + 1) for r in roots]).astype(np.int64)
+                                   if len(roots) else np.zeros(0, np.int64) for roots in roots_of]
+        return self._worker_fronts
+
+    def pivot_slots(self, fronts: np.ndarray) -> np.ndarray:
+        """The elimination slots of the pivots of ``fronts`` (contiguous per front)."""
+        fronts = np.asarray(fronts, np.int64)
+        lo, n = self.fptr[fronts] * self.b, (self.fptr[fronts + 1] - self.fptr[fronts]) * self.b
+        return np.repeat(lo - np.r_[0, np.cumsum(n)[:-1]], n) + np.arange(int(n.sum()))
 
     @property
     def big(self) -> np.ndarray:
@@ -340,14 +350,14 @@ class CompiledAssembler:
         pr, pc = plan.position[prow[idx]], plan.position[pcol[idx]]
         tr = pr < pc
         lo, hi = np.where(tr, pr, pc), np.where(tr, pc, pr)
-        f = np.searchsorted(plan.fptr, lo, side="right") - 1
-        order = np.argsort(f, kind="stable")
+        front_of = np.repeat(np.arange(plan.n_fronts, dtype=np.int64), plan.pivots)  # (d,) by position
+        f = front_of[lo]
+        order, self.bptr = kernels()["counting_order"](f, plan.n_fronts)
         f = f[order]
         self.order = idx[order].astype(np.int64)
-        self.li = layout._pose_local(f, hi[order]).astype(np.int64)
+        self.li = layout._pose_local(f, hi[order])
         self.lj = (lo[order] - plan.fptr[f]).astype(np.int64)
         self.transposed = tr[order]
-        self.bptr = np.r_[0, np.cumsum(np.bincount(f, minlength=plan.n_fronts))].astype(np.int64)
 
 
 class CompiledFactor:
@@ -359,12 +369,44 @@ class CompiledFactor:
         self.L = L
 
     def solve_slots(self, y: np.ndarray) -> np.ndarray:
-        """Solve N x = y for y (N,) or (N, r) in elimination slots; x likewise."""
-        solve = kernels()["solve"]
+        """Solve N x = y for y (N,) or (N, r) in elimination slots; x likewise. With the layout's
+        ``schedule``, each worker thread sweeps its own subtrees: forward on its own copy of y (its
+        fronts update only their subtrees' slots and the top fronts'; the top slots' changes are summed
+        afterwards), back on y itself (each writes only its own slots, reading the top fronts')."""
+        import threading
+
+        kern = kernels()
         lay = self.layout
         one = y.ndim == 1
         Y = np.array(y.reshape(lay.N, -1).T, dtype=float, order="C")  # (r, N): each right-hand side contiguous
-        solve(Y, lay.b, lay.fptr, lay.rptr, lay.rows, lay.Lptr, self.L, lay.rmax)
+        args = (lay.b, lay.fptr, lay.rptr, lay.rows, lay.Lptr, self.L, lay.rmax)
+        sched = lay.schedule
+        if sched is None:
+            every = np.arange(lay.plan.n_fronts, dtype=np.int64)
+            kern["forward"](Y, every, *args)
+            kern["backward"](Y, every[::-1].copy(), *args)
+            return Y[0] if one else Y.T
+        seqs, top = lay.worker_fronts, sched[1]
+        copies = [Y.copy() for _ in seqs]
+
+        def each(fn, arrays, orders):
+            jobs = [threading.Thread(target=fn, args=(a, o) + args, daemon=True, name="lago-solve")
+                    for a, o in zip(arrays, orders)]
+            for j in jobs:
+                j.start()
+            for j in jobs:
+                j.join()
+
+        each(kern["forward"], copies, seqs)
+        T = lay.pivot_slots(top)
+        base = Y[:, T]
+        for seq, Yw in zip(seqs, copies):
+            own = lay.pivot_slots(seq)
+            Y[:, own] = Yw[:, own]
+            Y[:, T] += Yw[:, T] - base
+        kern["forward"](Y, top, *args)
+        kern["backward"](Y, top[::-1].copy(), *args)
+        each(kern["backward"], [Y] * len(seqs), [s[::-1].copy() for s in seqs])
         return Y[0] if one else Y.T
 
     def flops(self) -> float:

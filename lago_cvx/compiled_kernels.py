@@ -207,16 +207,17 @@ def run(f0, f1, big, b, fptr, rptr, rel, nchild, Lptr, bptr, border, bli, blj, b
         finish(f, b, fptr, rptr, Lptr, L, F, stack, st_front, st_off, state)
     return f1
 
+
 @njit(nogil=True, cache=True)
-def solve(Y, b, fptr, rptr, rows, Lptr, L, rmax):
-    """N x = y in place for Y (nrhs, slots): forward L z = y (z_P = L_PP⁻¹ y_P, y_R −= X z_P), back
-    Lᵀ x = z (x_P = L_PP⁻ᵀ(z_P − Xᵀ x_R)), front by front; y_R gathered into and scattered from a
-    local vector, so the inner loops run down L's contiguous columns."""
-    nf = fptr.size - 1
+def forward(Y, seq, b, fptr, rptr, rows, Lptr, L, rmax):
+    """L z = y in place for Y (nrhs, slots), over the fronts ``seq`` in that order (children before
+    parents): z_P = L_PP⁻¹ y_P, y_R −= X z_P, y_R gathered into a local vector so the inner loops run
+    down L's contiguous columns."""
     nr = Y.shape[0]
     slot = np.empty(rmax, np.int64)
     t = np.empty(rmax)
-    for f in range(nf):
+    for q in range(seq.size):
+        f = seq[q]
         k = (fptr[f + 1] - fptr[f]) * b
         pr = rptr[f + 1] - rptr[f]
         r = pr * b
@@ -240,7 +241,17 @@ def solve(Y, b, fptr, rptr, rows, Lptr, L, rmax):
                         t[i] += L[col + k + i] * v
             for i in range(r):
                 y[slot[i]] -= t[i]
-    for f in range(nf - 1, -1, -1):
+
+
+@njit(nogil=True, cache=True)
+def backward(Y, seq, b, fptr, rptr, rows, Lptr, L, rmax):
+    """Lᵀ x = z in place for Y (nrhs, slots), over the fronts ``seq`` in that order (parents before
+    children): x_P = L_PP⁻ᵀ(z_P − Xᵀ x_R)."""
+    nr = Y.shape[0]
+    slot = np.empty(rmax, np.int64)
+    t = np.empty(rmax)
+    for q in range(seq.size):
+        f = seq[q]
         k = (fptr[f + 1] - fptr[f]) * b
         pr = rptr[f + 1] - rptr[f]
         r = pr * b
@@ -262,6 +273,46 @@ def solve(Y, b, fptr, rptr, rows, Lptr, L, rmax):
                 for i in range(r):
                     v -= L[col + k + i] * t[i]
                 y[s0 + j] = v / L[col + j]
+
+
+@njit(nogil=True, cache=True)
+def pose_local(f, pos, fptr, rptr, rows):
+    """Local pose index of position pos[t] in front f[t]: pos − first pivot for a pivot, else the
+    front's pivot count plus pos's rank among its update rows (binary search; pos must be in the
+    front)."""
+    out = np.empty(f.size, np.int64)
+    for t in range(f.size):
+        g = f[t]
+        p = pos[t]
+        if fptr[g] <= p < fptr[g + 1]:
+            out[t] = p - fptr[g]
+        else:
+            lo, hi = rptr[g], rptr[g + 1]
+            while lo < hi:
+                mid = (lo + hi) // 2
+                if rows[mid] < p:
+                    lo = mid + 1
+                else:
+                    hi = mid
+            out[t] = fptr[g + 1] - fptr[g] + lo - rptr[g]
+    return out
+
+
+@njit(nogil=True, cache=True)
+def counting_order(key, n):
+    """The stable sort order of ``key`` (values 0 … n − 1) by counting, and the bucket boundaries."""
+    ptr = np.zeros(n + 1, np.int64)
+    for t in range(key.size):
+        ptr[key[t] + 1] += 1
+    for g in range(n):
+        ptr[g + 1] += ptr[g]
+    fill = ptr[:-1].copy()
+    order = np.empty(key.size, np.int64)
+    for t in range(key.size):
+        order[fill[key[t]]] = t
+        fill[key[t]] += 1
+    return order, ptr
+
 
 @njit(nogil=True, cache=True)
 def stack_peak(seq, nchild, sizes):
@@ -318,5 +369,6 @@ def one(f, b, fptr, rptr, Lptr, L, F, D, fn):
 
 
 #: The kernels by name, and ``fn`` the LAPACK/BLAS addresses of this process.
-KERNELS = dict(assemble=assemble, finish=finish, run=run, solve=solve, stack_peak=stack_peak, one=one,
-               subtrees=subtrees, push=push, fn=_addresses())
+KERNELS = dict(assemble=assemble, finish=finish, run=run, forward=forward, backward=backward, stack_peak=stack_peak, one=one,
+               subtrees=subtrees, push=push, pose_local=pose_local,
+               counting_order=counting_order, fn=_addresses())
