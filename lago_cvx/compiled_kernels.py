@@ -13,6 +13,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from . import supernodes
+
 __all__ = ["KERNELS"]
 
 
@@ -371,4 +373,5 @@ def one(f, b, fptr, rptr, Lptr, L, F, D, fn):
 #: The kernels by name, and ``fn`` the LAPACK/BLAS addresses of this process.
 KERNELS = dict(assemble=assemble, finish=finish, run=run, forward=forward, backward=backward, stack_peak=stack_peak, one=one,
                subtrees=subtrees, push=push, pose_local=pose_local,
-               counting_order=counting_order, fn=_addresses())
+               counting_order=counting_order, relax=njit(nogil=True, cache=True)(supernodes.relax),
+               heights=njit(nogil=True, cache=True)(supernodes.heights), fn=_addresses())

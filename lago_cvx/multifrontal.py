@@ -112,6 +112,26 @@ def _postorder(parent: np.ndarray) -> np.ndarray:
     return pre[:0:-1].astype(np.int64)  # drop the virtual root (first in preorder), reverse
 
 
+#: From this many poses the symbolic analysis's two sequential loops run compiled (``supernodes``
+#: through ``compiled_kernels``, when Numba can be imported): 1.4 s of Python at a million poses.
+COMPILED_LOOPS = 200_000
+
+
+def _loops(d: int):
+    """``supernodes.relax`` and ``supernodes.heights``: compiled for d ≥ ``COMPILED_LOOPS`` when Numba
+    can be imported, else as Python (Numba's import is not worth it below)."""
+    from . import supernodes
+
+    if d >= COMPILED_LOOPS:
+        try:
+            from .compiled_kernels import KERNELS
+
+            return KERNELS["relax"], KERNELS["heights"]
+        except Exception as exc:  # no Numba: the same loops in Python
+            log.debug("symbolic analysis in Python (%s)", exc)
+    return supernodes.relax, supernodes.heights
+
+
 @dataclass(eq=False)
 class EliminationPlan:
     """The pose-level symbolic analysis (module docstring) of a d × d pattern.
@@ -192,24 +212,10 @@ def plan_from_qdldl(L: sp.csc_matrix, perm: np.ndarray) -> EliminationPlan:
     last = ends - 1
     sparent = np.where(parent_p[last] >= 0, snode_of[np.maximum(parent_p[last], 0)], -1)
     # relaxed amalgamation: children first (supernodes are in topological order)
-    k = (ends - starts).tolist()
-    r = cnt_p[last].tolist()
-    true_nnz = np.add.reduceat(cnt_p + 1, starts).tolist() if d else []
-    top = list(range(ns))
-    sparent_l = sparent.tolist()
-    n0, n1, n2 = NRELAX
-    z0, z1, z2 = ZRELAX
-    for c in range(ns):
-        p = sparent_l[c]
-        if p < 0:
-            continue
-        kk = k[c] + k[p]
-        total = kk * (kk + 1) // 2 + kk * r[p]
-        zf = (total - true_nnz[c] - true_nnz[p]) / total
-        if kk <= n0 or (kk <= n1 and zf < z0) or (kk <= n2 and zf < z1) or zf < z2:
-            k[p] = kk
-            true_nnz[p] += true_nnz[c]
-            top[c] = p
+    relax, heights = _loops(d)
+    k = (ends - starts).astype(np.int64)
+    true_nnz = np.add.reduceat(cnt_p + 1, starts).astype(np.int64) if d else np.zeros(0, np.int64)
+    top = relax(k, cnt_p[last].astype(np.int64), true_nnz, sparent.astype(np.int64), *NRELAX, *ZRELAX)
     top = np.asarray(top, np.int64)
     while True:  # follow merges to the surviving supernode
         nxt = top[top]
@@ -235,14 +241,7 @@ def plan_from_qdldl(L: sp.csc_matrix, perm: np.ndarray) -> EliminationPlan:
     rptr = np.r_[0, np.cumsum(lens)].astype(np.int64)
     sp_top = sparent[fronts]
     fparent = np.where(sp_top >= 0, fid[top[np.maximum(sp_top, 0)]], -1)
-    height = np.zeros(n_fronts, np.int64)
-    fp = fparent.tolist()
-    hl = [0] * n_fronts
-    for f in range(n_fronts):
-        p = fp[f]
-        if p >= 0 and hl[p] < hl[f] + 1:
-            hl[p] = hl[f] + 1
-    height[:] = hl
+    height = np.asarray(heights(fparent.astype(np.int64)), np.int64)
     position = np.empty(d, np.int64)
     position[np.asarray(perm, np.int64)] = newpos[post]  # pose → old position → postorder → final
     return EliminationPlan(d=d, position=position, fptr=fptr, rptr=rptr, rows=rows, parent=fparent,
