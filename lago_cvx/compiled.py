@@ -149,7 +149,9 @@ class CompiledLayout:
         kern = kernels()
         A = np.ascontiguousarray(A, dtype=float)
         B = np.ascontiguousarray(B, dtype=float)
-        L = np.empty(int(self.Lptr[-1]))
+        L = self.__dict__.pop("_reserved", None)
+        if L is None:
+            L = np.empty(int(self.Lptr[-1]))
         data = (assembler.bptr, assembler.order, assembler.li, assembler.lj, assembler.transposed, A, B)
         sched = self.schedule
         total = float(self.work.sum())
@@ -242,6 +244,29 @@ class CompiledLayout:
         log.debug("compiled engine: %d subtrees on %d threads (work %s), %d fronts above them", len(roots),
                   THREADS, [f"{x / total:.2f}" for x in load], len(top))
         return self._schedule
+
+    def reserve(self, *, threads: int = 2) -> None:
+        """Allocate the next factorization's L and touch every page of it now (from ``threads`` threads at
+        once, called where there is time: ``GraphElimination.prepare``), so that the factorization writes
+        to memory already mapped."""
+        import threading
+
+        if "_reserved" in self.__dict__:
+            return
+        L = np.empty(int(self.Lptr[-1]))
+        cuts = np.linspace(0, L.size // 512, threads + 1).astype(np.int64) * 512
+
+        def touch(i):
+            L[cuts[i]:cuts[i + 1]:512] = 0.0  # one write per 4 KiB page (NumPy releases the GIL)
+
+        jobs = [threading.Thread(target=touch, args=(i,), daemon=True) for i in range(1, threads)]
+        for j in jobs:
+            j.start()
+        touch(0)
+        L[cuts[-1]::512] = 0.0
+        for j in jobs:
+            j.join()
+        self._reserved = L
 
     @property
     def worker_fronts(self) -> list:

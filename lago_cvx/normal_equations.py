@@ -398,6 +398,7 @@ class GraphElimination:
         self.tails = self.free_of[graph.tails]
         self.heads = self.free_of[graph.heads]
         self._assemblers = {}
+        self._preparing: dict = {}
         self.laplacian = None
         both = (self.tails >= 0) & (self.heads >= 0)
         self._lo = np.minimum(self.tails, self.heads)[both]
@@ -511,6 +512,9 @@ class GraphElimination:
         NumPy engine) or False (QDLDL) force one. Raises ``multifrontal.NotPositiveDefinite`` (or
         QDLDL's error) if N is not numerically SPD."""
         b = system.b
+        job = self._preparing.pop(b, None)
+        if job is not None:
+            job.join()
         if engine == "compiled" or (engine is None and system.d * b >= COMPILED_MIN and compiled.available()):
             if ("compiled", b) not in self._assemblers:
                 prow, pcol, _ = self.pairs
@@ -531,6 +535,36 @@ class GraphElimination:
         blocks = system.normal_blocks()[keep]
         bf = lay.factor(asm, blocks, progress=progress)
         return PoseFactor(bf, self.slots(b))
+
+    def prepare(self, b: int) -> None:
+        """Start building, in a worker thread, what the compiled factorization of a system with b×b blocks
+        will need — the plan, its ``compiled.CompiledLayout``, the assembler, and L's storage allocated
+        and touched (``CompiledLayout.reserve``: first touches of fresh memory are costly, in a virtual
+        machine more than 1 s per GiB) — while this thread goes on (phases 1 and 2 before phase 3).
+        Nothing happens below ``COMPILED_MIN`` unknowns or without Numba; ``factor`` waits for the
+        worker. A failure there is logged and the work redone where it is needed."""
+        import threading
+
+        if self.d * b < COMPILED_MIN or b in self._preparing or ("compiled", b) in self._assemblers:
+            return
+
+        def work():
+            try:
+                if not compiled.available():
+                    return
+                lay = compiled.CompiledLayout.of(self.plan, b)
+                touch = threading.Thread(target=lay.reserve, daemon=True, name="lago-reserve")
+                touch.start()  # L's pages faulted in beside the assembler's work
+                prow, pcol, _ = self.pairs
+                asm = lay.assembler(prow, pcol)
+                touch.join()
+                self._assemblers["compiled", b] = (lay, asm)
+            except Exception as exc:  # redone, and raised, where it is needed
+                log.debug("preparing the compiled factorization failed (%s): done when needed", exc)
+
+        job = threading.Thread(target=work, daemon=True, name="lago-prepare")
+        job.start()
+        self._preparing[b] = job
 
     def solve(self, system: EdgeSystem, *, factor: PoseFactor | None = None, stage: str = "solve",
               progress=None):

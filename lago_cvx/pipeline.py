@@ -123,6 +123,8 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
         nonlocal elim, pos_solver
         elim = elim_job.result() if elim_job is not None else None
         if elim is not None:  # (the chordal relaxation's, or phase 3's)
+            if method == "closed_form":  # phase 3's compiled factorization, when it will run, made ready
+                elim.prepare(3)  # beside phases 1 and 2
             elim.defer(lambda: elim.upper_pattern(3))  # phase 3's pattern
             if choice["positions"] == "resolve":
                 pos_solver = PositionSolver(graph, unc, elim)

@@ -192,3 +192,22 @@ def test_symbolic_loops_compiled_and_in_python_give_the_same_plan(monkeypatch):
     p2 = GraphElimination(g, 0).plan
     for name in ("position", "fptr", "rptr", "rows", "parent", "height"):
         assert np.array_equal(getattr(p1, name), getattr(p2, name)), name
+
+
+def test_prepared_factorization_is_the_same(monkeypatch):
+    """``GraphElimination.prepare(b)`` builds the layout, the assembler and a touched L in a worker thread;
+    the factorization then uses that L (taken, not copied) and solves exactly as without preparation."""
+    monkeypatch.setattr(ne, "COMPILED_MIN", 0)
+    g = lc.manhattan_world(600, seed=9).graph
+    el, system = _random_system(g, 3, seed=2)
+    ref = el.factor(system, engine="compiled")
+    el2, _ = _random_system(g, 3, seed=2)
+    el2.prepare(3)
+    assert 3 in el2._preparing
+    el2._preparing[3].join()
+    lay = C.CompiledLayout.of(el2.plan, 3)
+    reserved = lay._reserved
+    f = el2.factor(system)
+    assert f.compiled.L is reserved and "_reserved" not in lay.__dict__
+    rhs = np.random.default_rng(3).standard_normal(el.d * 3)
+    assert np.array_equal(f.solve(rhs), ref.solve(rhs))
