@@ -42,10 +42,10 @@ import logging
 
 import numpy as np
 
-from .linalg import blas_threads
+from .linalg import Factor, blas_threads
 from .multifrontal import NotPositiveDefinite
 
-__all__ = ["available", "CompiledLayout", "CompiledAssembler", "CompiledFactor"]
+__all__ = ["available", "CompiledLayout", "CompiledAssembler", "CompiledFactor", "CompiledPoseFactor"]
 
 log = logging.getLogger(__name__)
 
@@ -436,3 +436,28 @@ class CompiledFactor:
 
     def flops(self) -> float:
         return self.layout.plan.flops(self.layout.b)
+
+
+class CompiledPoseFactor(Factor):
+    """A system of (N) (a ``normal_equations.EdgeSystem``) factored by the compiled engine through the
+    ``normal_equations.GraphElimination`` it belongs to: ``solve(rhs)`` for rhs (d·b,) or (d·b, r)
+    pose-major; ``compiled`` the ``CompiledFactor``."""
+
+    def __init__(self, factor: CompiledFactor, slots: np.ndarray, system, elimination):
+        self.compiled = factor
+        self._system, self._elimination = system, elimination
+        order = np.argsort(slots)
+
+        def solve(rhs: np.ndarray) -> np.ndarray:
+            return factor.solve_slots(rhs[order])[slots]
+
+        super().__init__(solve, slots.size, "compiled")
+
+    def flops(self) -> float:
+        """Σ colcount² over the columns of L (the fronts' explicit zeros included)."""
+        return self.compiled.flops()
+
+    def engine_factor(self):
+        """The same matrix factored by the NumPy engine on the same plan (a ``normal_equations.PoseFactor``),
+        whose ``BlockFactor`` the selected inversion of ``Phase3.pose_covariances`` reads."""
+        return self._elimination.factor(self._system, engine=True)

@@ -34,6 +34,7 @@ import scipy.sparse as sp
 from .graph import free_poses
 from .linalg import Factor, augmented_least_squares, refine_normal_equations
 from . import compiled
+from .compiled import CompiledPoseFactor
 from .multifrontal import BlockFactor, EliminationPlan, plan_from_qdldl
 from .posegraph import PoseGraph
 from .progress import Progress
@@ -232,30 +233,6 @@ class PoseFactor(Factor):
             return blocks.solve_slots(rhs[order])[slots]
 
         super().__init__(solve, slots.size, "multifrontal")
-
-
-class CompiledPoseFactor(Factor):
-    """A system of (N) factored by the compiled multifrontal engine (``lago_cvx.compiled``):
-    ``solve(rhs)`` for rhs (d·b,) or (d·b, r) pose-major; ``compiled`` the ``compiled.CompiledFactor``."""
-
-    def __init__(self, factor, slots: np.ndarray, system: "EdgeSystem", elimination: "GraphElimination"):
-        self.compiled = factor
-        self._system, self._elimination = system, elimination
-        order = np.argsort(slots)
-
-        def solve(rhs: np.ndarray) -> np.ndarray:
-            return factor.solve_slots(rhs[order])[slots]
-
-        super().__init__(solve, slots.size, "compiled")
-
-    def flops(self) -> float:
-        """Σ colcount² over the columns of L (the fronts' explicit zeros included)."""
-        return self.compiled.flops()
-
-    def engine_factor(self) -> "PoseFactor":
-        """The same matrix factored by the NumPy engine on the same plan, whose ``BlockFactor`` the
-        selected inversion of ``Phase3.pose_covariances`` reads."""
-        return self._elimination.factor(self._system, engine=True)
 
 
 class QdldlFactor(Factor):
@@ -522,7 +499,7 @@ class GraphElimination:
                 self._assemblers["compiled", b] = (lay, lay.assembler(prow, pcol))
             lay, asm = self._assemblers["compiled", b]
             cf = lay.factor(asm, system.A, system.B, progress=progress)
-            return CompiledPoseFactor(cf, self.slots(b), system, self)
+            return compiled.CompiledPoseFactor(cf, self.slots(b), system, self)
         if not (engine if engine is not None else system.d * b >= ENGINE_MIN):
             prow, pcol, keep = self.pairs
             return QdldlFactor(system, (prow, pcol), keep, pattern=self.upper_pattern(b), elimination=self,
