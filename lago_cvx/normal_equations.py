@@ -17,7 +17,9 @@ applies M and Mᵀ edge by edge (no sparse matrix is built); ``GraphElimination`
 symbolic analysis of one graph and anchor (``lago_cvx.multifrontal``), computed once and shared by every
 system LAGO solves on that graph. Below ``ENGINE_MIN`` unknowns N is factored by QDLDL in that same
 pose-level order, expanded to b components per pose (``BlockUpperPattern``: the upper triangle's CSC
-pattern and a scatter map, built once per b; ``lago_cvx.ldl``), above it by the multifrontal engine.
+pattern and a scatter map, built once per b; ``lago_cvx.ldl``), above it by the multifrontal engine —
+compiled by Numba (``lago_cvx.compiled``) from ``COMPILED_MIN`` unknowns when Numba can be imported, the
+NumPy engine (``lago_cvx.multifrontal``) otherwise.
 Either way (E) is solved by the corrected semi-normal equations
 (``lago_cvx.linalg.refine_normal_equations``), falling back to the augmented system as
 ``lago_cvx.linalg.solve_least_squares`` does.
