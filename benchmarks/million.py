@@ -58,13 +58,13 @@ print(json.dumps(cap))
 
 def add_arguments(group) -> None:
     group.add_argument("--million-poses", type=int, nargs="+", default=None, metavar="N",
-                       help=f"world sizes (default {' '.join(map(str, SIZES))})")
+                       help=f"world sizes (default {' '.join(map(str, SIZES))}; 0: none, the phase-3 table only)")
     group.add_argument("--million-repeat", type=int, default=3, metavar="K",
                        help="alternating runs per route and size (default 3)")
 
 
 def run(args) -> str:
-    sizes = args.million_poses or ((10_000, 30_000) if args.quick else SIZES)
+    sizes = [n for n in (args.million_poses or ((10_000, 30_000) if args.quick else SIZES)) if n > 0]
     repeat = 1 if args.quick else args.million_repeat
     rows = []
     with tempfile.TemporaryDirectory() as tmp:

@@ -64,6 +64,7 @@ PARALLEL_WORK = 5e8
 #: Each compiled call factors at most this share of the fronts (progress is reported between calls).
 CHUNK = 0.02
 
+
 def kernels() -> dict:
     """The compiled kernels (``lago_cvx.compiled_kernels``, which imports Numba: loaded on first use)."""
     from .compiled_kernels import KERNELS
@@ -116,10 +117,9 @@ class CompiledLayout:
         if ok.any():
             rel[ok] = self._pose_local(par[ok], self.rows[ok])
         self.rel = rel
-        work = K.astype(float) * D * D
+        self.work = K.astype(float) * D * D  # (F,) twice each front's multiply–adds
         self.max_front = int(D.max() ** 2) if F else 0
         self.rmax = int(R.max()) if F else 0
-        self.work = work
 
     def _pose_local(self, f: np.ndarray, pos: np.ndarray) -> np.ndarray:
         """Local pose index of position ``pos`` in front ``f`` (pivots 0 … k−1, rows k + rank)."""

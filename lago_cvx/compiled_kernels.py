@@ -211,6 +211,18 @@ def run(f0, f1, big, b, fptr, rptr, rel, nchild, Lptr, bptr, border, bli, blj, b
 
 
 @njit(nogil=True, cache=True)
+def _front(f, b, fptr, rptr, rows, Lptr, slot):
+    """Front f's sizes for the sweeps — (k, r, D, first pivot slot, start of its columns in L) — with the
+    slots of its r update variables written to ``slot``."""
+    k = (fptr[f + 1] - fptr[f]) * b
+    pr = rptr[f + 1] - rptr[f]
+    for p in range(pr):
+        for c in range(b):
+            slot[p * b + c] = rows[rptr[f] + p] * b + c
+    return k, pr * b, k + pr * b, fptr[f] * b, Lptr[f]
+
+
+@njit(nogil=True, cache=True)
 def forward(Y, seq, b, fptr, rptr, rows, Lptr, L, rmax):
     """L z = y in place for Y (nrhs, slots), over the fronts ``seq`` in that order (children before
     parents): z_P = L_PP⁻¹ y_P, y_R −= X z_P, y_R gathered into a local vector so the inner loops run
@@ -219,16 +231,7 @@ def forward(Y, seq, b, fptr, rptr, rows, Lptr, L, rmax):
     slot = np.empty(rmax, np.int64)
     t = np.empty(rmax)
     for q in range(seq.size):
-        f = seq[q]
-        k = (fptr[f + 1] - fptr[f]) * b
-        pr = rptr[f + 1] - rptr[f]
-        r = pr * b
-        D = k + r
-        s0 = fptr[f] * b
-        base = Lptr[f]
-        for p in range(pr):
-            for c in range(b):
-                slot[p * b + c] = rows[rptr[f] + p] * b + c
+        k, r, D, s0, base = _front(seq[q], b, fptr, rptr, rows, Lptr, slot)
         for c in range(nr):
             y = Y[c]
             t[:r] = 0.0
@@ -253,16 +256,7 @@ def backward(Y, seq, b, fptr, rptr, rows, Lptr, L, rmax):
     slot = np.empty(rmax, np.int64)
     t = np.empty(rmax)
     for q in range(seq.size):
-        f = seq[q]
-        k = (fptr[f + 1] - fptr[f]) * b
-        pr = rptr[f + 1] - rptr[f]
-        r = pr * b
-        D = k + r
-        s0 = fptr[f] * b
-        base = Lptr[f]
-        for p in range(pr):
-            for c in range(b):
-                slot[p * b + c] = rows[rptr[f] + p] * b + c
+        k, r, D, s0, base = _front(seq[q], b, fptr, rptr, rows, Lptr, slot)
         for c in range(nr):
             y = Y[c]
             for i in range(r):
