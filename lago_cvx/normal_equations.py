@@ -329,8 +329,9 @@ ENGINE_MIN = 1_200_000
 
 #: Systems with at least this many unknowns are factored by the compiled engine (``lago_cvx.compiled``)
 #: when Numba can be imported (it then takes the place of the NumPy engine above ``ENGINE_MIN`` too).
-#: Phase 3 alone, a fresh process each (benchmarks/million.md): QDLDL against compiled 0.36 against
-#: 0.71 s at 90 000 unknowns, 1.46 against 1.36 s at 300 000, 7.1 against 2.5 s at 900 000.
+#: Phase 3 alone, a fresh process each (benchmarks/million.md): QDLDL against compiled + Numba's import
+#: 0.48 against 0.81 + 0.30 s at 90 000 unknowns, 2.31 against 1.68 + 0.32 s at 300 000, 8.5 against
+#: 3.8 + 0.24 s at 900 000.
 COMPILED_MIN = 300_000
 
 
