@@ -369,20 +369,10 @@ class CompiledAssembler:
 
     def __init__(self, layout: CompiledLayout, prow, pcol):
         plan = layout.plan
-        prow = np.asarray(prow, np.int64)
-        pcol = np.asarray(pcol, np.int64)
-        idx = np.flatnonzero((prow >= 0) & (pcol >= 0))
-        pr, pc = plan.position[prow[idx]], plan.position[pcol[idx]]
-        tr = pr < pc
-        lo, hi = np.where(tr, pr, pc), np.where(tr, pc, pr)
         front_of = np.repeat(np.arange(plan.n_fronts, dtype=np.int64), plan.pivots)  # (d,) by position
-        f = front_of[lo]
-        order, self.bptr = kernels()["counting_order"](f, plan.n_fronts)
-        f = f[order]
-        self.order = idx[order].astype(np.int64)
-        self.li = layout._pose_local(f, hi[order])
-        self.lj = (lo[order] - plan.fptr[f]).astype(np.int64)
-        self.transposed = tr[order]
+        self.order, self.bptr, self.li, self.lj, self.transposed = kernels()["block_map"](
+            np.ascontiguousarray(prow, np.int64), np.ascontiguousarray(pcol, np.int64),
+            np.ascontiguousarray(plan.position, np.int64), front_of, layout.fptr, layout.rptr, layout.rows)
 
 
 class CompiledFactor:

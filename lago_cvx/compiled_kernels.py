@@ -295,6 +295,50 @@ def pose_local(f, pos, fptr, rptr, rows):
 
 
 @njit(nogil=True, cache=True)
+def block_map(prow, pcol, position, front_of, fptr, rptr, rows):
+    """``CompiledAssembler``'s map in three passes: the pairs (prow[t], pcol[t]) with both ends free,
+    bucketed by the front holding their lower end's pivot column (stable), each with its local block
+    row and column in that front and whether the stored block is the pair's transposed. Returns (order,
+    bptr, li, lj, transposed)."""
+    nf = fptr.size - 1
+    bptr = np.zeros(nf + 1, np.int64)
+    for t in range(prow.size):
+        if prow[t] >= 0 and pcol[t] >= 0:
+            bptr[front_of[min(position[prow[t]], position[pcol[t]])] + 1] += 1
+    for g in range(nf):
+        bptr[g + 1] += bptr[g]
+    n = bptr[nf]
+    fill = bptr[:-1].copy()
+    order = np.empty(n, np.int64)
+    li = np.empty(n, np.int64)
+    lj = np.empty(n, np.int64)
+    transposed = np.empty(n, np.bool_)
+    for t in range(prow.size):
+        if prow[t] < 0 or pcol[t] < 0:
+            continue
+        pr, pc = position[prow[t]], position[pcol[t]]
+        lo, hi = min(pr, pc), max(pr, pc)
+        g = front_of[lo]
+        s = fill[g]
+        fill[g] += 1
+        order[s] = t
+        transposed[s] = pr < pc
+        lj[s] = lo - fptr[g]
+        if fptr[g] <= hi < fptr[g + 1]:
+            li[s] = hi - fptr[g]
+        else:
+            a, b = rptr[g], rptr[g + 1]
+            while a < b:
+                mid = (a + b) // 2
+                if rows[mid] < hi:
+                    a = mid + 1
+                else:
+                    b = mid
+            li[s] = fptr[g + 1] - fptr[g] + a - rptr[g]
+    return order, bptr, li, lj, transposed
+
+
+@njit(nogil=True, cache=True)
 def counting_order(key, n):
     """The stable sort order of ``key`` (values 0 … n − 1) by counting, and the bucket boundaries."""
     ptr = np.zeros(n + 1, np.int64)
@@ -367,5 +411,5 @@ def one(f, b, fptr, rptr, Lptr, L, F, D, fn):
 #: The kernels by name, and ``fn`` the LAPACK/BLAS addresses of this process.
 KERNELS = dict(assemble=assemble, finish=finish, run=run, forward=forward, backward=backward, stack_peak=stack_peak, one=one,
                subtrees=subtrees, push=push, pose_local=pose_local,
-               counting_order=counting_order, relax=njit(nogil=True, cache=True)(supernodes.relax),
+               counting_order=counting_order, block_map=block_map, relax=njit(nogil=True, cache=True)(supernodes.relax),
                heights=njit(nogil=True, cache=True)(supernodes.heights), fn=_addresses())

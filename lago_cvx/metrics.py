@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .arrays import row_blocks
 from .errors import OptionError
 from .posegraph import PoseGraph, rot2, wrap_angle
 
@@ -23,23 +24,40 @@ __all__ = ["edge_errors", "chi2", "chi2_parts", "whitened_errors", "alignment_an
 
 def edge_errors(graph: PoseGraph, poses) -> np.ndarray:
     """Errors e_ij of eq. (3), shape (m, 3), for ``poses`` of shape (n, 3)."""
+    poses = _check_poses(graph, poses)
+    e = np.empty((graph.n_edges, 3))
+    for k in row_blocks(graph.n_edges):  # (arrays.row_blocks: temporaries a block long)
+        e[k] = _errors(graph, poses, k)
+    return e
+
+
+def _check_poses(graph: PoseGraph, poses) -> np.ndarray:
     poses = np.asarray(poses, dtype=float)
     if poses.shape != (graph.n_poses, 3):
         raise OptionError(f"poses must have shape ({graph.n_poses}, 3), got {poses.shape}")
-    pi, pj = poses[graph.tails], poses[graph.heads]
+    return poses
+
+
+def _errors(graph: PoseGraph, poses: np.ndarray, k: slice) -> np.ndarray:
+    """e_ij of eq. (3) for the edges ``k`` (a slice), shape (mb, 3)."""
+    pi, pj = poses[graph.tails[k]], poses[graph.heads[k]]
     c, s = np.cos(pi[:, 2]), np.sin(pi[:, 2])
     dx, dy = pj[:, 0] - pi[:, 0], pj[:, 1] - pi[:, 1]
-    e = np.empty((graph.n_edges, 3))
-    e[:, 0] = c * dx + s * dy - graph.delta_l[:, 0]
-    e[:, 1] = -s * dx + c * dy - graph.delta_l[:, 1]
-    e[:, 2] = wrap_angle(pj[:, 2] - pi[:, 2] - graph.delta)
+    e = np.empty((pi.shape[0], 3))
+    e[:, 0] = c * dx + s * dy - graph.delta_l[k, 0]
+    e[:, 1] = -s * dx + c * dy - graph.delta_l[k, 1]
+    e[:, 2] = wrap_angle(pj[:, 2] - pi[:, 2] - graph.delta[k])
     return e
 
 
 def chi2(graph: PoseGraph, poses) -> float:
     """χ² = Σ eᵀΩe over all edges (g2o convention, no ½; twice GTSAM's ``error()``)."""
-    e = edge_errors(graph, poses)
-    return float(np.einsum("ka,kab,kb->", e, graph.information, e))
+    poses = _check_poses(graph, poses)
+    total = 0.0
+    for k in row_blocks(graph.n_edges):
+        e = _errors(graph, poses, k)
+        total += float(np.einsum("ka,kab,kb->", e, graph.information[k], e))
+    return total
 
 
 def chi2_parts(graph: PoseGraph, poses) -> dict:

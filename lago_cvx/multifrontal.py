@@ -65,6 +65,13 @@ log = logging.getLogger(__name__)
 NRELAX = (4, 16, 48)
 ZRELAX = (0.8, 0.1, 0.05)
 
+#: The amalgamation for the compiled engine (``lago_cvx.compiled``), whose cost per front is a few hundred
+#: nanoseconds, not a Python call: fewer explicit zeros, so a smaller L (less memory to fault in, shorter
+#: solves) for the same factorization time. Phase 3 of the 1 000 000-pose world (benchmarks/million.md):
+#: L 1.85 GiB in 85 637 fronts with ``NRELAX``/``ZRELAX``, 1.48 GiB in 156 780 with these; the compiled
+#: factorization 2.5–2.9 s against 2.8 s. Tighter still, (2, 4, 16), gave 1.28 GiB but 3.7 s.
+COMPILED_RELAX = ((2, 8, 32), (0.8, 0.1, 0.05))
+
 #: Fronts with at least this many pivot variables (k·b) are factored one at a time with exact sizes;
 #: smaller ones are padded and batched.
 SINGLE_FRONT = 96
@@ -182,10 +189,12 @@ class EliminationPlan:
         return cache[b]
 
 
-def plan_from_qdldl(L: sp.csc_matrix, perm: np.ndarray) -> EliminationPlan:
+def plan_from_qdldl(L: sp.csc_matrix, perm: np.ndarray, *, relaxation=None) -> EliminationPlan:
     """The plan from a pose-level factorization ``P A Pᵀ = (I + L) D (I + L)ᵀ`` as ``qdldl.Solver.factors()``
     returns it: ``L`` (d, d) strictly lower (CSC, columns and rows in elimination order, any row order
-    within a column), ``perm`` (d,) the pose eliminated at each position."""
+    within a column), ``perm`` (d,) the pose eliminated at each position. ``relaxation`` (nrelax, zrelax)
+    of the amalgamation, default (``NRELAX``, ``ZRELAX``); ``COMPILED_RELAX`` for the compiled engine."""
+    nrelax, zrelax = (NRELAX, ZRELAX) if relaxation is None else relaxation
     d = int(perm.size)
     L = sp.csc_matrix(L)
     ip, ix = L.indptr.astype(np.int64), L.indices.astype(np.int64)
@@ -215,7 +224,7 @@ def plan_from_qdldl(L: sp.csc_matrix, perm: np.ndarray) -> EliminationPlan:
     relax, heights = _loops(d)
     k = (ends - starts).astype(np.int64)
     true_nnz = np.add.reduceat(cnt_p + 1, starts).astype(np.int64) if d else np.zeros(0, np.int64)
-    top = relax(k, cnt_p[last].astype(np.int64), true_nnz, sparent.astype(np.int64), *NRELAX, *ZRELAX)
+    top = relax(k, cnt_p[last].astype(np.int64), true_nnz, sparent.astype(np.int64), *nrelax, *zrelax)
     top = np.asarray(top, np.int64)
     while True:  # follow merges to the surviving supernode
         nxt = top[top]

@@ -37,7 +37,7 @@ from .graph import free_poses
 from .linalg import Factor, augmented_least_squares, refine_normal_equations
 from . import compiled
 from .compiled import CompiledPoseFactor
-from .multifrontal import BlockFactor, EliminationPlan, plan_from_qdldl
+from .multifrontal import COMPILED_RELAX, BlockFactor, EliminationPlan, plan_from_qdldl
 from .posegraph import PoseGraph
 from .progress import Progress
 from .upper_pattern import BlockUpperPattern, PoseUpperPattern, _whole_from_upper
@@ -47,10 +47,10 @@ __all__ = ["plan_from_pattern", "matrix_blocks", "EdgeSystem", "EdgeOperator", "
 log = logging.getLogger(__name__)
 
 
-def plan_from_pattern(d: int, rows: np.ndarray, cols: np.ndarray) -> EliminationPlan:
+def plan_from_pattern(d: int, rows: np.ndarray, cols: np.ndarray, *, relaxation=None) -> EliminationPlan:
     """The plan of the d × d pose pattern with off-diagonal entries (rows[k], cols[k]) (either
     orientation, duplicates allowed): AMD and the factor's pattern from QDLDL on a diagonally dominant
-    matrix of that pattern."""
+    matrix of that pattern; ``relaxation`` as in ``multifrontal.plan_from_qdldl``."""
     import qdldl
 
     rows = np.asarray(rows, np.int64)
@@ -63,7 +63,7 @@ def plan_from_pattern(d: int, rows: np.ndarray, cols: np.ndarray) -> Elimination
     A.sum_duplicates()
     s = qdldl.Solver(A, upper=True)
     L, _, perm = s.factors()
-    return plan_from_qdldl(L, perm)
+    return plan_from_qdldl(L, perm, relaxation=relaxation)
 
 
 def matrix_blocks(N: sp.spmatrix, var_index: np.ndarray):
@@ -412,12 +412,21 @@ class GraphElimination:
         inversion need it, QDLDL's solves do not): from the QDLDL factorization of the weighted Laplacian
         when there is one (its AMD ordering and L's pattern), else from the pattern."""
         if self._plan is None:
+            relaxation = self.relaxation
             if self.laplacian is not None:
                 L, _, perm = self.laplacian[0].factors()
-                self._plan = plan_from_qdldl(L, perm)
+                self._plan = plan_from_qdldl(L, perm, relaxation=relaxation)
             else:
-                self._plan = plan_from_pattern(self.d, self._lo, self._hi)
+                self._plan = plan_from_pattern(self.d, self._lo, self._hi, relaxation=relaxation)
         return self._plan
+
+    @property
+    def relaxation(self):
+        """The plan's amalgamation: ``multifrontal.COMPILED_RELAX`` when phase 3 (3d unknowns) will be
+        factored by the compiled engine, else None (the NumPy engine's default)."""
+        if self.d * 3 >= COMPILED_MIN and compiled.available():
+            return COMPILED_RELAX
+        return None
 
     @property
     def elimination_position(self) -> np.ndarray:

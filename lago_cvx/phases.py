@@ -63,6 +63,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from .arrays import BLOCK, row_blocks
 from .graph import _reduced_incidence, free_poses
 from .linalg import Factor, refine_normal_equations, solve_least_squares
 from .block_factor import inverse_blocks
@@ -331,7 +332,9 @@ def phase2(graph: PoseGraph, theta: np.ndarray, unc: EdgeUncertainty, *, anchor=
     if information == "full" and delta_reg is None:
         raise OptionError("phase2(information='full') needs delta_reg, the regularized δ of phase 1")
     theta = np.asarray(theta, dtype=float)
-    delta_g = np.einsum("kab,kb->ka", rot2(theta[graph.tails]), graph.delta_l)  # eq. (9)
+    delta_g = np.empty((graph.n_edges, 2))  # eq. (9), a block of edges at a time
+    for k in row_blocks(graph.n_edges):
+        delta_g[k] = np.einsum("kab,kb->ka", rot2(theta[graph.tails[k]]), graph.delta_l[k])
     free_of = np.full(graph.n_poses, -1, np.int64)
     free_of[free_poses(graph.n_poses, a)] = np.arange(graph.n_poses - 1)
     tails = free_of[graph.tails] if elimination is None else elimination.tails
@@ -373,36 +376,48 @@ def phase3_edge_system(graph: PoseGraph, theta: np.ndarray, unc: EdgeUncertainty
     B_k = [[U_Δ R(θ̂_i)ᵀ, 0], [0, w_δ]], c_k = [U_Δ (R(θ̂_i)ᵀΔᵍ_k − SΔˡ_k θ̂_i); w_δ (θ̂_j − θ̂_i)]
     (U_Δ = P_Δ^{-1/2}, w_δ = P_δ^{-1/2}). ``tails``/``heads`` (m,) free-pose indices (−1: the anchor)."""
     m = graph.n_edges
-    th_i = theta[graph.tails]
-    Ri = rot2(th_i)
     A = np.zeros((m, 3, 3))
     B = np.zeros((m, 3, 3))
     c = np.empty((m, 3))
-    if information == "full":
-        Sdg = np.stack([-delta_g[:, 1], delta_g[:, 0]], 1)  # S Δᵍ (m, 2)
-        T = np.zeros((m, 3, 3))
-        T[:, :2, :2] = Ri
-        T[:, 2, 2] = 1.0
-        Wk = unc.sqrt_info @ np.swapaxes(T, 1, 2)  # (m, 3, 3)
-        J = np.zeros((m, 3, 3))
+    full = information == "full"
+    if full:
+        delta_reg = np.asarray(delta_reg, dtype=float)
+        J = np.zeros((min(m, BLOCK), 3, 3))
         J[:, 0, 0] = J[:, 1, 1] = J[:, 2, 2] = -1.0
-        J[:, :2, 2] = -Sdg
-        A = Wk @ J
-        B = Wk
-        cu = np.concatenate([delta_g - Sdg * th_i[:, None], np.asarray(delta_reg, dtype=float)[:, None]], 1)
-        c = np.einsum("kab,kb->ka", Wk, cu)
-    else:
-        U = unc.sqrt_info_delta_l
-        URt = U @ np.swapaxes(Ri, 1, 2)
-        USdl = np.einsum("kab,kb->ka", U, graph.delta_l @ _S.T)  # U S Δˡ (m, 2)
-        w = unc.sqrt_info_delta
-        A[:, :2, :2] = -URt
-        A[:, :2, 2] = -USdl
-        A[:, 2, 2] = -w
-        B[:, :2, :2] = URt
-        B[:, 2, 2] = w
-        c[:, :2] = np.einsum("kab,kb->ka", URt, delta_g) - USdl * th_i[:, None]
-        c[:, 2] = w * (theta[graph.heads] - th_i)
+    for k in row_blocks(m):  # (arrays.row_blocks: temporaries a block long, recycled)
+        th_i = theta[graph.tails[k]]
+        Ri = rot2(th_i)
+        if full:
+            Sdg = np.stack([-delta_g[k, 1], delta_g[k, 0]], 1)  # S Δᵍ (mb, 2)
+            T = np.zeros((th_i.size, 3, 3))
+            T[:, :2, :2] = Ri
+            T[:, 2, 2] = 1.0
+            Wk = unc.sqrt_info[k] @ np.swapaxes(T, 1, 2)  # (mb, 3, 3)
+            Jk = J[:th_i.size]
+            Jk[:, :2, 2] = -Sdg
+            np.matmul(Wk, Jk, out=A[k])
+            B[k] = Wk
+            cu = np.concatenate([delta_g[k] - Sdg * th_i[:, None], delta_reg[k, None]], 1)
+            c[k] = np.einsum("kab,kb->ka", Wk, cu)
+        else:  # the 2×2 products written out: U_Δ R(θ̂_i)ᵀ, U_Δ SΔˡ (NumPy's stacked matmul is slow on 2×2)
+            U = unc.sqrt_info_delta_l[k]
+            u00, u01, u10, u11 = U[:, 0, 0], U[:, 0, 1], U[:, 1, 0], U[:, 1, 1]
+            cs, sn = np.cos(th_i), np.sin(th_i)
+            URt = [[u00 * cs - u01 * sn, u00 * sn + u01 * cs], [u10 * cs - u11 * sn, u10 * sn + u11 * cs]]
+            lx, ly = graph.delta_l[k, 0], graph.delta_l[k, 1]
+            USdl = [u01 * lx - u00 * ly, u11 * lx - u10 * ly]  # U S Δˡ, S = [[0, −1], [1, 0]]
+            gx, gy = delta_g[k, 0], delta_g[k, 1]
+            w = unc.sqrt_info_delta[k]
+            Ak, Bk, ck = A[k], B[k], c[k]
+            for a in range(2):
+                for b in range(2):
+                    Bk[:, a, b] = URt[a][b]
+                    np.negative(URt[a][b], out=Ak[:, a, b])
+                np.negative(USdl[a], out=Ak[:, a, 2])
+                ck[:, a] = URt[a][0] * gx + URt[a][1] * gy - USdl[a] * th_i
+            Bk[:, 2, 2] = w
+            np.negative(w, out=Ak[:, 2, 2])
+            ck[:, 2] = w * (theta[graph.heads[k]] - th_i)
     return EdgeSystem(tails, heads, A, B, c, graph.n_poses - 1)
 
 

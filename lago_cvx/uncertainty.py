@@ -22,10 +22,11 @@ from here, so they all agree on what a measurement is worth.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
+from .arrays import row_blocks
 from .linalg import whitening_2x2
 from .posegraph import PoseGraph
 from .smallmat import cholesky, spd_inverse
@@ -37,23 +38,83 @@ __all__ = ["EdgeUncertainty", "edge_uncertainty", "INFORMATION_MODES"]
 # first-order optimal for any Ω) or "marginal" (the paper's blkdiag(P_Δ, P_δ), eqs. (9)–(15)).
 
 
-@dataclass(frozen=True, eq=False)
 class EdgeUncertainty:
-    """Per-edge uncertainties (module docstring). Shapes for m edges:
+    """Per-edge uncertainties (module docstring) of the information stack ``information`` (m, 3, 3) (read
+    through its symmetric part). Shapes for m edges:
 
     marginal — ``cov_delta_l`` (m, 2, 2) P_Δ in the tail's frame; ``var_delta`` (m,) P_δ;
     ``sqrt_info_delta_l`` (m, 2, 2) upper-triangular with UᵀU = P_Δ⁻¹; ``sqrt_info_delta`` (m,) 1/√P_δ.
     full — ``sqrt_info`` (m, 3, 3) upper-triangular with UᵀU = Ω.
     conditional — ``sqrt_info_pp`` (m, 2, 2) upper-triangular with UᵀU = Ω_pp; ``shift`` (m, 2)
-    h = Ω_pp⁻¹Ω_pθ."""
+    h = Ω_pp⁻¹Ω_pθ.
 
-    cov_delta_l: np.ndarray
-    var_delta: np.ndarray
-    sqrt_info_delta_l: np.ndarray
-    sqrt_info_delta: np.ndarray
-    sqrt_info: np.ndarray
-    sqrt_info_pp: np.ndarray
-    shift: np.ndarray
+    Each form is computed when first read (a route uses some of them: the seed's the marginal ones, the
+    default the full and conditional ones), a block of edges at a time (``arrays.row_blocks``), with the
+    closed forms of ``lago_cvx.smallmat``."""
+
+    def __init__(self, information: np.ndarray):
+        self.information = np.asarray(information, dtype=float)
+
+    def _per_edge(self, fn, *shapes) -> list[np.ndarray]:
+        """Outputs (m, *shape) of ``fn(Ω_k)`` (a block of symmetric Ω's → one array per shape)."""
+        info = self.information
+        m = info.shape[0]
+        outs = [np.empty((m,) + sh) for sh in shapes]
+        for k in row_blocks(m):
+            for out, value in zip(outs, fn(_sym(info[k]))):
+                out[k] = value
+        return outs
+
+    @cached_property
+    def var_delta(self) -> np.ndarray:
+        """P_δ = Σ[2, 2] (m,)."""
+        return self._per_edge(lambda om: (spd_inverse(om)[:, 2, 2],), ())[0]
+
+    @cached_property
+    def _marginal(self) -> tuple[np.ndarray, np.ndarray]:
+        def fn(om):
+            cov_l = np.ascontiguousarray(spd_inverse(om)[:, :2, :2])
+            return cov_l, whitening_2x2(spd_inverse(cov_l))
+
+        return tuple(self._per_edge(fn, (2, 2), (2, 2)))
+
+    @property
+    def cov_delta_l(self) -> np.ndarray:
+        """P_Δ = Σ[0:2, 0:2] (m, 2, 2)."""
+        return self._marginal[0]
+
+    @property
+    def sqrt_info_delta_l(self) -> np.ndarray:
+        """(m, 2, 2) upper-triangular U with UᵀU = P_Δ⁻¹."""
+        return self._marginal[1]
+
+    @cached_property
+    def sqrt_info_delta(self) -> np.ndarray:
+        """1/√P_δ (m,)."""
+        return 1.0 / np.sqrt(self.var_delta)
+
+    @cached_property
+    def sqrt_info(self) -> np.ndarray:
+        """(m, 3, 3) upper-triangular U with UᵀU = Ω."""
+        return self._per_edge(lambda om: (np.swapaxes(cholesky(om), 1, 2),), (3, 3))[0]
+
+    @cached_property
+    def _conditional(self) -> tuple[np.ndarray, np.ndarray]:
+        def fn(om):
+            info_pp = np.ascontiguousarray(om[:, :2, :2])
+            return whitening_2x2(info_pp), np.einsum("kab,kb->ka", spd_inverse(info_pp), om[:, :2, 2])
+
+        return tuple(self._per_edge(fn, (2, 2), (2,)))
+
+    @property
+    def sqrt_info_pp(self) -> np.ndarray:
+        """(m, 2, 2) upper-triangular U with UᵀU = Ω_pp."""
+        return self._conditional[0]
+
+    @property
+    def shift(self) -> np.ndarray:
+        """h = Ω_pp⁻¹Ω_pθ (m, 2)."""
+        return self._conditional[1]
 
     @property
     def info_delta(self) -> np.ndarray:
@@ -71,19 +132,6 @@ def _sym(a: np.ndarray) -> np.ndarray:
 
 
 def edge_uncertainty(graph: PoseGraph) -> EdgeUncertainty:
-    """The marginal, full and conditional forms of every edge's information (shapes above)."""
-    info = _sym(graph.information)
-    m = graph.n_edges
-    if m == 0:
-        z2, z3 = np.zeros((0, 2, 2)), np.zeros((0, 3, 3))
-        return EdgeUncertainty(z2, np.zeros(0), z2, np.zeros(0), z3, z2, np.zeros((0, 2)))
-    cov = spd_inverse(info)  # closed forms on the (m, 3, 3) stack (lago_cvx.smallmat)
-    cov_l = cov[:, :2, :2]
-    var_d = cov[:, 2, 2].copy()
-    info_l = spd_inverse(np.ascontiguousarray(cov_l))
-    info_pp = info[:, :2, :2]
-    shift = np.einsum("kab,kb->ka", spd_inverse(np.ascontiguousarray(info_pp)), info[:, :2, 2])
-    sqrt_info = np.swapaxes(cholesky(info), 1, 2)  # UᵀU = Ω, U upper triangular
-    return EdgeUncertainty(cov_delta_l=cov_l, var_delta=var_d, sqrt_info_delta_l=whitening_2x2(info_l),
-                           sqrt_info_delta=1.0 / np.sqrt(var_d), sqrt_info=sqrt_info,
-                           sqrt_info_pp=whitening_2x2(info_pp), shift=shift)
+    """The marginal, full and conditional forms of every edge's information (shapes above; each computed
+    when first read)."""
+    return EdgeUncertainty(graph.information)

@@ -211,3 +211,52 @@ def test_prepared_factorization_is_the_same(monkeypatch):
     assert f.compiled.L is reserved and "_reserved" not in lay.__dict__
     rhs = np.random.default_rng(3).standard_normal(el.d * 3)
     assert np.array_equal(f.solve(rhs), ref.solve(rhs))
+
+
+def _block_map_reference(layout, prow, pcol):
+    """The assembler's map by NumPy (the formulation before ``compiled_kernels.block_map``)."""
+    plan = layout.plan
+    idx = np.flatnonzero((prow >= 0) & (pcol >= 0))
+    pr, pc = plan.position[prow[idx]], plan.position[pcol[idx]]
+    tr = pr < pc
+    lo, hi = np.where(tr, pr, pc), np.where(tr, pc, pr)
+    f = np.repeat(np.arange(plan.n_fronts), plan.pivots)[lo]
+    order = np.argsort(f, kind="stable")
+    bptr = np.r_[0, np.cumsum(np.bincount(f, minlength=plan.n_fronts))]
+    f = f[order]
+    return idx[order], bptr, layout._pose_local(f, hi[order]), lo[order] - plan.fptr[f], tr[order]
+
+
+@pytest.mark.parametrize("anchor", [0, 777])
+def test_block_map_is_the_numpy_formulation(anchor):
+    """The compiled map from N's blocks to their fronts (``CompiledAssembler``) equals the NumPy one, array
+    for array, with the anchor's pairs dropped wherever the anchor is."""
+    g = lc.manhattan_world(2000, seed=4).graph
+    el = GraphElimination(g, anchor)
+    prow, pcol, _ = el.pairs
+    for b in (1, 3):
+        lay = C.CompiledLayout.of(el.plan, b)
+        asm = lay.assembler(prow, pcol)
+        ref = _block_map_reference(lay, prow, pcol)
+        for name, want in zip(("order", "bptr", "li", "lj", "transposed"), ref):
+            assert np.array_equal(getattr(asm, name), want), name
+
+
+def test_the_compiled_engines_relaxation_stores_fewer_zeros(monkeypatch):
+    """When phase 3 will be factored by the compiled engine (3d ≥ COMPILED_MIN) the plan is amalgamated
+    with ``COMPILED_RELAX``: fewer explicit zeros in L (more, smaller fronts) than with the NumPy engine's
+    default, and the same solution to 1e-10."""
+    g = lc.manhattan_world(3000, seed=2).graph
+    monkeypatch.setattr(ne, "COMPILED_MIN", 10**12)
+    el_default, system = _random_system(g, 3, seed=1)
+    assert el_default.relaxation is None
+    p0 = el_default.plan  # (built now: the plan is built on first use)
+    monkeypatch.setattr(ne, "COMPILED_MIN", 0)
+    el_tight, _ = _random_system(g, 3, seed=1)
+    assert el_tight.relaxation == mf.COMPILED_RELAX
+    p1 = el_tight.plan
+    assert p1.nnz < p0.nnz and p1.n_fronts > p0.n_fronts
+    rhs = np.random.default_rng(0).standard_normal(el_default.d * 3)
+    x0 = el_default.factor(system, engine="compiled").solve(rhs)
+    x1 = el_tight.factor(system, engine="compiled").solve(rhs)
+    assert np.abs(x1 - x0).max() <= 1e-10 * np.abs(x0).max()
