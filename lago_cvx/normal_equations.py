@@ -107,7 +107,11 @@ class EdgeSystem:
         return self.A.shape[2]
 
     def operator(self) -> "EdgeOperator":
-        """M and Mᵀ of this system with their set-up done once (for the refinement's repeated products)."""
+        """M and Mᵀ of this system with their set-up done once (for the refinement's repeated products): a
+        ``compiled.CompiledEdgeOperator`` from ``COMPILED_MIN`` unknowns when Numba can be imported (the
+        same sums in the same order), else an ``EdgeOperator``."""
+        if self.d * self.b >= COMPILED_MIN and compiled.available():
+            return compiled.CompiledEdgeOperator(self)
         return EdgeOperator(self)
 
     def matvec(self, x: np.ndarray) -> np.ndarray:

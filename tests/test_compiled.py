@@ -260,3 +260,34 @@ def test_the_compiled_engines_relaxation_stores_fewer_zeros(monkeypatch):
     x0 = el_default.factor(system, engine="compiled").solve(rhs)
     x1 = el_tight.factor(system, engine="compiled").solve(rhs)
     assert np.abs(x1 - x0).max() <= 1e-10 * np.abs(x0).max()
+
+
+@pytest.mark.parametrize("anchor", [0, 1234])
+@pytest.mark.parametrize("b, q", [(1, 1), (2, 2), (3, 3), (3, 4)])
+def test_compiled_edge_operator_is_the_numpy_operator(b, q, anchor):
+    """M x and Mᵀ r of a random edge system (E) by the compiled loops equal the NumPy ``EdgeOperator``'s
+    bit for bit (same sums, same order), anchor terms dropped; more right-hand-side dimensions go to the
+    NumPy operator."""
+    g = lc.manhattan_world(3000, seed=1).graph
+    el = GraphElimination(g, anchor)
+    rng = np.random.default_rng(b * 10 + q)
+    m = g.n_edges
+    system = ne.EdgeSystem(el.tails, el.heads, rng.standard_normal((m, q, b)), rng.standard_normal((m, q, b)),
+                           rng.standard_normal((m, q)), el.d)
+    ref, op = ne.EdgeOperator(system), C.CompiledEdgeOperator(system)
+    x, r = rng.standard_normal((el.d, b)), rng.standard_normal((m, q))
+    assert np.array_equal(op.matvec(x), ref.matvec(x))
+    assert np.array_equal(op.rmatvec(r), ref.rmatvec(r))
+    x2, r2 = rng.standard_normal((el.d, b, 2)), rng.standard_normal((m, q, 2))
+    assert np.array_equal(op.matvec(x2), ref.matvec(x2))
+    assert np.array_equal(op.rmatvec(r2), ref.rmatvec(r2))
+
+
+def test_large_systems_get_the_compiled_operator(monkeypatch):
+    """``EdgeSystem.operator()`` is compiled from COMPILED_MIN unknowns, NumPy's below."""
+    g = lc.manhattan_world(300, seed=0).graph
+    el, system = _random_system(g, 3)
+    monkeypatch.setattr(ne, "COMPILED_MIN", 10**12)
+    assert isinstance(system.operator(), ne.EdgeOperator)
+    monkeypatch.setattr(ne, "COMPILED_MIN", 0)
+    assert isinstance(system.operator(), C.CompiledEdgeOperator)
