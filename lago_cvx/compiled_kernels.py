@@ -340,42 +340,47 @@ def block_map(prow, pcol, position, front_of, fptr, rptr, rows):
 
 @njit(nogil=True, cache=True)
 def edge_matvec(A, B, t, h, x):
-    """M x of the edge system (E): row k is A_k x_{t_k} + B_k x_{h_k} (A, B (m, q, b); t, h (m,), −1 at the
-    anchor, whose x is 0; x (d, b)); the terms added in ``normal_equations.EdgeOperator.matvec``'s order."""
+    """M x of the edge system (E) for r right-hand sides: row k is A_k x_{t_k} + B_k x_{h_k} (A, B (m, q, b);
+    t, h (m,), −1 at the anchor, whose x is 0; x (d, b, r); out (m, q, r)); the terms added in
+    ``normal_equations.EdgeOperator.matvec``'s order."""
     m, q, b = A.shape
-    out = np.empty((m, q))
+    nr = x.shape[2]
+    out = np.empty((m, q, nr))
     for k in range(m):
         tk, hk = t[k], h[k]
         for s in range(q):
-            o = 0.0
-            for c in range(b):
-                xt = x[tk, c] if tk >= 0 else 0.0
-                xh = x[hk, c] if hk >= 0 else 0.0
-                if c == 0:
-                    o = A[k, s, 0] * xt
-                else:
-                    o += A[k, s, c] * xt
-                o += B[k, s, c] * xh
-            out[k, s] = o
+            for j in range(nr):
+                o = 0.0
+                for c in range(b):
+                    xt = x[tk, c, j] if tk >= 0 else 0.0
+                    xh = x[hk, c, j] if hk >= 0 else 0.0
+                    if c == 0:
+                        o = A[k, s, 0] * xt
+                    else:
+                        o += A[k, s, c] * xt
+                    o += B[k, s, c] * xh
+                out[k, s, j] = o
     return out
 
 
 @njit(nogil=True, cache=True)
 def edge_rmatvec(A, B, t, h, r, d):
-    """Mᵀ r (d, b) of the edge system (E) for r (m, q): every tail's A_kᵀ r_k, then every head's B_kᵀ r_k,
-    added in edge order (the order of ``normal_equations.EdgeOperator.rmatvec``'s bincount)."""
+    """Mᵀ r (d, b, nr) of the edge system (E) for r (m, q, nr): every tail's A_kᵀ r_k, then every head's
+    B_kᵀ r_k, added in edge order (the order of ``normal_equations.EdgeOperator.rmatvec``'s bincount)."""
     m, q, b = A.shape
-    out = np.zeros((d, b))
+    nr = r.shape[2]
+    out = np.zeros((d, b, nr))
     for J, ends in ((A, t), (B, h)):
         for k in range(m):
             e = ends[k]
             if e < 0:
                 continue
             for c in range(b):
-                u = J[k, 0, c] * r[k, 0]
-                for s in range(1, q):
-                    u += J[k, s, c] * r[k, s]
-                out[e, c] += u
+                for j in range(nr):
+                    u = J[k, 0, c] * r[k, 0, j]
+                    for s in range(1, q):
+                        u += J[k, s, c] * r[k, s, j]
+                    out[e, c, j] += u
     return out
 
 

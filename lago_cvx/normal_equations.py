@@ -28,6 +28,7 @@ Either way (E) is solved by the corrected semi-normal equations
 from __future__ import annotations
 
 import logging
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -390,6 +391,7 @@ class GraphElimination:
         self._lo = np.minimum(self.tails, self.heads)[both]
         self._hi = np.maximum(self.tails, self.heads)[both]
         self._plan = None
+        self._plan_lock = threading.Lock()
         self._upper_patterns = {}
         self._pose_pattern = None
         self._deferred: list = []
@@ -415,7 +417,11 @@ class GraphElimination:
         """The pose-level ``EliminationPlan``, built on first use (the multifrontal engine and the selected
         inversion need it, QDLDL's solves do not): from the QDLDL factorization of the weighted Laplacian
         when there is one (its AMD ordering and L's pattern), else from the pattern."""
-        if self._plan is None:
+        if self._plan is not None:
+            return self._plan
+        with self._plan_lock:  # built once, whichever thread asks first (GraphElimination.prepare's or this)
+            if self._plan is not None:
+                return self._plan
             relaxation = self.relaxation
             if self.laplacian is not None:
                 L, _, perm = self.laplacian[0].factors()

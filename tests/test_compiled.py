@@ -266,8 +266,7 @@ def test_the_compiled_engines_relaxation_stores_fewer_zeros(monkeypatch):
 @pytest.mark.parametrize("b, q", [(1, 1), (2, 2), (3, 3), (3, 4)])
 def test_compiled_edge_operator_is_the_numpy_operator(b, q, anchor):
     """M x and Mᵀ r of a random edge system (E) by the compiled loops equal the NumPy ``EdgeOperator``'s
-    bit for bit (same sums, same order), anchor terms dropped; more right-hand-side dimensions go to the
-    NumPy operator."""
+    bit for bit (same sums, same order), anchor terms dropped, for one right-hand side and for several."""
     g = lc.manhattan_world(3000, seed=1).graph
     el = GraphElimination(g, anchor)
     rng = np.random.default_rng(b * 10 + q)
