@@ -23,6 +23,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from .arrays import row_blocks
 from .errors import GraphError, OptionError
 from .smallmat import spd_inverse
 
@@ -190,6 +191,15 @@ class PoseGraph:
     def covariance(self) -> np.ndarray:
         """Per-edge covariance Ω⁻¹, shape (m, 3, 3) (closed form, ``lago_cvx.smallmat``)."""
         return spd_inverse(self.information)
+
+    def delta_variance(self, edges=None) -> np.ndarray:
+        """P_δ = (Ω⁻¹)[2, 2] of the edges ``edges`` (indices, default all), shape (len(edges),): the same
+        numbers as ``covariance[edges, 2, 2]``, a block of edges at a time (``arrays.row_blocks``)."""
+        idx = np.arange(self.n_edges) if edges is None else np.asarray(edges, np.int64)
+        out = np.empty(idx.size)
+        for k in row_blocks(idx.size):
+            out[k] = spd_inverse(self.information[idx[k]])[:, 2, 2]
+        return out
 
     # ------------------------------------------------------------ derivations
     def with_initial(self, poses) -> "PoseGraph":
