@@ -119,12 +119,12 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
 
     elim, pos_solver = None, None
 
-    def elimination():  # wait for the worker, then register what runs beside the first QDLDL factorization
+    def elimination(b):  # wait for the worker, then register what runs beside the first QDLDL factorization
         nonlocal elim, pos_solver
         elim = elim_job.result() if elim_job is not None else None
         if elim is not None:  # (the chordal relaxation's, or phase 3's)
-            if method == "closed_form":  # phase 3's compiled factorization, when it will run, made ready
-                elim.prepare(3)  # beside phases 1 and 2
+            if method == "closed_form":  # the next compiled factorization (b×b blocks), when it will run, made
+                elim.prepare(b)  # ready beside the work before it
             elim.defer(lambda: elim.upper_pattern(3))  # phase 3's pattern
             if choice["positions"] == "resolve":
                 pos_solver = PositionSolver(graph, unc, elim)
@@ -132,9 +132,9 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
 
     # Only the chordal regularizer factors on the shared elimination: the others run while it is built.
     early = choice["regularization"] == "chordal"
-    if early:
+    if early:  # the chordal relaxation (2×2 blocks) prepared first, phase 3 after it
         t = time.perf_counter()
-        elimination()
+        elimination(2)
         t_elim += time.perf_counter() - t
 
     t = time.perf_counter()
@@ -149,8 +149,10 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
     timings["regularization"] = time.perf_counter() - t
     if not early:
         t = time.perf_counter()
-        elimination()
+        elimination(3)
         t_elim += time.perf_counter() - t
+    elif elim is not None and method == "closed_form":
+        elim.prepare(3)  # beside phases 1 and 2
     if reg.problem is not None:
         problems[reg.regularization] = reg.problem  # "chordal" or "integer"
 

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from .arrays import row_blocks
 from .graph import _reduced_incidence, free_poses
 from .linalg import Factor, solve_least_squares
 from .normal_equations import EdgeSystem, GraphElimination
@@ -109,15 +110,19 @@ class PositionSolver:
         self.isotropic = isotropic(unc)
         self._factor = None
 
-    def _targets(self, theta: np.ndarray, p0: np.ndarray):
-        g = self.graph
-        Ri = rot2(theta[g.tails])
-        e = wrap_angle(theta[g.heads] - theta[g.tails] - g.delta)
-        t = g.delta_l - self.unc.shift * e[:, None]
-        gk = np.einsum("kab,kb->ka", Ri, t)  # R(θ_i) t_k, (m, 2)
-        el = self.elim
-        gk = gk - (el.heads < 0)[:, None] * p0 + (el.tails < 0)[:, None] * p0  # the anchor's p0 moved right
-        return Ri, gk
+    def _targets(self, theta: np.ndarray, p0: np.ndarray) -> np.ndarray:
+        """g_k = R(θ_i)(Δˡ_k − h_k e_θ,k) (m, 2), the anchor's p0 moved to the right-hand side; a block of
+        edges at a time (``arrays.row_blocks``)."""
+        g, el = self.graph, self.elim
+        shift = self.unc.shift
+        gk = np.empty((g.n_edges, 2))
+        for k in row_blocks(g.n_edges):
+            th_i = theta[g.tails[k]]
+            e = wrap_angle(theta[g.heads[k]] - th_i - g.delta[k])
+            t = g.delta_l[k] - shift[k] * e[:, None]
+            gk[k] = np.einsum("kab,kb->ka", rot2(th_i), t)  # R(θ_i) t_k
+            gk[k] += ((el.tails[k] < 0).astype(float) - (el.heads[k] < 0))[:, None] * p0
+        return gk
 
     def __call__(self, theta, *, anchor_position=(0.0, 0.0)) -> "Positions":
         return self.many([theta], anchor_position=anchor_position)[0]
@@ -147,7 +152,7 @@ class PositionSolver:
             return [self._general(theta, p0) for theta in thetas]
         m, d = self.graph.n_edges, el.d
         s = self.unc.sqrt_info_pp[:, 0, 0]  # √s_k
-        c = np.stack([s[:, None] * self._targets(theta, p0)[1] for theta in thetas], axis=2)  # (m, 2, k)
+        c = np.stack([s[:, None] * self._targets(theta, p0) for theta in thetas], axis=2)  # (m, 2, k)
         system = self._isotropic_system(c.reshape(m, 1, 2 * len(thetas)))
         # factored on the first call (inside solve: with its progress), reused by every later θ
         x, self._factor, stats = el.solve(system, factor=self._factor, stage="positions")
@@ -163,7 +168,7 @@ class PositionSolver:
         """(P) at one θ with general information: the 2d × 2d system of weights C_k R(θ_i)ᵀ."""
         g, el = self.graph, self.elim
         d = el.d
-        Ri, gk = self._targets(theta, p0)
+        Ri, gk = rot2(theta[g.tails]), self._targets(theta, p0)
         Wk = self.unc.sqrt_info_pp @ np.swapaxes(Ri, 1, 2)  # C_k R(θ_i)ᵀ
         system = EdgeSystem(el.tails, el.heads, -Wk, Wk, np.einsum("kab,kb->ka", Wk, gk), d)
         x, factor, stats = el.solve(system, stage="positions")
