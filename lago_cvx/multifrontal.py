@@ -54,7 +54,7 @@ from .block_factor import BlockFactor, inverse_blocks
 from .errors import NumericalError
 from .linalg import blas_threads
 
-__all__ = ["EliminationPlan", "BlockLayout", "BlockFactor", "plan_from_qdldl", "NotPositiveDefinite",
+__all__ = ["EliminationPlan", "BlockLayout", "BlockFactor", "plan_from_qdldl", "plan_from_pattern", "NotPositiveDefinite",
            "inverse_blocks"]
 
 log = logging.getLogger(__name__)
@@ -255,6 +255,25 @@ def plan_from_qdldl(L: sp.csc_matrix, perm: np.ndarray, *, relaxation=None) -> E
     position[np.asarray(perm, np.int64)] = newpos[post]  # pose → old position → postorder → final
     return EliminationPlan(d=d, position=position, fptr=fptr, rptr=rptr, rows=rows, parent=fparent,
                            height=height)
+
+
+def plan_from_pattern(d: int, rows: np.ndarray, cols: np.ndarray, *, relaxation=None) -> EliminationPlan:
+    """The plan of the d × d pose pattern with off-diagonal entries (rows[k], cols[k]) (either
+    orientation, duplicates allowed): AMD and the factor's pattern from QDLDL on a diagonally dominant
+    matrix of that pattern; ``relaxation`` as in ``plan_from_qdldl``."""
+    import qdldl
+
+    rows = np.asarray(rows, np.int64)
+    cols = np.asarray(cols, np.int64)
+    keep = rows != cols
+    lo, hi = np.minimum(rows[keep], cols[keep]), np.maximum(rows[keep], cols[keep])
+    deg = np.bincount(np.r_[lo, hi], minlength=d).astype(float)
+    A = sp.csc_matrix((np.r_[-np.ones(lo.size), deg + 1.0], (np.r_[lo, np.arange(d)], np.r_[hi, np.arange(d)])),
+                      shape=(d, d))
+    A.sum_duplicates()
+    s = qdldl.Solver(A, upper=True)
+    L, _, perm = s.factors()
+    return plan_from_qdldl(L, perm, relaxation=relaxation)
 
 
 @dataclass(eq=False)

@@ -38,7 +38,7 @@ from .graph import free_poses
 from .linalg import Factor, augmented_least_squares, refine_normal_equations
 from . import compiled
 from .compiled import CompiledPoseFactor
-from .multifrontal import COMPILED_RELAX, BlockFactor, EliminationPlan, plan_from_qdldl
+from .multifrontal import COMPILED_RELAX, BlockFactor, EliminationPlan, plan_from_pattern, plan_from_qdldl
 from .posegraph import PoseGraph
 from .progress import Progress
 from .upper_pattern import BlockUpperPattern, PoseUpperPattern, _whole_from_upper
@@ -46,25 +46,6 @@ from .upper_pattern import BlockUpperPattern, PoseUpperPattern, _whole_from_uppe
 __all__ = ["plan_from_pattern", "matrix_blocks", "EdgeSystem", "EdgeOperator", "GraphElimination", "PoseFactor", "BlockUpperPattern", "PoseUpperPattern", "QdldlFactor", "RenumberedFactor", "CompiledPoseFactor", "ENGINE_MIN", "COMPILED_MIN"]
 
 log = logging.getLogger(__name__)
-
-
-def plan_from_pattern(d: int, rows: np.ndarray, cols: np.ndarray, *, relaxation=None) -> EliminationPlan:
-    """The plan of the d × d pose pattern with off-diagonal entries (rows[k], cols[k]) (either
-    orientation, duplicates allowed): AMD and the factor's pattern from QDLDL on a diagonally dominant
-    matrix of that pattern; ``relaxation`` as in ``multifrontal.plan_from_qdldl``."""
-    import qdldl
-
-    rows = np.asarray(rows, np.int64)
-    cols = np.asarray(cols, np.int64)
-    keep = rows != cols
-    lo, hi = np.minimum(rows[keep], cols[keep]), np.maximum(rows[keep], cols[keep])
-    deg = np.bincount(np.r_[lo, hi], minlength=d).astype(float)
-    A = sp.csc_matrix((np.r_[-np.ones(lo.size), deg + 1.0], (np.r_[lo, np.arange(d)], np.r_[hi, np.arange(d)])),
-                      shape=(d, d))
-    A.sum_duplicates()
-    s = qdldl.Solver(A, upper=True)
-    L, _, perm = s.factors()
-    return plan_from_qdldl(L, perm, relaxation=relaxation)
 
 
 def matrix_blocks(N: sp.spmatrix, var_index: np.ndarray):
