@@ -316,8 +316,9 @@ ENGINE_MIN = 1_200_000
 #: Systems with at least this many unknowns are factored by the compiled engine (``lago_cvx.compiled``)
 #: when Numba can be imported (it then takes the place of the NumPy engine above ``ENGINE_MIN`` too).
 #: Phase 3 alone, a fresh process each (benchmarks/million.md): QDLDL against compiled + Numba's import
-#: 0.48 against 0.81 + 0.30 s at 90 000 unknowns, 2.31 against 1.68 + 0.32 s at 300 000, 8.5 against
-#: 3.8 + 0.24 s at 900 000.
+#: 0.375 against 0.216 + 0.160 s at 90 000 unknowns (parity), 1.06 against 0.57 + 0.16 s at 300 000,
+#: 4.41 against 1.50 + 0.16 s at 900 000 (with ``multifrontal.COMPILED_RELAX``; before it, 0.48 against
+#: 0.81 + 0.30, 2.31 against 1.68 + 0.32, 8.5 against 3.8 + 0.24). Kept where the gain is clear.
 COMPILED_MIN = 300_000
 
 
