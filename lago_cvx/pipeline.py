@@ -129,11 +129,27 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
             if choice["positions"] == "resolve":
                 pos_solver = PositionSolver(graph, unc, elim)
                 elim.defer(pos_solver.prefactor)  # the polish's θ-independent factorization (isotropic)
+            if b == 3:
+                prepare_polish()
+
+    def prepare_polish():  # the polish's isotropic system (1×1 blocks, θ-independent) made ready beside phase 3's
+        if method == "closed_form" and pos_solver is not None and pos_solver.isotropic:
+            elim.prepare(1)
+
+    def warm():  # while the worker builds the elimination: the uncertainty forms phases 2–3 will read
+        if elim_job is None or graph.n_edges == 0:
+            return
+        forms = ["sqrt_info_delta_l" if choice["information"] == "marginal" else "sqrt_info"]
+        if choice["positions"] == "resolve":
+            forms.append("sqrt_info_pp")
+        for form in forms:  # each computed once, when first read (lago_cvx.uncertainty)
+            getattr(unc, form)
 
     # Only the chordal regularizer factors on the shared elimination: the others run while it is built.
     early = choice["regularization"] == "chordal"
     if early:  # the chordal relaxation (2×2 blocks) prepared first, phase 3 after it
         t = time.perf_counter()
+        warm()
         elimination(2)
         t_elim += time.perf_counter() - t
 
@@ -149,10 +165,12 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
     timings["regularization"] = time.perf_counter() - t
     if not early:
         t = time.perf_counter()
+        warm()
         elimination(3)
         t_elim += time.perf_counter() - t
     elif elim is not None and method == "closed_form":
         elim.prepare(3)  # beside phases 1 and 2
+        prepare_polish()
     if reg.problem is not None:
         problems[reg.regularization] = reg.problem  # "chordal" or "integer"
 
