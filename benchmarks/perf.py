@@ -20,7 +20,8 @@ import _bench
 import numpy as np
 
 from lago_cvx import lago, manhattan_world
-from lago_cvx.normal_equations import ENGINE_MIN, GraphElimination
+from lago_cvx import compiled
+from lago_cvx.normal_equations import COMPILED_MIN, ENGINE_MIN, GraphElimination
 from lago_cvx.peers import gtsam_factor_graph, gtsam_lago, have_gtsam
 
 FILES = ("se-sync/city10000.g2o", "carlone/input_M3500_g2o.g2o")
@@ -104,6 +105,13 @@ def phase3_solvers(graph, repeat: int, *, cholmod: bool) -> tuple[float, float, 
     return out["direct"], out["engine"], out.get("solver", float("nan")), tc, diff
 
 
+def _uses(unknowns: int) -> str:
+    """Which factorization ``GraphElimination.factor`` picks for phase 3 with so many unknowns, here."""
+    if unknowns >= COMPILED_MIN and compiled.available():
+        return "compiled engine"
+    return "engine" if unknowns >= ENGINE_MIN else "QDLDL"
+
+
 def run(args) -> str:
     skipped = _bench.datasets_skipped()
     _bench.warm_up()
@@ -151,7 +159,7 @@ def run(args) -> str:
         tq, te, ts, tc, diff = phase3_solvers(g, reps, cholmod=cholmod)
         eng_rows.append([name, g.n_poses, 3 * (g.n_poses - 1), f"{tq:.3f}", _bench.fmt(ts, ".3f"), f"{te:.3f}",
                          _bench.fmt(tc, ".3f"), f"{te / tq:.2f}", f"{diff:.1e}",
-                         "engine" if 3 * (g.n_poses - 1) >= ENGINE_MIN else "QDLDL"])
+                         _uses(3 * (g.n_poses - 1))])
         print("  " + " | ".join(map(str, eng_rows[-1])), flush=True)
         del g
     head = ["file", *(f"{k} [ms]" for k in STEPS), "seed route [ms]", "GTSAM initialize [ms]", "default / GTSAM",
@@ -177,8 +185,10 @@ def run(args) -> str:
         f"scalar matrix: the path before `lago_cvx.ldl`, and the fallback; – above {SOLVER_MAX_POSES:,} poses) "
         "and by the multifrontal engine (`lago_cvx.multifrontal`; its symbolic analysis "
         f"— plan, layout, assembler — timed too), median of {args.repeat} runs up to 100 000 poses, one run "
-        "above. LAGO uses the engine from `normal_equations.ENGINE_MIN` = "
-        f"{ENGINE_MIN:,} unknowns. rel. diff = ‖x_engine − x_QDLDL‖∞ / ‖x_QDLDL‖∞. CHOLMOD (the optional "
+        "above. LAGO uses the compiled engine (`lago_cvx.compiled`, the same plan and equations in "
+        "Numba-compiled code; `million.md` times it against QDLDL) from `normal_equations.COMPILED_MIN` = "
+        f"{COMPILED_MIN:,} unknowns when Numba can be imported, and without Numba the engine from "
+        f"`normal_equations.ENGINE_MIN` = {ENGINE_MIN:,} unknowns. rel. diff = ‖x_engine − x_QDLDL‖∞ / ‖x_QDLDL‖∞. CHOLMOD (the optional "
         "`cholmod` extra, `backend=\"cholmod\"`: MᵀM formed, supernodal factorization, the same refinement; "
         "– when scikit-sparse is not installed) runs on whatever BLAS the system's SuiteSparse is linked "
         "to: on Debian that is the reference BLAS unless an optimized one is installed "

@@ -181,7 +181,7 @@ def run(args) -> str:
         "(default route) by step and of `lago(graph, route=\"seed\")`; Σ colcount² of phase 3's actual "
         "factor (the Cholesky multiply–add count); peak memory = the child's own high-water mark "
         "(`VmHWM`: world, graph, both runs and the extra factorization that counts Σ colcount² — more than a "
-        "solve needs: `lago-cvx solve` of the 1M world peaks at 7.0 GiB). Figure: [`scaling.png`](scaling.png).", "",
+        "solve needs: the whole `lago-cvx solve` of the 1M world peaks at 3.6–4.4 GiB, `million.md`). Figure: [`scaling.png`](scaling.png).", "",
         ptable, "",
         "Log–log slopes against edges: " + ", ".join(f"{k} {v:.2f}" for k, v in slopes.items()), "",
         "How to read them. A planar graph of n vertices has a factorization with O(n log n) fill and "

@@ -316,9 +316,10 @@ ENGINE_MIN = 1_200_000
 #: Systems with at least this many unknowns are factored by the compiled engine (``lago_cvx.compiled``)
 #: when Numba can be imported (it then takes the place of the NumPy engine above ``ENGINE_MIN`` too).
 #: Phase 3 alone, a fresh process each (benchmarks/million.md): QDLDL against compiled + Numba's import
-#: 0.375 against 0.216 + 0.160 s at 90 000 unknowns (parity), 1.06 against 0.57 + 0.16 s at 300 000,
-#: 4.41 against 1.50 + 0.16 s at 900 000 (with ``multifrontal.COMPILED_RELAX``; before it, 0.48 against
-#: 0.81 + 0.30, 2.31 against 1.68 + 0.32, 8.5 against 3.8 + 0.24). Kept where the gain is clear.
+#: 0.280 against 0.235 + 0.160 s at 90 000 unknowns, 1.10 against 0.64 + 0.16 s at 300 000, 5.61 against
+#: 1.62 + 0.17 s at 900 000 (another run: 0.375 against 0.216 + 0.160, 1.06 against 0.57 + 0.16, 4.41
+#: against 1.50 + 0.16; with ``multifrontal.COMPILED_RELAX``; before it, 0.48 against 0.81 + 0.30, 2.31
+#: against 1.68 + 0.32, 8.5 against 3.8 + 0.24). Kept where the gain is clear of the noise.
 COMPILED_MIN = 300_000
 
 
