@@ -273,25 +273,27 @@ def backward(Y, seq, b, fptr, rptr, rows, Lptr, L, rmax):
 
 @njit(nogil=True, cache=True)
 def pose_local(f, pos, fptr, rptr, rows):
-    """Local pose index of position pos[t] in front f[t]: pos − first pivot for a pivot, else the
-    front's pivot count plus pos's rank among its update rows (binary search; pos must be in the
-    front)."""
+    """Local pose index of position pos[t] in front f[t] (``_local``)."""
     out = np.empty(f.size, np.int64)
     for t in range(f.size):
-        g = f[t]
-        p = pos[t]
-        if fptr[g] <= p < fptr[g + 1]:
-            out[t] = p - fptr[g]
-        else:
-            lo, hi = rptr[g], rptr[g + 1]
-            while lo < hi:
-                mid = (lo + hi) // 2
-                if rows[mid] < p:
-                    lo = mid + 1
-                else:
-                    hi = mid
-            out[t] = fptr[g + 1] - fptr[g] + lo - rptr[g]
+        out[t] = _local(f[t], pos[t], fptr, rptr, rows)
     return out
+
+
+@njit(nogil=True, cache=True, inline="always")
+def _local(g, p, fptr, rptr, rows):
+    """Local pose index of position p in front g: p − first pivot for a pivot, else the front's pivot
+    count plus p's rank among its update rows (binary search; p must be in the front)."""
+    if fptr[g] <= p < fptr[g + 1]:
+        return p - fptr[g]
+    lo, hi = rptr[g], rptr[g + 1]
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if rows[mid] < p:
+            lo = mid + 1
+        else:
+            hi = mid
+    return fptr[g + 1] - fptr[g] + lo - rptr[g]
 
 
 @njit(nogil=True, cache=True)
@@ -324,17 +326,7 @@ def block_map(prow, pcol, position, front_of, fptr, rptr, rows):
         order[s] = t
         transposed[s] = pr < pc
         lj[s] = lo - fptr[g]
-        if fptr[g] <= hi < fptr[g + 1]:
-            li[s] = hi - fptr[g]
-        else:
-            a, b = rptr[g], rptr[g + 1]
-            while a < b:
-                mid = (a + b) // 2
-                if rows[mid] < hi:
-                    a = mid + 1
-                else:
-                    b = mid
-            li[s] = fptr[g + 1] - fptr[g] + a - rptr[g]
+        li[s] = _local(g, hi, fptr, rptr, rows)
     return order, bptr, li, lj, transposed
 
 
