@@ -377,22 +377,6 @@ def edge_rmatvec(A, B, t, h, r, d):
 
 
 @njit(nogil=True, cache=True)
-def counting_order(key, n):
-    """The stable sort order of ``key`` (values 0 … n − 1) by counting, and the bucket boundaries."""
-    ptr = np.zeros(n + 1, np.int64)
-    for t in range(key.size):
-        ptr[key[t] + 1] += 1
-    for g in range(n):
-        ptr[g + 1] += ptr[g]
-    fill = ptr[:-1].copy()
-    order = np.empty(key.size, np.int64)
-    for t in range(key.size):
-        order[fill[key[t]]] = t
-        fill[key[t]] += 1
-    return order, ptr
-
-
-@njit(nogil=True, cache=True)
 def stack_peak(seq, nchild, sizes):
     """The most stack entries alive at once while the fronts ``seq`` are factored in that order, each
     popping its children's updates and pushing its own (``sizes`` (F,) its r²); updates never popped
@@ -447,7 +431,8 @@ def one(f, b, fptr, rptr, Lptr, L, F, D, fn):
 
 
 #: The kernels by name, and ``fn`` the LAPACK/BLAS addresses of this process.
-KERNELS = dict(assemble=assemble, finish=finish, run=run, forward=forward, backward=backward, stack_peak=stack_peak, one=one,
-               subtrees=subtrees, push=push, pose_local=pose_local,
-               counting_order=counting_order, block_map=block_map, edge_matvec=edge_matvec, edge_rmatvec=edge_rmatvec, relax=njit(nogil=True, cache=True)(supernodes.relax),
+KERNELS = dict(assemble=assemble, finish=finish, run=run, forward=forward, backward=backward,
+               stack_peak=stack_peak, one=one, subtrees=subtrees, push=push, pose_local=pose_local,
+               block_map=block_map, edge_matvec=edge_matvec, edge_rmatvec=edge_rmatvec,
+               relax=njit(nogil=True, cache=True)(supernodes.relax),
                heights=njit(nogil=True, cache=True)(supernodes.heights), fn=_addresses())

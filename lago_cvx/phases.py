@@ -386,11 +386,10 @@ def phase3_edge_system(graph: PoseGraph, theta: np.ndarray, unc: EdgeUncertainty
         J[:, 0, 0] = J[:, 1, 1] = J[:, 2, 2] = -1.0
     for k in row_blocks(m):  # (arrays.row_blocks: temporaries a block long, recycled)
         th_i = theta[graph.tails[k]]
-        Ri = rot2(th_i)
         if full:
             Sdg = np.stack([-delta_g[k, 1], delta_g[k, 0]], 1)  # S Δᵍ (mb, 2)
             T = np.zeros((th_i.size, 3, 3))
-            T[:, :2, :2] = Ri
+            T[:, :2, :2] = rot2(th_i)
             T[:, 2, 2] = 1.0
             Wk = unc.sqrt_info[k] @ np.swapaxes(T, 1, 2)  # (mb, 3, 3)
             Jk = J[:th_i.size]
