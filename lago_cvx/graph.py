@@ -84,15 +84,12 @@ def _neighbours(n: int, tails: np.ndarray, heads: np.ndarray) -> tuple[np.ndarra
     ``scipy.sparse.csgraph``'s undirected traversals visit them, so trees come out identical."""
     t = np.asarray(tails, np.int64)
     h = np.asarray(heads, np.int64)
-    out = unique_sorted(t * n + h)
-    inn = unique_sorted(h * n + t)
-    src = np.concatenate([out // n, inn // n])
-    dst = np.concatenate([out % n, inn % n])
-    part = np.concatenate([np.zeros(out.size, np.int8), np.ones(inn.size, np.int8)])
-    order = np.lexsort((dst, part, src))
+    # one sorted key per (pose, out/in, neighbour): pose·2n + part·n + neighbour, repeats dropped
+    key = unique_sorted(np.concatenate([t * (2 * n) + h, h * (2 * n) + (n + t)]))
+    src, rest = np.divmod(key, 2 * n)
     indptr = np.zeros(n + 1, np.int64)
     np.cumsum(np.bincount(src, minlength=n), out=indptr[1:])
-    return indptr, dst[order]
+    return indptr, rest % n
 
 
 def _bfs_parents(n: int, tails: np.ndarray, heads: np.ndarray, root: int) -> np.ndarray:
@@ -390,15 +387,17 @@ def spanning_tree(graph: PoseGraph, kind="bfs", *, anchor=None) -> SpanningTree:
     Among parallel edges the one with the smallest variance of δ is used.
     """
     anchor = graph.anchor_index(anchor)  # from here on an index
-    check_connected(graph)
     n = graph.n_poses
+    if isinstance(kind, str) and kind == "bfs" and n > 1:  # the traversal finds unreachable poses itself:
+        parent = _bfs(n, graph.tails, graph.heads, anchor)  # the components are counted only to name them
+        if np.count_nonzero(parent < 0) > 1:
+            check_connected(graph)
+        return _tree_from_parent(graph, anchor, parent, "bfs")
+    check_connected(graph)
     if n == 1:
         return SpanningTree(anchor, np.zeros(0, np.int64), np.arange(graph.n_edges), np.array([-1]),
                             np.array([-1]), np.zeros(1, bool), np.zeros(1, np.int64), str(kind))
     if isinstance(kind, str):
-        if kind == "bfs":
-            parent = _bfs(n, graph.tails, graph.heads, anchor)
-            return _tree_from_parent(graph, anchor, parent, "bfs")
         if kind == "odometry":
             odo = np.flatnonzero(graph.is_odometric)
             keys, best = _best_edge_per_pair(graph, odo)
