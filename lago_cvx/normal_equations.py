@@ -41,34 +41,11 @@ from .compiled import CompiledPoseFactor
 from .multifrontal import COMPILED_RELAX, BlockFactor, EliminationPlan, plan_from_pattern, plan_from_qdldl
 from .posegraph import PoseGraph
 from .progress import Progress
-from .upper_pattern import BlockUpperPattern, PoseUpperPattern, _whole_from_upper
+from .upper_pattern import BlockUpperPattern, PoseLaplacian, PoseUpperPattern, QdldlFactor, matrix_blocks
 
 __all__ = ["plan_from_pattern", "matrix_blocks", "EdgeSystem", "EdgeOperator", "GraphElimination", "PoseFactor", "BlockUpperPattern", "PoseUpperPattern", "QdldlFactor", "RenumberedFactor", "CompiledPoseFactor", "ENGINE_MIN", "COMPILED_MIN"]
 
 log = logging.getLogger(__name__)
-
-
-def matrix_blocks(N: sp.spmatrix, var_index: np.ndarray):
-    """The b×b blocks of a sparse symmetric N (system numbering ``var_index`` (d, b)) at every pose pair
-    with an entry, each unordered pair once: ``(prow, pcol, blocks (q, b, b))`` with prow ≥ pcol. For
-    tests and for matrices not assembled from edges."""
-    var_index = np.asarray(var_index, np.int64)
-    d, b = var_index.shape
-    pose = np.empty(d * b, np.int64)
-    comp = np.empty(d * b, np.int64)
-    pose[var_index.reshape(-1)] = np.repeat(np.arange(d), b)
-    comp[var_index.reshape(-1)] = np.tile(np.arange(b), d)
-    C = sp.coo_matrix(N)
-    pi, pj = pose[C.row], pose[C.col]
-    lower = pi >= pj
-    pi, pj, ci, cj, v = pi[lower], pj[lower], comp[C.row][lower], comp[C.col][lower], C.data[lower]
-    key = pi * d + pj
-    uk, inv = np.unique(key, return_inverse=True)
-    blocks = np.zeros((uk.size, b, b))
-    np.add.at(blocks, (inv, ci, cj), v)
-    same = (uk // d) == (uk % d)
-    blocks[same] = np.tril(blocks[same]) + np.swapaxes(np.tril(blocks[same], -1), 1, 2)
-    return uk // d, uk % d, blocks
 
 
 @dataclass(frozen=True, eq=False)
@@ -223,79 +200,6 @@ class PoseFactor(Factor):
         super().__init__(solve, slots.size, "multifrontal")
 
 
-class QdldlFactor(Factor):
-    """A system of (N) factored by QDLDL's LDLᵀ in C: below ``ENGINE_MIN`` unknowns faster than the
-    multifrontal engine, whose Python cost per level of fronts does not pay there.
-
-    With ``pattern`` (a ``BlockUpperPattern``, when ``ldl.available()``): the values scattered into the
-    pattern's upper triangle and factored in the pose-level elimination order by QDLDL's C routines
-    (``lago_cvx.ldl``), the symbolic analysis shared; ``progress(done, total)`` fed while QDLDL runs.
-    Without: assembled as an upper-triangular CSC (pose-major variables i·b + c) and factored by
-    ``qdldl.Solver``, which orders it by AMD first (no progress from inside)."""
-
-    def __init__(self, system: "EdgeSystem", pairs, keep, *, pattern: BlockUpperPattern | None = None,
-                 elimination: "GraphElimination | None" = None, progress=None):
-        b = system.b
-        n = system.d * b
-        self._system, self._elimination = system, elimination
-        if pattern is not None:
-            data = pattern.values_from_entries(system.normal_entries())
-            meanwhile = elimination.deferred_work() if elimination is not None else None
-            ldl = pattern.ldl.factor(data, progress=progress, meanwhile=meanwhile)
-            order, slots = pattern.order, pattern.slots
-            self._flops = pattern.ldl.flops
-
-            def solve(rhs: np.ndarray) -> np.ndarray:
-                return ldl.solve(rhs[order])[slots]
-
-            super().__init__(solve, n, "qdldl", lambda: pattern.matrix(data))
-            return
-        import qdldl
-
-        prow, pcol = pairs
-        blocks = system.normal_blocks()[keep]
-        pr, pc = prow[keep], pcol[keep]
-        cr, cc = np.divmod(np.arange(b * b), b)
-        rows = (pr[:, None] * b + cr).reshape(-1)
-        cols = (pc[:, None] * b + cc).reshape(-1)
-        vals = blocks.reshape(-1)
-        up = rows <= cols
-        lo = ~up  # an entry below the diagonal is stored transposed (N is symmetric; only the upper half)
-        dup = (pr == pc)[:, None].repeat(b * b, 1).reshape(-1) & lo  # diagonal blocks: lower half is a copy
-        r_ = np.where(up, rows, cols)[~dup]
-        c_ = np.where(up, cols, rows)[~dup]
-        upper = sp.csc_matrix((vals[~dup], (r_, c_)), shape=(n, n))
-        solver = qdldl.Solver(upper, upper=True)
-
-        def solve(rhs: np.ndarray) -> np.ndarray:
-            if rhs.ndim == 1:
-                return solver.solve(rhs)
-            return np.column_stack([solver.solve(np.ascontiguousarray(rhs[:, j])) for j in range(rhs.shape[1])])
-
-        def whole() -> sp.csc_matrix:  # built only if someone asks for it
-            return _whole_from_upper(upper)
-
-        def flops() -> float:
-            L = solver.factors()[0]
-            from .ldl import column_work
-
-            return float(column_work(np.diff(L.indptr)).sum())
-
-        self._flops = flops
-        super().__init__(solve, n, "qdldl", whole)
-
-    def flops(self) -> float:
-        """Σ colcount² over the columns of L (diagonal included): the factorization's multiply–adds."""
-        return self._flops()
-
-    def engine_factor(self) -> "PoseFactor | None":
-        """The same matrix factored by the multifrontal engine on the graph's shared pose-level plan (what
-        the selected inversion of ``Phase3.pose_covariances`` needs), or None without the elimination."""
-        if self._elimination is None:
-            return None
-        return self._elimination.factor(self._system, engine=True)
-
-
 #: Systems with at least this many unknowns (d·b) are factored by the multifrontal engine
 #: (``lago_cvx.multifrontal``), smaller ones by QDLDL in the pose-level order (``lago_cvx.ldl``), whose C
 #: loop has no per-front Python cost. Measured (2 cores, a slow day of the shared machine; phase 3 from
@@ -356,7 +260,8 @@ class GraphElimination:
     comes from QDLDL's AMD on the weighted Laplacian A2 diag(weights) A2ᵀ, whose factorization is kept in
     ``laplacian`` (phase 1's normal matrix when weights = 1/P_δ; None if it could not be factored)."""
 
-    def __init__(self, graph: PoseGraph, anchor_index: int, *, weights: np.ndarray | None = None):
+    def __init__(self, graph: PoseGraph, anchor_index: int, *, weights: np.ndarray | None = None,
+                 factor_laplacian: bool = True):
         import qdldl
 
         n = graph.n_poses
@@ -369,7 +274,7 @@ class GraphElimination:
         self.heads = self.free_of[graph.heads]
         self._assemblers = {}
         self._preparing: dict = {}
-        self.laplacian = None
+        self._laplacian, self._lap_pending, self._lap_lock = None, None, threading.Lock()
         both = (self.tails >= 0) & (self.heads >= 0)
         self._lo = np.minimum(self.tails, self.heads)[both]
         self._hi = np.maximum(self.tails, self.heads)[both]
@@ -382,6 +287,8 @@ class GraphElimination:
             self._plan = EliminationPlan(0, np.zeros(0, np.int64), np.zeros(1, np.int64), np.zeros(1, np.int64),
                                          np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64))
             return
+        if weights is not None and self._own_laplacian(np.asarray(weights, dtype=float), factor_laplacian):
+            return
         if weights is not None:
             w = np.asarray(weights, dtype=float)
             lo, hi = self._lo, self._hi
@@ -391,9 +298,44 @@ class GraphElimination:
                                 shape=(d, d))
             try:
                 solver = qdldl.Solver(Lap, upper=True)
-                self.laplacian = (solver, Lap)
+                self._laplacian = (solver, Lap)
             except Exception as exc:  # not quasi-definite in floating point: the plan from the pattern alone
                 log.info("weighted pose Laplacian not factored by QDLDL (%s); plan from the pattern", exc)
+
+    def _own_laplacian(self, w: np.ndarray, now: bool) -> bool:
+        """AMD of the pose graph called directly (``lago_cvx.amd``) and the weighted Laplacian factored on
+        the graph's b = 1 pattern (``upper_pattern.PoseLaplacian``), here (``now``) or when ``laplacian`` is
+        first read; False (nothing kept) when AMD cannot be called, and ``qdldl.Solver`` orders and factors
+        the Laplacian instead."""
+        from . import amd, ldl
+
+        perm = amd.order(self.d, self._lo, self._hi) if ldl.available() else None
+        if perm is None:
+            return False
+        self._position = np.empty(self.d, np.int64)
+        self._position[perm] = np.arange(self.d)
+        self._lap_pending = (w, perm)
+        if now and self.laplacian is None:  # a zero pivot: as with qdldl.Solver, the plan from the pattern
+            del self._position
+            self._upper_patterns, self._pose_pattern = {}, None
+        return True
+
+    @property
+    def laplacian(self):
+        """(a factor with ``solve``, ``factors()`` and ``matrix()`` of the weighted pose Laplacian, None) —
+        or ``(qdldl.Solver, its upper triangle)`` when AMD could not be called directly; None without
+        weights or when QDLDL met a zero pivot. Factored on first read when the constructor was told to
+        wait (``factor_laplacian=False``: the chordal route factors it beside its relaxation)."""
+        if self._lap_pending is not None:
+            with self._lap_lock:
+                if self._lap_pending is not None:
+                    w, perm = self._lap_pending
+                    try:
+                        self._laplacian = (PoseLaplacian(self.upper_pattern(1), w, perm), None)
+                    except Exception as exc:
+                        log.info("weighted pose Laplacian not factored by QDLDL (%s); plan from the pattern", exc)
+                    self._lap_pending = None
+        return self._laplacian
 
     @property
     def plan(self) -> EliminationPlan:

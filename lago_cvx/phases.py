@@ -218,7 +218,7 @@ def phase1_closed_form(graph: PoseGraph, delta_reg, unc: EdgeUncertainty, *, anc
             lambda r: op.rmatvec(r.reshape(-1, 1)).reshape(-1), system.c.reshape(-1))
         if not trusted:
             x, factor, stats = elim.solve(system, stage="phase 1")
-        info = (lambda: (Lap + Lap.T - sp.diags(Lap.diagonal())).tocsr())
+        info = (lambda: solver.matrix()) if Lap is None else (lambda: (Lap + Lap.T - sp.diags(Lap.diagonal())).tocsr())
     else:
         x, factor, stats = elim.solve(system, stage="phase 1")
         info = (lambda: (system.sparse().T @ system.sparse()).tocsr())

@@ -19,7 +19,7 @@ import numpy as np
 from . import phases as P
 from .errors import GraphError, check_choice
 from .graph import spanning_tree as build_tree
-from .metrics import relative_difference
+from .metrics import chi2, relative_difference
 from .posegraph import PoseGraph, compose
 from .normal_equations import GraphElimination
 from .positions import Polish, PositionSolver, polish, positions_from_problem, resolve_positions
@@ -104,8 +104,12 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
     # QDLDL's binding releases the GIL, so it runs in a worker thread while this one builds the tree.
     t = time.perf_counter()
     unc = edge_uncertainty(graph)
-    elim_job = _Beside(lambda: GraphElimination(graph, a, weights=unc.info_delta)) \
-        if method == "closed_form" and backend == "auto" else None
+    elim_job = None
+    early = choice["regularization"] == "chordal"  # factors on the shared elimination before phase 1
+    if method == "closed_form" and backend == "auto":
+        weights = unc.info_delta  # here: the worker starts with AMD, whose call releases the GIL at once
+        # Ω_θ factored in the worker, or (chordal) beside the relaxation's factorization, which waits for AMD
+        elim_job = _Beside(lambda: GraphElimination(graph, a, weights=weights, factor_laplacian=not early))
     t_elim = time.perf_counter() - t
 
     t = time.perf_counter()
@@ -126,6 +130,7 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
             if method == "closed_form":  # the next compiled factorization (b×b blocks), when it will run, made
                 elim.prepare(b)  # ready beside the work before it
             elim.defer(lambda: elim.upper_pattern(3))  # phase 3's pattern
+            elim.defer(lambda: elim.laplacian)  # Ω_θ's factorization, when it waited (phase 1 needs it)
             if choice["positions"] == "resolve":
                 pos_solver = PositionSolver(graph, unc, elim)
                 elim.defer(pos_solver.prefactor)  # the polish's θ-independent factorization (isotropic)
@@ -146,7 +151,6 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
             getattr(unc, form)
 
     # Only the chordal regularizer factors on the shared elimination: the others run while it is built.
-    early = choice["regularization"] == "chordal"
     if early:  # the chordal relaxation (2×2 blocks) prepared first, phase 3 after it
         t = time.perf_counter()
         warm()
@@ -182,8 +186,12 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
                                                         settings=solver_settings)
     timings["phase1"] = time.perf_counter() - t + t_elim
     at_theta_hat = {}
-    if pos_solver is not None and pos_solver.isotropic:  # the polish's θ̂ trial, beside phase 3's factorization
-        elim.defer(lambda: at_theta_hat.setdefault("base", pos_solver(ph1.theta)))
+    if pos_solver is not None and pos_solver.isotropic:  # the polish's θ̂ trial and its χ², beside phase 3's
+        def theta_hat_trial():  # factorization
+            at_theta_hat["base"] = pos_solver(ph1.theta)
+            at_theta_hat["cost"] = chi2(graph, at_theta_hat["base"].poses)
+
+        elim.defer(theta_hat_trial)
 
     t = time.perf_counter()
     ph2 = P.phase2(graph, ph1.theta, unc, anchor=aid, information=choice["information"], delta_reg=reg.delta_reg,
@@ -203,7 +211,7 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
     pol, poses = None, ph3.poses
     if choice["positions"] == "resolve":
         pol = _polish(graph, ph1.theta, ph3.poses[:, 2], unc, aid, method, backend, solver_settings, problems, elim,
-                      pos_solver, at_theta_hat.get("base"))
+                      pos_solver, at_theta_hat.get("base"), at_theta_hat.get("cost"))
         poses = pol.poses
     timings["positions"] = time.perf_counter() - t
 
@@ -248,10 +256,10 @@ class _Beside:
 
 
 def _polish(graph, theta_hat, theta_star, unc, aid, method, backend, settings, problems, elim=None,
-            solver=None, base=None) -> Polish:
+            solver=None, base=None, base_cost=None) -> Polish:
     """The position polish in closed form or as cvxpy problems (the last one solved is kept). In closed
     form one ``PositionSolver`` (``solver``, or a new one) serves every trial (isotropic information: one
-    factorization for all); ``base`` the trial at θ̂ when it was solved already."""
+    factorization for all); ``base`` the trial at θ̂ when it was solved already, ``base_cost`` its χ²."""
     if solver is None and elim is not None:
         solver = PositionSolver(graph, unc, elim)
 
@@ -265,7 +273,8 @@ def _polish(graph, theta_hat, theta_star, unc, aid, method, backend, settings, p
     if method == "closed_form" and backend == "auto" and solver is not None and solver.elim.anchor_index == \
             graph.anchor_index(aid):
         many = solver.many  # both first trials as right-hand sides of one system (isotropic information)
-    return polish(graph, theta_hat, theta_star, unc, solve_positions=solve_positions, solve_many=many, base=base)
+    return polish(graph, theta_hat, theta_star, unc, solve_positions=solve_positions, solve_many=many, base=base,
+                  base_cost=base_cost if base is not None else None)
 
 
 def compare_methods(graph: PoseGraph, *, solver_settings: ClarabelSettings | None = None, anchors=None,

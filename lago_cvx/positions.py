@@ -259,7 +259,8 @@ class Polish:
 
 
 def polish(graph: PoseGraph, theta_hat, theta_star, unc: EdgeUncertainty, *, solve_positions, objective=None,
-           max_halvings: int = MAX_HALVINGS, solve_many=None, base: "Positions | None" = None) -> Polish:
+           max_halvings: int = MAX_HALVINGS, solve_many=None, base: "Positions | None" = None,
+           base_cost: float | None = None) -> Polish:
     """Positions by (P) at phase 3's orientations θ*, guarded by phase 1's θ̂.
 
     Let F(θ) = χ²(positions of (P) at θ, θ), the cost with the positions eliminated exactly. Phase 3's
@@ -271,8 +272,8 @@ def polish(graph: PoseGraph, theta_hat, theta_star, unc: EdgeUncertainty, *, sol
     F(θ̂) and the cost is two solves of (P). ``solve_positions(theta) -> Positions`` solves (P) (closed
     form or cvxpy); ``solve_many(thetas) -> list[Positions]``, when given, solves the first two trials
     together (``PositionSolver.many``); ``base``, when given, is (P) at θ̂ solved already (``lago``
-    solves it beside phase 3's factorization); ``objective(poses)`` is the cost compared (default χ²;
-    the variants add their priors)."""
+    solves it beside phase 3's factorization) and ``base_cost`` its cost, when computed already;
+    ``objective(poses)`` is the cost compared (default χ²; the variants add their priors)."""
     from .metrics import chi2
 
     cost = (lambda poses: chi2(graph, poses)) if objective is None else objective
@@ -284,7 +285,7 @@ def polish(graph: PoseGraph, theta_hat, theta_star, unc: EdgeUncertainty, *, sol
         best, base = solve_many([theta_hat + step, theta_hat])
     else:
         best, base = solve_positions(theta_hat + step), solve_positions(theta_hat)
-    trials = [(1.0, cost(best.poses)), (0.0, cost(base.poses))]
+    trials = [(1.0, cost(best.poses)), (0.0, cost(base.poses) if base_cost is None else float(base_cost))]
     alpha = 1.0
     if trials[0][1] > trials[1][1]:
         best, alpha = base, 0.0

@@ -6,7 +6,9 @@ Every system of LAGO's closed forms has the anchor-reduced pose graph's pattern 
 triangle in elimination order, the pose-level CSC and its elimination tree and column counts — is
 computed once per graph (``PoseUpperPattern``); each b expands it (``BlockUpperPattern``): the scalar
 CSC, the scatter map of ``EdgeSystem.normal_entries`` into its values (one ``np.bincount`` per system),
-and the symbolic analysis expanded from the pose level (``ldl.LDLPattern.expanded``).
+and the symbolic analysis expanded from the pose level (``ldl.LDLPattern.expanded``). On it,
+``QdldlFactor`` factors a system by QDLDL and ``PoseLaplacian`` the weighted pose Laplacian (phase 1's
+Ω_θ).
 """
 
 from __future__ import annotations
@@ -14,12 +16,37 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-__all__ = ["PoseUpperPattern", "BlockUpperPattern"]
+from .linalg import Factor
+
+__all__ = ["PoseUpperPattern", "BlockUpperPattern", "PoseLaplacian", "QdldlFactor", "matrix_blocks"]
 
 
 def _whole_from_upper(U: sp.spmatrix) -> sp.csc_matrix:
     """The symmetric matrix whose upper triangle (diagonal included) is ``U``: U + Uᵀ − diag(U)."""
     return sp.csc_matrix(U + U.T - sp.diags(U.diagonal()))
+
+
+def matrix_blocks(N: sp.spmatrix, var_index: np.ndarray):
+    """The b×b blocks of a sparse symmetric N (system numbering ``var_index`` (d, b)) at every pose pair
+    with an entry, each unordered pair once: ``(prow, pcol, blocks (q, b, b))`` with prow ≥ pcol. For
+    tests and for matrices not assembled from edges."""
+    var_index = np.asarray(var_index, np.int64)
+    d, b = var_index.shape
+    pose = np.empty(d * b, np.int64)
+    comp = np.empty(d * b, np.int64)
+    pose[var_index.reshape(-1)] = np.repeat(np.arange(d), b)
+    comp[var_index.reshape(-1)] = np.tile(np.arange(b), d)
+    C = sp.coo_matrix(N)
+    pi, pj = pose[C.row], pose[C.col]
+    lower = pi >= pj
+    pi, pj, ci, cj, v = pi[lower], pj[lower], comp[C.row][lower], comp[C.col][lower], C.data[lower]
+    key = pi * d + pj
+    uk, inv = np.unique(key, return_inverse=True)
+    blocks = np.zeros((uk.size, b, b))
+    np.add.at(blocks, (inv, ci, cj), v)
+    same = (uk // d) == (uk % d)
+    blocks[same] = np.tril(blocks[same]) + np.swapaxes(np.tril(blocks[same], -1), 1, 2)
+    return uk // d, uk % d, blocks
 
 
 class PoseUpperPattern:
@@ -145,3 +172,104 @@ class BlockUpperPattern:
         n = self.slots.size
         N = _whole_from_upper(sp.csc_matrix((data, self.ldl.indices, self.indptr), shape=(n, n)))
         return sp.csc_matrix(N[self.slots][:, self.slots])
+
+
+class PoseLaplacian:
+    """Ω_θ = A2 diag(w) A2ᵀ (d × d: the weighted Laplacian of the anchor-reduced pose graph, phase 1's
+    normal matrix when w = 1/P_δ) factored by QDLDL's routines (``lago_cvx.ldl``) on the graph's b = 1
+    pattern ``pattern`` (a ``BlockUpperPattern``), in the AMD order ``perm`` (d,) it was built in (the
+    pose eliminated at each position). It stands where ``qdldl.Solver`` stood: ``solve(rhs)`` for rhs
+    (d,) or (d, r) in free-pose order; ``factors()`` → (L strictly lower, CSC, in elimination order; D;
+    perm); ``matrix()`` the whole Laplacian (CSR, free-pose order). Raises ``NumericalError`` on a zero
+    pivot, as ``qdldl.Solver`` does."""
+
+    def __init__(self, pattern: BlockUpperPattern, weights: np.ndarray, perm: np.ndarray):
+        w = np.asarray(weights, dtype=float)
+        self._pattern, self.perm = pattern, perm
+        self._data = pattern.values_from_entries(np.stack([w, w, -w]).reshape(3, 1, 1, -1))  # (N): A = −√w, B = √w
+        self._ldl = pattern.ldl.factor(self._data)
+
+    def solve(self, rhs: np.ndarray) -> np.ndarray:
+        p = self._pattern
+        return self._ldl.solve(rhs[p.order])[p.slots]
+
+    def factors(self):
+        f, n = self._ldl, self._pattern.ldl.n
+        nnz = f.pattern.nnz_L
+        return sp.csc_matrix((f.Lx[:nnz], f.Li[:nnz], f.Lp), shape=(n, n)), f.D, self.perm
+
+    def matrix(self) -> sp.csr_matrix:
+        return self._pattern.matrix(self._data).tocsr()
+
+
+class QdldlFactor(Factor):
+    """A system of (N) factored by QDLDL's LDLᵀ in C: below ``ENGINE_MIN`` unknowns faster than the
+    multifrontal engine, whose Python cost per level of fronts does not pay there.
+
+    With ``pattern`` (a ``BlockUpperPattern``, when ``ldl.available()``): the values scattered into the
+    pattern's upper triangle and factored in the pose-level elimination order by QDLDL's C routines
+    (``lago_cvx.ldl``), the symbolic analysis shared; ``progress(done, total)`` fed while QDLDL runs.
+    Without: assembled as an upper-triangular CSC (pose-major variables i·b + c) and factored by
+    ``qdldl.Solver``, which orders it by AMD first (no progress from inside)."""
+
+    def __init__(self, system, pairs, keep, *, pattern: BlockUpperPattern | None = None, elimination=None,
+                 progress=None):  # system: an EdgeSystem; elimination: its GraphElimination
+        b = system.b
+        n = system.d * b
+        self._system, self._elimination = system, elimination
+        if pattern is not None:
+            data = pattern.values_from_entries(system.normal_entries())
+            meanwhile = elimination.deferred_work() if elimination is not None else None
+            ldl = pattern.ldl.factor(data, progress=progress, meanwhile=meanwhile)
+            order, slots = pattern.order, pattern.slots
+            self._flops = pattern.ldl.flops
+
+            def solve(rhs: np.ndarray) -> np.ndarray:
+                return ldl.solve(rhs[order])[slots]
+
+            super().__init__(solve, n, "qdldl", lambda: pattern.matrix(data))
+            return
+        import qdldl
+
+        prow, pcol = pairs
+        blocks = system.normal_blocks()[keep]
+        pr, pc = prow[keep], pcol[keep]
+        cr, cc = np.divmod(np.arange(b * b), b)
+        rows = (pr[:, None] * b + cr).reshape(-1)
+        cols = (pc[:, None] * b + cc).reshape(-1)
+        vals = blocks.reshape(-1)
+        up = rows <= cols
+        lo = ~up  # an entry below the diagonal is stored transposed (N is symmetric; only the upper half)
+        dup = (pr == pc)[:, None].repeat(b * b, 1).reshape(-1) & lo  # diagonal blocks: lower half is a copy
+        r_ = np.where(up, rows, cols)[~dup]
+        c_ = np.where(up, cols, rows)[~dup]
+        upper = sp.csc_matrix((vals[~dup], (r_, c_)), shape=(n, n))
+        solver = qdldl.Solver(upper, upper=True)
+
+        def solve(rhs: np.ndarray) -> np.ndarray:
+            if rhs.ndim == 1:
+                return solver.solve(rhs)
+            return np.column_stack([solver.solve(np.ascontiguousarray(rhs[:, j])) for j in range(rhs.shape[1])])
+
+        def whole() -> sp.csc_matrix:  # built only if someone asks for it
+            return _whole_from_upper(upper)
+
+        def flops() -> float:
+            L = solver.factors()[0]
+            from .ldl import column_work
+
+            return float(column_work(np.diff(L.indptr)).sum())
+
+        self._flops = flops
+        super().__init__(solve, n, "qdldl", whole)
+
+    def flops(self) -> float:
+        """Σ colcount² over the columns of L (diagonal included): the factorization's multiply–adds."""
+        return self._flops()
+
+    def engine_factor(self):
+        """A ``PoseFactor``: the same matrix factored by the multifrontal engine on the graph's shared pose-level plan (what
+        the selected inversion of ``Phase3.pose_covariances`` needs), or None without the elimination."""
+        if self._elimination is None:
+            return None
+        return self._elimination.factor(self._system, engine=True)
