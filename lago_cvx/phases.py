@@ -63,7 +63,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from .arrays import BLOCK, row_blocks
+from .arrays import row_blocks
 from .graph import _reduced_incidence, free_poses
 from .linalg import Factor, refine_normal_equations, solve_least_squares
 from .block_factor import inverse_blocks
@@ -332,9 +332,13 @@ def phase2(graph: PoseGraph, theta: np.ndarray, unc: EdgeUncertainty, *, anchor=
     if information == "full" and delta_reg is None:
         raise OptionError("phase2(information='full') needs delta_reg, the regularized δ of phase 1")
     theta = np.asarray(theta, dtype=float)
-    delta_g = np.empty((graph.n_edges, 2))  # eq. (9), a block of edges at a time
+    delta_g = np.empty((graph.n_edges, 2))  # eq. (9), a block of edges at a time: R(θ̂_i) Δˡ written out
     for k in row_blocks(graph.n_edges):
-        delta_g[k] = np.einsum("kab,kb->ka", rot2(theta[graph.tails[k]]), graph.delta_l[k])
+        th_i = theta[graph.tails[k]]
+        cs, sn = np.cos(th_i), np.sin(th_i)
+        lx, ly = graph.delta_l[k, 0], graph.delta_l[k, 1]
+        delta_g[k, 0] = cs * lx - sn * ly
+        delta_g[k, 1] = sn * lx + cs * ly
     free_of = np.full(graph.n_poses, -1, np.int64)
     free_of[free_poses(graph.n_poses, a)] = np.arange(graph.n_poses - 1)
     tails = free_of[graph.tails] if elimination is None else elimination.tails
@@ -382,22 +386,29 @@ def phase3_edge_system(graph: PoseGraph, theta: np.ndarray, unc: EdgeUncertainty
     full = information == "full"
     if full:
         delta_reg = np.asarray(delta_reg, dtype=float)
-        J = np.zeros((min(m, BLOCK), 3, 3))
-        J[:, 0, 0] = J[:, 1, 1] = J[:, 2, 2] = -1.0
     for k in row_blocks(m):  # (arrays.row_blocks: temporaries a block long, recycled)
         th_i = theta[graph.tails[k]]
-        if full:
-            Sdg = np.stack([-delta_g[k, 1], delta_g[k, 0]], 1)  # S Δᵍ (mb, 2)
-            T = np.zeros((th_i.size, 3, 3))
-            T[:, :2, :2] = rot2(th_i)
-            T[:, 2, 2] = 1.0
-            Wk = unc.sqrt_info[k] @ np.swapaxes(T, 1, 2)  # (mb, 3, 3)
-            Jk = J[:th_i.size]
-            Jk[:, :2, 2] = -Sdg
-            np.matmul(Wk, Jk, out=A[k])
-            B[k] = Wk
-            cu = np.concatenate([delta_g[k] - Sdg * th_i[:, None], delta_reg[k, None]], 1)
-            c[k] = np.einsum("kab,kb->ka", Wk, cu)
+        if full:  # the 3×3 products written out (NumPy's stacked matmul is slow on 3×3): U upper triangular
+            U = unc.sqrt_info[k]
+            cs, sn = np.cos(th_i), np.sin(th_i)
+            gx, gy = delta_g[k, 0], delta_g[k, 1]
+            W = [[U[:, 0, 0] * cs - U[:, 0, 1] * sn, U[:, 0, 0] * sn + U[:, 0, 1] * cs, U[:, 0, 2]],  # U Tᵀ
+                 [-(U[:, 1, 1] * sn), U[:, 1, 1] * cs, U[:, 1, 2]],
+                 [None, None, U[:, 2, 2]]]
+            cu = (gx + gy * th_i, gy - gx * th_i, delta_reg[k])  # Δᵍ − SΔᵍ θ̂_i, δ_reg
+            Ak, Bk, ck = A[k], B[k], c[k]
+            for r in range(3):
+                w0, w1, w2 = W[r]
+                Bk[:, r, 2] = w2
+                if w0 is None:  # the third row of U Tᵀ is (0, 0, u22)
+                    np.negative(w2, out=Ak[:, r, 2])
+                    ck[:, r] = w2 * cu[2]
+                    continue
+                Bk[:, r, 0], Bk[:, r, 1] = w0, w1
+                np.negative(w0, out=Ak[:, r, 0])
+                np.negative(w1, out=Ak[:, r, 1])
+                Ak[:, r, 2] = w0 * gy - w1 * gx - w2  # W [[−I₂, −SΔᵍ], [0, −1]], S Δᵍ = (−gy, gx)
+                ck[:, r] = w0 * cu[0] + w1 * cu[1] + w2 * cu[2]
         else:  # the 2×2 products written out: U_Δ R(θ̂_i)ᵀ, U_Δ SΔˡ (NumPy's stacked matmul is slow on 2×2)
             U = unc.sqrt_info_delta_l[k]
             u00, u01, u10, u11 = U[:, 0, 0], U[:, 0, 1], U[:, 1, 0], U[:, 1, 1]
