@@ -108,8 +108,15 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
     early = choice["regularization"] == "chordal"  # factors on the shared elimination before phase 1
     if method == "closed_form" and backend == "auto":
         weights = unc.info_delta  # here: the worker starts with AMD, whose call releases the GIL at once
-        # Ω_θ factored in the worker, or (chordal) beside the relaxation's factorization, which waits for AMD
-        elim_job = _Beside(lambda: GraphElimination(graph, a, weights=weights, factor_laplacian=not early))
+        # Ω_θ factored in the worker; or (chordal) beside the relaxation's factorization, whose pattern the
+        # worker builds after AMD while this thread computes the uncertainty forms (``warm``)
+        def eliminate():
+            el = GraphElimination(graph, a, weights=weights, factor_laplacian=not early)
+            if early:
+                el.upper_pattern(2)
+            return el
+
+        elim_job = _Beside(eliminate)
     t_elim = time.perf_counter() - t
 
     t = time.perf_counter()

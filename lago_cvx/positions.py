@@ -120,7 +120,9 @@ class PositionSolver:
             th_i = theta[g.tails[k]]
             e = wrap_angle(theta[g.heads[k]] - th_i - g.delta[k])
             t = g.delta_l[k] - shift[k] * e[:, None]
-            gk[k] = np.einsum("kab,kb->ka", rot2(th_i), t)  # R(θ_i) t_k
+            cs, sn = np.cos(th_i), np.sin(th_i)  # R(θ_i) t_k, written out
+            gk[k, 0] = cs * t[:, 0] - sn * t[:, 1]
+            gk[k, 1] = sn * t[:, 0] + cs * t[:, 1]
             gk[k] += ((el.tails[k] < 0).astype(float) - (el.heads[k] < 0))[:, None] * p0
         return gk
 
