@@ -97,13 +97,12 @@ _POOL_LOCK = threading.Lock()
 
 
 def _give_back(region) -> None:
-    """A region whose array is gone: kept for reuse while the pool has room, else unmapped."""
+    """A region whose array is going: kept for reuse while the pool has room; else left to be unmapped
+    when the array lets go of it (it still holds the region's buffer while this runs)."""
     with _POOL_LOCK:
         if sum(len(r) for r in _POOL) + len(region) <= HUGE_POOL:
             _POOL.append(region)
             _POOL.sort(key=len)
-            return
-    region.close()
 
 
 def huge_empty(n: int, dtype) -> np.ndarray:
@@ -137,7 +136,7 @@ def huge_empty(n: int, dtype) -> np.ndarray:
     except (OSError, ValueError) as exc:  # no such advice on this kernel, or no memory map
         log.debug("huge pages not used (%s)", exc)
         return np.empty(n, dtype)
-    weakref.finalize(raw, _give_back, region)  # every view of the array holds raw: freed after the last
+    weakref.finalize(raw, _give_back, region).atexit = False  # every view holds raw: after the last one
     start = (-raw.ctypes.data) % _HUGE
     return raw[start:start + nbytes].view(dtype)
 

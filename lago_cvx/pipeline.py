@@ -21,7 +21,7 @@ from .errors import GraphError, check_choice
 from .graph import spanning_tree as build_tree
 from .metrics import chi2, relative_difference
 from .posegraph import PoseGraph, compose
-from .normal_equations import GraphElimination
+from .normal_equations import COMPILED_MIN, GraphElimination
 from .positions import Polish, PositionSolver, polish, positions_from_problem, resolve_positions
 from .regularization import REGULARIZATIONS, regularize
 from .result import LagoResult
@@ -112,7 +112,7 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
         # worker builds after AMD while this thread computes the uncertainty forms (``warm``)
         def eliminate():
             el = GraphElimination(graph, a, weights=weights, factor_laplacian=not early)
-            if early:
+            if early and 2 * el.d < COMPILED_MIN:  # below it QDLDL factors the relaxation on this pattern
                 el.upper_pattern(2)
             return el
 
