@@ -13,11 +13,8 @@ from.
 
 from __future__ import annotations
 
-import json
 import statistics
-import sys
 import time
-from pathlib import Path
 
 import _bench
 import numpy as np
@@ -115,27 +112,16 @@ def _uses(unknowns: int) -> str:
     return "engine" if unknowns >= ENGINE_MIN else "QDLDL"
 
 
-#: The process's allocator in each in-process table: glibc told to keep freed memory (as the ``lago-cvx``
-#: process does, ``lago_cvx.allocator.keep_freed_memory``) and glibc's defaults. Each in its own child.
-ALLOCATORS = ("kept", "default")
-
-
-def inprocess_rows(repeat: int, allocator: str) -> list[list[str]]:
-    """The in-process table's rows (one per file of ``FILES`` found): ``repeat`` interleaved runs of our
-    default route, our seed route and GTSAM's ``initialize``, their medians. Run in a child process
-    (``python benchmarks/perf.py --child ALLOCATOR``) whose allocator is set first."""
-    if allocator == "kept":
-        from lago_cvx.allocator import keep_freed_memory
-
-        keep_freed_memory()
+def run(args) -> str:
+    skipped = _bench.datasets_skipped()
     _bench.warm_up()
     gt = have_gtsam()
-    rows = []
-    for rel, g in _bench.each_dataset(FILES):
+    rows, cov_rows = [], []
+    for rel, g in ([] if skipped else _bench.each_dataset(FILES)):
         fg = gtsam_factor_graph(g) if gt else None
         ours, seed, gtsam = {}, [], []
         lago(g), lago(g, route="seed")
-        for _ in range(repeat):
+        for _ in range(args.repeat):
             res = lago(g)
             for k in STEPS:
                 ours.setdefault(k, []).append(res.timings[k])
@@ -146,27 +132,13 @@ def inprocess_rows(repeat: int, allocator: str) -> list[list[str]]:
                 gtsam.append(gtsam_lago(g, factor_graph=fg)[1])
         med = {k: 1e3 * statistics.median(v) for k, v in ours.items()}
         tg = 1e3 * statistics.median(gtsam) if gt else float("nan")
-        rows.append([rel, allocator, *(f"{med[k]:.1f}" for k in STEPS), f"{1e3 * statistics.median(seed):.1f}",
+        rows.append([rel, *(f"{med[k]:.1f}" for k in STEPS), f"{1e3 * statistics.median(seed):.1f}",
                      _bench.fmt(tg, ".1f"), _bench.fmt(med["total"] / tg, ".2f"),
                      _bench.fmt(1e3 * statistics.median(seed) / tg, ".2f"), f"{res.chi2:.6g}"])
-    return rows
-
-
-def run(args) -> str:
-    skipped = _bench.datasets_skipped()
-    _bench.warm_up()
-    rows, cov_rows = [], []
-    if not skipped:
-        for allocator in ALLOCATORS:
-            _, _, out = _bench.run_child([sys.executable, str(Path(__file__).resolve()), "--child", allocator,
-                                          "--repeat", str(args.repeat)])
-            for row in json.loads(out.strip().splitlines()[-1]):
-                rows.append(row)
-                print("  " + " | ".join(row), flush=True)
-    for rel, g in ([] if skipped else _bench.each_dataset(FILES[:1])):  # covariances on city10000
-        res = lago(g)
-        t, _ = _bench.median_time(res.pose_covariances, max(1, args.repeat // 2))
-        cov_rows.append([rel, g.n_poses, f"{t:.3f}"])
+        print("  " + " | ".join(rows[-1]), flush=True)
+        if rel == FILES[0]:
+            t, _ = _bench.median_time(res.pose_covariances, max(1, args.repeat // 2))
+            cov_rows.append([rel, g.n_poses, f"{t:.3f}"])
     n = args.cov_poses or (10_000 if args.quick else COV_WORLD)
     w = manhattan_world(n, seed=0).graph
     res = lago(w)
@@ -190,16 +162,14 @@ def run(args) -> str:
                          _uses(3 * (g.n_poses - 1))])
         print("  " + " | ".join(map(str, eng_rows[-1])), flush=True)
         del g
-    head = ["file", "allocator", *(f"{k} [ms]" for k in STEPS), "seed route [ms]", "GTSAM initialize [ms]", "default / GTSAM",
+    head = ["file", *(f"{k} [ms]" for k in STEPS), "seed route [ms]", "GTSAM initialize [ms]", "default / GTSAM",
             "seed / GTSAM", "χ² default"]
     return "\n".join([
         "# LAGO against GTSAM's lago.initialize, in process", "",
         f"Medians of {args.repeat} interleaved runs (ours default route, ours seed route, GTSAM), wall clock, "
         "file reading excluded; GTSAM gets diagonal noise models and a prior (`lago_cvx.peers`), only "
         "`initialize` is timed. phase1 includes the pose-level analysis shared by every system (AMD and the "
-        "factorization of Ω_θ). Each allocator in its own child process, GTSAM in the same one: *kept* — "
-        "glibc told to keep freed memory for reuse (`lago_cvx.allocator.keep_freed_memory()`, what the "
-        "`lago-cvx` process does; a library user opts in); *default* — glibc's defaults.", "",
+        "factorization of Ω_θ).", "",
         skipped or _bench.table(head, rows), "",
         "## Marginal covariances", "",
         "`res.pose_covariances()`: every 3×3 pose block of phase 3's (Ω*)⁻¹ by selected inversion "
@@ -227,13 +197,3 @@ def run(args) -> str:
                       "engine / QDLDL",
                       "rel. diff", "LAGO uses"], eng_rows),
     ])
-
-
-if __name__ == "__main__":  # the in-process table's child: python benchmarks/perf.py --child ALLOCATOR --repeat N
-    import argparse
-
-    parser = argparse.ArgumentParser()
-    parser.add_argument("--child", choices=ALLOCATORS, required=True)
-    parser.add_argument("--repeat", type=int, default=5)
-    a = parser.parse_args()
-    print(json.dumps(inprocess_rows(a.repeat, a.child)))
