@@ -65,15 +65,10 @@ def main(argv=None) -> int:
     """Run one ``lago-cvx`` command; ``argv=None`` means the process's own command line.
 
     Only then (the console entry point) are NumPy's unused submodules made lazy before SciPy loads
-    (:mod:`lago_cvx.cli.startup`) and glibc's allocator told to keep freed memory
-    (:mod:`lago_cvx.allocator`); an in-process caller passing ``argv`` keeps its import state and its
-    allocator.
+    (:mod:`lago_cvx.cli.startup`); an in-process caller passing ``argv`` keeps its import state.
     """
     if argv is None:
         defer_unused_numpy_modules()
-        from ..allocator import keep_freed_memory
-
-        keep_freed_memory()  # this process is ours: freed memory reused, not faulted in again
     parser = build_parser()
     args = parser.parse_args(argv)
     _configure_logging(args.verbose + getattr(args, "verbose_after", 0))
