@@ -256,9 +256,11 @@ class GraphElimination:
     """The pose-level elimination of one graph and anchor (index ``anchor_index``), shared by its systems.
 
     ``d`` free poses; ``free_of`` (n,) each pose's free index (−1 at the anchor); ``tails``, ``heads``
-    (m,) edges' ends as free indices; ``plan`` the ``EliminationPlan``. With ``weights`` (m,) the plan
-    comes from QDLDL's AMD on the weighted Laplacian A2 diag(weights) A2ᵀ, whose factorization is kept in
-    ``laplacian`` (phase 1's normal matrix when weights = 1/P_δ; None if it could not be factored)."""
+    (m,) edges' ends as free indices; ``plan`` the ``EliminationPlan``. With ``weights`` (m,) the order
+    is AMD's on the pose graph (``lago_cvx.amd``; through ``qdldl.Solver`` where AMD cannot be called
+    directly) and the weighted Laplacian A2 diag(weights) A2ᵀ is factored in it and kept in ``laplacian``
+    (phase 1's normal matrix when weights = 1/P_δ; None if it could not be factored): here, or on first
+    read with ``factor_laplacian=False``."""
 
     def __init__(self, graph: PoseGraph, anchor_index: int, *, weights: np.ndarray | None = None,
                  factor_laplacian: bool = True):

@@ -101,7 +101,8 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
 
     # The pose-level elimination, shared by every closed-form system: AMD and the factorization of phase 1's
     # Ω_θ = A2 P_δ⁻¹ A2ᵀ (QDLDL), the elimination tree and fronts (lago_cvx.multifrontal); timed as phase 1.
-    # QDLDL's binding releases the GIL, so it runs in a worker thread while this one builds the tree.
+    # AMD (lago_cvx.amd) and QDLDL run in C without the GIL, so they run in a worker thread while this one
+    # builds the tree.
     t = time.perf_counter()
     unc = edge_uncertainty(graph)
     elim_job = None
