@@ -95,7 +95,8 @@ def test_a_singular_laplacian_leaves_the_plan_to_the_pattern():
     assert el.plan.d == el.d and np.array_equal(el.elimination_position, el.plan.position)
 
 
-def test_huge_pages_are_aligned_and_reused_only_after_the_last_view():
+def test_huge_pages_are_aligned_and_reused_only_after_the_last_view(monkeypatch):
+    monkeypatch.setattr(ldl, "_POOL", [])  # regions earlier tests left: not this test's
     n = ldl.HUGE_MIN // 8 + 1000
     a = ldl.huge_empty(n, np.float64)
     assert a.shape == (n,) and a.dtype == np.float64 and a.ctypes.data % (2 << 20) == 0
