@@ -184,15 +184,16 @@ def augmented_least_squares(M: sp.spmatrix, b: np.ndarray) -> np.ndarray:
     return x
 
 
-def refine_normal_equations(solve, matvec, rmatvec, b: np.ndarray):
+def refine_normal_equations(solve, matvec, rmatvec, b: np.ndarray, *, first: np.ndarray | None = None):
     """x = N⁻¹Mᵀb for a factored N = MᵀM (``solve``), then the corrected semi-normal equations
     x ← x + N⁻¹Mᵀ(b − Mx) while the correction shrinks (at most ``REFINEMENT_STEPS``, stopping below
     ``REFINEMENT_STOP`` relative: the next one would be at rounding level). ``matvec(x) = Mx``,
     ``rmatvec(r) = Mᵀr``. Returns ``(x, stats, trusted)``: ``stats``
     with ``method``, ``refinement_steps``, ``relative_correction`` (the last correction relative to
-    ‖x‖∞); ``trusted`` False when x is not finite or that correction exceeds ``TRUST_TOLERANCE``."""
+    ‖x‖∞); ``trusted`` False when x is not finite or that correction exceeds ``TRUST_TOLERANCE``.
+    ``first``, when given, is Mᵀb computed already."""
     stats = {"method": "normal equations", "refinement_steps": 0, "relative_correction": 0.0}
-    x = solve(rmatvec(b))
+    x = solve(rmatvec(b) if first is None else first)
     scale = max(np.max(np.abs(x)) if x.size else 0.0, np.finfo(float).tiny)
     last = np.inf
     rel = 0.0

@@ -506,18 +506,29 @@ class GraphElimination:
         tracker = Progress(stage, callback=progress, logger=log) if progress is not None or d > 200_000 else None
         trusted = False
         x = None
+        extra = system.c.shape[2:]  # several right-hand sides: (d·b, r)
+        m, q = system.c.shape[:2]
+        ahead = {}
+
+        def operator_ahead():  # M's operator and Mᵀc, while QDLDL factors (they do not need the factor)
+            ahead["op"] = system.operator()
+            ahead["first"] = ahead["op"].rmatvec(system.c).reshape((d * b,) + extra)
+
         try:
             if factor is None:
-                factor = self.factor(system, progress=None if tracker is None else
-                                     (lambda i, n: tracker.update(0.9 * i / n)))
-            extra = system.c.shape[2:]  # several right-hand sides: (d·b, r)
-            m, q = system.c.shape[:2]
-            op = system.operator()
+                self.defer(operator_ahead)
+                try:
+                    factor = self.factor(system, progress=None if tracker is None else
+                                         (lambda i, n: tracker.update(0.9 * i / n)))
+                finally:
+                    if operator_ahead in self._deferred:  # not run (no QDLDL factorization to run beside)
+                        self._deferred.remove(operator_ahead)
+            op = ahead.get("op") or system.operator()
             x, stats, trusted = refine_normal_equations(
                 factor.solve,
                 lambda v: op.matvec(v.reshape((d, b) + extra)).reshape((m * q,) + extra),
                 lambda r: op.rmatvec(r.reshape((m, q) + extra)).reshape((d * b,) + extra),
-                system.c.reshape((m * q,) + extra))
+                system.c.reshape((m * q,) + extra), first=ahead.get("first"))
         except Exception as exc:  # NotPositiveDefinite, QDLDL "not quasi-definite", LinAlgError
             log.info("normal equations could not be factored (%s): using the augmented system", exc)
         if not trusted:
