@@ -109,11 +109,14 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
     early = choice["regularization"] == "chordal"  # factors on the shared elimination before phase 1
     if method == "closed_form" and backend == "auto":
         weights = unc.info_delta  # here: the worker starts with AMD, whose call releases the GIL at once
-        # Ω_θ factored in the worker; or (chordal) beside the relaxation's factorization, whose pattern the
-        # worker builds after AMD while this thread computes the uncertainty forms (``warm``)
+        # Ω_θ factored in the worker; or, when QDLDL factors the chordal relaxation (below COMPILED_MIN
+        # unknowns), beside that factorization, whose pattern the worker builds after AMD while this thread
+        # computes the uncertainty forms (``warm``). Above, the compiled engine's plan needs Ω_θ's factor.
+        qdldl_first = early and 2 * (graph.n_poses - 1) < COMPILED_MIN
+
         def eliminate():
-            el = GraphElimination(graph, a, weights=weights, factor_laplacian=not early)
-            if early and 2 * el.d < COMPILED_MIN:  # below it QDLDL factors the relaxation on this pattern
+            el = GraphElimination(graph, a, weights=weights, factor_laplacian=not qdldl_first)
+            if qdldl_first:
                 el.upper_pattern(2)
             return el
 
