@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import importlib.util
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -69,6 +70,7 @@ def run(args) -> str:
         bytecode = "absent and never written (PYTHONDONTWRITEBYTECODE is set), so every start compiles it"
     else:
         bytecode = "written by the warm-up run"
+    parent_peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     head = ["file", "ours [s]", "GTSAM [s]", "ours / GTSAM", "pairwise ratios", "ours peak [MiB]",
             "GTSAM peak [MiB]"]
     return "\n".join([
@@ -76,6 +78,9 @@ def run(args) -> str:
         f"Medians of {pairs} alternating pairs of fresh processes, after one warm-up each. Ours: `python -m "
         "lago_cvx solve FILE -o OUT` (default route); GTSAM: `python ../shared/bench/gtsam_lago.py FILE OUT` "
         f"(readG2o, lago.initialize, writeG2o). Bytecode of the package: {bytecode} (`python -m compileall "
-        "-q lago_cvx` once compiles it where PYTHONDONTWRITEBYTECODE is set).", "",
+        "-q lago_cvx` once compiles it where PYTHONDONTWRITEBYTECODE is set). Peaks are each child's "
+        "`ru_maxrss` (`os.wait4`), which Linux starts from the parent's resident size at the fork: this "
+        f"run's parent had peaked at {parent_peak:.0f} MiB, so no peak above can read lower than that (run "
+        "this section first, or alone, for the children's own peaks).", "",
         _bench.table(head, rows),
     ])
