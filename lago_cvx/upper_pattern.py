@@ -268,8 +268,9 @@ class QdldlFactor(Factor):
         return self._flops()
 
     def engine_factor(self):
-        """A ``PoseFactor``: the same matrix factored by the multifrontal engine on the graph's shared pose-level plan (what
-        the selected inversion of ``Phase3.pose_covariances`` needs), or None without the elimination."""
+        """A ``PoseFactor``: the same matrix factored by the multifrontal engine on the graph's shared
+        pose-level plan (what the selected inversion of ``Phase3.pose_covariances`` needs), or None without
+        the elimination."""
         if self._elimination is None:
             return None
         return self._elimination.factor(self._system, engine=True)
