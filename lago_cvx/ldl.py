@@ -94,17 +94,18 @@ HUGE_MIN = 256 << 10
 #: Freed huge-page regions kept for the next factorization, up to this many bytes in all.
 HUGE_POOL = 64 << 20
 _HUGE = 2 << 20  # the size of a huge page
-_POOL: list = []  # free regions (mmap objects), smallest first
+_POOL: list = []  # free regions (mmap objects), smallest first; read and changed under _POOL_LOCK
+_RETURNED: list = []  # regions given back since, moved into _POOL by the next huge_empty
 _POOL_LOCK = threading.Lock()
 
 
 def _give_back(region) -> None:
     """A region whose array is going: kept for reuse while the pool has room; else left to be unmapped
-    when the array lets go of it (it still holds the region's buffer while this runs)."""
-    with _POOL_LOCK:
-        if sum(len(r) for r in _POOL) + len(region) <= HUGE_POOL:
-            _POOL.append(region)
-            _POOL.sort(key=len)
+    when the array lets go of it (it still holds the region's buffer while this runs). No lock: this runs
+    whenever the array is freed, possibly inside ``huge_empty`` (a garbage collection), and ``append`` is
+    atomic."""
+    if sum(map(len, _POOL)) + sum(map(len, _RETURNED)) + len(region) <= HUGE_POOL:
+        _RETURNED.append(region)
 
 
 def huge_empty(n: int, dtype) -> np.ndarray:
@@ -126,10 +127,12 @@ def huge_empty(n: int, dtype) -> np.ndarray:
     need = (nbytes + 2 * _HUGE - 1) // _HUGE * _HUGE  # a huge page more than the array: room to align
     region = None
     with _POOL_LOCK:
-        for i, r in enumerate(_POOL):
-            if len(r) >= need:
-                region = _POOL.pop(i)
-                break
+        while _RETURNED:
+            _POOL.append(_RETURNED.pop())
+        _POOL.sort(key=len)
+        fit = [i for i, r in enumerate(_POOL) if len(r) >= need]
+        if fit:
+            region = _POOL.pop(fit[0])
     try:
         if region is None:
             region = mmap.mmap(-1, need)

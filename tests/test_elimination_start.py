@@ -97,6 +97,7 @@ def test_a_singular_laplacian_leaves_the_plan_to_the_pattern():
 
 def test_huge_pages_are_aligned_and_reused_only_after_the_last_view(monkeypatch):
     monkeypatch.setattr(ldl, "_POOL", [])  # regions earlier tests left: not this test's
+    monkeypatch.setattr(ldl, "_RETURNED", [])
     n = ldl.HUGE_MIN // 8 + 1000
     a = ldl.huge_empty(n, np.float64)
     assert a.shape == (n,) and a.dtype == np.float64 and a.ctypes.data % (2 << 20) == 0
@@ -115,7 +116,7 @@ def test_huge_pages_are_aligned_and_reused_only_after_the_last_view(monkeypatch)
     assert small.base is None  # below HUGE_MIN: plain NumPy memory
     del b, c
     gc.collect()
-    assert sum(len(r) for r in ldl._POOL) <= ldl.HUGE_POOL
+    assert sum(len(r) for r in ldl._POOL + ldl._RETURNED) <= ldl.HUGE_POOL
 
 
 def test_var_delta_is_spd_inverses_entry_bit_for_bit():
