@@ -6,7 +6,8 @@ each in a few vectorized passes (tens of milliseconds). Symmetric positive defin
 a matrix whose closed form breaks down (a pivot ≤ 0 or not finite) is handed to ``numpy.linalg``
 instead, which gives the same answer or raises ``numpy.linalg.LinAlgError`` as before.
 
-* ``spd_inverse(A)`` — A⁻¹ = adj(A)/det(A) (cofactors of the symmetric matrix; the result symmetric).
+* ``spd_inverse(A)`` — A⁻¹ = adj(A)/det(A) (cofactors of the symmetric matrix; the result symmetric);
+  ``spd_inverse_corner(A)`` its (2, 2) entry alone (P_δ of an edge's 3×3 information).
 * ``cholesky(A)`` — lower L with L Lᵀ = A (the column-by-column recurrences of an unblocked Cholesky).
 """
 
@@ -14,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["spd_inverse", "cholesky"]
+__all__ = ["spd_inverse", "spd_inverse_corner", "cholesky"]
 
 
 def _closed_form(A, kernel, lapack) -> np.ndarray:
@@ -46,12 +47,7 @@ def _adjugate(A: np.ndarray, out: np.ndarray) -> np.ndarray:
         out[:, 0, 0], out[:, 1, 1] = d / det, a / det
         out[:, 0, 1] = out[:, 1, 0] = -b / det
     else:
-        a00, a10, a11 = A[:, 0, 0], A[:, 1, 0], A[:, 1, 1]
-        a20, a21, a22 = A[:, 2, 0], A[:, 2, 1], A[:, 2, 2]
-        c00 = a11 * a22 - a21 * a21
-        c10 = a21 * a20 - a10 * a22
-        c20 = a10 * a21 - a11 * a20
-        det = a00 * c00 + a10 * c10 + a20 * c20
+        (a00, a10, a11, a20, a21, a22), (c00, c10, c20), det = _cofactors3(A)
         out[:, 0, 0] = c00 / det
         out[:, 1, 0] = out[:, 0, 1] = c10 / det
         out[:, 2, 0] = out[:, 0, 2] = c20 / det
@@ -59,6 +55,30 @@ def _adjugate(A: np.ndarray, out: np.ndarray) -> np.ndarray:
         out[:, 2, 1] = out[:, 1, 2] = (a10 * a20 - a00 * a21) / det
         out[:, 2, 2] = (a00 * a11 - a10 * a10) / det
     return (det > 0) & np.isfinite(det)
+
+
+def _cofactors3(A: np.ndarray):
+    """The lower triangle of symmetric A (m, 3, 3), the cofactors of its first column and det(A)."""
+    a00, a10, a11 = A[:, 0, 0], A[:, 1, 0], A[:, 1, 1]
+    a20, a21, a22 = A[:, 2, 0], A[:, 2, 1], A[:, 2, 2]
+    c00 = a11 * a22 - a21 * a21
+    c10 = a21 * a20 - a10 * a22
+    c20 = a10 * a21 - a11 * a20
+    return (a00, a10, a11, a20, a21, a22), (c00, c10, c20), a00 * c00 + a10 * c10 + a20 * c20
+
+
+def spd_inverse_corner(A: np.ndarray) -> np.ndarray:
+    """(A⁻¹)[2, 2] (m,) of symmetric positive definite A (m, 3, 3): ``spd_inverse(A)[:, 2, 2]`` by the
+    same operations, so the same values, without the other five entries; a matrix whose closed form
+    breaks down goes through ``spd_inverse`` as a whole. Only the lower triangle of A is read."""
+    A = np.asarray(A, dtype=float)
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        (a00, a10, a11, _, _, _), _, det = _cofactors3(A)
+        v = (a00 * a11 - a10 * a10) / det
+    bad = ~((det > 0) & np.isfinite(det) & np.isfinite(v))
+    if bad.any():
+        v[bad] = spd_inverse(A[bad])[:, 2, 2]
+    return v
 
 
 def cholesky(A: np.ndarray) -> np.ndarray:

@@ -29,7 +29,7 @@ import numpy as np
 from .arrays import row_blocks
 from .linalg import whitening_2x2
 from .posegraph import PoseGraph
-from .smallmat import cholesky, spd_inverse
+from .smallmat import cholesky, spd_inverse, spd_inverse_corner
 from .routes import INFORMATION_MODES
 
 __all__ = ["EdgeUncertainty", "edge_uncertainty", "INFORMATION_MODES"]
@@ -67,23 +67,8 @@ class EdgeUncertainty:
 
     @cached_property
     def var_delta(self) -> np.ndarray:
-        """P_δ = Σ[2, 2] = (Ω₀₀Ω₁₁ − Ω₁₀²)/det Ω (m,): the one entry of ``smallmat.spd_inverse`` needed, by
-        the same operations (so the same values), without the other five; an edge whose closed form breaks
-        down goes through ``spd_inverse`` as a whole."""
-        info = self.information
-        out = np.empty(info.shape[0])
-        for k in row_blocks(info.shape[0]):
-            a = info[k]
-            a00, a11, a22 = (0.5 * (a[:, i, i] + a[:, i, i]) for i in range(3))
-            a10, a20, a21 = (0.5 * (a[:, i, j] + a[:, j, i]) for i, j in ((1, 0), (2, 0), (2, 1)))
-            with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-                det = a00 * (a11 * a22 - a21 * a21) + a10 * (a21 * a20 - a10 * a22) + a20 * (a10 * a21 - a11 * a20)
-                v = (a00 * a11 - a10 * a10) / det
-            bad = ~((det > 0) & np.isfinite(det) & np.isfinite(v))
-            if bad.any():
-                v[bad] = spd_inverse(_sym(a[bad]))[:, 2, 2]
-            out[k] = v
-        return out
+        """P_δ = Σ[2, 2] (m,): ``smallmat.spd_inverse_corner``, the one entry of Σ = Ω⁻¹ needed."""
+        return self._per_edge(lambda om: (spd_inverse_corner(om),), ())[0]
 
     @cached_property
     def _marginal(self) -> tuple[np.ndarray, np.ndarray]:
