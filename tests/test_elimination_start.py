@@ -100,7 +100,10 @@ def test_huge_pages_are_aligned_and_reused_only_after_the_last_view(monkeypatch)
     monkeypatch.setattr(ldl, "_RETURNED", [])
     n = ldl.HUGE_MIN // 8 + 1000
     a = ldl.huge_empty(n, np.float64)
-    assert a.shape == (n,) and a.dtype == np.float64 and a.ctypes.data % (2 << 20) == 0
+    assert a.shape == (n,) and a.dtype == np.float64
+    if a.base is None:  # no MADV_HUGEPAGE here (another OS, or a kernel that refuses it): plain NumPy memory
+        pytest.skip("transparent huge pages cannot be advised on this machine")
+    assert a.ctypes.data % (2 << 20) == 0
     a[:] = 7.0
     view = a[5:9]
     address = a.ctypes.data
