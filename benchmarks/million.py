@@ -10,7 +10,7 @@ factorization of Ω_θ, that every system shares), the rest of the process (star
 as the difference.
 
 Second table: phase 3 alone (factorization and refined solve of eq. (15), ``GraphElimination.solve``) in
-a fresh process per measurement, by QDLDL and by the compiled engine (``lago_cvx.compiled``, its Numba
+a fresh process per measurement, by QDLDL and by the compiled engine (``lago_cvx.sparse.compiled``, its Numba
 import and the loading of its cached code included, reported apart): where ``COMPILED_MIN`` comes from.
 """
 
@@ -32,14 +32,14 @@ PHASE3_SIZES = (30_000, 100_000, 300_000)
 _PHASE3 = r"""
 import sys, time, json
 import lago_cvx as lc
-from lago_cvx import normal_equations as ne
+from lago_cvx.sparse import normal_equations as ne
 n, engine = int(sys.argv[1]), sys.argv[2]
 g = lc.manhattan_world(n, seed=0).graph
 ne.COMPILED_MIN = 0 if engine == "compiled" else 10**12  # phase 3 (b = 3) only: phase 1 is QDLDL's anyway
 ne.GraphElimination.prepare = lambda self, b: None  # nothing made ready beside phases 1, 2: all timed here
 cap = {}
 if engine == "compiled":  # Numba's import, timed apart (first: the plan and phase 1's products also use it)
-    t = time.perf_counter(); from lago_cvx import compiled; compiled.available()
+    t = time.perf_counter(); from lago_cvx.sparse import compiled; compiled.available()
     cap["numba"] = time.perf_counter() - t
 orig = ne.GraphElimination.solve
 def solve(self, system, **kw):
@@ -106,7 +106,7 @@ def run(args) -> str:
         print("  " + " | ".join(p3[-1]), flush=True)
     head = ["poses", "route", "wall [s]", "range [s]", "peak [GiB]", *(f"{s} [s]" for s in STEPS),
             "rest [s]", "χ²"]
-    from lago_cvx.normal_equations import COMPILED_MIN
+    from lago_cvx.sparse.normal_equations import COMPILED_MIN
 
     return "\n".join([
         "# Large worlds: the whole `lago-cvx solve -o` process, step by step", "",

@@ -4,9 +4,9 @@ step by step, in one process, and the marginal covariances.
 For se-sync/city10000.g2o and carlone/input_M3500_g2o.g2o: ``--repeat`` interleaved runs (ours default
 route, ours seed route, GTSAM) and their medians — interleaving keeps the ratio meaningful on a machine
 whose speed drifts. Then ``res.pose_covariances()`` (selected inversion on phase 3's factor, eq. (T) of
-``lago_cvx.multifrontal``) on city10000 and on a 100 000-pose Manhattan world. Last, phase 3's solve
+``lago_cvx.sparse.multifrontal``) on city10000 and on a 100 000-pose Manhattan world. Last, phase 3's solve
 (factor, refined solve; the engine's symbolic analysis included) by QDLDL in the pose-level order, by
-``qdldl.Solver`` (its own AMD first: the path before ``lago_cvx.ldl``) and by the multifrontal engine on
+``qdldl.Solver`` (its own AMD first: the path before ``lago_cvx.sparse.ldl``) and by the multifrontal engine on
 city10000 and on Manhattan worlds up to 1 000 000 poses: where ``normal_equations.ENGINE_MIN`` comes
 from.
 """
@@ -20,8 +20,8 @@ import _bench
 import numpy as np
 
 from lago_cvx import lago, manhattan_world
-from lago_cvx import compiled
-from lago_cvx.normal_equations import COMPILED_MIN, ENGINE_MIN, GraphElimination
+from lago_cvx.sparse import compiled
+from lago_cvx.sparse.normal_equations import COMPILED_MIN, ENGINE_MIN, GraphElimination
 from lago_cvx.peers import gtsam_factor_graph, gtsam_lago, have_gtsam
 
 FILES = ("se-sync/city10000.g2o", "carlone/input_M3500_g2o.g2o")
@@ -59,7 +59,7 @@ def _cholmod_blas() -> str:
 def phase3_cholmod(system, repeat: int) -> float:
     """Seconds of the same solve by CHOLMOD (the ``cholmod`` extra): MᵀM formed, factored (supernodal,
     its default ordering) and refined by ``linalg.solve_least_squares``; median of ``repeat``."""
-    from lago_cvx.linalg import solve_least_squares
+    from lago_cvx.sparse.linalg import solve_least_squares
 
     M = system.sparse()
     c = system.c.reshape(-1)
@@ -67,17 +67,17 @@ def phase3_cholmod(system, repeat: int) -> float:
 
 
 #: Largest world whose phase 3 is also timed through ``qdldl.Solver`` (QDLDL with its own AMD, the path
-#: before ``lago_cvx.ldl``): above it that takes minutes and decides nothing.
+#: before ``lago_cvx.sparse.ldl``): above it that takes minutes and decides nothing.
 SOLVER_MAX_POSES = 300_000
 
 
 def phase3_solvers(graph, repeat: int, *, cholmod: bool) -> tuple[float, float, float, float, float]:
-    """Seconds of phase 3's solve (eq. (15), seed route) by QDLDL in the pose-level order (``lago_cvx.ldl``),
+    """Seconds of phase 3's solve (eq. (15), seed route) by QDLDL in the pose-level order (``lago_cvx.sparse.ldl``),
     by the multifrontal engine (fresh symbolic analysis each run: plan, layout, assembler), by
     ``qdldl.Solver`` (QDLDL ordering the scalar matrix by its own AMD; nan above ``SOLVER_MAX_POSES``) and by
     CHOLMOD (nan unless ``cholmod``), medians of ``repeat``; and the largest difference of the QDLDL and
     engine solutions relative to ‖x‖∞. One LAGO run provides the system all of them solve."""
-    from lago_cvx import ldl
+    from lago_cvx.sparse import ldl
 
     res = lago(graph, route="seed")
     system = res.phase2.edges
@@ -173,19 +173,19 @@ def run(args) -> str:
         skipped or _bench.table(head, rows), "",
         "## Marginal covariances", "",
         "`res.pose_covariances()`: every 3×3 pose block of phase 3's (Ω*)⁻¹ by selected inversion "
-        "(Takahashi's recurrences on the multifrontal factor, `lago_cvx.multifrontal`: phase 3's own from "
+        "(Takahashi's recurrences on the multifrontal factor, `lago_cvx.sparse.multifrontal`: phase 3's own from "
         "`ENGINE_MIN` unknowns, below it phase 3's system factored again by the engine on the graph's shared "
         "plan, which is timed too), median of "
         f"{max(1, args.repeat // 2)} run(s) (the world: one run).", "",
         _bench.table(["graph", "poses", "pose_covariances [s]"], cov_rows), "",
         "## Phase 3's solve: QDLDL against the multifrontal engine", "",
         "Phase 3 of the seed route (eq. (15), 3(n − 1) unknowns): factorization and refined solve, by QDLDL "
-        "(LDLᵀ in C, called in the pose-level AMD order: `lago_cvx.ldl`, the upper triangle scattered from a "
+        "(LDLᵀ in C, called in the pose-level AMD order: `lago_cvx.sparse.ldl`, the upper triangle scattered from a "
         "pattern whose build is timed too), by `qdldl.Solver` (the same LDLᵀ after QDLDL's own AMD of the "
-        f"scalar matrix: the path before `lago_cvx.ldl`, and the fallback; – above {SOLVER_MAX_POSES:,} poses) "
-        "and by the multifrontal engine (`lago_cvx.multifrontal`; its symbolic analysis "
+        f"scalar matrix: the path before `lago_cvx.sparse.ldl`, and the fallback; – above {SOLVER_MAX_POSES:,} poses) "
+        "and by the multifrontal engine (`lago_cvx.sparse.multifrontal`; its symbolic analysis "
         f"— plan, layout, assembler — timed too), median of {args.repeat} runs up to 100 000 poses, one run "
-        "above. LAGO uses the compiled engine (`lago_cvx.compiled`, the same plan and equations in "
+        "above. LAGO uses the compiled engine (`lago_cvx.sparse.compiled`, the same plan and equations in "
         "Numba-compiled code; `million.md` times it against QDLDL) from `normal_equations.COMPILED_MIN` = "
         f"{COMPILED_MIN:,} unknowns when Numba can be imported, and without Numba the engine from "
         f"`normal_equations.ENGINE_MIN` = {ENGINE_MIN:,} unknowns. rel. diff = ‖x_engine − x_QDLDL‖∞ / ‖x_QDLDL‖∞. CHOLMOD (the optional "

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .arrays import row_blocks
+from .sparse import row_blocks
 from .errors import OptionError
 from .posegraph import PoseGraph, rot2, wrap_angle
 

@@ -63,11 +63,9 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from .arrays import row_blocks
+from .sparse import (EdgeSystem, Factor, GraphElimination, inverse_blocks, matrix_blocks, plan_from_pattern,
+                     PoseFactor, refine_normal_equations, RenumberedFactor, row_blocks, solve_least_squares)
 from .graph import _reduced_incidence, free_poses
-from .linalg import Factor, refine_normal_equations, solve_least_squares
-from .block_factor import inverse_blocks
-from .normal_equations import EdgeSystem, GraphElimination, PoseFactor, RenumberedFactor, matrix_blocks, plan_from_pattern
 from .posegraph import PoseGraph, rot2
 from .errors import OptionError, check_choice
 from .solvers import ClarabelSettings, named_constant, parameter, solve
@@ -119,7 +117,7 @@ class Lazy:
 
 def _selected_diagonal(factor, info, var_index: np.ndarray, progress=None) -> np.ndarray:
     """Diagonal b×b blocks (d, b, b) of info⁻¹ for the variables ``var_index`` (d, b) of each free pose, by
-    selected inversion on the multifrontal factor (``lago_cvx.multifrontal``, eq. (T)): the given factor
+    selected inversion on the multifrontal factor (``lago_cvx.sparse.multifrontal``, eq. (T)): the given factor
     when it is one, else a factorization of ``info`` on its own pose-level plan."""
     if isinstance(factor, PoseFactor):
         return inverse_blocks(factor.blocks)[0]
@@ -148,7 +146,7 @@ class Phase1:
 
     def variances(self) -> np.ndarray:
         """Marginal variances of θ̂ (n,), diag(P_θ) with 0 at the anchor, by selected inversion of Ω_θ
-        (eq. (T) of ``lago_cvx.multifrontal``) — never P_θ itself."""
+        (eq. (T) of ``lago_cvx.sparse.multifrontal``) — never P_θ itself."""
         d = self.theta_free.size
         if d == 0:
             return np.zeros(1)
@@ -182,7 +180,7 @@ def phase1_problem(graph: PoseGraph, delta_reg, unc: EdgeUncertainty, *, anchor=
 
 
 def phase1_system(graph: PoseGraph, delta_reg, unc: EdgeUncertainty, elim: GraphElimination) -> EdgeSystem:
-    """Eq. (13) as the edge system (E) of ``lago_cvx.normal_equations``: per edge k = (i → j),
+    """Eq. (13) as the edge system (E) of ``lago_cvx.sparse.normal_equations``: per edge k = (i → j),
     √(1/P_δ,k) (θ_j − θ_i − δ_reg,k), b = q = 1."""
     w = unc.sqrt_info_delta
     m = graph.n_edges
@@ -193,7 +191,7 @@ def phase1_system(graph: PoseGraph, delta_reg, unc: EdgeUncertainty, elim: Graph
 def phase1_closed_form(graph: PoseGraph, delta_reg, unc: EdgeUncertainty, *, anchor=None,
                        backend: str = "auto", elimination: GraphElimination | None = None) -> Phase1:
     """Phase 1 in closed form (eq. (13)): θ̂ = (A2 P_δ⁻¹ A2ᵀ)⁻¹ A2 P_δ⁻¹ δ_reg by a sparse factorization
-    with corrected semi-normal refinement (``lago_cvx.linalg.refine_normal_equations``).
+    with corrected semi-normal refinement (``lago_cvx.sparse.linalg.refine_normal_equations``).
 
     ``backend="auto"``: the pose-level elimination of the graph (``elimination``, a
     ``normal_equations.GraphElimination`` built with weights 1/P_δ, is reused when given: its QDLDL
@@ -372,7 +370,7 @@ def _phase2_sparse(graph: PoseGraph, theta: np.ndarray, unc: EdgeUncertainty, a:
 def phase3_edge_system(graph: PoseGraph, theta: np.ndarray, unc: EdgeUncertainty, delta_g: np.ndarray,
                        tails: np.ndarray, heads: np.ndarray, *, information: str, delta_reg=None) -> EdgeSystem:
     """Phase 3's least-squares problem ‖W(Bᵀx − z)‖² (eq. (15)) written edge by edge, (E) of
-    ``lago_cvx.normal_equations`` with b = q = 3 and pose variables x_i = (p_x, p_y, θ)_i:
+    ``lago_cvx.sparse.normal_equations`` with b = q = 3 and pose variables x_i = (p_x, p_y, θ)_i:
 
     full — W_k = U_k T_kᵀ (T_k = blkdiag(R(θ̂_i), 1)), A_k = W_k [[−I₂, −SΔᵍ_k], [0, −1]], B_k = W_k,
     c_k = W_k [Δᵍ_k − SΔᵍ_k θ̂_i; δ_reg,k] (module docstring);
@@ -448,7 +446,7 @@ class Phase3:
     def pose_covariances(self, *, progress=None) -> np.ndarray:
         """Marginal 3×3 covariance of every pose (n, 3, 3), order (x, y, θ), zeros at the anchor: the
         diagonal pose blocks of (Ω*)⁻¹ by selected inversion (Takahashi's recurrences, eq. (T) of
-        ``lago_cvx.multifrontal``) on the factor phase 3 used — no dense inverse, no column solves.
+        ``lago_cvx.sparse.multifrontal``) on the factor phase 3 used — no dense inverse, no column solves.
         ``progress`` an optional ``lago_cvx.progress.ProgressCallback``."""
         n = self.poses.shape[0]
         d = n - 1
@@ -512,7 +510,7 @@ def phase3_closed_form(graph: PoseGraph, ph2: Phase2, *, backend: str = "auto",
     phase 2 was.
 
     ``backend="auto"``: the edge system ``ph2.edges`` through the pose-level multifrontal elimination
-    (``lago_cvx.normal_equations``; ``elimination`` reused when given), whose factor also serves
+    (``lago_cvx.sparse.normal_equations``; ``elimination`` reused when given), whose factor also serves
     ``Phase3.pose_covariances``; another backend: ``linalg.solve_least_squares`` on the sparse M.
     ``progress`` an optional ``lago_cvx.progress.ProgressCallback``."""
     n, a = graph.n_poses, ph2.anchor_index

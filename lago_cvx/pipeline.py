@@ -21,7 +21,7 @@ from .errors import GraphError, check_choice
 from .graph import spanning_tree as build_tree
 from .metrics import chi2, relative_difference
 from .posegraph import PoseGraph, compose
-from .normal_equations import COMPILED_MIN, GraphElimination
+from .sparse import COMPILED_MIN, GraphElimination
 from .positions import Polish, PositionSolver, polish, positions_from_problem, resolve_positions
 from .regularization import REGULARIZATIONS, regularize
 from .result import LagoResult
@@ -100,8 +100,8 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
     t_all = time.perf_counter()
 
     # The pose-level elimination, shared by every closed-form system: AMD and the factorization of phase 1's
-    # Ω_θ = A2 P_δ⁻¹ A2ᵀ (QDLDL), the elimination tree and fronts (lago_cvx.multifrontal); timed as phase 1.
-    # AMD (lago_cvx.amd) and QDLDL run in C without the GIL, so they run in a worker thread while this one
+    # Ω_θ = A2 P_δ⁻¹ A2ᵀ (QDLDL), the elimination tree and fronts (lago_cvx.sparse.multifrontal); timed as phase 1.
+    # AMD (lago_cvx.sparse.amd) and QDLDL run in C without the GIL, so they run in a worker thread while this one
     # builds the tree.
     t = time.perf_counter()
     unc = edge_uncertainty(graph)

@@ -23,9 +23,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .arrays import row_blocks
+from .sparse import row_blocks, spd_inverse
 from .errors import GraphError, OptionError
-from .smallmat import spd_inverse
 
 __all__ = ["PoseGraph", "wrap_angle", "rot2", "compose", "between", "is_spd"]
 
@@ -189,7 +188,7 @@ class PoseGraph:
     # ------------------------------------------------------------ covariances
     @property
     def covariance(self) -> np.ndarray:
-        """Per-edge covariance Ω⁻¹, shape (m, 3, 3) (closed form, ``lago_cvx.smallmat``)."""
+        """Per-edge covariance Ω⁻¹, shape (m, 3, 3) (closed form, ``lago_cvx.sparse.smallmat``)."""
         return spd_inverse(self.information)
 
     def delta_variance(self, edges=None) -> np.ndarray:

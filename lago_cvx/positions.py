@@ -28,10 +28,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from .arrays import row_blocks
+from .sparse import EdgeSystem, Factor, GraphElimination, row_blocks, solve_least_squares
 from .graph import _reduced_incidence, free_poses
-from .linalg import Factor, solve_least_squares
-from .normal_equations import EdgeSystem, GraphElimination
 from .phases import Lazy
 from .posegraph import PoseGraph, rot2, wrap_angle
 from .solvers import ClarabelSettings, named_constant, parameter, solve

@@ -37,7 +37,7 @@ drops the anchor's entries and sorts the columns of every row) does not change b
 and is built once; an iteration only computes the (m, 3, 6) block values — no Python loop over
 edges.
 
-Gauss–Newton. Solve the normal equations JᵀJ·dx = −Jᵀr (``lago_cvx.linalg.factorize``, the same
+Gauss–Newton. Solve the normal equations JᵀJ·dx = −Jᵀr (``lago_cvx.sparse.linalg.factorize``, the same
 sparse SPD machinery — QDLDL / SuperLU / CHOLMOD — as LAGO's closed form) and update additively,
 x ← x + dx, which is exact for this (x, y, θ) parametrization (θ stays unwrapped; residuals wrap).
 With g = Jᵀr and H = JᵀJ the linear model ‖r + J dx‖² predicts the decrease −gᵀdx for the GN step.
@@ -68,7 +68,7 @@ import scipy.sparse as sp
 
 from .errors import OptionError, check_choice
 from .graph import accumulate_to_root, check_connected, spanning_tree as build_tree
-from .linalg import SOLVER_BACKENDS, factorize
+from .sparse import SOLVER_BACKENDS, factorize
 from .posegraph import PoseGraph, rot2, wrap_angle
 
 __all__ = ["RefineResult", "refine", "REFINE_METHODS", "odometry_guess", "jacobian", "whitened_residuals",
@@ -248,7 +248,7 @@ def refine(graph: PoseGraph, poses, *, method: str = "gauss-newton", max_iterati
       tolerance — stop when the relative χ² decrease of an iteration is below this.
       anchor — id of the pose held fixed (as in ``lago``; default the smallest id, i.e. index 0 for
         files read by ``lago_cvx.io``); it keeps the value it has in ``poses``.
-      backend — sparse solver, see ``lago_cvx.linalg.factorize``.
+      backend — sparse solver, see ``lago_cvx.sparse.linalg.factorize``.
     Returns a ``RefineResult``. See the module docstring for the maths. Raises ``GraphError`` for a
     disconnected graph (its normal equations are singular), ``ValueError`` for bad arguments.
     """

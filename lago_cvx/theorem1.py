@@ -19,7 +19,7 @@ full information the exact positions given θ̂, ``lago_cvx.positions``), and
 ``theorem1`` computes x̂ and the corrections this way — as the least-squares problems they are the
 normal equations of (p̂ = argmin ‖M_p p − (Wz − M_θ θ̂)‖; [·; δ̃] = argmin ‖MΔ − (Wz − M x̂)‖, whose normal
 equations are HΔ = [0; r_θ]; ρ̃ = argmin ‖M_p ρ + M_θ δ̃‖), each solved with corrected semi-normal
-refinement (``lago_cvx.linalg.solve_least_squares``: accurate also for input_INTEL's cond ≈ 1e8) — and
+refinement (``lago_cvx.sparse.linalg.solve_least_squares``: accurate also for input_INTEL's cond ≈ 1e8) — and
 reports how exactly x* − x̂ = [ρ̃; δ̃] holds (part 1: to rounding), and the χ² of eq. (3) at x̂, at x*, and at the positions re-solved for θ* (part 2: on several
 real graphs χ²(x*) ≫ χ²(x̂); ``python benchmarks/run.py theorem1``). The expansion is not what fails:
 eq. (18) weighs the position residuals with R(θ̂) frozen, and with those weights the step lowers the
@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .linalg import solve_least_squares
+from .sparse import solve_least_squares
 from .metrics import chi2, relative_difference
 from .pipeline import lago
 from .posegraph import PoseGraph, rot2

@@ -26,10 +26,8 @@ from functools import cached_property
 
 import numpy as np
 
-from .arrays import row_blocks
-from .linalg import whitening_2x2
+from .sparse import cholesky, row_blocks, spd_inverse, spd_inverse_corner, whitening_2x2
 from .posegraph import PoseGraph
-from .smallmat import cholesky, spd_inverse, spd_inverse_corner
 from .routes import INFORMATION_MODES
 
 __all__ = ["EdgeUncertainty", "edge_uncertainty", "INFORMATION_MODES"]
@@ -50,7 +48,7 @@ class EdgeUncertainty:
 
     Each form is computed when first read (a route uses some of them: the seed's the marginal ones, the
     default the full and conditional ones), a block of edges at a time (``arrays.row_blocks``), with the
-    closed forms of ``lago_cvx.smallmat``."""
+    closed forms of ``lago_cvx.sparse.smallmat``."""
 
     def __init__(self, information: np.ndarray):
         self.information = np.asarray(information, dtype=float)

@@ -47,7 +47,7 @@ from matplotlib.collections import LineCollection
 import lago_cvx as lc
 from lago_cvx import phases as P
 from lago_cvx.datasets import REFERENCE_CHI2
-from lago_cvx.linalg import block_diagonal_inverse
+from lago_cvx.sparse.linalg import block_diagonal_inverse
 from lago_cvx.metrics import edge_errors, relative_difference
 from lago_cvx.plotting import plot_covariances, plot_trajectory
 from lago_cvx.posegraph import rot2, wrap_angle
@@ -705,7 +705,7 @@ for rel, (gr, t, opt) in measured.items():
 # $P_{\rho^*} = (BP_z^{-1}B^\top)^{-1}$ is dense, but a pose's marginal covariance is only a $3\times3$ block
 # of it (order $x, y, \theta$). `Phase3.pose_covariances()` gets all of them by *selected inversion*: Takahashi's
 # recurrences run backwards over the pose-level block factorization phase 3 already computed
-# (`lago_cvx.multifrontal`), touching only the blocks the factor fills — no dense inverse, no column solves
+# (`lago_cvx.sparse.multifrontal`), touching only the blocks the factor fills — no dense inverse, no column solves
 # (`LagoResult.pose_covariances()` also rotates them when an `anchor_pose` is given). `linalg.block_diagonal_inverse`
 # reaches the same blocks the slow, plain way — batched sparse solves against unit columns — and serves as a
 # second opinion. We compare with the dense inverse on the small graph, with single sparse solves for a few

@@ -18,8 +18,10 @@ PKG = Path(lago_cvx.__file__).resolve().parent
 
 #: The layers of docs/ARCHITECTURE.md, bottom first. A module may import from its own layer or below.
 LAYERS = [
-    ["_version", "errors", "progress", "solvers", "routes", "conventions", "arrays", "smallmat", "posegraph"],
-    ["io", "graph", "linalg", "ldl", "amd", "upper_pattern", "block_factor", "supernodes", "multifrontal", "compiled_kernels", "compiled", "normal_equations", "metrics", "synthetic", "datasets"],
+    ["_version", "errors", "progress", "solvers", "routes", "conventions"],
+    ["sparse"],
+    ["posegraph"],
+    ["io", "graph", "metrics", "synthetic", "datasets"],
     ["uncertainty", "rounding"],
     ["regularization"],
     ["phases", "positions"],
@@ -93,6 +95,25 @@ def test_imports_point_down_only():
             if top in LAYER and _layer(target) > _layer(name):
                 upward.append(f"{name} (layer {_layer(name)}) imports {target} (layer {_layer(target)})")
     assert not upward, "imports that run up a layer:\n" + "\n".join(upward)
+
+
+#: The engine's one door: outside ``lago_cvx/sparse/`` only the package itself may be imported.
+ENGINE = "sparse"
+
+
+def test_engine_is_one_folder_behind_one_door():
+    engine_files = {m for m in MODULES if m.split(".")[0] == ENGINE}
+    assert engine_files and all((PKG / ENGINE) in MODULES[m].parents or m == ENGINE for m in engine_files)
+    private = []
+    for name, path in MODULES.items():
+        if name.split(".")[0] == ENGINE:
+            continue
+        private += [f"{name} imports {t}" for t in _imports(name, path) if t.startswith(ENGINE + ".")]
+    assert not private, "the engine's private modules imported from outside:\n" + "\n".join(private)
+    # and the engine knows nothing of the mathematics above it
+    upward = [f"{name} imports {t}" for name, path in MODULES.items() if name.split(".")[0] == ENGINE
+              for t in _imports(name, path) if not t.startswith(ENGINE) and _layer(t) >= LAYER[ENGINE]]
+    assert not upward, "\n".join(upward)
 
 
 def test_no_import_circles():

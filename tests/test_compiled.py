@@ -1,4 +1,4 @@
-"""The compiled multifrontal engine (lago_cvx.compiled) held to dense linear algebra, to the NumPy engine
+"""The compiled multifrontal engine (lago_cvx.sparse.compiled) held to dense linear algebra, to the NumPy engine
 and to QDLDL inside LAGO: every kernel path (the right-looking loop, LAPACK/BLAS by address, a large front
 on every BLAS thread), one thread and subtrees shared between two, the stack sizes, refusal of a matrix
 that is not positive definite, progress, and that importing the package loads no Numba."""
@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 import lago_cvx as lc
-from lago_cvx import compiled as C
-from lago_cvx import multifrontal as mf
-from lago_cvx import normal_equations as ne
-from lago_cvx.normal_equations import GraphElimination
+from lago_cvx.sparse import compiled as C
+from lago_cvx.sparse import multifrontal as mf
+from lago_cvx.sparse import normal_equations as ne
+from lago_cvx.sparse.normal_equations import GraphElimination
 
 pytestmark = pytest.mark.skipif(not C.available(), reason="Numba cannot be imported here")
 
@@ -183,7 +183,7 @@ def test_import_and_small_systems_load_no_numba():
 
 
 def test_symbolic_loops_compiled_and_in_python_give_the_same_plan(monkeypatch):
-    """The amalgamation and height loops (lago_cvx.supernodes) compiled (COMPILED_LOOPS 0) and in Python
+    """The amalgamation and height loops (lago_cvx.sparse.supernodes) compiled (COMPILED_LOOPS 0) and in Python
     give the same plan, array for array, on a 3000-pose world."""
     g = lc.manhattan_world(3000, seed=1).graph
     monkeypatch.setattr(mf, "COMPILED_LOOPS", 10**12)

@@ -1,5 +1,5 @@
 """The start of every closed form, made cheaper at stop 27: AMD of the pose graph called directly
-(``lago_cvx.amd``), the weighted Laplacian factored on the graph's b = 1 pattern
+(``lago_cvx.sparse.amd``), the weighted Laplacian factored on the graph's b = 1 pattern
 (``upper_pattern.PoseLaplacian``, at once or on first read), L's arrays on reused huge pages
 (``ldl.huge_empty``), P_δ by its one cofactor (``EdgeUncertainty.var_delta``), the BFS adjacency from one
 sort (``graph._neighbours``) and the refinement's stopping rule (``linalg.REFINEMENT_STOP``). Each is
@@ -15,13 +15,14 @@ import qdldl
 import scipy.sparse as sp
 
 import lago_cvx as lc
-from lago_cvx import amd, graph as G, ldl, linalg
-from lago_cvx.arrays import unique_sorted
+from lago_cvx import graph as G
+from lago_cvx.sparse import amd, ldl, linalg
+from lago_cvx.sparse.arrays import unique_sorted
 from lago_cvx.errors import GraphError
-from lago_cvx.normal_equations import GraphElimination
-from lago_cvx.smallmat import spd_inverse
+from lago_cvx.sparse.normal_equations import GraphElimination
+from lago_cvx.sparse.smallmat import spd_inverse
 from lago_cvx.uncertainty import _sym, edge_uncertainty
-from lago_cvx.upper_pattern import PoseLaplacian
+from lago_cvx.sparse.upper_pattern import PoseLaplacian
 
 pytestmark = pytest.mark.skipif(not (ldl.available() and amd.available()),
                                 reason="qdldl's C routines are not exported by this build")

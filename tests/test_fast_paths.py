@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 import lago_cvx as lc
-from lago_cvx import multifrontal as mf
-from lago_cvx import normal_equations as ne
-from lago_cvx.normal_equations import GraphElimination, plan_from_pattern
+from lago_cvx.sparse import multifrontal as mf
+from lago_cvx.sparse import normal_equations as ne
+from lago_cvx.sparse.normal_equations import GraphElimination, plan_from_pattern
 from lago_cvx.positions import PositionSolver, isotropic
 from lago_cvx.progress import Progress
 from lago_cvx.uncertainty import edge_uncertainty
@@ -86,7 +86,7 @@ def test_blas_threads_sets_and_restores_the_thread_count():
     threadpoolctl = pytest.importorskip("threadpoolctl")
     import scipy.linalg  # noqa: F401  (its BLAS loaded before counting, as blas_threads loads it)
 
-    from lago_cvx.linalg import blas_threads
+    from lago_cvx.sparse.linalg import blas_threads
 
     def counts():
         return [i["num_threads"] for i in threadpoolctl.threadpool_info() if i["user_api"] == "blas"]
@@ -155,7 +155,7 @@ def test_a_phase_factor_is_the_phase_matrix_in_its_own_numbering():
     """``Phase.factor`` solves ``Phase.info`` and ``factor.matrix`` *is* ``info`` (whole, symmetric, same
     numbering) — with QDLDL and with the engine — so ``linalg.block_diagonal_inverse`` on it gives the
     covariance blocks (a renumbered, upper-triangular matrix once made it return nonsense)."""
-    from lago_cvx.linalg import block_diagonal_inverse
+    from lago_cvx.sparse.linalg import block_diagonal_inverse
 
     g = lc.manhattan_world(150, seed=6).graph
     for engine_min in (ne.ENGINE_MIN, 0):

@@ -1,4 +1,4 @@
-"""QDLDL called directly in the pose-level elimination order (``lago_cvx.ldl``,
+"""QDLDL called directly in the pose-level elimination order (``lago_cvx.sparse.ldl``,
 ``upper_pattern.BlockUpperPattern``): the scattered upper triangle is exactly MᵀM, the factor solves
 like a dense solve, its column counts are the symbolic fill of that order, bad input is refused by name,
 and LAGO gives the same answer through ``qdldl.Solver`` (the fallback when the C routines are not
@@ -11,10 +11,10 @@ import pytest
 import scipy.sparse as sp
 
 import lago_cvx as lc
-from lago_cvx import ldl
-from lago_cvx import normal_equations as ne
+from lago_cvx.sparse import ldl
+from lago_cvx.sparse import normal_equations as ne
 from lago_cvx.errors import NumericalError
-from lago_cvx.normal_equations import GraphElimination
+from lago_cvx.sparse.normal_equations import GraphElimination
 
 from helpers import graph_from_truth
 
@@ -296,7 +296,7 @@ def test_deferred_tasks_left_over_are_dropped(monkeypatch):
     monkeypatch.setattr(ldl.LDLFactor, "__init__", counting)
     monkeypatch.setattr(ne, "ENGINE_MIN", 2 * d + 1)  # b = 3 by the engine, b = 1 and 2 by QDLDL
     res = lc.lago(g, route="seed", positions="resolve")
-    from lago_cvx import amd
+    from lago_cvx.sparse import amd
 
     # Ω_θ's (phase 1's Laplacian, by upper_pattern.PoseLaplacian when AMD is called directly), then the
     # polish's system, once

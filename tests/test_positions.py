@@ -110,7 +110,7 @@ def test_positions_for_several_orientations_at_once(information):
     """``PositionSolver.many`` (the polish's first two trials in one call): with isotropic information
     the θ's are right-hand sides of one system, otherwise one system each; either way every answer is
     the single-θ solve's, to rounding."""
-    from lago_cvx.normal_equations import GraphElimination
+    from lago_cvx.sparse.normal_equations import GraphElimination
     from lago_cvx.positions import PositionSolver
 
     g = lc.random_graph(40, 90, seed=4, information=information, sigma_xy=0.1, sigma_theta=0.05).graph

@@ -1,4 +1,4 @@
-"""Per-edge arithmetic done a block of edges at a time (``lago_cvx.arrays.row_blocks``): the lazily
+"""Per-edge arithmetic done a block of edges at a time (``lago_cvx.sparse.arrays.row_blocks``): the lazily
 computed edge uncertainties equal NumPy's dense linear algebra, and the phase-3 edge system, the errors
 and χ² are the same whether the edges come in one block or in many (blocks of 7 here)."""
 
@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 import lago_cvx as lc
-from lago_cvx import arrays, phases as P
+from lago_cvx import phases as P
+from lago_cvx.sparse import arrays
 from lago_cvx.metrics import chi2, edge_errors
 from lago_cvx.posegraph import PoseGraph, rot2
 from lago_cvx.uncertainty import edge_uncertainty

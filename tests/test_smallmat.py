@@ -1,4 +1,4 @@
-"""The closed-form 2×2 / 3×3 kernels (``lago_cvx.smallmat``) against ``numpy.linalg``: same inverses and
+"""The closed-form 2×2 / 3×3 kernels (``lago_cvx.sparse.smallmat``) against ``numpy.linalg``: same inverses and
 Cholesky factors on well- and ill-conditioned stacks, LAPACK's answer where the closed form breaks down
 (overflow), and the same ``LinAlgError`` on a matrix that is not positive definite; and
 ``arrays.unique_sorted`` against ``numpy.unique``."""
@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from lago_cvx.smallmat import cholesky, spd_inverse
+from lago_cvx.sparse.smallmat import cholesky, spd_inverse
 
 
 def _stack(k, m=2000, seed=0):
@@ -54,7 +54,7 @@ def test_other_sizes_go_to_numpy():
 
 
 def test_unique_sorted_is_numpys_unique():
-    from lago_cvx.arrays import unique_sorted
+    from lago_cvx.sparse.arrays import unique_sorted
 
     rng = np.random.default_rng(3)
     for a in (rng.integers(0, 50, 1000), rng.integers(0, 10**12, 5000), np.zeros(0, np.int64),

@@ -8,7 +8,7 @@ Gauss–Newton on (x, y, θ) per pose (the anchor fixed), with residuals whose s
 (r_R² = 4κ(1 − cos e)). Jacobian, with v = R_i t̃ and S = [[0, −1], [1, 0]]:
 ∂r_t/∂t_j = √τ I, ∂r_t/∂t_i = −√τ I, ∂r_t/∂θ_i = −√τ S v = √τ (v_y, −v_x);
 ∂r_R/∂θ_j = −∂r_R/∂θ_i = √(2κ) cos(e/2). Eight entries per edge, one sparse J (3m × 3(n−1)),
-normal equations JᵀJ dx = −Jᵀr by ``lago_cvx.linalg.factorize``; a backtracking line search makes f
+normal equations JᵀJ dx = −Jᵀr by ``lago_cvx.sparse.linalg.factorize``; a backtracking line search makes f
 monotone. Reached from the χ²-refined LAGO estimate: manhattan 6431.39, city10000 638.625, CSAIL
 31.7037, intel 52.3482 — SE-Sync's Table 1 (4 digits) for city10000, CSAIL and intel; manhattan's
 6431.39 prints as 6.431e3 against Table 1's 6.432e3 (one unit of the last digit, 9e-5 relative; certified
@@ -36,7 +36,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import OptionError
-from ..linalg import factorize
+from ..sparse import factorize
 from ..posegraph import PoseGraph
 from ..refinement import prepare, small_step
 from .sesync import edge_residuals, sesync_weights
@@ -162,7 +162,7 @@ def refine_sesync(graph: PoseGraph, poses, *, max_iterations: int = 50, toleranc
     in an iteration is below it; ``anchor`` id of the pose held fixed (default the smallest id);
     ``method`` ``"gauss-newton"`` (default) or ``"newton"`` (exact Hessian of eq. (S3') whenever its step
     is a descent direction, else the GN step: quadratic instead of linear convergence near a minimum);
-    ``backend`` sparse solver (``lago_cvx.linalg.factorize``). Each iteration factors JᵀJ
+    ``backend`` sparse solver (``lago_cvx.sparse.linalg.factorize``). Each iteration factors JᵀJ
     (3(n−1) square, sparse); a step that does not decrease f is halved (at most ``MAX_HALVINGS``
     times), so f never increases. Raises ``GraphError`` for a disconnected graph."""
     if method not in SESYNC_METHODS:

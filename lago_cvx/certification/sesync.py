@@ -54,7 +54,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..graph import _reduced_incidence
-from ..linalg import factorize, solve_least_squares
+from ..sparse import factorize, solve_least_squares
 from ..posegraph import PoseGraph, rot2, wrap_angle
 
 __all__ = ["edge_residuals", "sesync_weights", "sesync_cost", "stacked_variable", "poses_from_stacked", "data_matrix",
@@ -225,7 +225,7 @@ def optimal_translations(graph: PoseGraph, theta, *, anchor=None, anchor_transla
     """Translations minimising f for fixed orientations ``theta`` (n,): the weighted linear least squares
     min Σ τ‖t_j − t_i − R(θ_i) t̃‖², i.e. L_τ t = A(τ ⊙ R(θ_i)t̃) with L_τ = A diag(τ) Aᵀ (A the n × m
     incidence matrix), solved with the anchor's translation fixed to ``anchor_translation`` by
-    ``lago_cvx.linalg.solve_least_squares`` on √τ·A2ᵀ (m × (n−1)). Returns (n, 2)."""
+    ``lago_cvx.sparse.linalg.solve_least_squares`` on √τ·A2ᵀ (m × (n−1)). Returns (n, 2)."""
     theta = np.asarray(theta, dtype=float)
     _, tau = sesync_weights(graph)
     v = np.einsum("kab,kb->ka", rot2(theta[graph.tails]), graph.delta_l)  # R_i t̃ (m, 2)

@@ -63,8 +63,7 @@ import scipy.sparse as sp
 
 from ..errors import OptionError
 from ..graph import SpanningTree, free_poses
-from ..linalg import solve_least_squares
-from ..normal_equations import EdgeSystem, GraphElimination
+from ..sparse import EdgeSystem, GraphElimination, solve_least_squares
 from ..posegraph import PoseGraph
 from ..rounding import AMBIGUITY_MARGIN, TWO_PI, branch, check_angles
 from ..solvers import ClarabelSettings, check_method, named_constant, parameter, solve
@@ -161,7 +160,7 @@ def chordal_problem(graph: PoseGraph, info_delta, *, anchor=None):
 
 
 def chordal_edge_system(graph: PoseGraph, info_delta, elim: GraphElimination) -> EdgeSystem:
-    """(C3) edge by edge, the form (E) of ``lago_cvx.normal_equations`` (b = q = 2): edge k = (i → j)
+    """(C3) edge by edge, the form (E) of ``lago_cvx.sparse.normal_equations`` (b = q = 2): edge k = (i → j)
     contributes √ω_k (r_j − R(δ_k) r_i), i.e. A_k = −√ω_k R(δ_k), B_k = √ω_k I₂, and the anchor's known
     r = (1, 0) moves to c_k (c_k = √ω_k (cos δ_k, sin δ_k) when the tail is the anchor, −√ω_k (1, 0) when
     the head is)."""

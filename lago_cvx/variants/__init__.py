@@ -12,7 +12,7 @@ phase 1 over θ ∈ ℝⁿ, phase 3 over x = [p; θ] ∈ ℝ³ⁿ (p interleaved
 (V2) Closed form: with M = W Bᵀ the known columns move to the right-hand side (the reduced incidence
      matrix loses the anchored rows),
          x_U = argmin ‖M_U x_U − (W z − M_K x̄_K)‖² = (M_UᵀM_U)⁻¹ M_Uᵀ (W z − M_K x̄_K),
-     solved by ``lago_cvx.linalg.solve_least_squares`` (sparse factorization + refinement).
+     solved by ``lago_cvx.sparse.linalg.solve_least_squares`` (sparse factorization + refinement).
      cvxpy: one variable x for all coordinates, the objective ``cp.sum_squares(W @ (z − Bᵀ @ x))``,
      and the anchors as ONE equality constraint ``x[K] == x̄_K``.
 Phase 1 (V5), with priors Q (pose q, mean μ_q, information Λ_q, 3×3 SPD):

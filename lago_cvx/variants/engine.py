@@ -29,7 +29,7 @@ import scipy.sparse as sp
 
 from ..errors import GraphError, OptionError, check_choice
 from ..graph import spanning_tree
-from ..linalg import block_diagonal_inverse
+from ..sparse import block_diagonal_inverse
 from ..metrics import alignment_angle, chi2
 from ..phases import Phase1, Phase3
 from ..posegraph import PoseGraph

@@ -3,7 +3,7 @@ V5–V8), its closed form, and its cvxpy problem with a loss (V10) and named con
 
 (V1) minimise ‖W (z − Bᵀx)‖²  subject to  x_K = x̄_K, W a sparse whitening, Bᵀ the design.
 (V2) Closed form: with M = W Bᵀ the known columns move to the right-hand side,
-     x_U = (M_UᵀM_U)⁻¹ M_Uᵀ (W z − M_K x̄_K)  (``lago_cvx.linalg.solve_least_squares``); cvxpy: one
+     x_U = (M_UᵀM_U)⁻¹ M_Uᵀ (W z − M_K x̄_K)  (``lago_cvx.sparse.linalg.solve_least_squares``); cvxpy: one
      variable x, ``cp.sum_squares(W @ (z − Bᵀ @ x))`` and ONE equality constraint ``x[K] == x̄_K``, whose
      dual value is −g_K, g_K = 2 M_Kᵀ(M x − W z) (the force the data exert on the anchors).
 """
@@ -18,7 +18,7 @@ import scipy.sparse as sp
 
 from ..errors import OptionError
 from ..graph import incidence_matrix
-from ..linalg import Factor, factorize, solve_least_squares
+from ..sparse import Factor, factorize, solve_least_squares
 from ..phases import Phase2, edge_whitening, phase2_blocks
 from ..posegraph import PoseGraph, rot2, wrap_angle
 from ..solvers import INFEASIBLE_STATUSES, ClarabelSettings, solve

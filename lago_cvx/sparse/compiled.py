@@ -1,4 +1,4 @@
-r"""The multifrontal block Cholesky of ``lago_cvx.multifrontal``, front by front in compiled code (Numba).
+r"""The multifrontal block Cholesky of ``lago_cvx.sparse.multifrontal``, front by front in compiled code (Numba).
 
 Same symbolic analysis (the pose-level ``EliminationPlan``: AMD order, fronts with pivot poses P_f and
 update rows R_f, each front's rows ⊂ its parent's), same equations (MF):
@@ -67,7 +67,7 @@ CHUNK = 0.02
 
 
 def kernels() -> dict:
-    """The compiled kernels (``lago_cvx.compiled_kernels``, which imports Numba: loaded on first use)."""
+    """The compiled kernels (``lago_cvx.sparse.compiled_kernels``, which imports Numba: loaded on first use)."""
     from .compiled_kernels import KERNELS
 
     return KERNELS

@@ -2,12 +2,12 @@
 the ``qdldl`` package, called through ``ctypes``.
 
 ``qdldl.Solver(A)`` orders A by AMD before it factors. LAGO orders the anchor-reduced pose graph once
-and uses that order for every system of the graph (``lago_cvx.normal_equations``). Calling AMD directly,
+and uses that order for every system of the graph (``lago_cvx.sparse.normal_equations``). Calling AMD directly,
 instead of through ``qdldl.Solver`` on the weighted Laplacian, gives the same permutation, and
 
 * the call releases the GIL (``ctypes``), so the spanning tree is built beside it; ``qdldl.Solver``
   holds the GIL for its whole call;
-* the Laplacian is then factored by QDLDL's own routines on the graph's pattern (``lago_cvx.ldl``),
+* the Laplacian is then factored by QDLDL's own routines on the graph's pattern (``lago_cvx.sparse.ldl``),
   whose symbolic analysis every later system reuses.
 
 The routine is SuiteSparse's ``amd_l_order(n, Ap, Ai, P, Control, Info)`` for 64-bit integers
@@ -40,7 +40,7 @@ def _routine():
         try:
             from .ldl import _library
 
-            lib = _library()  # the qdldl extension, when its ABI is the expected one (lago_cvx.ldl)
+            lib = _library()  # the qdldl extension, when its ABI is the expected one (lago_cvx.sparse.ldl)
             if lib is not None and hasattr(lib, "amd_l_order"):
                 fn = lib.amd_l_order
                 fn.restype = ctypes.c_longlong

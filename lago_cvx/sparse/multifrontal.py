@@ -51,7 +51,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .block_factor import BlockFactor, inverse_blocks
-from .errors import NumericalError
+from ..errors import NumericalError
 from .linalg import blas_threads
 
 __all__ = ["EliminationPlan", "BlockLayout", "BlockFactor", "plan_from_qdldl", "plan_from_pattern", "NotPositiveDefinite",
@@ -65,7 +65,7 @@ log = logging.getLogger(__name__)
 NRELAX = (4, 16, 48)
 ZRELAX = (0.8, 0.1, 0.05)
 
-#: The amalgamation for the compiled engine (``lago_cvx.compiled``), whose cost per front is a few hundred
+#: The amalgamation for the compiled engine (``lago_cvx.sparse.compiled``), whose cost per front is a few hundred
 #: nanoseconds, not a Python call: fewer explicit zeros, so a smaller L (less memory to fault in, shorter
 #: solves) for the same factorization time. Phase 3 of the 1 000 000-pose world (its system captured and
 #: factored again in one process, stop 26): L 1.85 GiB in 85 637 fronts with ``NRELAX``/``ZRELAX``,

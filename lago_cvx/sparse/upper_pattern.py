@@ -1,8 +1,8 @@
 r"""The upper triangle of a closed-form system's normal matrix (N), as the CSC pattern QDLDL factors in the
-pose-level elimination order (``lago_cvx.ldl``), and the map that scatters each system's blocks into it.
+pose-level elimination order (``lago_cvx.sparse.ldl``), and the map that scatters each system's blocks into it.
 
 Every system of LAGO's closed forms has the anchor-reduced pose graph's pattern with b×b blocks
-(``lago_cvx.normal_equations``). What does not depend on b — the off-diagonal pose entries of the upper
+(``lago_cvx.sparse.normal_equations``). What does not depend on b — the off-diagonal pose entries of the upper
 triangle in elimination order, the pose-level CSC and its elimination tree and column counts — is
 computed once per graph (``PoseUpperPattern``); each b expands it (``BlockUpperPattern``): the scalar
 CSC, the scatter map of ``EdgeSystem.normal_entries`` into its values (one ``np.bincount`` per system),
@@ -176,7 +176,7 @@ class BlockUpperPattern:
 
 class PoseLaplacian:
     """Ω_θ = A2 diag(w) A2ᵀ (d × d: the weighted Laplacian of the anchor-reduced pose graph, phase 1's
-    normal matrix when w = 1/P_δ) factored by QDLDL's routines (``lago_cvx.ldl``) on the graph's b = 1
+    normal matrix when w = 1/P_δ) factored by QDLDL's routines (``lago_cvx.sparse.ldl``) on the graph's b = 1
     pattern ``pattern`` (a ``BlockUpperPattern``), in the AMD order ``perm`` (d,) it was built in (the
     pose eliminated at each position). It stands where ``qdldl.Solver`` stood: ``solve(rhs)`` for rhs
     (d,) or (d, r) in free-pose order; ``factors()`` → (L strictly lower, CSC, in elimination order; D;
@@ -208,7 +208,7 @@ class QdldlFactor(Factor):
 
     With ``pattern`` (a ``BlockUpperPattern``, when ``ldl.available()``): the values scattered into the
     pattern's upper triangle and factored in the pose-level elimination order by QDLDL's C routines
-    (``lago_cvx.ldl``), the symbolic analysis shared; ``progress(done, total)`` fed while QDLDL runs.
+    (``lago_cvx.sparse.ldl``), the symbolic analysis shared; ``progress(done, total)`` fed while QDLDL runs.
     Without: assembled as an upper-triangular CSC (pose-major variables i·b + c) and factored by
     ``qdldl.Solver``, which orders it by AMD first (no progress from inside)."""
 

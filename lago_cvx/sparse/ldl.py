@@ -41,7 +41,7 @@ import weakref
 
 import numpy as np
 
-from .errors import NumericalError
+from ..errors import NumericalError
 
 __all__ = ["available", "huge_empty", "HUGE_MIN", "HUGE_POOL", "LDLPattern", "LDLFactor", "column_work"]
 

@@ -1,10 +1,10 @@
-r"""The compiled kernels of ``lago_cvx.compiled`` (Numba, ``nogil``, cached on disk): assembly and
+r"""The compiled kernels of ``lago_cvx.sparse.compiled`` (Numba, ``nogil``, cached on disk): assembly and
 extend-add of a front, its dense partial Cholesky (a right-looking loop, or LAPACK ``potrf`` with BLAS
 ``trsm``/``syrk`` called by address), the loop over a range of fronts in postorder, the triangular solves,
 and the bookkeeping of the update stacks (their simulated peak, the subtrees of the front tree, copying
-an update between stacks). Storage and equations: ``lago_cvx.compiled``'s docstring.
+an update between stacks). Storage and equations: ``lago_cvx.sparse.compiled``'s docstring.
 
-This module imports Numba: ``lago_cvx.compiled.kernels()`` imports it on first use only. The kernels
+This module imports Numba: ``lago_cvx.sparse.compiled.kernels()`` imports it on first use only. The kernels
 are module-level functions (not closures), so Numba's on-disk cache finds them again in a new process.
 """
 

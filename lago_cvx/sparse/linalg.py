@@ -12,7 +12,7 @@ Backends:
 * ``"cholmod"`` — CHOLMOD through scikit-sparse, an optional extra (lazy import; GPL parts).
 
 ``"auto"`` picks QDLDL (else SuperLU). The closed forms do not come through here: below 1 200 000
-unknowns they call QDLDL's C routines directly in the pose-level elimination order (``lago_cvx.ldl``, no
+unknowns they call QDLDL's C routines directly in the pose-level elimination order (``lago_cvx.sparse.ldl``, no
 AMD of QDLDL's own), from there on the multifrontal engine (``normal_equations.ENGINE_MIN``). CHOLMOD is
 used only when asked for. Its speed depends on the BLAS the system's SuiteSparse is linked to: on Debian's reference BLAS it was slower
 than QDLDL (phase 3 at 100 000 poses: 2.7 s against 1.9–2.1 s), on OpenBLAS it is the fastest at every
@@ -29,7 +29,7 @@ from typing import Callable
 import numpy as np
 import scipy.sparse as sp
 
-from .errors import NumericalError, OptionError
+from ..errors import NumericalError, OptionError
 
 __all__ = ["blas_threads", "Factor", "factorize", "solve_least_squares", "refine_normal_equations", "augmented_least_squares", "REFINEMENT_STEPS", "REFINEMENT_STOP", "TRUST_TOLERANCE", "whitening_2x2", "block_diagonal_inverse", "SOLVER_BACKENDS"]
 

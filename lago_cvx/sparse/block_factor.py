@@ -1,15 +1,15 @@
-r"""The numeric side of a multifrontal factor (``lago_cvx.multifrontal``): solves N x = y and the
+r"""The numeric side of a multifrontal factor (``lago_cvx.sparse.multifrontal``): solves N x = y and the
 selected inversion (T) that gives marginal covariances.
 
 ``BlockFactor`` holds, per group of fronts of the ``multifrontal.BlockLayout``, L_PP (B, Kb, Kb), its
 inverse for batched groups (None for a single large front, solved by triangular solves) and X (B, Rb, Kb),
-where L's block column of a front's pivots P is [L_PP; X] (eq. (MF) of ``lago_cvx.multifrontal``).
+where L's block column of a front's pivots P is [L_PP; X] (eq. (MF) of ``lago_cvx.sparse.multifrontal``).
 
 **Solve** N x = y, group by group (the fronts of a group are independent): forward z_P = L_PP⁻¹ y_P,
 y_R −= X z_P from the leaves up; back x_P = L_PP⁻ᵀ(z_P − Xᵀ x_R) from the root down.
 
 **Selected inversion** (Takahashi, Fagan, Chen 1973; Erisman, Tinney 1975): Σ = N⁻¹ on the pattern of L,
-front by front from the root down, by eq. (T) of ``lago_cvx.multifrontal``.
+front by front from the root down, by eq. (T) of ``lago_cvx.sparse.multifrontal``.
 """
 
 from __future__ import annotations

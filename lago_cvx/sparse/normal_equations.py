@@ -14,15 +14,15 @@ design M (mq × db), its normal matrix N = MᵀM has the b×b blocks
 
 the anchor-reduced pose graph's pattern for every b. ``EdgeSystem`` holds (E) as arrays (m, q, b) and
 applies M and Mᵀ edge by edge (no sparse matrix is built); ``GraphElimination`` holds the pose-level
-symbolic analysis of one graph and anchor (``lago_cvx.multifrontal``), computed once and shared by every
+symbolic analysis of one graph and anchor (``lago_cvx.sparse.multifrontal``), computed once and shared by every
 system LAGO solves on that graph. Below ``ENGINE_MIN`` unknowns N is factored by QDLDL in that same
 pose-level order, expanded to b components per pose (``BlockUpperPattern``: the upper triangle's CSC
-pattern and a scatter map, built once per b; ``lago_cvx.ldl``), above it by the multifrontal engine —
-compiled by Numba (``lago_cvx.compiled``) from ``COMPILED_MIN`` unknowns when Numba can be imported, the
-NumPy engine (``lago_cvx.multifrontal``) otherwise.
+pattern and a scatter map, built once per b; ``lago_cvx.sparse.ldl``), above it by the multifrontal engine —
+compiled by Numba (``lago_cvx.sparse.compiled``) from ``COMPILED_MIN`` unknowns when Numba can be imported, the
+NumPy engine (``lago_cvx.sparse.multifrontal``) otherwise.
 Either way (E) is solved by the corrected semi-normal equations
-(``lago_cvx.linalg.refine_normal_equations``), falling back to the augmented system as
-``lago_cvx.linalg.solve_least_squares`` does.
+(``lago_cvx.sparse.linalg.refine_normal_equations``), falling back to the augmented system as
+``lago_cvx.sparse.linalg.solve_least_squares`` does.
 """
 
 from __future__ import annotations
@@ -34,13 +34,11 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from .graph import free_poses
 from .linalg import Factor, augmented_least_squares, refine_normal_equations
 from . import compiled
 from .compiled import CompiledPoseFactor
 from .multifrontal import COMPILED_RELAX, BlockFactor, EliminationPlan, plan_from_pattern, plan_from_qdldl
-from .posegraph import PoseGraph
-from .progress import Progress
+from ..progress import Progress
 from .upper_pattern import BlockUpperPattern, PoseLaplacian, PoseUpperPattern, QdldlFactor, matrix_blocks
 
 __all__ = ["plan_from_pattern", "matrix_blocks", "EdgeSystem", "EdgeOperator", "GraphElimination", "PoseFactor", "BlockUpperPattern", "PoseUpperPattern", "QdldlFactor", "RenumberedFactor", "CompiledPoseFactor", "ENGINE_MIN", "COMPILED_MIN"]
@@ -201,7 +199,7 @@ class PoseFactor(Factor):
 
 
 #: Systems with at least this many unknowns (d·b) are factored by the multifrontal engine
-#: (``lago_cvx.multifrontal``), smaller ones by QDLDL in the pose-level order (``lago_cvx.ldl``), whose C
+#: (``lago_cvx.sparse.multifrontal``), smaller ones by QDLDL in the pose-level order (``lago_cvx.sparse.ldl``), whose C
 #: loop has no per-front Python cost. Measured (2 cores, a slow day of the shared machine; phase 3 from
 #: benchmarks/perf.md's last table, four runs; b = 1, 2 by factor plus refined solve of the isotropic
 #: positions and the chordal system, two runs each, the symbolic steps included):
@@ -217,7 +215,7 @@ class PoseFactor(Factor):
 #: system by the engine for its selected inversion (``QdldlFactor.engine_factor``).
 ENGINE_MIN = 1_200_000
 
-#: Systems with at least this many unknowns are factored by the compiled engine (``lago_cvx.compiled``)
+#: Systems with at least this many unknowns are factored by the compiled engine (``lago_cvx.sparse.compiled``)
 #: when Numba can be imported (it then takes the place of the NumPy engine above ``ENGINE_MIN`` too).
 #: Phase 3 alone, a fresh process each (benchmarks/million.md): QDLDL against compiled + Numba's import
 #: 0.280 against 0.235 + 0.160 s at 90 000 unknowns, 1.10 against 0.64 + 0.16 s at 300 000, 5.61 against
@@ -257,12 +255,12 @@ class GraphElimination:
 
     ``d`` free poses; ``free_of`` (n,) each pose's free index (−1 at the anchor); ``tails``, ``heads``
     (m,) edges' ends as free indices; ``plan`` the ``EliminationPlan``. With ``weights`` (m,) the order
-    is AMD's on the pose graph (``lago_cvx.amd``; through ``qdldl.Solver`` where AMD cannot be called
+    is AMD's on the pose graph (``lago_cvx.sparse.amd``; through ``qdldl.Solver`` where AMD cannot be called
     directly) and the weighted Laplacian A2 diag(weights) A2ᵀ is factored in it and kept in ``laplacian``
     (phase 1's normal matrix when weights = 1/P_δ; None if it could not be factored): here, or on first
     read with ``factor_laplacian=False``."""
 
-    def __init__(self, graph: PoseGraph, anchor_index: int, *, weights: np.ndarray | None = None,
+    def __init__(self, graph, anchor_index: int, *, weights: np.ndarray | None = None,
                  factor_laplacian: bool = True):
         import qdldl
 
@@ -271,7 +269,7 @@ class GraphElimination:
         self.d = d = n - 1
         self.anchor_index = int(anchor_index)
         self.free_of = np.full(n, -1, np.int64)
-        self.free_of[free_poses(n, self.anchor_index)] = np.arange(d)
+        self.free_of[np.delete(np.arange(n), self.anchor_index)] = np.arange(d)
         self.tails = self.free_of[graph.tails]
         self.heads = self.free_of[graph.heads]
         self._assemblers = {}
@@ -305,7 +303,7 @@ class GraphElimination:
                 log.info("weighted pose Laplacian not factored by QDLDL (%s); plan from the pattern", exc)
 
     def _own_laplacian(self, w: np.ndarray, now: bool) -> bool:
-        """AMD of the pose graph called directly (``lago_cvx.amd``) and the weighted Laplacian factored on
+        """AMD of the pose graph called directly (``lago_cvx.sparse.amd``) and the weighted Laplacian factored on
         the graph's b = 1 pattern (``upper_pattern.PoseLaplacian``), here (``now``) or when ``laplacian`` is
         first read; False (nothing kept) when AMD cannot be called, and ``qdldl.Solver`` orders and factors
         the Laplacian instead."""
@@ -434,7 +432,7 @@ class GraphElimination:
 
     def factor(self, system: EdgeSystem, *, progress=None, engine: bool | str | None = None) -> Factor:
         """Factor the normal matrix (N) of ``system``. ``engine`` None (the default) picks by size: the
-        compiled multifrontal engine (a ``CompiledPoseFactor``, ``lago_cvx.compiled``) from
+        compiled multifrontal engine (a ``CompiledPoseFactor``, ``lago_cvx.sparse.compiled``) from
         ``COMPILED_MIN`` unknowns when Numba can be imported, else the NumPy multifrontal engine (a
         ``PoseFactor``) from ``ENGINE_MIN``, QDLDL (a ``QdldlFactor``) below; ``"compiled"``, True (the
         NumPy engine) or False (QDLDL) force one. Raises ``multifrontal.NotPositiveDefinite`` (or

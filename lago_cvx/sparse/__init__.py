@@ -1,0 +1,37 @@
+"""The sparse engine behind one door.
+
+Everything that makes LAGO's closed forms fast — orderings (AMD), QDLDL in the pose graph's order, the
+pose-level multifrontal block Cholesky and its Numba-compiled twin, selected inversion, worker threads,
+memory — lives in this subpackage. The mathematics (phases, positions, regularizers, variants, refinement,
+certification) imports only the names below, never a submodule: ``tests/test_architecture.py`` holds that.
+
+The door, in the spirit of scikit-sparse's ``cholesky(A) -> Factor``:
+
+* ``EdgeSystem(tails, heads, A, B, c, d)`` — a least-squares problem Σ_k ‖A_k x_{t_k} + B_k x_{h_k} − c_k‖²
+  on the pose graph's pattern, b unknowns per pose (b = 1, 2, 3, 6, 9 …), q rows per edge;
+* ``GraphElimination(graph, anchor_index, weights=…)`` — the symbolic analysis of one graph and anchor,
+  shared by every system solved on it: ``.factor(system) -> Factor``, ``.solve(system) -> (x, factor, stats)``;
+* ``factorize(N) -> Factor`` and ``solve_least_squares(M, b)`` for a sparse matrix of any other pattern;
+* ``Factor`` — ``solve(rhs)``; ``marginal_blocks`` selected blocks of N⁻¹ (``block_diagonal_inverse``,
+  ``inverse_blocks``);
+* small per-edge kernels the mathematics calls by name: ``row_blocks`` (per-edge arithmetic a block of
+  edges at a time), ``unique_sorted``, the closed-form 2×2 / 3×3 inverses and Cholesky factors
+  (``spd_inverse``, ``spd_inverse_corner``, ``cholesky``), ``whitening_2x2``.
+"""
+
+from __future__ import annotations
+
+from .arrays import row_blocks, unique_sorted
+from .block_factor import inverse_blocks
+from .linalg import (SOLVER_BACKENDS, Factor, augmented_least_squares, block_diagonal_inverse, factorize,
+                     refine_normal_equations, solve_least_squares, whitening_2x2)
+from .normal_equations import (COMPILED_MIN, EdgeSystem, GraphElimination, PoseFactor, RenumberedFactor,
+                               matrix_blocks, plan_from_pattern)
+from .smallmat import cholesky, spd_inverse, spd_inverse_corner
+
+__all__ = [
+    "EdgeSystem", "GraphElimination", "Factor", "factorize", "solve_least_squares", "refine_normal_equations",
+    "augmented_least_squares", "block_diagonal_inverse", "inverse_blocks", "whitening_2x2", "SOLVER_BACKENDS",
+    "row_blocks", "unique_sorted", "cholesky", "spd_inverse", "spd_inverse_corner",
+    "COMPILED_MIN", "PoseFactor", "RenumberedFactor", "matrix_blocks", "plan_from_pattern",
+]
