@@ -59,6 +59,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 import scipy.sparse as sp
@@ -216,12 +217,17 @@ def phase1_closed_form(graph: PoseGraph, delta_reg, unc: EdgeUncertainty, *, anc
             lambda r: op.rmatvec(r.reshape(-1, 1)).reshape(-1), system.c.reshape(-1))
         if not trusted:
             x, factor, stats = elim.solve(system, stage="phase 1")
-        info = (lambda: solver.matrix()) if Lap is None else (lambda: (Lap + Lap.T - sp.diags(Lap.diagonal())).tocsr())
     else:
         x, factor, stats = elim.solve(system, stage="phase 1")
-        info = (lambda: (system.sparse().T @ system.sparse()).tocsr())
+    info = partial(_normal_matrix, system)
     theta_free = np.asarray(x, dtype=float).reshape(-1)
     return Phase1(_full(graph.n_poses, a, theta_free), theta_free, info, a, factor, stats)
+
+
+def _normal_matrix(system: EdgeSystem) -> sp.csr_matrix:
+    """MᵀM (d·b × d·b) of an edge system (E), pose-major."""
+    M = system.sparse()
+    return (M.T @ M).tocsr()
 
 
 def phase1_from_problem(graph: PoseGraph, delta_reg, unc: EdgeUncertainty, *, anchor=None,
@@ -344,7 +350,7 @@ def phase2(graph: PoseGraph, theta: np.ndarray, unc: EdgeUncertainty, *, anchor=
     edges = phase3_edge_system(graph, theta, unc, delta_g, tails, heads, information=information,
                                delta_reg=delta_reg)
     return Phase2(delta_g, anchor_index=a, information=information, edges=edges,
-                  builder=lambda: _phase2_sparse(graph, theta, unc, a, information, delta_reg))
+                  builder=partial(_phase2_sparse, graph, theta, unc, a, information, delta_reg))
 
 
 def _phase2_sparse(graph: PoseGraph, theta: np.ndarray, unc: EdgeUncertainty, a: int, information: str,
@@ -524,7 +530,7 @@ def phase3_closed_form(graph: PoseGraph, ph2: Phase2, *, backend: str = "auto",
             r = np.arange(d)
             factor = RenumberedFactor(factor, np.stack([2 * r, 2 * r + 1, 2 * d + r], 1))
         edges = ph2.edges
-        info = (lambda: _phase3_info(edges, d))
+        info = partial(_phase3_info, edges, d)
         return Phase3(x_star, _poses_from_x(n, a, x_star), info, a, factor, stats)
     M = (ph2.W @ ph2.Bt).tocsc()
     x, info, factor, stats = solve_least_squares(M, ph2.W @ ph2.z, backend=backend)

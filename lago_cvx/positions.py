@@ -24,13 +24,14 @@ run after phase 3 it can only lower χ² (``lago(..., positions="resolve")``). B
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 import scipy.sparse as sp
 
 from .sparse import EdgeSystem, Factor, GraphElimination, row_blocks, solve_least_squares
 from .graph import _reduced_incidence, free_poses
-from .phases import Lazy
+from .phases import Lazy, _normal_matrix
 from .posegraph import PoseGraph, rot2, wrap_angle
 from .solvers import ClarabelSettings, named_constant, parameter, solve
 from .uncertainty import EdgeUncertainty
@@ -158,9 +159,7 @@ class PositionSolver:
         x, self._factor, stats = el.solve(system, factor=self._factor, stage="positions")
         x = x.reshape(d, 2, len(thetas))
 
-        def info():
-            return sp.kron(_laplacian(el, s * s), sp.identity(2), format="csr")
-
+        info = partial(_isotropic_info, el.tails, el.heads, el.d, s * s)
         return [Positions(_poses(self.graph, theta, el.anchor_index, x[:, :, i].reshape(-1), p0), info,
                           el.anchor_index, self._factor, stats) for i, theta in enumerate(thetas)]
 
@@ -173,21 +172,23 @@ class PositionSolver:
         system = EdgeSystem(el.tails, el.heads, -Wk, Wk, np.einsum("kab,kb->ka", Wk, gk), d)
         x, factor, stats = el.solve(system, stage="positions")
 
-        def info():
-            return (system.sparse().T @ system.sparse()).tocsr()
-
-        return Positions(_poses(g, theta, el.anchor_index, x.reshape(-1), p0), info, el.anchor_index, factor,
+        return Positions(_poses(g, theta, el.anchor_index, x.reshape(-1), p0), partial(_normal_matrix, system),
+                         el.anchor_index, factor,
                          stats)
 
 
-def _laplacian(el: GraphElimination, w: np.ndarray) -> sp.csr_matrix:
-    """A2 diag(w) A2ᵀ (d × d) on the free poses."""
-    t, h = el.tails, el.heads
+def _laplacian(t: np.ndarray, h: np.ndarray, d: int, w: np.ndarray) -> sp.csr_matrix:
+    """A2 diag(w) A2ᵀ (d × d) on the free poses; ``t``, ``h`` (m,) the edges' free indices (−1: anchor)."""
     both = (t >= 0) & (h >= 0)
-    diag = np.bincount(t[t >= 0], w[t >= 0], minlength=el.d) + np.bincount(h[h >= 0], w[h >= 0], minlength=el.d)
-    return sp.csr_matrix((np.r_[-w[both], -w[both], diag], (np.r_[t[both], h[both], np.arange(el.d)],
-                                                             np.r_[h[both], t[both], np.arange(el.d)])),
-                         shape=(el.d, el.d))
+    diag = np.bincount(t[t >= 0], w[t >= 0], minlength=d) + np.bincount(h[h >= 0], w[h >= 0], minlength=d)
+    return sp.csr_matrix((np.r_[-w[both], -w[both], diag], (np.r_[t[both], h[both], np.arange(d)],
+                                                             np.r_[h[both], t[both], np.arange(d)])),
+                         shape=(d, d))
+
+
+def _isotropic_info(t: np.ndarray, h: np.ndarray, d: int, s2: np.ndarray) -> sp.csr_matrix:
+    """The information of the free positions (2d × 2d) under isotropic weights s_k: L_s ⊗ I₂."""
+    return sp.kron(_laplacian(t, h, d, s2), sp.identity(2), format="csr")
 
 
 def resolve_positions(graph: PoseGraph, theta, unc: EdgeUncertainty, *, anchor=None, anchor_position=(0.0, 0.0),

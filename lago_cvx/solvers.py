@@ -12,7 +12,6 @@ closed-form route never load it.
 
 from __future__ import annotations
 
-import functools
 import logging
 import warnings
 from collections.abc import Mapping
@@ -167,6 +166,9 @@ def solve(problem, settings: ClarabelSettings | None = None, *, preset: Clarabel
     except cp.error.SolverError as exc:
         raise SolverError(f"Clarabel failed on {what}: {exc}", "solver_error") from None
     status = problem.status
+    # Clarabel's solver object, kept by cvxpy for a re-solve, is engine state that cannot be pickled or
+    # copied: dropped, so that results holding their problems can be (a re-solve builds it again).
+    getattr(problem, "_solver_cache", {}).clear()
     if status in allow:
         return status
     if status not in OK_STATUSES:
@@ -177,28 +179,13 @@ def solve(problem, settings: ClarabelSettings | None = None, *, preset: Clarabel
 
 
 # --------------------------------------------------------------------- readable cvxpy problems
-@functools.lru_cache(maxsize=1)
-def _named_constant_class():
-    import cvxpy as cp
-
-    class NamedConstant(cp.Constant):
-        """A cvxpy constant that prints as its label (``A``, ``Bᵀ``, ``W``) instead of its entries."""
-
-        def __init__(self, value, label: str):
-            super().__init__(value)
-            self._label = label
-
-        def name(self) -> str:
-            return self._label
-
-    return NamedConstant
-
-
 def named_constant(value, label: str):
     """A cvxpy constant (dense or scipy.sparse ``value``) that ``print(problem)`` shows as ``label``, so
     that a problem reads like its equation: ``minimize quad_over_lin(W @ (z + -(Bᵀ @ ρ)), 1.0, …)`` (cvxpy
     writes ‖v‖² = ``sum_squares(v)`` as ``quad_over_lin(v, 1)``). The value is used as given."""
-    return _named_constant_class()(value, label)
+    from .cvxpy_names import NamedConstant
+
+    return NamedConstant(value, label)
 
 
 def parameter(value, label: str, **attributes):

@@ -36,6 +36,7 @@ from __future__ import annotations
 import ctypes
 import logging
 import mmap
+import os
 import threading
 import weakref
 
@@ -99,6 +100,20 @@ _RETURNED: list = []  # regions given back since, moved into _POOL by the next h
 _POOL_LOCK = threading.Lock()
 
 
+def _forget_pool_in_child() -> None:
+    """After ``fork``: the child starts with an empty pool and a fresh lock. The regions are private
+    (``MAP_PRIVATE``: a child's writes never reach its parent's memory, nor the parent's the child's), and
+    a lock another thread of the parent held at the fork would never be released in the child."""
+    global _POOL_LOCK
+    _POOL_LOCK = threading.Lock()
+    _POOL.clear()
+    _RETURNED.clear()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_forget_pool_in_child)
+
+
 def _give_back(region) -> None:
     """A region whose array is going: kept for reuse while the pool has room; else left to be unmapped
     when the array lets go of it (it still holds the region's buffer while this runs). No lock: this runs
@@ -112,7 +127,8 @@ def huge_empty(n: int, dtype) -> np.ndarray:
     """An uninitialized array of n entries on transparent huge pages when it takes at least ``HUGE_MIN``
     bytes (else, or where ``MADV_HUGEPAGE`` is not available, ``np.empty``): a 2 MiB-aligned part of an
     anonymous ``mmap`` advised ``MADV_HUGEPAGE``, taken from the regions freed arrays left (``HUGE_POOL``
-    bytes of them are kept), or mapped anew.
+    bytes of them are kept), or mapped anew. The mapping is private (copy-on-write across ``fork``) and a
+    forked child starts with an empty pool.
 
     Why: QDLDL writes L row by row, so each row's entries land in as many columns, far apart in ``Li``
     and ``Lx``; on 4 KiB pages those writes miss the TLB. Measured on se-sync/city10000.g2o: the same
@@ -135,7 +151,9 @@ def huge_empty(n: int, dtype) -> np.ndarray:
             region = _POOL.pop(fit[0])
     try:
         if region is None:
-            region = mmap.mmap(-1, need)
+            # private: anonymous mappings are shared with forked children by default, and a child
+            # factoring into memory its parent also writes corrupts both
+            region = mmap.mmap(-1, need, flags=mmap.MAP_PRIVATE | mmap.MAP_ANONYMOUS)
             region.madvise(advice)
         raw = np.frombuffer(region, np.uint8)
     except (OSError, ValueError) as exc:  # no such advice on this kernel, or no memory map

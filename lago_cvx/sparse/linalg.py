@@ -76,12 +76,27 @@ def blas_threads(n: int | None):
         threads(None)
 
 
-class Factor:
+def _not_kept():
+    """What engine state becomes when it is pickled or deep-copied: nothing (see ``EngineState``)."""
+    return None
+
+
+class EngineState:
+    """Engine state — factors, orderings, C pointers, worker threads — is not data: ``pickle`` and
+    ``copy.deepcopy`` turn it into None. Results keep the data (matrices, edge systems) from which whoever
+    needs a factor after a copy rebuilds it (``Phase3.pose_covariances`` factors ``info`` anew)."""
+
+    def __reduce__(self):
+        return _not_kept, ()
+
+
+class Factor(EngineState):
     """A factored sparse SPD matrix N of shape (dim, dim): ``factor.solve(rhs)`` solves N x = rhs
     for rhs of shape (dim,) or (dim, r); ``factor.backend`` names the library used.
 
     ``matrix`` is N itself — whole and symmetric, in the factor's own numbering — or None when it is not
-    kept; it may be given as a function that builds it on first use."""
+    kept; it may be given as a function that builds it on first use. A factor is engine state: pickled or
+    deep-copied, it becomes None (``EngineState``)."""
 
     def __init__(self, solve: Callable[[np.ndarray], np.ndarray], dim: int, backend: str, matrix=None):
         self._solve = solve
