@@ -64,8 +64,8 @@ from functools import partial
 import numpy as np
 import scipy.sparse as sp
 
-from .sparse import (EdgeSystem, Factor, GraphElimination, inverse_blocks, matrix_blocks, plan_from_pattern,
-                     PoseFactor, refine_normal_equations, RenumberedFactor, row_blocks, solve_least_squares)
+from .sparse import (EdgeSystem, Factor, GraphElimination, marginal_blocks, RenumberedFactor, row_blocks,
+                     solve_least_squares)
 from .graph import _reduced_incidence, free_poses
 from .posegraph import PoseGraph, rot2
 from .errors import OptionError, check_choice
@@ -116,20 +116,6 @@ class Lazy:
         obj.__dict__[self.private] = value
 
 
-def _selected_diagonal(factor, info, var_index: np.ndarray, progress=None) -> np.ndarray:
-    """Diagonal b×b blocks (d, b, b) of info⁻¹ for the variables ``var_index`` (d, b) of each free pose, by
-    selected inversion on the multifrontal factor (``lago_cvx.sparse.multifrontal``, eq. (T)): the given factor
-    when it is one, else a factorization of ``info`` on its own pose-level plan."""
-    if isinstance(factor, PoseFactor):
-        return inverse_blocks(factor.blocks)[0]
-    d, b = var_index.shape
-    prow, pcol, blocks = matrix_blocks(info, var_index)
-    off = prow != pcol
-    plan = plan_from_pattern(d, prow[off], pcol[off])
-    lay = plan.layout(b)
-    return inverse_blocks(lay.factor(lay.assembler(prow, pcol), blocks), progress=progress)[0]
-
-
 # ------------------------------------------------------------------------------ phase 1
 @dataclass(frozen=True, eq=False)
 class Phase1:
@@ -151,7 +137,7 @@ class Phase1:
         d = self.theta_free.size
         if d == 0:
             return np.zeros(1)
-        var = _selected_diagonal(None, self.info, np.arange(d)[:, None])[:, 0, 0]
+        var = marginal_blocks(self.info, np.arange(d)[:, None])[:, 0, 0]
         return _full(d + 1, self.anchor_index, var)
 
 
@@ -206,19 +192,7 @@ def phase1_closed_form(graph: PoseGraph, delta_reg, unc: EdgeUncertainty, *, anc
     elim = elimination if elimination is not None and elimination.anchor_index == a else \
         GraphElimination(graph, a, weights=unc.info_delta)
     system = phase1_system(graph, delta_reg, unc, elim)
-    d = elim.d
-    factor = None
-    if elim.laplacian is not None:
-        solver, Lap = elim.laplacian
-        factor = Factor(solver.solve, d, "qdldl", None)
-        op = system.operator()
-        x, stats, trusted = refine_normal_equations(
-            factor.solve, lambda v: op.matvec(v.reshape(d, 1)).reshape(-1),
-            lambda r: op.rmatvec(r.reshape(-1, 1)).reshape(-1), system.c.reshape(-1))
-        if not trusted:
-            x, factor, stats = elim.solve(system, stage="phase 1")
-    else:
-        x, factor, stats = elim.solve(system, stage="phase 1")
+    x, factor, stats = elim.solve(system, stage="phase 1")  # by Ω_θ's factorization, made with the elimination
     info = partial(_normal_matrix, system)
     theta_free = np.asarray(x, dtype=float).reshape(-1)
     return Phase1(_full(graph.n_poses, a, theta_free), theta_free, info, a, factor, stats)
@@ -464,14 +438,8 @@ class Phase3:
         from .progress import Progress
 
         with Progress("pose covariances", callback=progress, logger=log) as tracker:
-            pm = getattr(self.factor, "pose_major", None)
-            if hasattr(pm, "engine_factor"):  # QDLDL's: the same system by the engine, on the shared plan
-                pm = pm.engine_factor()
-            if isinstance(pm, PoseFactor):
-                blocks = inverse_blocks(pm.blocks, progress=lambda i, k: tracker.update(i, k))[0]
-            else:
-                blocks = _selected_diagonal(None, self.info, var3,
-                                            progress=lambda i, k: tracker.update(i, k))
+            blocks = marginal_blocks(lambda: self.info, var3, factor=self.factor,
+                                     progress=lambda i, k: tracker.update(i, k))
         out[free_poses(n, self.anchor_index)] = blocks
         return out
 

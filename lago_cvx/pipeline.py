@@ -11,6 +11,7 @@ result is a ``VariantResult`` — a ``LagoResult`` with more fields.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import time
 
@@ -21,8 +22,8 @@ from .errors import GraphError, check_choice
 from .graph import spanning_tree as build_tree
 from .metrics import chi2, relative_difference
 from .posegraph import PoseGraph, compose
-from .sparse import COMPILED_MIN, GraphElimination
-from .positions import Polish, PositionSolver, polish, positions_from_problem, resolve_positions
+from .sparse import GraphElimination
+from .positions import Polish, PositionSolver, isotropic, polish, positions_from_problem, resolve_positions
 from .regularization import REGULARIZATIONS, regularize
 from .result import LagoResult
 from .rounding import AMBIGUITY_MARGIN
@@ -87,147 +88,47 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
                              regularization=regularization, information=information, positions=positions,
                              anchor=anchor, anchor_pose=anchor_pose, margin=margin, solver_settings=solver_settings,
                              backend=backend)
-    check_method(method)
-    check_choice("regularization", choice["regularization"], REGULARIZATIONS)
-    check_choice("information", choice["information"], INFORMATION_MODES)
-    check_choice("positions", choice["positions"], POSITIONS)
-    if graph.n_edges == 0 and graph.n_poses > 1:
-        raise GraphError(f"the graph has {graph.n_poses} poses and no edges: nothing links them")
+    _check_options(graph, method, choice)
     a = graph.anchor_index(anchor)
     aid = int(graph.ids[a])
     anchor_pose = np.zeros(3) if anchor_pose is None else np.asarray(anchor_pose, dtype=float).reshape(3)
-    timings, problems = {}, {}
-    t_all = time.perf_counter()
-
-    # The pose-level elimination, shared by every closed-form system: AMD and the factorization of phase 1's
-    # Ω_θ = A2 P_δ⁻¹ A2ᵀ (QDLDL), the elimination tree and fronts (lago_cvx.sparse.multifrontal); timed as phase 1.
-    # AMD (lago_cvx.sparse.amd) and QDLDL run in C without the GIL, so they run in a worker thread while this one
-    # builds the tree.
-    t = time.perf_counter()
+    closed, resolve = method == "closed_form", choice["positions"] == "resolve"
+    clock, problems = _Clock(), {}
     unc = edge_uncertainty(graph)
-    elim_job = None
-    early = choice["regularization"] == "chordal"  # factors on the shared elimination before phase 1
-    if method == "closed_form" and backend == "auto":
-        weights = unc.info_delta  # here: the worker starts with AMD, whose call releases the GIL at once
-        # Ω_θ factored in the worker; or, when QDLDL factors the chordal relaxation (below COMPILED_MIN
-        # unknowns), beside that factorization, whose pattern the worker builds after AMD while this thread
-        # computes the uncertainty forms (``warm``). Above, the compiled engine's plan needs Ω_θ's factor.
-        qdldl_first = early and 2 * (graph.n_poses - 1) < COMPILED_MIN
-
-        def eliminate():
-            el = GraphElimination(graph, a, weights=weights, factor_laplacian=not qdldl_first)
-            if qdldl_first:
-                el.upper_pattern(2)
-            return el
-
-        elim_job = _Beside(eliminate)
-    t_elim = time.perf_counter() - t
-
-    t = time.perf_counter()
-    try:
+    # The pose-level elimination shared by every closed-form system (AMD, Ω_θ = A2 P_δ⁻¹ A2ᵀ factored), built
+    # by the engine while the tree and the regularization are computed; told which systems will follow.
+    elim = _elimination(graph, a, unc, choice) if closed and backend == "auto" else None
+    solver = PositionSolver(graph, unc, elim) if elim is not None and resolve else None
+    with clock("tree"):
         tree = build_tree(graph, choice["spanning_tree"], anchor=aid)
-    except BaseException:
-        if elim_job is not None:
-            elim_job.join()
-        raise
-    timings["tree"] = time.perf_counter() - t
-
-    elim, pos_solver = None, None
-
-    def elimination(b):  # wait for the worker, then register what runs beside the first QDLDL factorization
-        nonlocal elim, pos_solver
-        elim = elim_job.result() if elim_job is not None else None
-        if elim is not None:  # (the chordal relaxation's, or phase 3's)
-            if method == "closed_form":  # the next compiled factorization (b×b blocks), when it will run, made
-                elim.prepare(b)  # ready beside the work before it
-            elim.defer(lambda: elim.upper_pattern(3))  # phase 3's pattern
-            elim.defer(lambda: elim.laplacian)  # Ω_θ's factorization, when it waited (phase 1 needs it)
-            if choice["positions"] == "resolve":
-                pos_solver = PositionSolver(graph, unc, elim)
-                elim.defer(pos_solver.prefactor)  # the polish's θ-independent factorization (isotropic)
-            if b == 3:
-                prepare_polish()
-
-    def prepare_polish():  # the polish's isotropic system (1×1 blocks, θ-independent) made ready beside phase 3's
-        if method == "closed_form" and pos_solver is not None and pos_solver.isotropic:
-            elim.prepare(1)
-
-    def warm():  # while the worker builds the elimination: the uncertainty forms phases 2–3 will read
-        if elim_job is None or graph.n_edges == 0:
-            return
-        forms = ["sqrt_info_delta_l" if choice["information"] == "marginal" else "sqrt_info"]
-        if choice["positions"] == "resolve":
-            forms.append("sqrt_info_pp")
-        for form in forms:  # each computed once, when first read (lago_cvx.uncertainty)
-            getattr(unc, form)
-
-    # Only the chordal regularizer factors on the shared elimination: the others run while it is built.
-    if early:  # the chordal relaxation (2×2 blocks) prepared first, phase 3 after it
-        t = time.perf_counter()
-        warm()
-        elimination(2)
-        t_elim += time.perf_counter() - t
-
-    t = time.perf_counter()
-    try:
+    unc.prepare(information=choice["information"], positions=choice["positions"])
+    with clock("regularization"):
         reg = regularize(graph, tree, regularization=choice["regularization"], margin=margin, method=method,
                          backend=backend, settings=solver_settings, search=integer_search, progress=progress,
                          uncertainty=unc, elimination=elim)
-    except BaseException:
-        if elim_job is not None and not early:
-            elim_job.join()
-        raise
-    timings["regularization"] = time.perf_counter() - t
-    if not early:
-        t = time.perf_counter()
-        warm()
-        elimination(3)
-        t_elim += time.perf_counter() - t
-    elif elim is not None and method == "closed_form":
-        elim.prepare(3)  # beside phases 1 and 2
-        prepare_polish()
     if reg.problem is not None:
         problems[reg.regularization] = reg.problem  # "chordal" or "integer"
-
-    t = time.perf_counter()
-    if method == "closed_form":
-        ph1 = P.phase1_closed_form(graph, reg.delta_reg, unc, anchor=aid, backend=backend, elimination=elim)
-    else:
-        ph1, problems["phase1"] = P.phase1_from_problem(graph, reg.delta_reg, unc, anchor=aid,
-                                                        settings=solver_settings)
-    timings["phase1"] = time.perf_counter() - t + t_elim
-    at_theta_hat = {}
-    if pos_solver is not None and pos_solver.isotropic:  # the polish's θ̂ trial and its χ², beside phase 3's
-        def theta_hat_trial():  # factorization
-            at_theta_hat["base"] = pos_solver(ph1.theta)
-            at_theta_hat["cost"] = chi2(graph, at_theta_hat["base"].poses)
-
-        elim.defer(theta_hat_trial)
-
-    t = time.perf_counter()
-    ph2 = P.phase2(graph, ph1.theta, unc, anchor=aid, information=choice["information"], delta_reg=reg.delta_reg,
-                   elimination=elim)
-    timings["phase2"] = time.perf_counter() - t
-
-    t = time.perf_counter()
-    if method == "closed_form":
-        ph3 = P.phase3_closed_form(graph, ph2, backend=backend, elimination=elim, progress=progress)
-        if elim is not None:
-            elim.cancel_deferred()  # not run (phase 3 by the multifrontal engine): done when needed
-    else:
-        ph3, problems["phase3"] = P.phase3_from_problem(graph, ph2, settings=solver_settings)
-    timings["phase3"] = time.perf_counter() - t
-
-    t = time.perf_counter()
-    pol, poses = None, ph3.poses
-    if choice["positions"] == "resolve":
-        pol = _polish(graph, ph1.theta, ph3.poses[:, 2], unc, aid, method, backend, solver_settings, problems, elim,
-                      pos_solver, at_theta_hat.get("base"), at_theta_hat.get("cost"))
-        poses = pol.poses
-    timings["positions"] = time.perf_counter() - t
-
-    poses = compose(np.broadcast_to(anchor_pose, poses.shape), poses)
-    timings["total"] = time.perf_counter() - t_all
+    with clock("phase1"):  # eq. (13)
+        if closed:
+            ph1 = P.phase1_closed_form(graph, reg.delta_reg, unc, anchor=aid, backend=backend, elimination=elim)
+        else:
+            ph1, problems["phase1"] = P.phase1_from_problem(graph, reg.delta_reg, unc, anchor=aid,
+                                                            settings=solver_settings)
+    if solver is not None:
+        solver.expect(ph1.theta)  # the polish's trial at θ̂ does not need phase 3: solved beside it
+    with clock("phase2"):  # eqs. (9)–(11)
+        ph2 = P.phase2(graph, ph1.theta, unc, anchor=aid, information=choice["information"],
+                       delta_reg=reg.delta_reg, elimination=elim)
+    with clock("phase3"):  # eqs. (12), (15)
+        if closed:
+            ph3 = P.phase3_closed_form(graph, ph2, backend=backend, elimination=elim, progress=progress)
+        else:
+            ph3, problems["phase3"] = P.phase3_from_problem(graph, ph2, settings=solver_settings)
+    with clock("positions"):  # eq. (14) at phase 3's orientations, guarded by phase 1's
+        pol = _polish(graph, ph1.theta, ph3.poses[:, 2], unc, aid, method, backend, solver_settings, problems,
+                      solver) if resolve else None
+    poses = compose(np.broadcast_to(anchor_pose, ph3.poses.shape), ph3.poses if pol is None else pol.poses)
+    timings = clock.done()
     log.info("LAGO (%s route, %s, %s tree, %s regularization, %s information, %s positions): %d poses, %d edges, "
              "%d cycles regularized, %.3f s", route_name, method, tree.kind, reg.regularization,
              choice["information"], choice["positions"], graph.n_poses, graph.n_edges, reg.n_regularized,
@@ -238,41 +139,49 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
                       positions=choice["positions"], polish=pol)
 
 
-class _Beside:
-    """``fn()`` run in a worker thread (for work that releases the GIL, beside this thread's own):
-    ``result()`` waits for it and returns its value or raises its exception."""
-
-    def __init__(self, fn):
-        import threading
-
-        self._value, self._error = None, None
-
-        def run():
-            try:
-                self._value = fn()
-            except BaseException as exc:  # handed to whoever asks for the result
-                self._error = exc
-
-        self._thread = threading.Thread(target=run, daemon=True, name="lago-beside")
-        self._thread.start()
-
-    def join(self) -> None:
-        self._thread.join()
-
-    def result(self):
-        self._thread.join()
-        if self._error is not None:
-            raise self._error
-        return self._value
+def _check_options(graph: PoseGraph, method: str, choice: dict) -> None:
+    check_method(method)
+    check_choice("regularization", choice["regularization"], REGULARIZATIONS)
+    check_choice("information", choice["information"], INFORMATION_MODES)
+    check_choice("positions", choice["positions"], POSITIONS)
+    if graph.n_edges == 0 and graph.n_poses > 1:
+        raise GraphError(f"the graph has {graph.n_poses} poses and no edges: nothing links them")
 
 
-def _polish(graph, theta_hat, theta_star, unc, aid, method, backend, settings, problems, elim=None,
-            solver=None, base=None, base_cost=None) -> Polish:
+def _elimination(graph: PoseGraph, a: int, unc, choice: dict) -> GraphElimination:
+    """The shared elimination, started; the systems announced in the order they will be factored: the
+    chordal relaxation (2×2 blocks), phase 3 (3×3) and the position polish (1×1 or 2×2)."""
+    expect = ((2,) if choice["regularization"] == "chordal" else ()) + (3,)
+    if choice["positions"] == "resolve":
+        expect += (1 if isotropic(unc) else 2,)
+    return GraphElimination.start(graph, a, weights=unc.info_delta, expect=expect)
+
+
+class _Clock:
+    """Seconds per step: ``with clock("phase1"): ...``; ``done()`` adds the total and returns them."""
+
+    def __init__(self):
+        self.timings, self._t0 = {}, time.perf_counter()
+
+    @contextlib.contextmanager
+    def __call__(self, step: str):
+        t = time.perf_counter()
+        try:
+            yield
+        finally:
+            self.timings[step] = time.perf_counter() - t
+
+    def done(self) -> dict:
+        self.timings["total"] = time.perf_counter() - self._t0
+        return self.timings
+
+
+def _polish(graph, theta_hat, theta_star, unc, aid, method, backend, settings, problems, solver=None) -> Polish:
     """The position polish in closed form or as cvxpy problems (the last one solved is kept). In closed
     form one ``PositionSolver`` (``solver``, or a new one) serves every trial (isotropic information: one
-    factorization for all); ``base`` the trial at θ̂ when it was solved already, ``base_cost`` its χ²."""
-    if solver is None and elim is not None:
-        solver = PositionSolver(graph, unc, elim)
+    factorization for all), and the trial at θ̂ comes from it when it was solved ahead."""
+    if solver is None and method == "closed_form" and backend == "auto":
+        solver = PositionSolver(graph, unc, GraphElimination(graph, graph.anchor_index(aid)))
 
     def solve_positions(theta):
         if method == "closed_form":
@@ -280,12 +189,10 @@ def _polish(graph, theta_hat, theta_star, unc, aid, method, backend, settings, p
         pos, problems["positions"] = positions_from_problem(graph, theta, unc, anchor=aid, settings=settings)
         return pos
 
-    many = None
-    if method == "closed_form" and backend == "auto" and solver is not None and solver.elim.anchor_index == \
-            graph.anchor_index(aid):
-        many = solver.many  # both first trials as right-hand sides of one system (isotropic information)
-    return polish(graph, theta_hat, theta_star, unc, solve_positions=solve_positions, solve_many=many, base=base,
-                  base_cost=base_cost if base is not None else None)
+    ahead = solver.expected(theta_hat) if solver is not None else None
+    base, base_cost = ahead if ahead is not None else (None, None)
+    return polish(graph, theta_hat, theta_star, unc, solve_positions=solve_positions,
+                  solve_many=solver.many if solver is not None else None, base=base, base_cost=base_cost)
 
 
 def compare_methods(graph: PoseGraph, *, solver_settings: ClarabelSettings | None = None, anchors=None,

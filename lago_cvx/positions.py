@@ -23,6 +23,7 @@ run after phase 3 it can only lower χ² (``lago(..., positions="resolve")``). B
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 from functools import partial
 
@@ -38,6 +39,8 @@ from .uncertainty import EdgeUncertainty
 
 __all__ = ["Positions", "position_system", "position_problem", "resolve_positions", "positions_from_problem",
            "PositionSolver", "isotropic", "Polish", "polish", "MAX_HALVINGS"]
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True, eq=False)
@@ -102,12 +105,18 @@ class PositionSolver:
     (d × d) that does not depend on θ: it is factored once (b = 1) and reused for every θ and both
     coordinates. Same minimiser, a quarter of the fill and one factorization instead of one per θ.
 
-    ``solver(theta, anchor_position=(0, 0)) -> Positions``."""
+    ``solver(theta, anchor_position=(0, 0)) -> Positions``. Built before the orientations are known, it
+    tells the elimination which system it will factor (b = 1 isotropic, else 2) and, when isotropic, hands
+    the θ-independent factorization over to be done ahead (``GraphElimination.ahead``)."""
 
     def __init__(self, graph: PoseGraph, unc: EdgeUncertainty, elimination: GraphElimination):
         self.graph, self.unc, self.elim = graph, unc, elimination
         self.isotropic = isotropic(unc)
         self._factor = None
+        self._at = []  # (theta, Ahead): orientations whose solve was handed over ahead
+        if self.isotropic and elimination.d:
+            system = self._isotropic_system(np.zeros((graph.n_edges, 1, 1)))
+            self._factor = elimination.ahead(elimination.factor, system)
 
     def _targets(self, theta: np.ndarray, p0: np.ndarray) -> np.ndarray:
         """g_k = R(θ_i)(Δˡ_k − h_k e_θ,k) (m, 2), the anchor's p0 moved to the right-hand side; a block of
@@ -135,12 +144,35 @@ class PositionSolver:
         return EdgeSystem(self.elim.tails, self.elim.heads, (-s).reshape(m, 1, 1), s.reshape(m, 1, 1), c,
                           self.elim.d)
 
-    def prefactor(self) -> None:
-        """Factor the isotropic system before the first θ is known (its matrix does not depend on θ):
-        ``lago`` defers it (``GraphElimination.defer``) to run beside another factorization."""
-        if self.isotropic and self._factor is None and self.elim.d:
-            system = self._isotropic_system(np.zeros((self.graph.n_edges, 1, 1)))
-            self._factor = self.elim.factor(system)
+    def expect(self, theta) -> None:
+        """(P) at ``theta`` and its χ² will be asked for: with isotropic information (one factorization for
+        every θ) they are solved ahead, beside the next factorization (``lago``: θ̂ beside phase 3's)."""
+        if self.isotropic and self.elim.d:
+            theta = np.asarray(theta, dtype=float)
+            self._at.append((theta, self.elim.ahead(self._solved_with_cost, theta)))
+
+    def _solved_with_cost(self, theta):
+        from .metrics import chi2
+
+        pos = self(theta)
+        return pos, chi2(self.graph, pos.poses)
+
+    def expected(self, theta):
+        """(Positions, χ²) at ``theta`` when ``expect(theta)`` handed it over, else None."""
+        for i, (th, job) in enumerate(self._at):
+            if np.array_equal(th, theta):
+                del self._at[i]
+                return job.result()
+        return None
+
+    def _shared_factor(self):
+        if self._factor is not None and not isinstance(self._factor, Factor):
+            try:
+                self._factor = self._factor.result()  # the factorization done ahead
+            except Exception as exc:  # redone by the solve, which falls back as it does for any system
+                log.info("the positions' factorization done ahead failed (%s): factored again", exc)
+                self._factor = None
+        return self._factor
 
     def many(self, thetas, *, anchor_position=(0.0, 0.0)) -> list["Positions"]:
         """(P) for each orientation vector of ``thetas`` (a sequence of (n,)). With isotropic information
@@ -156,7 +188,7 @@ class PositionSolver:
         c = np.stack([s[:, None] * self._targets(theta, p0) for theta in thetas], axis=2)  # (m, 2, k)
         system = self._isotropic_system(c.reshape(m, 1, 2 * len(thetas)))
         # factored on the first call (inside solve: with its progress), reused by every later θ
-        x, self._factor, stats = el.solve(system, factor=self._factor, stage="positions")
+        x, self._factor, stats = el.solve(system, factor=self._shared_factor(), stage="positions")
         x = x.reshape(d, 2, len(thetas))
 
         info = partial(_isotropic_info, el.tails, el.heads, el.d, s * s)

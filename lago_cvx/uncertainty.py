@@ -119,6 +119,15 @@ class EdgeUncertainty:
         """1/P_δ (m,): the rotational weight of each edge."""
         return 1.0 / self.var_delta
 
+    def prepare(self, *, information: str, positions: str) -> None:
+        """Compute now the forms phases 2–3 read with this ``information`` (``"full"``: ``sqrt_info``;
+        ``"marginal"``: ``sqrt_info_delta_l``) and ``positions`` (``"resolve"``: ``sqrt_info_pp``), each
+        otherwise computed when first read: ``lago`` does it while the engine builds the elimination."""
+        if self.information.shape[0]:
+            getattr(self, "sqrt_info_delta_l" if information == "marginal" else "sqrt_info")
+            if positions == "resolve":
+                getattr(self, "sqrt_info_pp")
+
     @property
     def block_diagonal(self) -> np.ndarray:
         """Bool (m,): the edge's Ω has no x–θ / y–θ terms (the seed's assumption holds exactly)."""

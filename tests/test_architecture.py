@@ -116,6 +116,28 @@ def test_engine_is_one_folder_behind_one_door():
     assert not upward, "\n".join(upward)
 
 
+#: Words of an engine's plumbing that the mathematics never needs (threads, C pointers, memory mapping,
+#: the engine's own size thresholds).
+PLUMBING = ("threading", "ctypes", "mmap", "concurrent.futures", "COMPILED_MIN", "ENGINE_MIN", "numba")
+MATHEMATICS = ("uncertainty", "rounding", "regularization", "phases", "positions", "result", "variants",
+               "pipeline", "refinement", "certification", "theorem1", "graph", "posegraph", "metrics")
+
+
+def test_the_mathematics_holds_no_engine_plumbing():
+    found = []
+    for name, path in MODULES.items():
+        if name.split(".")[0] not in MATHEMATICS:
+            continue
+        tree = ast.parse(path.read_text())
+        for node in ast.walk(tree):
+            if isinstance(node, (ast.Import, ast.ImportFrom)):
+                names = [a.name for a in node.names] + ([node.module] if getattr(node, "module", None) else [])
+                found += [f"{name}: imports {n}" for n in names if n and n.split(".")[0] in PLUMBING]
+            elif isinstance(node, ast.Name) and node.id in PLUMBING:
+                found.append(f"{name}: uses {node.id}")
+    assert not found, "engine plumbing in the mathematics:\n" + "\n".join(sorted(set(found)))
+
+
 def test_no_import_circles():
     graph = {name: {t for t in _imports(name, path) if t in MODULES} for name, path in MODULES.items()}
     # a package's __init__ re-exporting its own submodules is not a circle of the design; the edge

@@ -36,7 +36,7 @@ def kernel(request, monkeypatch):
 @pytest.fixture(params=[1, 2], ids=["one-thread", "two-threads"])
 def threads(request, monkeypatch):
     """One thread, or the subtrees shared between two threads whatever the work (PARALLEL_WORK 0)."""
-    monkeypatch.setattr(C, "THREADS", request.param)
+    monkeypatch.setattr(C, "cores", lambda: request.param)
     monkeypatch.setattr(C, "PARALLEL_WORK", 0.0)
     return request.param
 
@@ -163,7 +163,7 @@ def test_factor_reports_its_progress(monkeypatch):
     g = lc.manhattan_world(800, seed=6).graph
     el, system = _random_system(g, 3)
     for t in (1, 2):
-        monkeypatch.setattr(C, "THREADS", t)
+        monkeypatch.setattr(C, "cores", lambda t=t: t)
         monkeypatch.setattr(C, "PARALLEL_WORK", 0.0)
         seen = []
         el.plan.__dict__.pop("_compiled_layouts", None)
@@ -204,7 +204,7 @@ def test_prepared_factorization_is_the_same(monkeypatch):
     el2, _ = _random_system(g, 3, seed=2)
     el2.prepare(3)
     assert 3 in el2._preparing
-    el2._preparing[3].join()
+    el2._preparing[3].result()  # waits for the worker (its error raised here)
     lay = C.CompiledLayout.of(el2.plan, 3)
     reserved = lay._reserved
     f = el2.factor(system)
@@ -283,10 +283,10 @@ def test_compiled_edge_operator_is_the_numpy_operator(b, q, anchor):
 
 
 def test_large_systems_get_the_compiled_operator(monkeypatch):
-    """``EdgeSystem.operator()`` is compiled from COMPILED_MIN unknowns, NumPy's below."""
+    """``normal_equations.edge_operator`` is compiled from COMPILED_MIN unknowns, NumPy's below."""
     g = lc.manhattan_world(300, seed=0).graph
     el, system = _random_system(g, 3)
     monkeypatch.setattr(ne, "COMPILED_MIN", 10**12)
-    assert isinstance(system.operator(), ne.EdgeOperator)
+    assert isinstance(ne.edge_operator(system), ne.EdgeOperator)
     monkeypatch.setattr(ne, "COMPILED_MIN", 0)
-    assert isinstance(system.operator(), C.CompiledEdgeOperator)
+    assert isinstance(ne.edge_operator(system), C.CompiledEdgeOperator)

@@ -145,20 +145,32 @@ def test_odometric_tree_lands_in_wrong_basin_on_m3500a():
     assert bfs.chi2 / REFERENCE_CHI2["carlone/input_M3500a_g2o.g2o"] < 1.02
 
 
-def test_elimination_beside_the_tree_and_its_errors():
-    """``lago`` builds the pose-level elimination in a worker thread while it builds the tree
-    (``pipeline._Beside``): a disconnected graph still raises the tree's ``GraphError``, naming the
-    components, with no worker left running; an exception in the worker reaches the caller."""
+def test_elimination_beside_the_tree_and_its_errors(monkeypatch):
+    """``lago`` has the engine build the pose-level elimination in a worker thread while it builds the tree
+    (``GraphElimination.start``): a disconnected graph still raises the tree's ``GraphError``, naming the
+    components; an exception in the worker reaches the caller; work handed over ahead (``Ahead``) returns
+    its value or raises its error to whoever asks."""
     import threading
 
-    from lago_cvx.pipeline import _Beside
+    from lago_cvx.sparse import normal_equations as ne
 
     truth = np.array([[0, 0, 0], [1, 0, 0], [5, 5, 0], [6, 5, 0]], float)
     g = graph_from_truth(truth, np.array([0, 2]), np.array([1, 3]))
     with pytest.raises(GraphError, match="not connected"):
         lago(g)
-    assert not any(t.name == "lago-beside" and t.is_alive() for t in threading.enumerate())
-    job = _Beside(lambda: 1 / 0)
+    for t in threading.enumerate():
+        if t.name == "lago-elimination":
+            t.join(10)
+            assert not t.is_alive()
+
+    def broken(self, factor_laplacian):
+        raise MemoryError("no room for the elimination")
+
+    monkeypatch.setattr(ne.GraphElimination, "_build", broken)
+    with pytest.raises(MemoryError, match="no room"):
+        lago(manhattan_world(30, seed=0).graph)
+    job = ne.Ahead(lambda: 1 / 0)
+    job.run()  # as the engine runs it, beside a factorization: the error is kept
     with pytest.raises(ZeroDivisionError):
         job.result()
-    assert _Beside(lambda: 42).result() == 42
+    assert ne.Ahead(lambda x: 2 * x, 21).result() == 42

@@ -253,10 +253,11 @@ def test_normal_entries_are_the_normal_blocks(b, q):
 
 
 def test_deferred_work_runs_beside_the_factorization(monkeypatch):
-    """``GraphElimination.defer``: the tasks run (once, in order, in the calling thread) while QDLDL
+    """``GraphElimination.ahead``: the tasks run (once, in order, in the calling thread) while QDLDL
     factors the next system in a worker thread; the factor is bitwise the one without them; a task
-    that raises is dropped without touching the factorization; LAGO defers phase 3's pattern and the
-    polish's θ-independent factorization and gives the same estimate either way."""
+    that raises keeps its error for whoever asks for its result, without touching the factorization;
+    LAGO hands over phase 3's pattern and the polish's θ-independent factorization and gives the same
+    estimate either way."""
     import threading
 
     g = lc.manhattan_world(300, seed=6).graph
@@ -264,11 +265,14 @@ def test_deferred_work_runs_beside_the_factorization(monkeypatch):
     system = _random_system(el, 2, seed=3)
     alone = el.factor(system, engine=False)
     ran = []
-    el.defer(lambda: ran.append(("first", threading.current_thread() is threading.main_thread())))
-    el.defer(lambda: 1 / 0)
-    el.defer(lambda: ran.append(("pattern", el.upper_pattern(3) is not None)))
+    first = el.ahead(lambda: ran.append(("first", threading.current_thread() is threading.main_thread())))
+    failing = el.ahead(lambda: 1 / 0)
+    el.ahead(lambda: ran.append(("pattern", el.upper_pattern(3) is not None)))
     beside = el.factor(system, engine=False)
     assert ran == [("first", True), ("pattern", True)] and el.deferred_work() is None
+    assert first.done and failing.done
+    with pytest.raises(ZeroDivisionError):
+        failing.result()
     y = np.random.default_rng(0).standard_normal(el.d * 2)
     assert np.array_equal(alone.solve(y), beside.solve(y))
     assert 3 in el._upper_patterns
@@ -280,9 +284,9 @@ def test_deferred_work_runs_beside_the_factorization(monkeypatch):
 
 
 def test_deferred_tasks_left_over_are_dropped(monkeypatch):
-    """When phase 3 goes to the multifrontal engine no QDLDL factorization runs the deferred tasks: LAGO
-    drops them after phase 3, so the polish factors its system once (not again inside a task beside
-    itself) and the estimate is the all-QDLDL one."""
+    """When phase 3 goes to the multifrontal engine no QDLDL factorization runs the tasks handed over: the
+    engine drops phase 3's QDLDL pattern, the polish factors its system once (the task handed over is
+    run when first asked for, not again beside itself) and the estimate is the all-QDLDL one."""
     g = lc.manhattan_world(400, seed=1).graph
     reference = lc.lago(g, route="seed", positions="resolve")  # no chordal factorization to run tasks beside
     d = g.n_poses - 1

@@ -33,7 +33,6 @@ from __future__ import annotations
 
 import logging
 import mmap
-import os
 import sys
 import threading
 from concurrent.futures import ThreadPoolExecutor
@@ -41,6 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..sparse import cores
 from .careful import BOM, Notes, Parsed, floats_or_none, ignored_line, without_comment
 from .formats import EQUIV, FIX, FORMAT_SPECS, SPECS
 
@@ -53,8 +53,9 @@ CHUNK = 1 << 20
 #: Below this many numbers, ``np.fromstring`` converts them: importing ``scipy.io`` (≈ 0.3–1 s) would
 #: cost more than its faster conversion saves.
 MMREAD_MIN_TOKENS = 1_500_000
-#: Threads for the chunk pass (the processors this process may use, at most 4).
-WORKERS = max(1, min(4, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1))
+#: Threads for the chunk pass: at most this many, and no more than the cores this process may use now
+#: (``sparse.cores()``).
+WORKERS = 4
 _PAD = 16              # newline padding after a chunk: 8-byte tag words and next-character looks stay inside
 _HEADER = 128          # room for the Matrix Market header before the body
 _EXACT_INT = 2.0 ** 53
@@ -172,7 +173,7 @@ class _Chunks:
     def run(self) -> None:
         """Process every chunk, then merge the pieces in file order (``_GiveUp`` if any gave up)."""
         bounds = self._bounds()
-        workers = min(WORKERS, len(bounds))
+        workers = min(WORKERS, cores(), len(bounds))
         if workers > 1:
             with ThreadPoolExecutor(workers) as pool:
                 pieces = list(pool.map(self._guarded, bounds))

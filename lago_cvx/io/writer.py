@@ -13,7 +13,7 @@ byte; the few values it cannot decide with margin go to ``repr`` itself) and lay
 by side; a column whose values are all equal (same bits) is one literal. As a guard, the first and last
 number of every column of every block are compared with ``repr``; should one differ, the block is
 formatted by one ``%`` operation instead (a format string repeated once per line, applied to the
-flattened values) — the reference the tests compare with. Blocks are formatted by ``WRITE_THREADS``
+flattened values) — the reference the tests compare with. Blocks are formatted by ``WRITE_THREADS`` (one per core)
 threads and written in file order.
 """
 
@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..sparse import unique_sorted
+from ..sparse import cores, unique_sorted
 from ..errors import OptionError
 from ..posegraph import PoseGraph, wrap_angle
 from .floatfmt import int_fields, join_fields, repr_fields
@@ -186,23 +186,25 @@ def write_graph(path, graph: PoseGraph, poses=None, *, format: str = "g2o",
     return Path(path)
 
 
-#: Threads formatting blocks at once (NumPy's column operations release the GIL: two threads write a
-#: million-pose file in 3.8 s against 5.3 s with one), and how many blocks may wait formatted.
-WRITE_THREADS = 2
+#: Threads formatting blocks at once: None for one per core of this process (``sparse.cores()``), at
+#: most ``_AHEAD`` (NumPy's column operations release the GIL: two threads write a million-pose file in
+#: 3.8 s against 5.3 s with one); and how many blocks may wait formatted.
+WRITE_THREADS: int | None = None
 _AHEAD = 4
 
 
 def _in_order(jobs: list):
     """The results of ``jobs`` (callables), in order, computed by ``WRITE_THREADS`` threads with at most
     ``_AHEAD`` finished blocks held in memory; a job's exception is raised where its result is due."""
-    if WRITE_THREADS < 2 or len(jobs) < 2:
+    threads = min(_AHEAD, cores()) if WRITE_THREADS is None else WRITE_THREADS
+    if threads < 2 or len(jobs) < 2:
         for job in jobs:
             yield job()
         return
     from collections import deque
     from concurrent.futures import ThreadPoolExecutor
 
-    with ThreadPoolExecutor(WRITE_THREADS, thread_name_prefix="lago-write") as ex:
+    with ThreadPoolExecutor(threads, thread_name_prefix="lago-write") as ex:
         pending = deque()
         for job in jobs:
             pending.append(ex.submit(job))

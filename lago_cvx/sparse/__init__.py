@@ -11,9 +11,11 @@ The door, in the spirit of scikit-sparse's ``cholesky(A) -> Factor``:
   on the pose graph's pattern, b unknowns per pose (b = 1, 2, 3, 6, 9 …), q rows per edge;
 * ``GraphElimination(graph, anchor_index, weights=…)`` — the symbolic analysis of one graph and anchor,
   shared by every system solved on it: ``.factor(system) -> Factor``, ``.solve(system) -> (x, factor, stats)``;
+  ``GraphElimination.start(…, expect=…)`` builds it in a worker while the caller goes on, and
+  ``.ahead(task)`` hands over work needed later (overlap and prefetching live here, not in the caller);
 * ``factorize(N) -> Factor`` and ``solve_least_squares(M, b)`` for a sparse matrix of any other pattern;
-* ``Factor`` — ``solve(rhs)``; ``marginal_blocks`` selected blocks of N⁻¹ (``block_diagonal_inverse``,
-  ``inverse_blocks``);
+* ``Factor`` — ``solve(rhs)``; ``marginal_blocks(N, var_index, factor=…)`` the diagonal blocks of N⁻¹ by
+  selected inversion (``block_diagonal_inverse`` by column solves for small blocks of any factor);
 * small per-edge kernels the mathematics calls by name: ``row_blocks`` (per-edge arithmetic a block of
   edges at a time), ``unique_sorted``, the closed-form 2×2 / 3×3 inverses and Cholesky factors
   (``spd_inverse``, ``spd_inverse_corner``, ``cholesky``), ``whitening_2x2``.
@@ -25,13 +27,14 @@ from .arrays import row_blocks, unique_sorted
 from .block_factor import inverse_blocks
 from .linalg import (SOLVER_BACKENDS, Factor, augmented_least_squares, block_diagonal_inverse, factorize,
                      refine_normal_equations, solve_least_squares, whitening_2x2)
-from .normal_equations import (COMPILED_MIN, EdgeSystem, GraphElimination, PoseFactor, RenumberedFactor,
-                               matrix_blocks, plan_from_pattern)
+from .edge_system import EdgeSystem
+from .normal_equations import GraphElimination, RenumberedFactor, marginal_blocks
 from .smallmat import cholesky, spd_inverse, spd_inverse_corner
+from .threads import cores
 
 __all__ = [
     "EdgeSystem", "GraphElimination", "Factor", "factorize", "solve_least_squares", "refine_normal_equations",
     "augmented_least_squares", "block_diagonal_inverse", "inverse_blocks", "whitening_2x2", "SOLVER_BACKENDS",
     "row_blocks", "unique_sorted", "cholesky", "spd_inverse", "spd_inverse_corner",
-    "COMPILED_MIN", "PoseFactor", "RenumberedFactor", "matrix_blocks", "plan_from_pattern",
+    "RenumberedFactor", "marginal_blocks", "cores",
 ]

@@ -24,7 +24,7 @@ of L_PP is not stored).
 Lᵀ x = z (root down), each front's triangle and rectangle by compiled loops.
 
 **Two cores.** The compiled loop releases the GIL: the front tree's largest subtrees are split until
-none holds more than 1/16 of the work, dealt to ``THREADS`` worker threads (each with its own front
+none holds more than 1/16 of the work, dealt to one worker thread per core (``threads.cores()``) (each with its own front
 buffer and stack, one BLAS thread), and the fronts above them are factored afterwards in the calling
 thread, the children's updates copied across from the workers' stacks (``CompiledLayout.schedule``).
 
@@ -44,6 +44,7 @@ import numpy as np
 
 from .linalg import Factor, blas_threads
 from .multifrontal import NotPositiveDefinite
+from .threads import cores
 
 __all__ = ["available", "CompiledLayout", "CompiledAssembler", "CompiledFactor", "CompiledPoseFactor",
            "CompiledEdgeOperator"]
@@ -57,9 +58,8 @@ SMALL_WORK = 50_000
 #: Fronts with at least this many pivot variables run BLAS on every thread; the others on one.
 THREADED_FRONT = 384
 
-#: Threads sharing the factorization's subtrees (the machine's cores, at most 2 here), and the least
-#: work (Σ k·D² over the fronts) for which it is shared at all.
-THREADS = 2
+#: The least work (Σ k·D² over the fronts) for which the factorization's subtrees are shared among
+#: threads at all; how many threads is ``threads.cores()``, read when a factorization is scheduled.
 PARALLEL_WORK = 5e8
 
 #: Each compiled call factors at most this share of the fronts (progress is reported between calls).
@@ -140,7 +140,7 @@ class CompiledLayout:
     def factor(self, assembler: "CompiledAssembler", A: np.ndarray, B: np.ndarray, *,
                progress=None) -> "CompiledFactor":
         """Factor the normal matrix (N) of the edge system with blocks ``A``, ``B`` (m, q, b) (its ends
-        those the assembler was built on) by (MF), fronts in postorder. With ``THREADS`` > 1 and enough
+        those the assembler was built on) by (MF), fronts in postorder. With more than one core (``threads.cores()``) and enough
         work, disjoint subtrees of the front tree are factored at once in worker threads (the compiled
         loop releases the GIL; one BLAS thread each), then the fronts above them (``schedule``) in this
         thread, large ones with every BLAS thread. ``progress(done, total)`` gets the multiply–adds done.
@@ -202,7 +202,7 @@ class CompiledLayout:
 
     @property
     def schedule(self):
-        """How the fronts are shared among ``THREADS`` threads, or None to factor them in one: the front
+        """How the fronts are shared among ``cores()`` threads, or None to factor them in one: the front
         tree's largest subtrees are split (their root joins ``top``, the fronts left to this thread) until
         none holds more than 1/16 of the work, then dealt to the threads largest first. Returns
         (roots per thread, top fronts in postorder, first front of each subtree, {top front: its children
@@ -214,7 +214,8 @@ class CompiledLayout:
         plan = self.plan
         total = float(self.work.sum())
         self._schedule = None
-        if THREADS < 2 or total < PARALLEL_WORK or plan.n_fronts < 2:
+        n_threads = cores()
+        if n_threads < 2 or total < PARALLEL_WORK or plan.n_fronts < 2:
             return None
         W, first = kernels()["subtrees"](plan.parent, self.work)
         kids = np.argsort(plan.parent, kind="stable")
@@ -230,8 +231,8 @@ class CompiledLayout:
             for c in children[cptr[f]:cptr[f + 1]].tolist():
                 heapq.heappush(heap, (-W[c], c))
         roots = sorted((f for _, f in heap), key=lambda f: -W[f])
-        load = [0.0] * THREADS
-        roots_of = [[] for _ in range(THREADS)]
+        load = [0.0] * n_threads
+        roots_of = [[] for _ in range(n_threads)]
         for r in roots:  # largest first, to the least loaded thread
             i = int(np.argmin(load))
             roots_of[i].append(r)
@@ -243,17 +244,18 @@ class CompiledLayout:
             ext[f] = [c for c in children[cptr[f]:cptr[f + 1]].tolist() if c in rootset]
         self._schedule = (roots_of, np.array(sorted(top), np.int64), first, ext)
         log.debug("compiled engine: %d subtrees on %d threads (work %s), %d fronts above them", len(roots),
-                  THREADS, [f"{x / total:.2f}" for x in load], len(top))
+                  n_threads, [f"{x / total:.2f}" for x in load], len(top))
         return self._schedule
 
-    def reserve(self, *, threads: int = 2) -> None:
+    def reserve(self, *, threads: int | None = None) -> None:
         """Allocate the next factorization's L and touch every page of it now (from ``threads`` threads at
-        once, called where there is time: ``GraphElimination.prepare``), so that the factorization writes
+        once, default one per core, called where there is time: ``GraphElimination.prepare``), so that the factorization writes
         to memory already mapped."""
         import threading
 
         if "_reserved" in self.__dict__:
             return
+        threads = cores() if threads is None else max(1, int(threads))
         L = np.empty(int(self.Lptr[-1]))
         cuts = np.linspace(0, L.size // 512, threads + 1).astype(np.int64) * 512
 

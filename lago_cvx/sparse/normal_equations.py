@@ -34,9 +34,11 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from .edge_system import EdgeOperator, EdgeSystem
 from .linalg import Factor, augmented_least_squares, refine_normal_equations
 from . import compiled
 from .compiled import CompiledPoseFactor
+from .block_factor import inverse_blocks
 from .multifrontal import COMPILED_RELAX, BlockFactor, EliminationPlan, plan_from_pattern, plan_from_qdldl
 from ..progress import Progress
 from .upper_pattern import BlockUpperPattern, PoseLaplacian, PoseUpperPattern, QdldlFactor, matrix_blocks
@@ -44,143 +46,6 @@ from .upper_pattern import BlockUpperPattern, PoseLaplacian, PoseUpperPattern, Q
 __all__ = ["plan_from_pattern", "matrix_blocks", "EdgeSystem", "EdgeOperator", "GraphElimination", "PoseFactor", "BlockUpperPattern", "PoseUpperPattern", "QdldlFactor", "RenumberedFactor", "CompiledPoseFactor", "ENGINE_MIN", "COMPILED_MIN"]
 
 log = logging.getLogger(__name__)
-
-
-@dataclass(frozen=True, eq=False)
-class EdgeSystem:
-    """The least-squares problem (E): ``tails``, ``heads`` (m,) free-pose indices (−1: the anchor),
-    ``A``, ``B`` (m, q, b), ``c`` (m, q) — or (m, q, r) for r problems with the same matrix, solved
-    together; ``d`` free poses."""
-
-    tails: np.ndarray
-    heads: np.ndarray
-    A: np.ndarray
-    B: np.ndarray
-    c: np.ndarray
-    d: int
-
-    @property
-    def b(self) -> int:
-        return self.A.shape[2]
-
-    def operator(self) -> "EdgeOperator":
-        """M and Mᵀ of this system with their set-up done once (for the refinement's repeated products): a
-        ``compiled.CompiledEdgeOperator`` from ``COMPILED_MIN`` unknowns when Numba can be imported (the
-        same sums in the same order), else an ``EdgeOperator``."""
-        if self.d * self.b >= COMPILED_MIN and compiled.available():
-            return compiled.CompiledEdgeOperator(self)
-        return EdgeOperator(self)
-
-    def matvec(self, x: np.ndarray) -> np.ndarray:
-        """M x (m, q[, r]) for x (d, b[, r]): A_k x_{t_k} + B_k x_{h_k} (anchor terms 0)."""
-        return self.operator().matvec(x)
-
-    def rmatvec(self, r: np.ndarray) -> np.ndarray:
-        """Mᵀ r (d, b[, r]) for r (m, q[, r]) (scatter-add by ``np.bincount``)."""
-        return self.operator().rmatvec(r)
-
-    def normal_blocks(self) -> np.ndarray:
-        """The blocks of (N) in ``GraphElimination.pairs`` order: [A_kᵀA_k (tail diagonal), B_kᵀB_k (head
-        diagonal), B_kᵀA_k (head row, tail column)], (3m, b, b)."""
-        At = np.ascontiguousarray(np.swapaxes(self.A, 1, 2))  # contiguous: NumPy's stacked matmul is 2× faster
-        Bt = np.ascontiguousarray(np.swapaxes(self.B, 1, 2))
-        return np.concatenate([At @ self.A, Bt @ self.B, Bt @ self.A])
-
-    def normal_entries(self) -> np.ndarray:
-        """The same blocks entry by entry, (3, b, b, m): [k, r, c] the (r, c) entries of the k-th kind
-        (A_kᵀA_k, B_kᵀB_k, B_kᵀA_k) for every edge, each a sum over the q rows of products of length-m
-        vectors. For small m faster than the stacked products of ``normal_blocks`` (NumPy pays per 3×3
-        matrix there: city10000's phase 3 8.7 ms against 13 ms, the chordal 2×2 blocks 4 against 9 ms;
-        equal at 1.8 M edges)."""
-        m, q, b = self.A.shape
-        At = np.ascontiguousarray(self.A.transpose(1, 2, 0))  # (q, b, m)
-        Bt = np.ascontiguousarray(self.B.transpose(1, 2, 0))
-        out = np.empty((3, b, b, m))
-        tmp = np.empty(m)
-        for k, X, Y, symmetric in ((0, At, At, True), (1, Bt, Bt, True), (2, Bt, At, False)):
-            for r in range(b):
-                for c in range(r if symmetric else 0, b):
-                    o = out[k, r, c]
-                    np.multiply(X[0, r], Y[0, c], out=o)
-                    for t in range(1, q):
-                        np.multiply(X[t, r], Y[t, c], out=tmp)
-                        o += tmp
-                    if symmetric and c > r:
-                        out[k, c, r] = o
-        return out
-
-    def sparse(self, var_index: np.ndarray | None = None) -> sp.csr_matrix:
-        """M as a sparse (m·q) × (d·b) matrix, columns ``var_index`` (d, b) (default pose-major)."""
-        m, q, b = self.A.shape
-        var = (np.arange(self.d * b).reshape(self.d, b) if var_index is None
-               else np.asarray(var_index, np.int64))
-        rows = np.repeat(np.arange(m * q).reshape(m, q), b, axis=1).reshape(m, q * b)
-        parts_r, parts_c, parts_v = [], [], []
-        for ends, J in ((self.tails, self.A), (self.heads, self.B)):
-            ok = ends >= 0
-            parts_r.append(rows[ok].reshape(-1))
-            parts_c.append(np.tile(var[ends[ok]], (1, q)).reshape(-1))
-            parts_v.append(J[ok].reshape(-1))
-        return sp.csr_matrix((np.concatenate(parts_v), (np.concatenate(parts_r), np.concatenate(parts_c))),
-                             shape=(m * q, self.d * b))
-
-    def cost(self, x: np.ndarray) -> float:
-        r = self.matvec(x) - self.c
-        return float(np.sum(r * r))
-
-
-class EdgeOperator:
-    """M x and Mᵀ r of an ``EdgeSystem`` (E), component-major: A, B kept as (q, b, m) and the ends with the
-    anchor mapped to row d, so every product is b·q multiply–adds of length-m vectors (several times
-    faster than ``np.einsum`` over (m, q, b)) and Mᵀ's scatter-add one ``np.bincount`` per component and
-    right-hand side. Built once per solve (``GraphElimination.solve``, phase 1), not kept with the
-    system."""
-
-    def __init__(self, system: EdgeSystem):
-        self.m, self.q, self.b = system.A.shape
-        self.d = system.d
-        self.At = np.ascontiguousarray(system.A.transpose(1, 2, 0))
-        self.Bt = np.ascontiguousarray(system.B.transpose(1, 2, 0))
-        self.t = np.where(system.tails < 0, self.d, system.tails)
-        self.h = np.where(system.heads < 0, self.d, system.heads)
-        self.ends = np.concatenate([self.t, self.h])  # (2m,): the tails, then the heads
-
-    def matvec(self, x: np.ndarray) -> np.ndarray:
-        """M x (m, q[, r]) for x (d, b[, r])."""
-        At, Bt, m, q, b = self.At, self.Bt, self.m, self.q, self.b
-        extra = x.shape[2:]
-        xe = np.zeros((b, *extra, self.d + 1))  # component-major, column d: the anchor's zero
-        xe[..., :self.d] = np.moveaxis(x, 0, -1)
-        xt, xh = np.take(xe, self.t, axis=-1), np.take(xe, self.h, axis=-1)  # (b, [r,] m)
-        out = np.empty((q, *extra, m))
-        for s_ in range(q):
-            o = out[s_]
-            np.multiply(At[s_, 0], xt[0], out=o)
-            o += Bt[s_, 0] * xh[0]
-            for c in range(1, b):
-                o += At[s_, c] * xt[c]
-                o += Bt[s_, c] * xh[c]
-        return np.ascontiguousarray(np.moveaxis(out, -1, 0))
-
-    def rmatvec(self, r: np.ndarray) -> np.ndarray:
-        """Mᵀ r (d, b[, r]) for r (m, q[, r])."""
-        At, Bt, m, q, b = self.At, self.Bt, self.m, self.q, self.b
-        extra = r.shape[2:]
-        k = int(np.prod(extra, dtype=np.int64))
-        rt = np.moveaxis(r, 0, -1)  # (q, [r,] m)
-        u = np.empty((b, *extra, 2 * m))  # per component: the tails' terms, then the heads'
-        for c in range(b):
-            ut, uh = u[c, ..., :m], u[c, ..., m:]
-            np.multiply(At[0, c], rt[0], out=ut)
-            np.multiply(Bt[0, c], rt[0], out=uh)
-            for s_ in range(1, q):
-                ut += At[s_, c] * rt[s_]
-                uh += Bt[s_, c] * rt[s_]
-        rows = u.reshape(b * k, 2 * m)
-        out = np.empty((b * k, self.d))
-        for i in range(b * k):  # one bincount per (component, right-hand side) over the shared ends
-            out[i] = np.bincount(self.ends, rows[i], minlength=self.d + 1)[:self.d]
-        return np.ascontiguousarray(np.moveaxis(out.reshape(b, *extra, self.d), -1, 0))
 
 
 class PoseFactor(Factor):
@@ -250,20 +115,55 @@ class RenumberedFactor(Factor):
         super().__init__(solve, vi.size, factor.backend, renumbered)
 
 
+def edge_operator(system: EdgeSystem):
+    """M and Mᵀ of ``system`` with their set-up done once (for the refinement's repeated products): a
+    ``compiled.CompiledEdgeOperator`` from ``COMPILED_MIN`` unknowns when Numba can be imported (the same
+    sums in the same order), else an ``EdgeOperator``."""
+    if system.d * system.b >= COMPILED_MIN and compiled.available():
+        return compiled.CompiledEdgeOperator(system)
+    return EdgeOperator(system)
+
+
+def marginal_blocks(N, var_index: np.ndarray, *, factor: Factor | None = None, progress=None) -> np.ndarray:
+    """The diagonal b×b blocks (d, b, b) of N⁻¹ for the variables ``var_index`` (d, b) of each free pose —
+    marginal covariances when N is an information matrix — by selected inversion (Takahashi's recurrences,
+    eq. (T) of ``lago_cvx.sparse.multifrontal``), never a dense inverse. On ``factor`` when it is the
+    engine's factor of N through a ``GraphElimination`` (a QDLDL factor is refactored by the multifrontal
+    engine on the graph's shared plan), else on a factorization of N (a sparse matrix, or a function that
+    builds it) on its own pose-level plan. ``progress(done, total)`` is told about the sweep."""
+    pm = getattr(factor, "pose_major", factor)
+    if hasattr(pm, "engine_factor"):
+        pm = pm.engine_factor()
+    if isinstance(pm, PoseFactor):
+        return inverse_blocks(pm.blocks, progress=progress)[0]
+    N = N() if callable(N) else N
+    var_index = np.asarray(var_index, np.int64)
+    d, b = var_index.shape
+    prow, pcol, blocks = matrix_blocks(N, var_index)
+    off = prow != pcol
+    lay = plan_from_pattern(d, prow[off], pcol[off]).layout(b)
+    return inverse_blocks(lay.factor(lay.assembler(prow, pcol), blocks), progress=progress)[0]
+
+
 class GraphElimination:
     """The pose-level elimination of one graph and anchor (index ``anchor_index``), shared by its systems.
 
     ``d`` free poses; ``free_of`` (n,) each pose's free index (−1 at the anchor); ``tails``, ``heads``
     (m,) edges' ends as free indices; ``plan`` the ``EliminationPlan``. With ``weights`` (m,) the order
     is AMD's on the pose graph (``lago_cvx.sparse.amd``; through ``qdldl.Solver`` where AMD cannot be called
-    directly) and the weighted Laplacian A2 diag(weights) A2ᵀ is factored in it and kept in ``laplacian``
-    (phase 1's normal matrix when weights = 1/P_δ; None if it could not be factored): here, or on first
-    read with ``factor_laplacian=False``."""
+    directly) and the weighted Laplacian A2 diag(weights) A2ᵀ is factored in it: a system (E) with b = q = 1,
+    A_k = −√w_k, B_k = √w_k (phase 1's, eq. (13)) is solved by that factorization.
+
+    ``GraphElimination.start(graph, a, weights=…, expect=(2, 3, …))`` builds the same in a worker thread
+    (AMD and QDLDL release the GIL) and returns at once; whatever needs it waits, and a failure there is
+    raised to the caller that waits. ``expect`` announces the block sizes of the systems that will be
+    factored, in order (the chordal relaxation's 2, phase 3's 3, the positions' 1 or 2): what each will
+    need is prepared ahead — patterns beside another factorization, the compiled engine's layout and
+    memory in a worker (``prepare``). ``ahead(task)`` hands over other work needed later (an
+    ``Ahead``); the engine runs it beside the next QDLDL factorization, else it runs when first asked for."""
 
     def __init__(self, graph, anchor_index: int, *, weights: np.ndarray | None = None,
-                 factor_laplacian: bool = True):
-        import qdldl
-
+                 factor_laplacian: bool | None = True, expect: tuple = (), _background: bool = False):
         n = graph.n_poses
         self.n = n
         self.d = d = n - 1
@@ -272,6 +172,8 @@ class GraphElimination:
         self.free_of[np.delete(np.arange(n), self.anchor_index)] = np.arange(d)
         self.tails = self.free_of[graph.tails]
         self.heads = self.free_of[graph.heads]
+        self._weights = None if weights is None else np.asarray(weights, dtype=float)
+        self._expected = [int(b) for b in expect]
         self._assemblers = {}
         self._preparing: dict = {}
         self._laplacian, self._lap_pending, self._lap_lock = None, None, threading.Lock()
@@ -282,31 +184,70 @@ class GraphElimination:
         self._plan_lock = threading.Lock()
         self._upper_patterns = {}
         self._pose_pattern = None
-        self._deferred: list = []
+        self._tasks: list = []  # Ahead tasks waiting for a factorization to run beside
+        self._internal: dict = {}  # the engine's own tasks among them, by key
+        self._building = None
         if d == 0:
             self._plan = EliminationPlan(0, np.zeros(0, np.int64), np.zeros(1, np.int64), np.zeros(1, np.int64),
                                          np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64))
             return
-        if weights is not None and self._own_laplacian(np.asarray(weights, dtype=float), factor_laplacian):
+        if factor_laplacian is None:  # QDLDL will factor the chordal relaxation first: Ω_θ beside it
+            factor_laplacian = not (self._expected[:1] == [2] and 2 * d < COMPILED_MIN)
+        if _background:
+            self._building = Ahead(self._build, factor_laplacian)
+            threading.Thread(target=self._building.run, daemon=True, name="lago-elimination").start()
+        else:
+            self._build(factor_laplacian)
+
+    @classmethod
+    def start(cls, graph, anchor_index: int, *, weights: np.ndarray, expect: tuple = ()) -> "GraphElimination":
+        """The elimination built in a worker thread while the caller goes on (class docstring)."""
+        return cls(graph, anchor_index, weights=weights, factor_laplacian=None, expect=expect, _background=True)
+
+    def _build(self, factor_laplacian: bool) -> None:
+        """AMD and the weighted Laplacian's factorization (or, without weights, nothing: the plan is built
+        from the pattern when first needed); with the Laplacian left for later, the chordal relaxation's
+        pattern (b = 2) instead."""
+        import qdldl
+
+        d = self.d
+        if self._weights is None:
             return
-        if weights is not None:
-            w = np.asarray(weights, dtype=float)
-            lo, hi = self._lo, self._hi
-            diag = np.bincount(self.tails[self.tails >= 0], w[self.tails >= 0], minlength=d) + \
-                np.bincount(self.heads[self.heads >= 0], w[self.heads >= 0], minlength=d)
-            Lap = sp.csc_matrix((np.r_[-w[both], diag], (np.r_[lo, np.arange(d)], np.r_[hi, np.arange(d)])),
-                                shape=(d, d))
-            try:
-                solver = qdldl.Solver(Lap, upper=True)
-                self._laplacian = (solver, Lap)
-            except Exception as exc:  # not quasi-definite in floating point: the plan from the pattern alone
-                log.info("weighted pose Laplacian not factored by QDLDL (%s); plan from the pattern", exc)
+        if self._own_laplacian(self._weights, factor_laplacian):
+            if not factor_laplacian:
+                self._upper_pattern(2)
+            return
+        w = self._weights
+        t, h = self.tails, self.heads
+        both = (t >= 0) & (h >= 0)
+        diag = np.bincount(t[t >= 0], w[t >= 0], minlength=d) + np.bincount(h[h >= 0], w[h >= 0], minlength=d)
+        Lap = sp.csc_matrix((np.r_[-w[both], diag], (np.r_[self._lo, np.arange(d)], np.r_[self._hi, np.arange(d)])),
+                            shape=(d, d))
+        try:
+            self._laplacian = (qdldl.Solver(Lap, upper=True), Lap)
+        except Exception as exc:  # not quasi-definite in floating point: the plan from the pattern alone
+            log.info("weighted pose Laplacian not factored by QDLDL (%s); plan from the pattern", exc)
+
+    def _ready(self) -> None:
+        """Wait for the worker building the elimination (``start``), raising its error here; the first time,
+        set up what the announced systems need (class docstring)."""
+        job = self._building
+        if job is None:
+            return
+        job.result()
+        self._building = None
+        if self._expected:
+            self.prepare(self._expected[0])
+        for b in sorted(set(self._expected)):  # QDLDL's patterns, where QDLDL will factor
+            if self.d * b < COMPILED_MIN:
+                self._internal_task(("pattern", b), self._upper_pattern, b)
+        self._internal_task(("laplacian",), self._factor_laplacian)
 
     def _own_laplacian(self, w: np.ndarray, now: bool) -> bool:
-        """AMD of the pose graph called directly (``lago_cvx.sparse.amd``) and the weighted Laplacian factored on
-        the graph's b = 1 pattern (``upper_pattern.PoseLaplacian``), here (``now``) or when ``laplacian`` is
-        first read; False (nothing kept) when AMD cannot be called, and ``qdldl.Solver`` orders and factors
-        the Laplacian instead."""
+        """AMD of the pose graph called directly (``lago_cvx.sparse.amd``) and the weighted Laplacian factored
+        on the graph's b = 1 pattern (``upper_pattern.PoseLaplacian``), here (``now``) or when ``laplacian``
+        is first read; False (nothing kept) when AMD cannot be called, and ``qdldl.Solver`` orders and
+        factors the Laplacian instead."""
         from . import amd, ldl
 
         perm = amd.order(self.d, self._lo, self._hi) if ldl.available() else None
@@ -315,7 +256,7 @@ class GraphElimination:
         self._position = np.empty(self.d, np.int64)
         self._position[perm] = np.arange(self.d)
         self._lap_pending = (w, perm)
-        if now and self.laplacian is None:  # a zero pivot: as with qdldl.Solver, the plan from the pattern
+        if now and self._factor_laplacian() is None:  # a zero pivot: as qdldl.Solver, the plan from the pattern
             del self._position
             self._upper_patterns, self._pose_pattern = {}, None
         return True
@@ -324,14 +265,17 @@ class GraphElimination:
     def laplacian(self):
         """(a factor with ``solve``, ``factors()`` and ``matrix()`` of the weighted pose Laplacian, None) —
         or ``(qdldl.Solver, its upper triangle)`` when AMD could not be called directly; None without
-        weights or when QDLDL met a zero pivot. Factored on first read when the constructor was told to
-        wait (``factor_laplacian=False``: the chordal route factors it beside its relaxation)."""
+        weights or when QDLDL met a zero pivot."""
+        self._ready()
+        return self._factor_laplacian()
+
+    def _factor_laplacian(self):
         if self._lap_pending is not None:
             with self._lap_lock:
                 if self._lap_pending is not None:
                     w, perm = self._lap_pending
                     try:
-                        self._laplacian = (PoseLaplacian(self.upper_pattern(1), w, perm), None)
+                        self._laplacian = (PoseLaplacian(self._upper_pattern(1), w, perm), None)
                     except Exception as exc:
                         log.info("weighted pose Laplacian not factored by QDLDL (%s); plan from the pattern", exc)
                     self._lap_pending = None
@@ -342,14 +286,18 @@ class GraphElimination:
         """The pose-level ``EliminationPlan``, built on first use (the multifrontal engine and the selected
         inversion need it, QDLDL's solves do not): from the QDLDL factorization of the weighted Laplacian
         when there is one (its AMD ordering and L's pattern), else from the pattern."""
+        self._ready()
+        return self._get_plan()
+
+    def _get_plan(self) -> EliminationPlan:
         if self._plan is not None:
             return self._plan
-        with self._plan_lock:  # built once, whichever thread asks first (GraphElimination.prepare's or this)
+        with self._plan_lock:  # built once, whichever thread asks first (prepare's worker or this)
             if self._plan is not None:
                 return self._plan
             relaxation = self.relaxation
-            if self.laplacian is not None:
-                L, _, perm = self.laplacian[0].factors()
+            if self._factor_laplacian() is not None:
+                L, _, perm = self._laplacian[0].factors()
                 self._plan = plan_from_qdldl(L, perm, relaxation=relaxation)
             else:
                 self._plan = plan_from_pattern(self.d, self._lo, self._hi, relaxation=relaxation)
@@ -367,52 +315,72 @@ class GraphElimination:
     def elimination_position(self) -> np.ndarray:
         """(d,) each free pose's place in the elimination order: the AMD order of the weighted Laplacian's
         QDLDL factorization when there is one (no plan built), else the plan's."""
+        self._ready()
+        return self._elimination_position()
+
+    def _elimination_position(self) -> np.ndarray:  # (the worker's ``_build`` calls only private methods)
         if "_position" not in self.__dict__:
-            if self.laplacian is not None:
-                perm = self.laplacian[0].factors()[2]
+            if self._factor_laplacian() is not None:
+                perm = self._laplacian[0].factors()[2]
                 pos = np.empty(self.d, np.int64)
                 pos[np.asarray(perm, np.int64)] = np.arange(self.d)
                 self._position = pos
             else:
-                self._position = self.plan.position
+                self._position = self._get_plan().position
         return self._position
 
-    def defer(self, task) -> None:
-        """Register ``task()``, work LAGO will need later on this graph (a pattern, a θ-independent
-        factorization), to be done while QDLDL factors another system in a worker thread: on the second
-        core, as ``ctypes`` releases the GIL. A task that fails is dropped (logged); whoever needs its
-        result later computes it then and meets the error there."""
-        self._deferred.append(task)
+    # ------------------------------------------------------------------ work done ahead
+    def ahead(self, task, *args) -> Ahead:
+        """``task(*args)``, work needed later on this graph (a θ-independent factorization, a trial solve),
+        done beside the next QDLDL factorization (on the second core: ``ctypes`` releases the GIL there) or
+        else when its ``result()`` is first asked for; ``result()`` raises the task's error."""
+        job = Ahead(task, *args)
+        self._tasks.append(job)
+        return job
 
-    def cancel_deferred(self) -> None:
-        """Drop the tasks not run yet (no QDLDL factorization came to run them beside)."""
-        self._deferred = []
+    def _internal_task(self, key, task, *args) -> None:
+        """The engine's own work ahead, queued before the tasks handed over by the caller."""
+        if key not in self._internal:
+            mine = sum(1 for t in self._tasks if any(t is j for j in self._internal.values()))
+            self._internal[key] = job = Ahead(task, *args)
+            self._tasks.insert(mine, job)
+
+    def _drop_internal(self, key) -> None:
+        job = self._internal.pop(key, None)
+        if job is not None and job in self._tasks:
+            self._tasks.remove(job)
 
     def deferred_work(self):
-        """A callable running the deferred tasks (in order, each once), or None when there are none."""
-        if not self._deferred:
+        """A callable running the tasks handed over ahead (in order, each once), or None when there are
+        none; called by QDLDL's factorization (``upper_pattern.QdldlFactor``) while its C call runs."""
+        if not self._tasks:
             return None
 
         def run():
-            tasks, self._deferred = self._deferred, []  # taken first: a task that factors starts no other
-            for task in tasks:
-                try:
-                    task()
-                except Exception as exc:  # redone, and raised, where it is needed
-                    log.debug("deferred %r failed (%s): done when needed", task, exc)
+            tasks, self._tasks = self._tasks, []  # taken first: a task that factors starts no other
+            for job in tasks:
+                job.run()  # an error is kept for whoever asks for the result
 
         return run
 
+    # ------------------------------------------------------------------ patterns and factors
     def upper_pattern(self, b: int) -> BlockUpperPattern | None:
         """The ``BlockUpperPattern`` of the systems with b×b blocks (built once per b), or None when QDLDL's
         C routines cannot be called directly (``ldl.available()``)."""
+        self._ready()
+        job = self._internal.get(("pattern", b))
+        if job is not None and job.done:
+            job.result()  # its error, if building it failed beside a factorization
+        return self._upper_pattern(b)
+
+    def _upper_pattern(self, b: int) -> BlockUpperPattern | None:
         from . import ldl
 
         if not ldl.available():
             return None
         if b not in self._upper_patterns:
             if self._pose_pattern is None:
-                self._pose_pattern = PoseUpperPattern(self.elimination_position, self.pairs)
+                self._pose_pattern = PoseUpperPattern(self._elimination_position(), self.pairs)
             self._upper_patterns[b] = BlockUpperPattern(self._pose_pattern, b)
         return self._upper_patterns[b]
 
@@ -430,37 +398,65 @@ class GraphElimination:
         """Elimination slot of each pose-major variable i·b + c."""
         return (self.plan.position[:, None] * b + np.arange(b)).reshape(-1)
 
+    def _is_laplacian(self, system: EdgeSystem) -> bool:
+        """True for the system whose normal matrix is the weighted Laplacian factored ahead: b = q = 1 with
+        B_k = √w_k = −A_k (to rounding) on this graph's edges."""
+        if self._weights is None or system.b != 1 or system.A.shape[1] != 1 or system.d != self.d:
+            return False
+        Bk = system.B[:, 0, 0]
+        return (Bk.shape == self._weights.shape and np.array_equal(system.A[:, 0, 0], -Bk)
+                and np.array_equal(system.tails, self.tails) and np.array_equal(system.heads, self.heads)
+                and np.allclose(Bk * Bk, self._weights, rtol=1e-12, atol=0.0))
+
     def factor(self, system: EdgeSystem, *, progress=None, engine: bool | str | None = None) -> Factor:
-        """Factor the normal matrix (N) of ``system``. ``engine`` None (the default) picks by size: the
-        compiled multifrontal engine (a ``CompiledPoseFactor``, ``lago_cvx.sparse.compiled``) from
-        ``COMPILED_MIN`` unknowns when Numba can be imported, else the NumPy multifrontal engine (a
-        ``PoseFactor``) from ``ENGINE_MIN``, QDLDL (a ``QdldlFactor``) below; ``"compiled"``, True (the
-        NumPy engine) or False (QDLDL) force one. Raises ``multifrontal.NotPositiveDefinite`` (or
-        QDLDL's error) if N is not numerically SPD."""
+        """Factor the normal matrix (N) of ``system``. ``engine`` None (the default) picks: the weighted
+        Laplacian's factorization when (N) is it (class docstring); else by size the compiled multifrontal
+        engine (a ``CompiledPoseFactor``, ``lago_cvx.sparse.compiled``) from ``COMPILED_MIN`` unknowns when
+        Numba can be imported, the NumPy multifrontal engine (a ``PoseFactor``) from ``ENGINE_MIN``, QDLDL (a
+        ``QdldlFactor``) below; ``"compiled"``, True (the NumPy engine) or False (QDLDL) force one. Raises
+        ``multifrontal.NotPositiveDefinite`` (or QDLDL's error) if N is not numerically SPD."""
+        self._ready()
         b = system.b
+        if engine is None and self._is_laplacian(system) and self._factor_laplacian() is not None:
+            return Factor(self._laplacian[0].solve, self.d, "qdldl", None)
         job = self._preparing.pop(b, None)
         if job is not None:
-            job.join()
-        if engine == "compiled" or (engine is None and system.d * b >= COMPILED_MIN and compiled.available()):
-            if ("compiled", b) not in self._assemblers:
-                prow, pcol, _ = self.pairs
-                lay = compiled.CompiledLayout.of(self.plan, b)
-                self._assemblers["compiled", b] = (lay, lay.assembler(prow, pcol))
-            lay, asm = self._assemblers["compiled", b]
-            cf = lay.factor(asm, system.A, system.B, progress=progress)
-            return compiled.CompiledPoseFactor(cf, self.slots(b), system, self)
-        if not (engine if engine is not None else system.d * b >= ENGINE_MIN):
-            prow, pcol, keep = self.pairs
-            return QdldlFactor(system, (prow, pcol), keep, pattern=self.upper_pattern(b), elimination=self,
-                               progress=progress)
-        if b not in self._assemblers:
-            prow, pcol, keep = self.pairs
-            lay = self.plan.layout(b)
-            self._assemblers[b] = (lay, lay.assembler(prow[keep], pcol[keep]), keep)
-        lay, asm, keep = self._assemblers[b]
-        blocks = system.normal_blocks()[keep]
-        bf = lay.factor(asm, blocks, progress=progress)
-        return PoseFactor(bf, self.slots(b))
+            job.result()
+        compiled_route = engine == "compiled" or (engine is None and system.d * b >= COMPILED_MIN
+                                                  and compiled.available())
+        if compiled_route or (engine if engine is not None else system.d * b >= ENGINE_MIN):
+            self._drop_internal(("pattern", b))  # QDLDL's pattern for b will not be needed
+        try:
+            if compiled_route:
+                if ("compiled", b) not in self._assemblers:
+                    prow, pcol, _ = self.pairs
+                    lay = compiled.CompiledLayout.of(self.plan, b)
+                    self._assemblers["compiled", b] = (lay, lay.assembler(prow, pcol))
+                lay, asm = self._assemblers["compiled", b]
+                cf = lay.factor(asm, system.A, system.B, progress=progress)
+                return compiled.CompiledPoseFactor(cf, self.slots(b), system, self)
+            if not (engine if engine is not None else system.d * b >= ENGINE_MIN):
+                prow, pcol, keep = self.pairs
+                return QdldlFactor(system, (prow, pcol), keep, pattern=self.upper_pattern(b), elimination=self,
+                                   progress=progress)
+            if b not in self._assemblers:
+                prow, pcol, keep = self.pairs
+                lay = self.plan.layout(b)
+                self._assemblers[b] = (lay, lay.assembler(prow[keep], pcol[keep]), keep)
+            lay, asm, keep = self._assemblers[b]
+            blocks = system.normal_blocks()[keep]
+            bf = lay.factor(asm, blocks, progress=progress)
+            return PoseFactor(bf, self.slots(b))
+        finally:
+            self._prepare_next(b)
+
+    def _prepare_next(self, b: int) -> None:
+        """After the first announced system of b×b blocks is factored: the ones announced after it."""
+        if b in self._expected:
+            rest = self._expected[self._expected.index(b) + 1:]
+            self._expected = rest
+            for nb in rest:
+                self.prepare(nb)
 
     def prepare(self, b: int) -> None:
         """Start building, in a worker thread, what the compiled factorization of a system with b×b blocks
@@ -468,31 +464,26 @@ class GraphElimination:
         and touched (``CompiledLayout.reserve``: first touches of fresh memory are costly, in a virtual
         machine more than 1 s per GiB) — while this thread goes on (phases 1 and 2 before phase 3).
         Nothing happens below ``COMPILED_MIN`` unknowns or without Numba; ``factor`` waits for the
-        worker. A failure there is logged and the work redone where it is needed."""
-        import threading
-
+        worker and raises its error."""
         if self.d * b < COMPILED_MIN or b in self._preparing or ("compiled", b) in self._assemblers:
             return
 
         def work():
-            try:
-                if not compiled.available():
-                    return
-                lay = compiled.CompiledLayout.of(self.plan, b)
-                touch = threading.Thread(target=lay.reserve, daemon=True, name="lago-reserve")
-                touch.start()  # L's pages faulted in beside the assembler's work
-                prow, pcol, _ = self.pairs
-                asm = lay.assembler(prow, pcol)
-                touch.join()
-                self._assemblers["compiled", b] = (lay, asm)
-            except Exception as exc:  # redone, and raised, where it is needed
-                log.debug("preparing the compiled factorization failed (%s): done when needed", exc)
+            if not compiled.available():
+                return
+            lay = compiled.CompiledLayout.of(self.plan, b)
+            touch = threading.Thread(target=lay.reserve, daemon=True, name="lago-reserve")
+            touch.start()  # L's pages faulted in beside the assembler's work
+            prow, pcol, _ = self.pairs
+            asm = lay.assembler(prow, pcol)
+            touch.join()
+            self._assemblers["compiled", b] = (lay, asm)
 
-        job = threading.Thread(target=work, daemon=True, name="lago-prepare")
-        job.start()
+        job = Ahead(work)
+        threading.Thread(target=job.run, daemon=True, name="lago-prepare").start()
         self._preparing[b] = job
 
-    def solve(self, system: EdgeSystem, *, factor: PoseFactor | None = None, stage: str = "solve",
+    def solve(self, system: EdgeSystem, *, factor: Factor | None = None, stage: str = "solve",
               progress=None):
         """Minimise (E): returns ``(x (d, b), factor, stats)`` with ``stats`` as
         ``linalg.solve_least_squares`` reports it (``factor`` None after the augmented-system fallback).
@@ -501,34 +492,42 @@ class GraphElimination:
         stats = {"method": "normal equations", "refinement_steps": 0, "relative_correction": 0.0}
         if d == 0:
             return np.zeros((0, b) + system.c.shape[2:]), None, stats
+        self._ready()  # the worker's error, if building the elimination failed, is raised here as it is
         tracker = Progress(stage, callback=progress, logger=log) if progress is not None or d > 200_000 else None
         trusted = False
         x = None
         extra = system.c.shape[2:]  # several right-hand sides: (d·b, r)
         m, q = system.c.shape[:2]
-        ahead = {}
 
-        def operator_ahead():  # M's operator and Mᵀc, while QDLDL factors (they do not need the factor)
-            ahead["op"] = system.operator()
-            ahead["first"] = ahead["op"].rmatvec(system.c).reshape((d * b,) + extra)
+        def operator_and_first():  # M's operator and Mᵀc: they do not need the factor
+            op = edge_operator(system)
+            return op, op.rmatvec(system.c).reshape((d * b,) + extra)
 
-        try:
-            if factor is None:
-                self.defer(operator_ahead)
-                try:
-                    factor = self.factor(system, progress=None if tracker is None else
+        for attempt in range(2):  # the second with a factorization of its own, if the Laplacian's failed
+            try:
+                op, first = None, None
+                if factor is None:
+                    job = self.ahead(operator_and_first)
+                    factor = self.factor(system, engine=None if attempt == 0 else False,
+                                         progress=None if tracker is None else
                                          (lambda i, n: tracker.update(0.9 * i / n)))
-                finally:
-                    if operator_ahead in self._deferred:  # not run (no QDLDL factorization to run beside)
-                        self._deferred.remove(operator_ahead)
-            op = ahead.get("op") or system.operator()
-            x, stats, trusted = refine_normal_equations(
-                factor.solve,
-                lambda v: op.matvec(v.reshape((d, b) + extra)).reshape((m * q,) + extra),
-                lambda r: op.rmatvec(r.reshape((m, q) + extra)).reshape((d * b,) + extra),
-                system.c.reshape((m * q,) + extra), first=ahead.get("first"))
-        except Exception as exc:  # NotPositiveDefinite, QDLDL "not quasi-definite", LinAlgError
-            log.info("normal equations could not be factored (%s): using the augmented system", exc)
+                    if job.done:
+                        op, first = job.result()
+                    elif job in self._tasks:  # not run (no QDLDL factorization to run beside)
+                        self._tasks.remove(job)
+                if op is None:
+                    op = edge_operator(system)
+                x, stats, trusted = refine_normal_equations(
+                    factor.solve,
+                    lambda v: op.matvec(v.reshape((d, b) + extra)).reshape((m * q,) + extra),
+                    lambda r: op.rmatvec(r.reshape((m, q) + extra)).reshape((d * b,) + extra),
+                    system.c.reshape((m * q,) + extra), first=first)
+            except Exception as exc:  # NotPositiveDefinite, QDLDL "not quasi-definite", LinAlgError
+                log.info("normal equations could not be factored (%s): using the augmented system", exc)
+                break
+            if trusted or attempt or factor.backend != "qdldl" or not self._is_laplacian(system):
+                break
+            factor = None
         if not trusted:
             log.warning("least squares: normal equations too ill-conditioned (relative correction %.2g); "
                         "solving the augmented system instead", stats["relative_correction"])
@@ -540,3 +539,35 @@ class GraphElimination:
         if tracker is not None:
             tracker.finish()
         return x.reshape((d, b) + system.c.shape[2:]), factor, stats
+
+
+class Ahead:
+    """``task(*args)``, run at most once: by the engine ahead of need (``run``), or by whoever first asks
+    for the value (``result``, which returns it or raises the task's error — a background failure reaches
+    the caller). A ``result()`` asked while another thread runs it waits for it; the task itself may start
+    a factorization that runs the engine's queue, where it is skipped (it is under way)."""
+
+    def __init__(self, task, *args):
+        self._task, self._args = task, args
+        self._lock = threading.RLock()
+        self.done, self._running = False, False
+        self._value, self._error = None, None
+
+    def run(self) -> None:
+        with self._lock:
+            if self.done or self._running:
+                return
+            self._running = True
+            try:
+                self._value = self._task(*self._args)
+            except BaseException as exc:  # kept for ``result``
+                self._error = exc
+            finally:
+                self.done, self._running = True, False
+                self._task = self._args = None
+
+    def result(self):
+        self.run()
+        if self._error is not None:
+            raise self._error
+        return self._value
