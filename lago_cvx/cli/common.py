@@ -262,6 +262,8 @@ def emit(args, payload: dict, lines: list[str], *, stdout_taken: bool = False) -
 
 _KEYWORD_VALUE = re.compile(r'\b([a-z][a-z_]*)="([\w.-]+)"(?: or "([\w.-]+)")?')
 _BARE_OPTIONS = ("max_nodes", "max_shift", "time_limit", "max_iterations")
+#: Library phrases with no keyword=value form, and their CLI wording.
+_PHRASES = ((re.compile(r'\bthe solver "enumerate"'), "--method closed-form"),)
 
 
 def speak_cli(message: str) -> str:
@@ -272,6 +274,8 @@ def speak_cli(message: str) -> str:
         return f"{flag} {m.group(2)}" + (f" or {flag} {m.group(3)}" if m.group(3) else "")
 
     message = _KEYWORD_VALUE.sub(option, message)
+    for pattern, cli in _PHRASES:
+        message = pattern.sub(cli, message)
     for name in _BARE_OPTIONS:
         message = re.sub(rf"\b{name}\b", "--" + name.replace("_", "-"), message)
     return message
