@@ -60,6 +60,12 @@ def method_arg(value: str) -> str:
     return v
 
 
+# The values these types accept, as written on the command line (argparse's ``choices`` would refuse the
+# spellings the types also accept, e.g. closed_form); tests/test_option_matrix.py walks them.
+tree_arg.choices = ("bfs", "odometry", "mst")
+method_arg.choices = ("closed-form", "cvxpy")
+
+
 def _int(value: str, what: str, low: int) -> int:
     try:
         v = int(value)
