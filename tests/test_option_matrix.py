@@ -170,6 +170,12 @@ def parser_space(ctx: dict) -> dict[str, list[tuple[str, list[list[str]]]]]:
     return space
 
 
+def _gain(row: list, p: int, v: int, uncovered: set) -> int:
+    """How many uncovered pairs value ``v`` of parameter ``p`` covers with the values set in ``row``."""
+    return sum(((q, row[q], p, v) if q < p else (p, v, q, row[q])) in uncovered
+               for q in range(len(row)) if row[q] is not None)
+
+
 def pairwise(domains: list[int]) -> list[tuple[int, ...]]:
     """A covering array of strength 2: rows of value indices such that for every two parameters i < j
     and values a < domains[i], b < domains[j] some row has (a, b) at (i, j). Greedy and deterministic:
@@ -186,14 +192,8 @@ def pairwise(domains: list[int]) -> list[tuple[int, ...]]:
         row = [None] * k
         row[i], row[j] = a, b
         for p in range(k):
-            if row[p] is not None:
-                continue
-
-            def gain(v, p=p):
-                return sum(((q, row[q], p, v) if q < p else (p, v, q, row[q])) in uncovered
-                           for q in range(k) if row[q] is not None)
-
-            row[p] = max(range(domains[p]), key=lambda v: (gain(v), -v))
+            if row[p] is None:
+                row[p] = max(range(domains[p]), key=lambda v, p=p, row=row: (_gain(row, p, v, uncovered), -v))
         rows.append(tuple(row))
         uncovered -= {(p, row[p], q, row[q]) for p, q in itertools.combinations(range(k), 2)}
     return rows
@@ -423,6 +423,19 @@ def test_compare_methods_honours_the_integer_limits():
         compare_methods(g, method="cvxpy")
 
 
+@pytest.mark.xfail(strict=True, reason="lago()'s hand-over to anchored_lago does not pass integer_search and "
+                   "progress (pipeline.py, lago's body: add integer_search=integer_search, progress=progress); "
+                   "remove this marker when it does")
+def test_lago_with_anchors_honours_the_integer_limits():
+    from lago_cvx.errors import SearchLimitError
+    from lago_cvx.pipeline import lago
+    from lago_cvx.solvers import IntegerSearch
+
+    g = manhattan_world(120, seed=2, sigma_theta=0.2).graph
+    with pytest.raises(SearchLimitError):
+        lago(g, anchors={0: (0.0, 0.0, 0.0)}, regularization="integer", integer_search=IntegerSearch(max_nodes=1))
+
+
 def test_refine_holds_full_and_partial_anchors():
     """``refine(anchors=)``: the known coordinates take the given values (θ modulo 2π) and stay there; the
     gauge the anchors leave open is held at the reference pose; the unknown coordinates move, and χ²
@@ -495,7 +508,7 @@ def test_closed_standard_output_ends_quietly(tmp_path, argv):
     env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
     try:
         proc = subprocess.run([sys.executable, "-m", "lago_cvx", *argv], stdout=w, stderr=subprocess.PIPE,
-                              env=env, timeout=300)
+                              env=env, timeout=300, check=False)
     finally:
         os.close(w)
     assert proc.stderr == b"" and proc.returncode in (0, 141), (proc.returncode, proc.stderr)
@@ -516,7 +529,7 @@ def test_datasets_names_resolve(monkeypatch):
     with pytest.raises(D.DatasetNotFound, match="ambiguous.*se-sync/CSAIL.g2o.*other/CSAIL.graph"):
         D.resolve_name("CSAIL")
     monkeypatch.undo()
-    code, out, err = run_cli(["datasets", "path", "nonesuch"])
+    code, _, err = run_cli(["datasets", "path", "nonesuch"])
     assert code == 2 and err.startswith("lago-cvx: error: unknown dataset 'nonesuch'") and err.count("\n") == 1
 
 

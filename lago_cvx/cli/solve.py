@@ -151,7 +151,7 @@ def cmd_solve(args) -> int:
     elif anchors:  # the variants engine directly: it honours every option of lago (the integer limits too)
         from ..variants import anchored_lago
 
-        res, report = anchored_lago(graph, method=args.method, **kw), None
+        res, report = anchored_lago(graph, method=args.method, progress=progress_callback(args), **kw), None
     else:
         res, report = lago(graph, method=args.method, progress=progress_callback(args), **kw), None
     check_finite(res.chi2, res.poses, what="LAGO estimate")
