@@ -516,6 +516,20 @@ def test_closed_standard_output_ends_quietly(tmp_path, argv):
     assert proc.stderr == b"" and proc.returncode in (0, 141), (proc.returncode, proc.stderr)
 
 
+def test_no_standard_output_at_all(tmp_path, monkeypatch):
+    """Started without a standard output (``>&-``: ``sys.stdout`` is None): ``info`` has nothing to say
+    it to and ends 0; ``solve -o -`` is refused in one line (exit 2) — never an internal error."""
+    p = tmp_path / "m.g2o"
+    write_graph(p, manhattan_world(30, seed=1).graph)
+    for argv, status in ((["info", str(p)], 0), (["solve", str(p), "-o", "-"], 2)):
+        err = io.StringIO()
+        monkeypatch.setattr(sys, "stdout", None)
+        with contextlib.redirect_stderr(err):
+            code = main(argv)
+        monkeypatch.undo()
+        assert code == status and "internal error" not in err.getvalue(), (argv, code, err.getvalue())
+
+
 def test_datasets_names_resolve(monkeypatch):
     """``datasets path NAME``: a unique basename or stem names its file; an ambiguous or unknown name is
     refused with the candidates."""

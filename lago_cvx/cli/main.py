@@ -102,7 +102,8 @@ def main(argv=None) -> int:
 
         with np.errstate(all="ignore"):  # overflow is reported as a non-finite estimate, not a warning
             status = args.func(args)
-        sys.stdout.flush()  # a reader that left shows here, not in the interpreter's final flush
+        if sys.stdout is not None:  # (None: started without a standard output)
+            sys.stdout.flush()  # a reader that left shows here, not in the interpreter's final flush
         return status
     except LagoError as exc:  # everything the package reports on purpose; the class carries the status
         if _reader_left(exc):
