@@ -34,7 +34,7 @@ from .errors import DatasetNotFound
 
 __all__ = ["datasets_dir", "dataset", "DatasetNotFound", "DATASET_TABLE", "DATASET_FILES", "REFERENCE_CHI2",
            "REFERENCE_SESYNC", "PUBLISHED_SESYNC", "MANIFEST", "Source", "cache_dir", "locate", "verify", "fetch",
-           "source_url"]
+           "source_url", "resolve_name"]
 
 #: Every pose-graph file of the datasets folder with the counts of its README and the reference minima of
 #: its §4.2 ("–" where there is none): χ² minimum in the g2o convention, minimum of the SE-Sync cost f.
@@ -202,6 +202,31 @@ def locate(rel: str) -> Path | None:
         if p.is_file():
             return p
     return None
+
+
+def resolve_name(name: str) -> str:
+    """The ``DATASET_FILES`` entry ``name`` means: the entry itself, else the one entry whose basename
+    (``CSAIL.g2o``) or stem (``CSAIL``) is ``name`` — exactly, else ignoring case. Raises
+    ``DatasetNotFound`` for a name that matches no entry or several, listing the candidates."""
+    if name in DATASET_FILES:
+        return name
+    base = {f: f.rsplit("/", 1)[-1] for f in DATASET_FILES}
+    keys = {f: (b, b.rsplit(".", 1)[0]) for f, b in base.items()}
+    for fold in (str, str.lower):  # exact, then ignoring case
+        hits = [f for f, k in keys.items() if fold(name) in map(fold, k)]
+        if len(hits) == 1:
+            return hits[0]
+        if hits:
+            raise DatasetNotFound(f"dataset name {name!r} is ambiguous: it names {', '.join(hits)}; give one of them")
+    near = [f for f in DATASET_FILES if name.lower() in f.lower()]
+    if not near:
+        import difflib
+
+        near = difflib.get_close_matches(name, DATASET_FILES, n=5, cutoff=0.5) or difflib.get_close_matches(
+            name.lower(), {k[1].lower(): f for f, k in keys.items()}, n=5, cutoff=0.5)
+        near = [f for f in DATASET_FILES if f in near or keys[f][1].lower() in near]
+    hint = f"; did you mean {', '.join(near)}?" if near else f"; the names are {', '.join(DATASET_FILES)}"
+    raise DatasetNotFound(f"unknown dataset {name!r}{hint}")
 
 
 def dataset(rel: str) -> Path:

@@ -18,7 +18,7 @@ import time
 import numpy as np
 
 from . import phases as P
-from .errors import GraphError, check_choice
+from .errors import GraphError, OptionError, check_choice
 from .graph import spanning_tree as build_tree
 from .metrics import chi2, relative_difference
 from .posegraph import PoseGraph, compose
@@ -203,7 +203,10 @@ def compare_methods(graph: PoseGraph, *, solver_settings: ClarabelSettings | Non
     Returns (closed-form result, report) where report has ``max_rel_diff`` {phase1, phase3, ``positions``
     (the polish at the orientations it chose) with ``positions="resolve"``, and ``chordal`` (the relaxed
     rotations) with ``regularization="chordal"``}, the cvxpy timings and the problems.
-    ``anchors`` as in ``lago`` (then ``lago_cvx.variants.compare_anchored_methods``)."""
+    ``anchors`` as in ``lago`` (then ``lago_cvx.variants.compare_anchored_methods``, which honours every
+    keyword of ``lago`` too). ``kwargs``: the keywords of ``lago`` but ``method`` (both run: ``OptionError``)."""
+    if "method" in kwargs:
+        raise OptionError("method: compare_methods solves both ways (closed form, then cvxpy); do not pass method")
     if anchors is not None:
         from .variants import compare_anchored_methods
 

@@ -8,9 +8,13 @@ compared, and LAGO can be used as an initialization of an iterative solver (the 
 
 Problem
 -------
-Unknowns: the poses x_v = (p_v, θ_v) = (x_v, y_v, θ_v), v = 0 … n−1, shape (n, 3); the anchor pose a
-is held fixed at the value it has in the input poses, so the unknown vector has dimension 3(n − 1)
-(pose v ≠ a occupies columns 3·r(v) … 3·r(v)+2, r(v) = v − [v > a]).
+Unknowns: the poses x_v = (p_v, θ_v) = (x_v, y_v, θ_v), v = 0 … n−1, shape (n, 3), less a set K of
+*held* coordinates (a boolean mask (n, 3)). By default K is the anchor pose a, held at the value it has in
+the input poses, so the unknown vector has dimension 3(n − 1). With known poses (``anchors=``, full or
+partial, as in ``lago``) K is their known coordinates, set to the given values, plus what fixes the gauge
+they leave open (``held_coordinates``); as in the variants engine (``lago_cvx.variants``, (V2)) the held
+columns leave J, so the system is over the d = 3n − |K| unknown coordinates, numbered in pose-major
+order (x_0, y_0, θ_0, x_1, …) without the held ones.
 
 For an edge k: i → j with measurement (Δˡ, δ) and information Ω (3×3, g2o convention) the error is
 
@@ -31,9 +35,9 @@ Then, in the order (x, y, θ):
 
 (∂(R_iᵀd)/∂θ_i = (u_y, −u_x); the wrap is piecewise constant, so it does not enter the derivative).
 The whitened blocks U_k·∂e/∂x_i and U_k·∂e/∂x_j (each 3×3, dense because U mixes the rows) fill
-rows 3k … 3k+2 of ONE sparse Jacobian J of shape (3m, 3(n−1)), 18 entries per edge minus the
-anchor's columns. Its CSR structure (row pointers, column indices, and the gather index that
-drops the anchor's entries and sorts the columns of every row) does not change between iterations
+rows 3k … 3k+2 of ONE sparse Jacobian J of shape (3m, d), 18 entries per edge minus the held
+columns. Its CSR structure (row pointers, column indices, and the gather index that
+drops the held entries and sorts the columns of every row) does not change between iterations
 and is built once; an iteration only computes the (m, 3, 6) block values — no Python loop over
 edges.
 
@@ -70,9 +74,10 @@ from .errors import OptionError, check_choice
 from .graph import accumulate_to_root, check_connected, spanning_tree as build_tree
 from .sparse import SOLVER_BACKENDS, factorize
 from .posegraph import PoseGraph, rot2, wrap_angle
+from .rounding import TWO_PI
 
 __all__ = ["RefineResult", "refine", "REFINE_METHODS", "odometry_guess", "jacobian", "whitened_residuals",
-           "check_iteration_args", "prepare", "small_step", "STEP_TOLERANCE"]
+           "check_iteration_args", "prepare", "small_step", "STEP_TOLERANCE", "held_coordinates"]
 
 log = logging.getLogger(__name__)
 
@@ -99,7 +104,8 @@ class RefineResult:
     with keys ``iteration`` (accepted steps so far), ``chi2`` (current χ², after the iteration),
     ``step_norm`` (‖dx‖∞ of the step tried), ``time`` (seconds since the start) and, for LM,
     ``lambda`` (damping used) and ``accepted``; for GN ``halvings`` (line-search halvings);
-    ``method``; ``anchor`` the id of the fixed pose; ``backend`` the sparse solver used."""
+    ``method``; ``anchor`` the id of the reference pose (the one fixed pose without ``anchors``);
+    ``held`` (n, 3) bool, the coordinates held fixed; ``backend`` the sparse solver used."""
 
     poses: np.ndarray
     chi2: float
@@ -111,6 +117,7 @@ class RefineResult:
     method: str = ""
     anchor: int = 0
     backend: str = ""
+    held: np.ndarray | None = None
 
     @property
     def times(self) -> np.ndarray:
@@ -122,10 +129,11 @@ class RefineResult:
 class _Problem:
     """Precomputed, iteration-independent data of the least-squares problem.
 
-    ``U`` (m, 3, 3) upper Cholesky factors; ``indptr`` (3m + 1,), ``indices`` (nnz,), ``take`` (nnz,)
-    the fixed CSR structure of J (``take`` gathers from the flattened (m, 3, 6) block values)."""
+    ``held`` (n, 3) bool the held coordinates K (default: the three of pose ``anchor``); ``U`` (m, 3, 3)
+    upper Cholesky factors; ``indptr`` (3m + 1,), ``indices`` (nnz,), ``take`` (nnz,) the fixed CSR
+    structure of J (``take`` gathers from the flattened (m, 3, 6) block values)."""
 
-    def __init__(self, graph: PoseGraph, anchor: int):
+    def __init__(self, graph: PoseGraph, anchor: int, held: np.ndarray | None = None):
         n, m = graph.n_poses, graph.n_edges
         self.graph = graph
         self.n, self.m, self.anchor = n, m, anchor
@@ -133,11 +141,15 @@ class _Problem:
         self.delta_l, self.delta = graph.delta_l, graph.delta
         info = 0.5 * (graph.information + np.swapaxes(graph.information, 1, 2))
         self.U = np.ascontiguousarray(np.swapaxes(np.linalg.cholesky(info), 1, 2))  # UᵀU = Ω
-        self.dim = 3 * (n - 1)
-        # reduced column of every (pose, component); −1 for the anchor's three columns
-        col = np.arange(3 * n, dtype=np.int64).reshape(n, 3)
-        col = np.where(np.arange(n)[:, None] > anchor, col - 3, col)
-        col[anchor] = -1
+        if held is None:
+            held = np.zeros((n, 3), bool)
+            held[anchor] = True
+        self.held = held
+        self.dim = int(n * 3 - held.sum())
+        # reduced column of every (pose, component) in pose-major order; −1 for the held coordinates
+        col = np.full(3 * n, -1, np.int64)
+        col[~held.reshape(-1)] = np.arange(self.dim)
+        col = col.reshape(n, 3)
         self.col = col
         # block column order per edge: tail block then head block, swapped when head < tail so
         # that the column indices of every CSR row come out sorted
@@ -177,7 +189,7 @@ class _Problem:
 
     # -- Jacobian
     def linearize(self, poses: np.ndarray):
-        """Whitened residual vector r (3m,) and sparse Jacobian J (3m, 3(n−1)) CSR at ``poses``."""
+        """Whitened residual vector r (3m,) and sparse Jacobian J (3m, d) CSR at ``poses``."""
         e, u, c, s = self.errors(poses)
         r = np.einsum("kab,kb->ka", self.U, e).reshape(-1)
         Jj = np.zeros((self.m, 3, 3))
@@ -196,11 +208,9 @@ class _Problem:
         return r, J
 
     def update(self, poses: np.ndarray, dx: np.ndarray) -> np.ndarray:
-        """Additive update x ← x + dx of the free poses (dx of shape (3(n−1),))."""
+        """Additive update x ← x + dx of the unknown coordinates (dx of shape (d,))."""
         new = poses.copy()
-        free = np.ones(self.n, bool)
-        free[self.anchor] = False
-        new[free] += dx.reshape(-1, 3)
+        new[~self.held] += dx
         return new
 
 
@@ -236,9 +246,40 @@ def jacobian(graph: PoseGraph, poses, *, anchor=None) -> sp.csr_matrix:
     return prob.linearize(graph.check_poses(poses))[1]
 
 
+def held_coordinates(graph: PoseGraph, poses: np.ndarray, anchors, anchor=None) -> tuple[np.ndarray, np.ndarray, int]:
+    """The coordinates ``refine`` holds fixed for known poses ``anchors`` ({id: (x, y, θ)}, None or NaN for
+    an unknown component, as in ``lago``): returns (held (n, 3) bool, start (n, 3) the poses with the known
+    values put in, reference index).
+
+    K = the known coordinates; a known θ is put on the branch nearest the starting pose's (θ + 2πk, the
+    residuals wrap, so the cost does not change). The gauge the anchors leave open is held at the
+    reference pose (``anchor`` if given, else as ``lago_cvx.variants.anchors.choose_reference``) at its
+    starting value: its position when no position is known; its orientation when no orientation is
+    known and fewer than two distinct positions are (two fix the rotation)."""
+    from .variants.anchors import choose_reference, normalize_anchors
+
+    known = normalize_anchors(graph, anchors)
+    x = np.array(poses, dtype=float)
+    held = np.zeros((graph.n_poses, 3), bool)
+    for a in known:  # loop over anchors (few)
+        if a.position is not None:
+            held[a.index, :2] = True
+            x[a.index, :2] = a.position
+        if a.theta is not None:
+            held[a.index, 2] = True
+            x[a.index, 2] = a.theta + TWO_PI * np.round((x[a.index, 2] - a.theta) / TWO_PI)
+    ref = choose_reference(graph, known, [], anchor)
+    positions = np.array([a.position for a in known if a.position is not None]).reshape(-1, 2)
+    if not held[:, :2].any():
+        held[ref, :2] = True
+    if not held[:, 2].any() and not (positions.shape[0] >= 2 and np.ptp(positions, axis=0).any()):
+        held[ref, 2] = True
+    return held, x, ref
+
+
 # ------------------------------------------------------------------------------ the solvers
 def refine(graph: PoseGraph, poses, *, method: str = "gauss-newton", max_iterations: int = 50,
-           tolerance: float = 1e-9, anchor=None, backend: str = "auto") -> RefineResult:
+           tolerance: float = 1e-9, anchor=None, anchors=None, backend: str = "auto") -> RefineResult:
     """Minimise the nonlinear χ² of eq. (3) over the SE(2) poses, starting from ``poses`` (n, 3).
 
     Parameters (keyword-only):
@@ -247,23 +288,31 @@ def refine(graph: PoseGraph, poses, *, method: str = "gauss-newton", max_iterati
       max_iterations — GN iterations / LM trials.
       tolerance — stop when the relative χ² decrease of an iteration is below this.
       anchor — id of the pose held fixed (as in ``lago``; default the smallest id, i.e. index 0 for
-        files read by ``lago_cvx.io``); it keeps the value it has in ``poses``.
+        files read by ``lago_cvx.io``); it keeps the value it has in ``poses``. With ``anchors``: the
+        reference pose that holds the gauge the anchors leave open (``held_coordinates``).
+      anchors — known poses ``{id: (x, y, θ)}`` (or pairs; None or NaN for an unknown component: partial
+        anchors), as in ``lago(anchors=...)``: their known coordinates are set to the given values (θ
+        modulo 2π) and held fixed, removed from the system; ``result.held`` says which coordinates were.
       backend — sparse solver, see ``lago_cvx.sparse.linalg.factorize``.
     Returns a ``RefineResult``. See the module docstring for the maths. Raises ``GraphError`` for a
-    disconnected graph (its normal equations are singular), ``ValueError`` for bad arguments.
+    disconnected graph (its normal equations are singular), ``OptionError`` (a ``ValueError``) for bad
+    arguments or anchors.
     """
     check_choice("method", method, REFINE_METHODS)
     check_choice("backend", backend, SOLVER_BACKENDS)
     x, a = prepare(graph, poses, anchor=anchor, max_iterations=max_iterations, tolerance=tolerance)
+    held = None
+    if anchors is not None:
+        held, x, a = held_coordinates(graph, x, anchors, anchor)
     t0 = time.perf_counter()
-    prob = _Problem(graph, a)
+    prob = _Problem(graph, a, held)
     chi = prob.chi2(x)
     chi_initial = chi
     entries = [{"iteration": 0, "chi2": chi, "step_norm": 0.0, "time": time.perf_counter() - t0}]
     if method == "levenberg-marquardt":
         entries[0]["lambda"] = None
     result = RefineResult(poses=x, chi2=chi, chi2_initial=chi, iterations=0, converged=False, log=entries,
-                          method=method, anchor=int(graph.ids[a]), backend="")
+                          method=method, anchor=int(graph.ids[a]), backend="", held=prob.held)
     if prob.dim == 0 or graph.n_edges == 0:
         result.converged, result.reason = True, "nothing to optimize"
         return result

@@ -60,6 +60,12 @@ def method_arg(value: str) -> str:
     return v
 
 
+# The values these types accept, as written on the command line (argparse's ``choices`` would refuse the
+# spellings the types also accept, e.g. closed_form); tests/test_option_matrix.py walks them.
+tree_arg.choices = ("bfs", "odometry", "mst")
+method_arg.choices = ("closed-form", "cvxpy")
+
+
 def _int(value: str, what: str, low: int) -> int:
     try:
         v = int(value)
@@ -262,6 +268,8 @@ def emit(args, payload: dict, lines: list[str], *, stdout_taken: bool = False) -
 
 _KEYWORD_VALUE = re.compile(r'\b([a-z][a-z_]*)="([\w.-]+)"(?: or "([\w.-]+)")?')
 _BARE_OPTIONS = ("max_nodes", "max_shift", "time_limit", "max_iterations")
+#: Library phrases with no keyword=value form, and their CLI wording.
+_PHRASES = ((re.compile(r'\bthe solver "enumerate"'), "--method closed-form"),)
 
 
 def speak_cli(message: str) -> str:
@@ -272,6 +280,8 @@ def speak_cli(message: str) -> str:
         return f"{flag} {m.group(2)}" + (f" or {flag} {m.group(3)}" if m.group(3) else "")
 
     message = _KEYWORD_VALUE.sub(option, message)
+    for pattern, cli in _PHRASES:
+        message = pattern.sub(cli, message)
     for name in _BARE_OPTIONS:
         message = re.sub(rf"\b{name}\b", "--" + name.replace("_", "-"), message)
     return message

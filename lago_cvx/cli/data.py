@@ -6,14 +6,19 @@ from .common import EXIT_BAD_INPUT, EXIT_OK, UsageError, emit
 
 
 def _names(args):
-    from ..datasets import DATASET_FILES
+    """The manifest's names of ``args.names`` (a full name, or a unique basename or stem: ``CSAIL``);
+    ``UsageError`` (exit 2) for an unknown or ambiguous one, listing candidates."""
+    from ..datasets import DATASET_FILES, DatasetNotFound, resolve_name
 
     if not args.names:
         return list(DATASET_FILES)
-    unknown = [n for n in args.names if n not in DATASET_FILES]
-    if unknown:
-        raise UsageError(f"unknown dataset(s) {', '.join(unknown)}; `lago-cvx datasets list` shows the names")
-    return list(args.names)
+    out = []
+    for n in args.names:
+        try:
+            out.append(resolve_name(n))
+        except DatasetNotFound as exc:
+            raise UsageError(f"{exc} (`lago-cvx datasets list` shows them all)") from None
+    return out
 
 
 def cmd_datasets(args) -> int:
@@ -71,6 +76,7 @@ def add_parser(sub) -> None:
                     "~/.cache/lago_cvx/datasets). `fetch` downloads the missing ones into the cache (needs "
                     "network and `pip install \"lago-cvx[datasets]\"`).")
     s.add_argument("action", nargs="?", choices=["list", "verify", "fetch", "path"], default="list")
-    s.add_argument("names", nargs="*", metavar="NAME", help="dataset names, e.g. se-sync/MIT.g2o (default: all)")
+    s.add_argument("names", nargs="*", metavar="NAME", help="dataset names, e.g. se-sync/MIT.g2o, or a unique basename or stem "
+                                                       "(MIT.g2o, MIT) (default: all)")
     s.add_argument("--json", action="store_true", help="print one JSON object")
     s.set_defaults(func=cmd_datasets)

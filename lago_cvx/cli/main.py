@@ -3,13 +3,15 @@
 from __future__ import annotations
 
 import argparse
+import errno
 import logging
+import os
 import sys
 
 from .._version import __version__
-from ..errors import LagoError
+from ..errors import LagoError, OutputError
 from . import certify, data, plot, solve, worlds
-from .common import EXIT_INTERNAL, EXIT_TABLE, debug_enabled, speak_cli
+from .common import EXIT_INTERNAL, EXIT_OK, EXIT_TABLE, debug_enabled, speak_cli
 from .startup import defer_unused_numpy_modules
 
 log = logging.getLogger("lago_cvx")
@@ -61,11 +63,34 @@ def _configure_logging(verbose: int) -> None:
     root.setLevel([logging.WARNING, logging.INFO, logging.DEBUG][min(verbose, 2)])
 
 
+def _reader_left(exc: BaseException) -> bool:
+    """True when ``exc`` says standard output's reader has gone (EPIPE: ``lago-cvx … | head -1``), as a
+    ``BrokenPipeError`` from ``print`` or an ``OutputError`` from the estimate's writer."""
+    return isinstance(exc, BrokenPipeError) or (isinstance(exc, OutputError) and exc.errno == errno.EPIPE)
+
+
+def _quiet_stdout() -> int:
+    """End quietly, as ``cat`` does when its reader leaves: standard output's descriptor is pointed at
+    the null device, so that the interpreter's final flush of what is still buffered cannot fail with a
+    message. (A caller's in-process stand-in without a descriptor is left alone.) Returns ``EXIT_OK``."""
+    try:
+        fd = sys.stdout.fileno()
+    except (AttributeError, ValueError, OSError):
+        return EXIT_OK
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, fd)
+    finally:
+        os.close(devnull)
+    return EXIT_OK
+
+
 def main(argv=None) -> int:
     """Run one ``lago-cvx`` command; ``argv=None`` means the process's own command line.
 
     Only then (the console entry point) are NumPy's unused submodules made lazy before SciPy loads
     (:mod:`lago_cvx.cli.startup`); an in-process caller passing ``argv`` keeps its import state.
+    A standard output closed by its reader ends the command quietly with status 0 (``_quiet_stdout``).
     """
     if argv is None:
         defer_unused_numpy_modules()
@@ -76,8 +101,13 @@ def main(argv=None) -> int:
         import numpy as np
 
         with np.errstate(all="ignore"):  # overflow is reported as a non-finite estimate, not a warning
-            return args.func(args)
+            status = args.func(args)
+        if sys.stdout is not None:  # (None: started without a standard output)
+            sys.stdout.flush()  # a reader that left shows here, not in the interpreter's final flush
+        return status
     except LagoError as exc:  # everything the package reports on purpose; the class carries the status
+        if _reader_left(exc):
+            return _quiet_stdout()
         if exc.exit_status == EXIT_INTERNAL and debug_enabled():
             raise
         prefix = "internal error" if exc.exit_status == EXIT_INTERNAL else "error"
@@ -86,8 +116,8 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print("lago-cvx: interrupted", file=sys.stderr)
         return 130
-    except BrokenPipeError:  # e.g. `lago-cvx solve f -o - | head`: the reader left; not an error of ours
-        return 0
+    except BrokenPipeError:  # e.g. `lago-cvx info f --json | head -c1`: the reader left; not an error of ours
+        return _quiet_stdout()
     except Exception as exc:  # an internal error: one line, exit 1 (traceback with LAGO_CVX_DEBUG=1)
         if debug_enabled():
             raise

@@ -135,8 +135,8 @@ def cmd_solve(args) -> int:
     from ..pipeline import compare_methods, lago
     from ..posegraph import compose
 
-    def compose_anchor(res, poses):
-        return compose(np.broadcast_to(res.anchor_pose, poses.shape), poses)
+    def compose_anchor(res, poses):  # phase 3's poses in the output frame (an anchored run's are already)
+        return poses if anchors else compose(np.broadcast_to(res.anchor_pose, poses.shape), poses)
 
     out = output_target(args)
     anchor, anchors = _parse_anchors(args.anchor)
@@ -148,9 +148,12 @@ def cmd_solve(args) -> int:
         kw["anchors"] = anchors
     if args.check:
         res, report = compare_methods(graph, **kw)
+    elif anchors:  # the variants engine directly: it honours every option of lago (the integer limits too)
+        from ..variants import anchored_lago
+
+        res, report = anchored_lago(graph, method=args.method, progress=progress_callback(args), **kw), None
     else:
-        progress = progress_callback(args) if not anchors else None
-        res, report = lago(graph, method=args.method, progress=progress, **kw), None
+        res, report = lago(graph, method=args.method, progress=progress_callback(args), **kw), None
     check_finite(res.chi2, res.poses, what="LAGO estimate")
     reg = res.regularization
     payload = {
@@ -179,7 +182,9 @@ def cmd_solve(args) -> int:
     if args.refine:
         from ..refinement import refine
 
-        ref = refine(graph, res.poses, method=args.refine_method, max_iterations=args.max_iterations)
+        # the poses the user fixed stay fixed: the anchors' known coordinates (or the bare anchor pose) are held
+        ref = refine(graph, res.poses, method=args.refine_method, max_iterations=args.max_iterations,
+                     anchor=anchor if anchor is not None else res.anchor, anchors=anchors or None)
         check_finite(ref.chi2, ref.poses, what="refined estimate")
         final = ref.poses
         payload["chi2_refined"] = ref.chi2

@@ -43,11 +43,12 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 
+from ..errors import OptionError
 from ..metrics import relative_difference
 from ..posegraph import PoseGraph
 from ..rounding import AMBIGUITY_MARGIN
 from ..routes import resolve_route
-from ..solvers import ClarabelSettings
+from ..solvers import ClarabelSettings, IntegerSearch
 from .anchors import Anchor, AnchorRegularization, Prior, normalize_anchors, normalize_priors
 from .constraints import (NamedConstraint, PoseVariables, box_constraint, halfplane_constraint, orientation_bounds,
                           polygon_constraint)
@@ -71,16 +72,18 @@ def anchored_lago(graph: PoseGraph, *, anchors=None, priors=None, method: str = 
                   spanning_tree=None, regularization: str | None = None, information: str | None = None,
                   positions: str | None = None, anchor=None, anchor_pose=None, margin: float = AMBIGUITY_MARGIN,
                   strain_level: float = STRAIN_LEVEL, solver_settings: ClarabelSettings | None = None,
-                  backend: str = "auto") -> VariantResult:
+                  backend: str = "auto", integer_search: IntegerSearch | None = None,
+                  progress=None) -> VariantResult:
     """LAGO with hard anchors and/or priors (V1–V8), closed form or cvxpy (``method``); what
-    ``lago(graph, anchors=...)`` runs. ``route`` and the four choices after it as in ``lago``; see
-    ``lago_variant`` for the other options and ``engine`` for the frame decision. ``result.strain`` holds
-    the per-anchor Lagrange-multiplier test (V3)."""
+    ``lago(graph, anchors=...)`` runs. Every keyword of ``lago`` is accepted and means what it means there
+    (``route`` and the four choices after it, ``integer_search`` for ``regularization="integer"``,
+    ``progress``); see ``lago_variant`` for the other options and ``engine`` for the frame decision.
+    ``result.strain`` holds the per-anchor Lagrange-multiplier test (V3)."""
     choice, name = resolve_route(route, spanning_tree=spanning_tree, regularization=regularization,
                                  information=information, positions=positions)
     return lago_variant(graph, anchors=anchors, priors=priors, method=method, anchor=anchor, anchor_pose=anchor_pose,
                         margin=margin, strain_level=strain_level, solver_settings=solver_settings, backend=backend,
-                        route=name, **choice)
+                        integer_search=integer_search, progress=progress, route=name, **choice)
 
 
 def constrained_lago(graph: PoseGraph, constraints_fn: Callable, *, anchors=None, priors=None, loss: str = "l2",
@@ -106,10 +109,14 @@ def compare_anchored_methods(graph: PoseGraph, *, anchors=None, priors=None,
                              solver_settings: ClarabelSettings | None = None,
                              **kwargs) -> tuple[VariantResult, dict]:
     """``compare_methods`` for anchored LAGO: the closed form, then phases 1 and 3 as cvxpy problems (with
-    the anchors as equality constraints) **on the same inputs**. Report: ``max_rel_diff`` {phase1, phase3}
-    (over the unknown coordinates), ``max_rel_diff_gradient`` {phase1, phase3} (cvxpy's −dual vs the
-    closed form's g_K, relative to max |g_K|), ``cvxpy_timings``, ``problems``."""
-    res = anchored_lago(graph, anchors=anchors, priors=priors, method="closed_form", **kwargs)
+    the anchors as equality constraints) **on the same inputs**. ``kwargs``: every keyword of
+    ``anchored_lago`` but ``method`` (both methods run: ``OptionError``). Report: ``max_rel_diff`` {phase1,
+    phase3} (over the unknown coordinates), ``max_rel_diff_gradient`` {phase1, phase3} (cvxpy's −dual vs
+    the closed form's g_K, relative to max |g_K|), ``cvxpy_timings``, ``problems``."""
+    if "method" in kwargs:
+        raise OptionError("method: compare_methods solves both ways (closed form, then cvxpy); do not pass method")
+    res = anchored_lago(graph, anchors=anchors, priors=priors, method="closed_form",
+                        solver_settings=solver_settings, **kwargs)
     t = time.perf_counter()
     s1 = solve_system_cvxpy(res.phase1.system, settings=solver_settings)
     t1 = time.perf_counter() - t

@@ -37,7 +37,7 @@ from ..positions import Polish, Positions, polish
 from ..regularization import regularize
 from ..result import LagoResult
 from ..rounding import AMBIGUITY_MARGIN, TWO_PI
-from ..solvers import LEAST_SQUARES, ROBUST, ClarabelSettings, check_method
+from ..solvers import LEAST_SQUARES, ROBUST, ClarabelSettings, IntegerSearch, check_method
 from ..uncertainty import INFORMATION_MODES, edge_uncertainty
 from .anchors import (AnchorRegularization, anchor_regularization, choose_reference, normalize_anchors,
                       normalize_priors, prior_arrays, reround_edges)
@@ -75,6 +75,8 @@ class VariantOptions:
     information: str = "full"
     positions: str = "phase3"
     route: str = "custom"
+    integer_search: IntegerSearch | None = None
+    progress: Callable | None = None
 
     @property
     def use_cvxpy(self) -> bool:
@@ -224,7 +226,8 @@ def _regularize(st: _State):
     tree = _resolve_tree(g, o.spanning_tree, st.ref)
     st.timings["tree"] = time.perf_counter() - t
     t = time.perf_counter()
-    reg = regularize(g, tree, regularization=o.regularization, margin=o.margin, backend=o.backend)
+    reg = regularize(g, tree, regularization=o.regularization, margin=o.margin, method=o.method, backend=o.backend,
+                     settings=o.solver_settings, search=o.integer_search, progress=o.progress)
     tt0 = reg.reference  # 0 at the root: θ_tree (tree rounding) or the chordal φ̃, the branch δ_reg follows
     th_anc = sorted((a for a in st.anchors if a.theta is not None), key=lambda a: a.index != st.ref)
     pri = sorted(st.priors, key=lambda p: p.index != st.ref)  # the reference's own value fixes the offset
@@ -432,7 +435,9 @@ def lago_variant(graph: PoseGraph, **options) -> VariantResult:
         what no anchor or prior fixes (default the origin).
       margin — ambiguity margin of the regularization (rad).
       regularization — ``"tree"``, ``"chordal"`` or ``"integer"`` (as in ``lago``; the chordal relaxation
-        is anchored at the reference pose and ignores anchors and priors: it only chooses the integers).
+        is anchored at the reference pose and ignores anchors and priors: it only chooses the integers;
+        ``method`` picks its solver as in ``lago``). integer_search — an ``IntegerSearch`` for
+        ``"integer"`` (as in ``lago``); progress — a ``ProgressCallback`` told about the integer search.
       information — ``"full"`` or ``"marginal"`` (as in ``lago``); positions — ``"phase3"`` or
         ``"resolve"`` (least squares without constraints only); route — the name recorded in the result.
       reround — re-round every edge against the phase-1 estimate and re-solve phase 1 until no k
