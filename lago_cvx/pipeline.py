@@ -87,7 +87,7 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
         return anchored_lago(graph, anchors=anchors, method=method, route=route, spanning_tree=spanning_tree,
                              regularization=regularization, information=information, positions=positions,
                              anchor=anchor, anchor_pose=anchor_pose, margin=margin, solver_settings=solver_settings,
-                             backend=backend)
+                             backend=backend, integer_search=integer_search, progress=progress)
     _check_options(graph, method, choice)
     a = graph.anchor_index(anchor)
     aid = int(graph.ids[a])

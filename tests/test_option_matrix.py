@@ -425,9 +425,6 @@ def test_compare_methods_honours_the_integer_limits():
         compare_methods(g, method="cvxpy")
 
 
-@pytest.mark.xfail(strict=True, reason="lago()'s hand-over to anchored_lago does not pass integer_search and "
-                   "progress (pipeline.py, lago's body: add integer_search=integer_search, progress=progress); "
-                   "remove this marker when it does")
 def test_lago_with_anchors_honours_the_integer_limits():
     from lago_cvx.errors import SearchLimitError
     from lago_cvx.pipeline import lago
