@@ -12,6 +12,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # autodoc documents this checkout's package
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # _docstrings
 
 project = "lago_cvx"
 author = "the lago_cvx authors"
@@ -21,7 +22,6 @@ extensions = [
     "myst_nb",
     "sphinx.ext.autodoc",
     "sphinx.ext.autosummary",
-    "sphinx.ext.napoleon",
     "sphinx_design",
     "sphinxcontrib.bibtex",
 ]
@@ -43,7 +43,7 @@ suppress_warnings = ["myst.header"]   # lectures may jump from the title (#) to 
 
 # --- the API reference
 autodoc_member_order = "bysource"
-autodoc_typehints = "description"
+autodoc_typehints = "none"          # the docstrings state every argument's shape and meaning
 autodoc_default_options = {"members": True, "show-inheritance": False}
 autosummary_generate = False
 
@@ -74,6 +74,42 @@ def _map_linked_sources(app, env, docnames):
             table.setdefault(resolved, docname)
 
 
+#: the API page's generated parts (``docs/api.md`` holds the markers)
+CURATED_MARK = "<!-- curated API -->"
+ENGINE_MARK = "<!-- engine -->"
+
+
+def _curated_api() -> str:
+    """The names ``lago_cvx`` exports, each linked to its documentation under its defining module."""
+    import lago_cvx
+
+    lines = ["```{eval-rst}", ".. autosummary::", "   :nosignatures:", ""]
+    lines += [f"   ~lago_cvx.{module}.{name}" for module, names in lago_cvx._EXPORTS.items() for name in names]
+    return "\n".join(lines + ["```", ""])
+
+
+def _engine_api() -> str:
+    """``lago_cvx.sparse``, the engine's one door, when this checkout has it."""
+    import importlib.util
+
+    if importlib.util.find_spec("lago_cvx.sparse") is None:
+        return "The sparse engine's interface (`lago_cvx.sparse`) is not part of this checkout.\n"
+    return "```{eval-rst}\n.. automodule:: lago_cvx.sparse\n```\n"
+
+
+def _fill_api_page(app, docname, source):
+    if docname == "api":
+        source[0] = source[0].replace(CURATED_MARK, _curated_api()).replace(ENGINE_MARK, _engine_api())
+
+
 def setup(app):
     app.connect("env-before-read-docs", _map_linked_sources)
+    app.connect("source-read", _fill_api_page)
+    app.connect("autodoc-process-docstring", _docstring_as_rst)
     return {"parallel_read_safe": True}
+
+
+def _docstring_as_rst(app, what, name, obj, options, lines):
+    from _docstrings import to_rst
+
+    lines[:] = to_rst(lines)
