@@ -174,8 +174,8 @@ def main(argv=None) -> int:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("numbers", nargs="*", metavar="NN", help="lecture numbers (default: all)")
     parser.add_argument("--site", action="store_true",
-                        help=f"build the site (the course included) into {SITE.relative_to(ROOT)} from the stored outputs "
-                             "instead of executing lectures")
+                        help=f"build the site (the course included) into {SITE.relative_to(ROOT)} from the stored "
+                             "outputs instead of executing lectures")
     args = parser.parse_args(argv)
     if args.site:
         if args.numbers:

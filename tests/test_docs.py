@@ -109,7 +109,8 @@ def test_readme_example_prints_what_the_readme_says(tmp_path):
     for page in [README, *sorted((ROOT / "docs").glob("*.md"))]:
         for line in page.read_text(encoding="utf-8").splitlines():
             if line.startswith("minimize quad_over_lin"):
-                assert line == printed_problem, f"{page.name} quotes {line!r}; print(problem) prints {printed_problem!r}"
+                assert line == printed_problem, (f"{page.name} quotes {line!r}; "
+                                                 f"print(problem) prints {printed_problem!r}")
 
 
 # ----------------------------------------------------------------------------- the user guide
@@ -168,7 +169,8 @@ CODE = [*sorted((ROOT / "benchmarks").glob("*.py")), *sorted((ROOT / "lago_cvx")
 #: the work-log words, for every file
 WORK_LOG = [
     re.compile(r"\bstops? \d+\b"),                                            # "stop 26"
-    re.compile(r"\b(?:at|this|that|earlier|previous|last|next|over the|of the) stops?\b(?! (?:at|when|once|being|in|with|on|if)\b)"),
+    re.compile(r"\b(?:at|this|that|earlier|previous|last|next|over the|of the) stops?\b"
+               r"(?! (?:at|when|once|being|in|with|on|if)\b)"),                # "at stop", "this stop"
     re.compile(r"\bthis\s+(?:[\w-]+\s+){0,2}machine\b", re.IGNORECASE),       # "this (2-core|virtual) machine"
     re.compile(r"\bsessions?\b", re.IGNORECASE),
     re.compile(r"\bcommit [0-9a-f]{7,40}\b"),
