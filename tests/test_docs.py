@@ -188,7 +188,8 @@ def test_the_benchmark_header_is_written_that_way():
 
 # ----------------------------------------------------------------------------- no work-log words
 #: prose pages: "stop" in any sense is banned there (say "ends", "halts", "is not reached")
-PROSE = [README, *sorted((ROOT / "docs").rglob("*.md")), *sorted((ROOT / "benchmarks").glob("*.md"))]
+PROSE = [README, *sorted(p for p in (ROOT / "docs").rglob("*.md") if "_build" not in p.parts),
+         *sorted((ROOT / "benchmarks").glob("*.md"))]
 CODE = [*sorted((ROOT / "benchmarks").glob("*.py")), *sorted((ROOT / "lago_cvx").rglob("*.py")),
         *sorted((ROOT / "lectures").glob("*.py"))]
 #: the work-log words, for every file
