@@ -121,6 +121,66 @@ def test_readme_example_prints_what_the_readme_says(tmp_path):
                                                  f"print(problem) prints {printed_problem!r}")
 
 
+def _md_tables(text: str) -> list[list[dict[str, str]]]:
+    """Every markdown table of ``text`` as a list of rows, each a dict header → cell."""
+    tables, lines = [], text.splitlines()
+    for i in range(len(lines) - 1):
+        if lines[i].startswith("|") and re.match(r"^\|(\s*:?-{3,}:?\s*\|)+$", lines[i + 1]) and (
+                i == 0 or not lines[i - 1].startswith("|")):
+            head = [c.strip() for c in lines[i].strip("|").split("|")]
+            rows = []
+            for line in lines[i + 2:]:
+                if not line.startswith("|"):
+                    break
+                rows.append(dict(zip(head, (c.strip() for c in line.strip("|").split("|")))))
+            tables.append(rows)
+    return tables
+
+
+def _close(claimed: str, value: float, rel: float = 5e-3) -> bool:
+    """``claimed`` (a number as the README rounds it, e.g. '1.25e5', '77.8') equals ``value`` to ``rel``."""
+    return abs(float(claimed) - value) <= rel * abs(value)
+
+
+def test_the_readme_results_are_the_benchmark_tables():
+    """Every number of the README's results table comes from benchmarks/datasets.md (what
+    ``python benchmarks/run.py datasets`` writes), and every figure of its speed table from
+    benchmarks/endtoend.md and benchmarks/perf.md."""
+    readme = _md_tables(_section(README.read_text(encoding="utf-8"), "## Results"))
+    bench = _md_tables((ROOT / "benchmarks" / "datasets.md").read_text(encoding="utf-8"))
+    chi2 = {r["file"]: r for r in bench[0]}
+    steps = {r["file"]: r for r in bench[1]}
+    problems = []
+    for row in readme[0]:
+        f, ref = row["file"], chi2.get(row["file"])
+        if ref is None:
+            problems.append(f"{f}: not in benchmarks/datasets.md")
+            continue
+        minimum = float(ref["χ² reference min"])
+        checks = [("poses", row["poses"], float(ref["poses"])),
+                  ("χ² default route", row["χ² default route"], float(ref["χ² LAGO default route"])),
+                  ("χ² min", row["χ² min"], minimum),
+                  ("default / min", row["default / min"], float(ref["χ² LAGO default route"]) / minimum),
+                  ("paper's route / min", row["paper's route / min"], float(ref["χ² LAGO seed route"]) / minimum),
+                  ("GTSAM's LAGO / min", row["GTSAM's LAGO / min"], float(steps[f]["χ² GTSAM"]) / minimum)]
+        problems += [f"{f}: {name} {claimed} against {value:.6g}" for name, claimed, value in checks
+                     if not _close(claimed, value)]
+    figures = {}
+    for name in ("endtoend", "perf"):
+        for table in _md_tables((ROOT / "benchmarks" / f"{name}.md").read_text(encoding="utf-8")):
+            for r in table:
+                if "file" in r:
+                    figures.setdefault(r["file"], []).extend(
+                        float(c) for c in r.values() if NUMBER.match(c))
+    for row in readme[1]:
+        f = row["file"]
+        for cell in list(row.values())[1:]:
+            for claimed in re.findall(r"\d+(?:\.\d+)?", cell):
+                if not any(_close(claimed, v) for v in figures.get(f, [])):
+                    problems.append(f"{f}: {claimed} is in no table of endtoend.md or perf.md")
+    assert not problems, "\n".join(problems)
+
+
 # ----------------------------------------------------------------------------- the user guide
 def _subcommands() -> dict[str, argparse.ArgumentParser]:
     from lago_cvx.cli.main import build_parser
