@@ -147,7 +147,7 @@ def run(args) -> str:
 
     lines.append(_bench.table(head, [table_row(r) for r in rows]))
     if base_rows:
-        lines += ["", f"## Before: the package at `{args.io_baseline}`", "",
+        lines += ["", "## Before: the package at the baseline revision (`--io-baseline REV`)", "",
                   _bench.table(head, [table_row(r) for r in base_rows]), "",
                   "## Speed-up (before / after)", "",
                   _bench.table(["poses", "generate", "read", "write"],

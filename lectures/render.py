@@ -20,8 +20,9 @@ timestamps, no kernel or language versions, cell ids derived from the cell's con
 outputs merged. A lecture that raises is reported and its notebook is left as it was; the command then
 exits with status 1. One line per lecture tells its run time and the number of figures it shows.
 
-The course site (Sphinx + myst-nb, ``conf.py`` beside this file) renders the stored outputs only:
-``--site`` runs ``python -m sphinx -b html lectures lectures/_build/html``.
+The course is part of the project's site (Sphinx + myst-nb; ``docs/conf.py``, the course linked in as
+``docs/course``), which renders the stored outputs only: ``--site`` runs
+``python -m sphinx -b html -W --keep-going docs docs/_build/html``.
 """
 
 from __future__ import annotations
@@ -37,7 +38,8 @@ from pathlib import Path
 LECTURES = Path(__file__).resolve().parent
 ROOT = LECTURES.parent
 FIGURES = ROOT / "figures"
-SITE = LECTURES / "_build" / "html"
+DOCS = ROOT / "docs"
+SITE = DOCS / "_build" / "html"
 
 #: ``language_info`` fields kept in the notebook (the kernel's ``version`` is dropped).
 _LANGUAGE_INFO_KEPT = ("name", "codemirror_mode", "file_extension", "mimetype", "nbconvert_exporter",
@@ -160,8 +162,9 @@ def render(source: Path) -> bool:
 
 
 def build_site(outdir: Path = SITE, *extra: str) -> int:
-    """``python -m sphinx -b html lectures <outdir>``: the course site from the stored outputs."""
-    command = [sys.executable, "-m", "sphinx", "-b", "html", *extra, str(LECTURES), str(outdir)]
+    """``python -m sphinx -b html -W --keep-going docs <outdir>``: the site, with the course from the stored
+    outputs."""
+    command = [sys.executable, "-m", "sphinx", "-b", "html", "-W", "--keep-going", *extra, str(DOCS), str(outdir)]
     print(" ".join(command[1:]), flush=True)
     return subprocess.call(command, cwd=ROOT)
 
@@ -171,8 +174,8 @@ def main(argv=None) -> int:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("numbers", nargs="*", metavar="NN", help="lecture numbers (default: all)")
     parser.add_argument("--site", action="store_true",
-                        help=f"build the course site into {SITE.relative_to(ROOT)} from the stored outputs "
-                             "instead of executing lectures")
+                        help=f"build the site (the course included) into {SITE.relative_to(ROOT)} from the stored "
+                             "outputs instead of executing lectures")
     args = parser.parse_args(argv)
     if args.site:
         if args.numbers:

@@ -358,13 +358,15 @@ def test_concordance_rows_hold():
 # ----------------------------------------------------------------------------- the site and a clean run
 def test_course_site_builds(tmp_path):
     pytest.importorskip("sphinx", reason="the course site needs the course extra (sphinx, myst-nb)")
-    pytest.importorskip("myst_nb", reason="the course site needs the course extra (sphinx, myst-nb)")
+    for module in ("myst_nb", "sphinx_design", "sphinxcontrib.bibtex"):
+        pytest.importorskip(module, reason="the site needs the course extra (sphinx, myst-nb, sphinx-design, "
+                                           "sphinxcontrib-bibtex)")
     run = subprocess.run([sys.executable, "-m", "sphinx", "-b", "html", "-W", "--keep-going", "-q",
-                          "-d", str(tmp_path / "doctrees"), str(LECTURES), str(tmp_path / "html")],
+                          "-d", str(tmp_path / "doctrees"), str(ROOT / "docs"), str(tmp_path / "html")],
                          cwd=ROOT, capture_output=True, text=True, timeout=600)
     assert run.returncode == 0, f"the site does not build cleanly:\n{run.stdout[-3000:]}\n{run.stderr[-6000:]}"
     for src in SOURCES:
-        assert (tmp_path / "html" / f"{src.stem}.html").is_file()
+        assert (tmp_path / "html" / "course" / f"{src.stem}.html").is_file()
 
 
 def test_running_a_lecture_as_a_script_leaves_the_checkout_clean(tmp_path):

@@ -1,7 +1,7 @@
 """What every sub-command shares: exit statuses, option types, the route options, output targets,
 printing (human lines or one JSON object), and the translation of library messages into CLI terms.
 
-Exit statuses (``lago-cvx --help`` and the README list them):
+Exit statuses (``lago-cvx --help`` and the user guide, docs/guide.md, list them):
 
 | status | meaning |
 |---|---|
@@ -37,7 +37,7 @@ REGULARIZATION_HELP = ("2kπ regularization: tree (the paper's rounding along th
                        "every edge against the chordal relaxation), integer (weighted integer least squares of "
                        "the cycle integers, exact; small/medium graphs); default: the route's")
 ROUTE_HELP = ("default (BFS tree, chordal regularization, full information, positions re-solved: chosen by "
-              "measurement, see the README) or seed (exactly the paper's procedure: odometric tree, tree "
+              "measurement, see docs/results.md) or seed (exactly the paper's procedure: odometric tree, tree "
               "rounding, blkdiag(P_Δ, P_δ), phase-3 poses)")
 
 
