@@ -35,6 +35,8 @@ date):
   ``--io-solve``: the whole ``lago-cvx solve -o`` pipeline too).
 * ``unseen``   — the default route on real graphs it was never tuned on (GTSAM's example graphs, and any
   folder given with ``--unseen DIR``): χ² against the best Gauss–Newton minimum found.
+* ``processes`` — forked workers after a warm parent, spawned workers, two threads, joblib and Dask: every
+  χ² identical to the serial run;
 * ``million``  — ``lago-cvx solve -o`` as a whole process on 100 000 to 1 000 000-pose worlds by both routes,
   step by step with peak memory, and phase 3 by QDLDL against the compiled engine (``COMPILED_MIN``).
 
@@ -57,7 +59,7 @@ from pathlib import Path
 import _bench
 
 SECTIONS = ("datasets", "scaling", "perf", "endtoend", "chordal", "certify", "integer", "theorem1", "route", "io",
-            "unseen", "million")
+            "unseen", "million", "processes")
 #: Sections whose module has another name (``io`` would be the standard library's).
 MODULE_OF = {"io": "io_bench"}
 

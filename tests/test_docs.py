@@ -274,9 +274,6 @@ HEX = re.compile(r"(?<![\w/@.-])[0-9a-f]{7,40}(?![\w/.-])")
 
 #: Files that other changes of this release rewrite (the engine's modules move into lago_cvx/sparse/);
 #: their wording is theirs to fix. The test still runs on them and reports.
-ELSEWHERE = {f"lago_cvx/{sub}{name}.py" for sub in ("", "sparse/") for name in ("linalg", "multifrontal", "arrays")}
-
-
 def _our_commits(tokens: set[str]) -> set[str]:
     """The tokens that name a commit of this repository (none when git or the history is not there)."""
     git = shutil.which("git")
@@ -296,9 +293,7 @@ def _rel(path: Path) -> str:
     return path.relative_to(ROOT).as_posix()
 
 
-@pytest.mark.parametrize("path", [pytest.param(p, id=_rel(p), marks=pytest.mark.xfail(
-    reason="rewritten by the engine's move into lago_cvx/sparse/", strict=False) if _rel(p) in ELSEWHERE else ())
-    for p in PROSE + CODE])
+@pytest.mark.parametrize("path", [pytest.param(p, id=_rel(p)) for p in PROSE + CODE])
 def test_no_work_log_words(path):
     text = path.read_text(encoding="utf-8")
     patterns = WORK_LOG + (PROSE_ONLY if path in PROSE else [])

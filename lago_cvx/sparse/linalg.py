@@ -16,8 +16,7 @@ unknowns they call QDLDL's C routines directly in the pose-level elimination ord
 AMD of QDLDL's own), from there on the multifrontal engine (``normal_equations.ENGINE_MIN``). CHOLMOD is
 used only when asked for. Its speed depends on the BLAS the system's SuiteSparse is linked to: on Debian's reference BLAS it was slower
 than QDLDL (phase 3 at 100 000 poses: 2.7 s against 1.9–2.1 s), on OpenBLAS it is the fastest at every
-size measured (1M poses: 21.7 s against the engine's 26.4 s; benchmarks/perf.md's last table as of
-commit 59fd2cd, ``git show 59fd2cd:benchmarks/perf.md``).
+size measured (1M poses: 21.7 s against the engine's 26.4 s, version 0.2's ``benchmarks/perf.md``).
 """
 
 from __future__ import annotations

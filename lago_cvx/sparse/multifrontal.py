@@ -68,7 +68,7 @@ ZRELAX = (0.8, 0.1, 0.05)
 #: The amalgamation for the compiled engine (``lago_cvx.sparse.compiled``), whose cost per front is a few hundred
 #: nanoseconds, not a Python call: fewer explicit zeros, so a smaller L (less memory to fault in, shorter
 #: solves) for the same factorization time. Phase 3 of the 1 000 000-pose world (its system captured and
-#: factored again in one process, stop 26): L 1.85 GiB in 85 637 fronts with ``NRELAX``/``ZRELAX``,
+#: factored again in one process, version 0.2): L 1.85 GiB in 85 637 fronts with ``NRELAX``/``ZRELAX``,
 #: 1.48 GiB in 156 780 with these; the compiled factorization 2.5–2.9 s against 2.8 s. Tighter still,
 #: (2, 4, 16) and (0.8, 0.1, 0.05), gave 1.28 GiB but 3.7 s. Whole runs: ``benchmarks/million.md``.
 COMPILED_RELAX = ((2, 8, 32), (0.8, 0.1, 0.05))
