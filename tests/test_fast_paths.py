@@ -106,6 +106,50 @@ def test_blas_threads_sets_and_restores_the_thread_count():
     assert counts() == before
 
 
+def test_blas_threads_of_two_threads_restore_the_count_they_found():
+    """The count restored is the one the process has when the block starts — not the one when the BLAS
+    libraries were first found (a user may have changed it since) — and blocks of two threads that
+    overlap (A enters, B enters, A leaves, B leaves) leave the count found before the first."""
+    import threading
+
+    threadpoolctl = pytest.importorskip("threadpoolctl")
+    import scipy.linalg  # noqa: F401
+
+    from lago_cvx.sparse.linalg import blas_threads
+
+    def counts():
+        return [i["num_threads"] for i in threadpoolctl.threadpool_info() if i["user_api"] == "blas"]
+
+    with blas_threads(None):  # the libraries found (at the process's count)
+        pass
+    with threadpoolctl.threadpool_limits(1, user_api="blas"):  # the user changes it afterwards
+        with blas_threads(None):
+            pass
+        assert set(counts()) <= {1}
+    with threadpoolctl.threadpool_limits(2, user_api="blas"):
+        before = counts()
+        if not before or max(before) < 2:
+            pytest.skip("no BLAS whose thread count can be raised to 2 here")
+        a_in, b_in, a_out = threading.Event(), threading.Event(), threading.Event()
+
+        def a():
+            with blas_threads(1):
+                a_in.set()
+                b_in.wait(10)
+            a_out.set()
+
+        def b():
+            a_in.wait(10)
+            with blas_threads(1):
+                b_in.set()
+                a_out.wait(10)
+
+        ta, tb = threading.Thread(target=a), threading.Thread(target=b)
+        ta.start(), tb.start()
+        ta.join(20), tb.join(20)
+        assert counts() == before
+
+
 def test_plan_is_a_valid_elimination():
     """Every update row of a front lies in its parent's front (the extend-add needs it), pivots cover
     each pose once, and the structure contains every edge."""

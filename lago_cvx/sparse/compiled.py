@@ -67,10 +67,30 @@ CHUNK = 0.02
 
 
 def kernels() -> dict:
-    """The compiled kernels (``lago_cvx.sparse.compiled_kernels``, which imports Numba: loaded on first use)."""
-    from .compiled_kernels import KERNELS
+    """The compiled kernels (``lago_cvx.sparse.compiled_kernels``, which imports Numba: loaded on first use).
+    The first time in a process, when Numba has none of them on disk yet (the first run on a machine, or no
+    writable cache), says at INFO level that they are compiled now and about how long it takes."""
+    from . import compiled_kernels
 
-    return KERNELS
+    if not _ANNOUNCED:
+        _ANNOUNCED.append(True)
+        if not compiled_kernels.CACHED or not _on_disk(compiled_kernels.KERNELS):
+            log.info("compiling the sparse engine's kernels for this machine (Numba): about 10-20 s, once%s",
+                     "" if not compiled_kernels.CACHED else "; later processes load them from disk")
+    return compiled_kernels.KERNELS
+
+
+_ANNOUNCED: list = []
+
+
+def _on_disk(kernels: dict) -> bool:
+    """True when Numba's on-disk cache holds an index for every kernel (compiled in an earlier process)."""
+    import os
+
+    try:
+        return all(os.path.exists(k._cache._cache_file._index_path) for k in kernels.values() if hasattr(k, "_cache"))
+    except AttributeError:  # another Numba: nothing said
+        return True
 
 
 def available() -> bool:

@@ -10,12 +10,42 @@ are module-level functions (not closures), so Numba's on-disk cache finds them a
 
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 from numba import njit
 
 from . import supernodes
 
-__all__ = ["KERNELS"]
+__all__ = ["KERNELS", "CACHED"]
+
+log = logging.getLogger(__name__)
+
+
+def _probe(x):
+    return x
+
+
+def _can_cache() -> bool:
+    """True when Numba can keep this module's compiled code on disk: in ``__pycache__`` beside it, or else
+    (a read-only install, a shared JupyterHub) in the user's cache folder (``NUMBA_CACHE_DIR`` or
+    ``~/.cache/numba``). Numba refuses ``cache=True`` at once when no such place is writable."""
+    try:
+        njit(cache=True)(_probe)
+    except RuntimeError as exc:
+        log.warning("Numba cannot keep compiled code on disk here (%s): every new process compiles the sparse "
+                    "engine's kernels again, about 10-20 s before its first factorization of more than "
+                    "300 000 unknowns; set NUMBA_CACHE_DIR to a writable folder to keep them", exc)
+        return False
+    return True
+
+
+#: Whether the kernels are cached on disk (``_can_cache``); the warning above is logged once, on import.
+CACHED = _can_cache()
+
+
+def _jit(fn):
+    return njit(nogil=True, cache=CACHED)(fn)
 
 
 def _addresses() -> np.ndarray:
@@ -54,7 +84,7 @@ def _pointer_call(n: int):
 _call5, _call10, _call11 = _pointer_call(5), _pointer_call(10), _pointer_call(11)
 
 
-@njit(nogil=True, cache=True)
+@_jit
 def assemble(f, b, fptr, rptr, rel, nchild, bptr, border, bli, blj, btr, A, B, F, stack, st_front,
              st_off, state):
     """Front f's matrix in F (column-major D × D, lower triangle): N's blocks in its pivot columns,
@@ -109,7 +139,7 @@ def assemble(f, b, fptr, rptr, rel, nchild, bptr, border, bli, blj, btr, A, B, F
     state[0] = top - nc
     return D
 
-@njit(nogil=True, cache=True)
+@_jit
 def finish(f, b, fptr, rptr, Lptr, L, F, stack, st_front, st_off, state):
     """Keep front f's block column [L_PP; X] in L (packed columns) and push its update U (lower
     triangle) on the stack."""
@@ -134,7 +164,7 @@ def finish(f, b, fptr, rptr, Lptr, L, F, stack, st_front, st_off, state):
         st_off[top + 1] = off + r * r
         state[0] = top + 1
 
-@njit(nogil=True, cache=True)
+@_jit
 def dense(F, D, k):
     """Partial Cholesky of the column-major D × D front F (lower triangle), right-looking: L_PP, X and
     U in place (eq. (MF)). Returns 0, or j + 1 when pivot j is not positive."""
@@ -156,7 +186,7 @@ def dense(F, D, k):
                     F[cc + i] -= F[cj + i] * a
     return 0
 
-@njit(nogil=True, cache=True)
+@_jit
 def dense_blas(F, D, k, fn, iv, dv):
     """(MF) on the column-major D × D front F by LAPACK/BLAS through the addresses ``fn`` (potrf, trsm,
     syrk of SciPy's ``cython_lapack``/``cython_blas``): L_PP = potrf(F_PP), X = trsm(F_RP, L_PP),
@@ -186,7 +216,7 @@ def dense_blas(F, D, k, fn, iv, dv):
                 base + 8 * (k + k * D), p_iv + 4)
     return 0
 
-@njit(nogil=True, cache=True)
+@_jit
 def run(f0, f1, big, b, fptr, rptr, rel, nchild, Lptr, bptr, border, bli, blj, btr, A, B, L, F, stack,
         st_front, st_off, state, small_work, fn):
     """Fronts f0, f0 + 1, … of (MF) in postorder, up to f1 or the first front marked ``big`` (left to
@@ -210,7 +240,7 @@ def run(f0, f1, big, b, fptr, rptr, rel, nchild, Lptr, bptr, border, bli, blj, b
     return f1
 
 
-@njit(nogil=True, cache=True)
+@_jit
 def _front(f, b, fptr, rptr, rows, Lptr, slot):
     """Front f's sizes for the sweeps — (k, r, D, first pivot slot, start of its columns in L) — with the
     slots of its r update variables written to ``slot``."""
@@ -222,7 +252,7 @@ def _front(f, b, fptr, rptr, rows, Lptr, slot):
     return k, pr * b, k + pr * b, fptr[f] * b, Lptr[f]
 
 
-@njit(nogil=True, cache=True)
+@_jit
 def forward(Y, seq, b, fptr, rptr, rows, Lptr, L, rmax):
     """L z = y in place for Y (nrhs, slots), over the fronts ``seq`` in that order (children before
     parents): z_P = L_PP⁻¹ y_P, y_R −= X z_P, y_R gathered into a local vector so the inner loops run
@@ -248,7 +278,7 @@ def forward(Y, seq, b, fptr, rptr, rows, Lptr, L, rmax):
                 y[slot[i]] -= t[i]
 
 
-@njit(nogil=True, cache=True)
+@_jit
 def backward(Y, seq, b, fptr, rptr, rows, Lptr, L, rmax):
     """Lᵀ x = z in place for Y (nrhs, slots), over the fronts ``seq`` in that order (parents before
     children): x_P = L_PP⁻ᵀ(z_P − Xᵀ x_R)."""
@@ -271,7 +301,7 @@ def backward(Y, seq, b, fptr, rptr, rows, Lptr, L, rmax):
                 y[s0 + j] = v / L[col + j]
 
 
-@njit(nogil=True, cache=True)
+@_jit
 def pose_local(f, pos, fptr, rptr, rows):
     """Local pose index of position pos[t] in front f[t] (``_local``)."""
     out = np.empty(f.size, np.int64)
@@ -280,7 +310,7 @@ def pose_local(f, pos, fptr, rptr, rows):
     return out
 
 
-@njit(nogil=True, cache=True, inline="always")
+@njit(nogil=True, cache=CACHED, inline="always")
 def _local(g, p, fptr, rptr, rows):
     """Local pose index of position p in front g: p − first pivot for a pivot, else the front's pivot
     count plus p's rank among its update rows (binary search; p must be in the front)."""
@@ -296,7 +326,7 @@ def _local(g, p, fptr, rptr, rows):
     return fptr[g + 1] - fptr[g] + lo - rptr[g]
 
 
-@njit(nogil=True, cache=True)
+@_jit
 def block_map(prow, pcol, position, front_of, fptr, rptr, rows):
     """``CompiledAssembler``'s map in three passes: the pairs (prow[t], pcol[t]) with both ends free,
     bucketed by the front holding their lower end's pivot column (stable), each with its local block
@@ -330,7 +360,7 @@ def block_map(prow, pcol, position, front_of, fptr, rptr, rows):
     return order, bptr, li, lj, transposed
 
 
-@njit(nogil=True, cache=True)
+@_jit
 def edge_matvec(A, B, t, h, x):
     """M x of the edge system (E) for r right-hand sides: row k is A_k x_{t_k} + B_k x_{h_k} (A, B (m, q, b);
     t, h (m,), −1 at the anchor, whose x is 0; x (d, b, r); out (m, q, r)); the terms added in
@@ -355,7 +385,7 @@ def edge_matvec(A, B, t, h, x):
     return out
 
 
-@njit(nogil=True, cache=True)
+@_jit
 def edge_rmatvec(A, B, t, h, r, d):
     """Mᵀ r (d, b, nr) of the edge system (E) for r (m, q, nr): every tail's A_kᵀ r_k, then every head's
     B_kᵀ r_k, added in edge order (the order of ``normal_equations.EdgeOperator.rmatvec``'s bincount)."""
@@ -376,7 +406,7 @@ def edge_rmatvec(A, B, t, h, r, d):
     return out
 
 
-@njit(nogil=True, cache=True)
+@_jit
 def stack_peak(seq, nchild, sizes):
     """The most stack entries alive at once while the fronts ``seq`` are factored in that order, each
     popping its children's updates and pushing its own (``sizes`` (F,) its r²); updates never popped
@@ -397,7 +427,7 @@ def stack_peak(seq, nchild, sizes):
                 peak = lev[top]
     return peak
 
-@njit(nogil=True, cache=True)
+@_jit
 def subtrees(parent, work):
     """For fronts in postorder: each subtree's total ``work`` and its first front (the subtree of f is
     the range first[f] … f)."""
@@ -412,7 +442,7 @@ def subtrees(parent, work):
                 first[p] = first[f]
     return total, first
 
-@njit(nogil=True, cache=True)
+@_jit
 def push(src, off, size, stack, st_front, st_off, state, f):
     """Push front f's update, ``src[off:off + size]`` (another stack's), onto this stack."""
     top = state[0]
@@ -422,7 +452,7 @@ def push(src, off, size, stack, st_front, st_off, state, f):
     st_off[top + 1] = o + size
     state[0] = top + 1
 
-@njit(nogil=True, cache=True)
+@_jit
 def one(f, b, fptr, rptr, Lptr, L, F, D, fn):
     """A front already assembled in F, by LAPACK/BLAS, kept in L (the caller pushes its update)."""
     iv = np.zeros(8, np.int32)
@@ -434,5 +464,4 @@ def one(f, b, fptr, rptr, Lptr, L, F, D, fn):
 KERNELS = dict(assemble=assemble, finish=finish, run=run, forward=forward, backward=backward,
                stack_peak=stack_peak, one=one, subtrees=subtrees, push=push, pose_local=pose_local,
                block_map=block_map, edge_matvec=edge_matvec, edge_rmatvec=edge_rmatvec,
-               relax=njit(nogil=True, cache=True)(supernodes.relax),
-               heights=njit(nogil=True, cache=True)(supernodes.heights), fn=_addresses())
+               relax=_jit(supernodes.relax), heights=_jit(supernodes.heights), fn=_addresses())

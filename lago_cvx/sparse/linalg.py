@@ -23,6 +23,8 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import os
+import threading
 from typing import Callable
 
 import numpy as np
@@ -39,11 +41,26 @@ SOLVER_BACKENDS = ("auto", "qdldl", "superlu", "cholmod")
 _BLAS: list = []  # threadpoolctl's controllers of the loaded BLAS libraries, found on first use
 
 
+_BLAS_LOCK = threading.Lock()
+_BLAS_USERS: list = [0, None]  # [blocks inside blas_threads now, the counts on entry of the first]
+
+
+def _reset_blas_state() -> None:  # a forked child: no block of the parent's is running in it
+    global _BLAS_LOCK
+    _BLAS_LOCK = threading.Lock()
+    _BLAS_USERS[:] = [0, None]
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_reset_blas_state)
+
+
 @contextlib.contextmanager
 def blas_threads(n: int | None):
     """Run a block with at most ``n`` BLAS threads (None: as many as configured on entry) and yield a
     setter ``threads(k)`` that changes it inside the block (k None: back to the count on entry); the
-    count on entry is restored on exit.
+    process's count is restored when the last such block ends, also when blocks of several threads
+    overlap (the counts are kept from the first entry, not re-read from a count another block lowered).
 
     Through threadpoolctl, which finds every loaded BLAS (NumPy and SciPy each carry an OpenBLAS).
     Small dense kernels run faster on one thread: OpenBLAS's threads cost more than they give on
@@ -59,7 +76,11 @@ def blas_threads(n: int | None):
             log.debug("BLAS threads left as they are (%s)", exc)
             found = []
         _BLAS.append(found)
-    libs = [(lib, lib.num_threads) for lib in _BLAS[0]]
+    with _BLAS_LOCK:
+        if _BLAS_USERS[0] == 0:
+            _BLAS_USERS[1] = [(lib, lib.get_num_threads()) for lib in _BLAS[0]]  # now, not when found
+        _BLAS_USERS[0] += 1
+        libs = _BLAS_USERS[1]
     state = [None]
 
     def threads(k: int | None) -> None:
@@ -72,7 +93,11 @@ def blas_threads(n: int | None):
     try:
         yield threads
     finally:
-        threads(None)
+        with _BLAS_LOCK:
+            _BLAS_USERS[0] -= 1
+            if _BLAS_USERS[0] == 0:
+                for lib, on_entry in libs:
+                    lib.set_num_threads(on_entry)
 
 
 def _not_kept():
