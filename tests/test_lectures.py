@@ -34,9 +34,9 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 LECTURES = ROOT / "lectures"
 SOLUTIONS = LECTURES / "solutions"
-SOURCES = sorted(LECTURES.glob("[0-9][0-9]_*.py"))
+SOURCES = sorted(LECTURES.glob("[0-9][0-9]*_*.py"))
 IDS = [s.stem for s in SOURCES]
-SOLUTION_FILES = sorted(SOLUTIONS.glob("[0-9][0-9]_*_ex[0-9].py"))
+SOLUTION_FILES = sorted(SOLUTIONS.glob("[0-9][0-9]*_*_ex[0-9].py"))
 SEED_MD = ROOT.parent / "shared" / "SEED.md"
 CONCORDANCE = LECTURES / "CONCORDANCE.md"
 
@@ -106,7 +106,7 @@ def test_there_are_lectures():
 def test_pair_in_sync(src):
     jupytext = _jupytext()
     ipynb = src.with_suffix(".ipynb")
-    assert ipynb.exists(), f"{ipynb.name} missing: run `python lectures/render.py {src.name[:2]}`"
+    assert ipynb.exists(), f"{ipynb.name} missing: run `python lectures/render.py {src.name.split('_')[0]}`"
     a = [(c.cell_type, c.source.strip()) for c in jupytext.read(src).cells]
     b = [(c.cell_type, c.source.strip()) for c in jupytext.read(ipynb).cells]
     assert a == b, f"{src.name} and {ipynb.name} differ: run `jupytext --sync {src}` (or render it again)"
@@ -117,7 +117,7 @@ def test_notebook_holds_rendered_outputs(src):
     nbformat = pytest.importorskip("nbformat")
     nb = nbformat.read(src.with_suffix(".ipynb"), as_version=4)
     outputs = [o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])]
-    hint = f"run `python lectures/render.py {src.name[:2]}`"
+    hint = f"run `python lectures/render.py {src.name.split('_')[0]}`"
     assert outputs, f"{src.name[:-3]}.ipynb holds no outputs: {hint}"
     assert any("image/png" in o.get("data", {}) for o in outputs), f"no figure stored: {hint}"
     errors = [o.get("ename", "") + ": " + o.get("evalue", "") for o in outputs if o.output_type == "error"]
@@ -225,7 +225,7 @@ def test_no_matplotlib_use_and_no_internal_wording():
 # ----------------------------------------------------------------------------- concordance
 #: The items the paper states without a number (SEED.md, "Also stated in the text"), as labelled here.
 UNNUMBERED = ["cycle / circuit", "regularization steps (Section V)", "abstract: refinement often unnecessary"]
-ROW_LECTURE = re.compile(r"^(\d\d_\w+) §(\d+)$")
+ROW_LECTURE = re.compile(r"^(\d\d[a-z]?_\w+) §(\d+)$")
 DOTTED = re.compile(r"^[A-Za-z_][\w.]*$")
 
 
