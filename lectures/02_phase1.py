@@ -180,6 +180,9 @@ if INTEL is not None:
     lam, lam_cut = lambda_min(INTEL), lambda_min(cut)
     print(f"Intel: {lc.connected_components(INTEL)[0]} component, λ_min = {lam:.3e}; "
           f"cut at pose {half}: {lc.connected_components(cut)[0]} components, λ_min = {lam_cut:.1e}")
+
+# %% tags=["remove-input"]
+if INTEL is not None:
     check(lam > 0, "Proposition 1 on Intel: A P_δ⁻¹ Aᵀ is positive definite")
     check(abs(lam_cut) < 1e-6 * lam, "cut in two: singular")
 
@@ -218,14 +221,11 @@ At = cp.Constant(A.T.tocsr(), name="Aᵀ")
 δ_reg = cp.Constant(reg.delta_reg, name="δ_reg")
 phase1 = cp.Problem(cp.Minimize(cp.sum_squares(cp.multiply(w_δ, At @ θ - δ_reg))))
 print(phase1)
-check(phase1.is_dpp(), "the problem is DPP: changing w_δ.value re-solves without rebuilding it")
-
 
 def closed_form(weights):
     """Eq. (13) with dense algebra, for weights w = P_δ^(-1/2): θ̂ and P_θ⁻¹."""
     info = (A.multiply(weights**2) @ A.T).toarray()
     return np.linalg.solve(info, A @ (weights**2 * reg.delta_reg)), info
-
 
 def agreement(theta_cvx, weights):
     """|θ_cvx − θ̂| and the bound the solver's gap tolerance allows (strong convexity)."""
@@ -234,17 +234,19 @@ def agreement(theta_cvx, weights):
     gap = LEAST_SQUARES.tol_gap_abs + LEAST_SQUARES.tol_gap_rel * f_hat
     return np.abs(theta_cvx - theta_hat).max(), np.sqrt(gap / np.linalg.eigvalsh(info)[0])
 
-
 w_δ.value = np.sqrt(1.0 / unc.var_delta)
 solve(phase1)
 package = phases.phase1_closed_form(g, reg.delta_reg, unc)
 err, bound = agreement(θ.value, w_δ.value)
 print(g, f"| status {phase1.status}")
-check(err <= bound, f"cvxpy = eq. (13) in closed form: |Δθ| = {err:.1e} ≤ {bound:.1e} (the solver's tolerance)")
 check(np.abs(package.theta_free - closed_form(w_δ.value)[0]).max() < 1e-9,
       "lago_cvx.phases.phase1_closed_form = eq. (13)")
 pkg_problem, pkg_theta = phases.phase1_problem(g, reg.delta_reg, unc)
 solve(pkg_problem)
+
+# %% tags=["remove-input"]
+check(phase1.is_dpp(), "the problem is DPP: changing w_δ.value re-solves without rebuilding it")
+check(err <= bound, f"cvxpy = eq. (13) in closed form: |Δθ| = {err:.1e} ≤ {bound:.1e} (the solver's tolerance)")
 check(np.abs(pkg_theta.value - θ.value).max() <= 2 * bound, "and the package's own cvxpy builder, phase1_problem, agrees")
 
 # %% [markdown]
@@ -269,7 +271,6 @@ for s in scales:
 odo = g.is_odometric
 dead_reckoning = np.sum(np.where(g.heads > g.tails, 1.0, -1.0)[odo] * reg.delta_reg[odo])  # θ of the last pose
 print("θ̂ of the last pose:", np.round(last, 4), f"| dead reckoning: {dead_reckoning:.4f}")
-check(abs(last[0] - dead_reckoning) < 1e-2 * abs(dead_reckoning) + 0.01, "with s → 0 phase 1 is dead reckoning")
 check(all(np.diff(traces) < 0), "tr P_θ decreases as the loop closures gain weight")
 
 fig, axs = plt.subplots(1, 2, figsize=(11, 3.6))
@@ -285,6 +286,9 @@ axs[1].set_ylabel("tr P_θ [rad²]")
 fig.suptitle("One cvxpy problem, four solves: only the parameter w_δ changed")
 show(fig, "weight_sweep")
 w_δ.value = np.sqrt(1.0 / unc.var_delta)
+
+# %% tags=["remove-input"]
+check(abs(last[0] - dead_reckoning) < 1e-2 * abs(dead_reckoning) + 0.01, "with s → 0 phase 1 is dead reckoning")
 
 # %% [markdown]
 # ## 4. The information matrix is a weighted graph Laplacian
@@ -302,15 +306,12 @@ def grounded_laplacian(graph, var_delta):
     L = csgraph.laplacian((weights + weights.T).tocsr()).tocsr()
     return L[1:][:, 1:]
 
-
 laplacian = grounded_laplacian(g, unc.var_delta)
 check(abs(package.info - laplacian).max() < 1e-12 * abs(laplacian).max(),
       "Phase1.info = A P_δ⁻¹ Aᵀ = the grounded weighted Laplacian")
 P_theta = np.linalg.inv(package.info.toarray())
 density_info = package.info.nnz / n**2
 density_cov = np.mean(np.abs(P_theta) > 1e-12 * np.abs(P_theta).max())
-check(density_info < 0.1 and density_cov > 0.9,
-      f"information {density_info:.1%} non-zero, covariance P_θ {density_cov:.0%} non-zero")
 
 fig, axs = plt.subplots(1, 2, figsize=(11, 5.2))
 axs[0].spy(package.info, markersize=1.5)
@@ -320,6 +321,10 @@ axs[1].set_title(f"covariance P_θ, log₁₀ |entries|\n{density_cov:.0%} non-z
 fig.colorbar(im, ax=axs[1], shrink=0.8)
 fig.suptitle(f"Phase 1 on a Manhattan world ({n + 1} poses, {m} edges)", y=1.04)
 show(fig, "information")
+
+# %% tags=["remove-input"]
+check(density_info < 0.1 and density_cov > 0.9,
+      f"information {density_info:.1%} non-zero, covariance P_θ {density_cov:.0%} non-zero")
 
 # %% [markdown]
 # ## 5. The anchor as a constraint, and what its dual variable means
@@ -352,7 +357,6 @@ print(two_anchors)
 
 solve(one_anchor)
 err, bound = agreement(θ_all.value[1:], w_δ.value)
-check(err <= bound, f"θ₀ = 0 as a constraint gives the same θ̂ as deleting the row (|Δθ| = {err:.1e})")
 one_anchor_force = float(anchor.dual_value)
 
 theta_hat_k = θ_all.value[k]                                         # phase 1's θ̂_k (one anchor)
@@ -386,6 +390,9 @@ ax.set_title(f"A second known orientation (pose {k}): the dual variable is the f
 ax.legend(fontsize=8)
 show(fig, "anchor_dual")
 
+# %% tags=["remove-input"]
+check(err <= bound, f"θ₀ = 0 as a constraint gives the same θ̂ as deleting the row (|Δθ| = {err:.1e})")
+
 # %% [markdown]
 # ## 6. Monte Carlo: $\hat\theta$ is unbiased with covariance $P_\theta$
 #
@@ -409,10 +416,8 @@ info_mc[:, 0, 0] = info_mc[:, 1, 1] = 1 / 0.05**2
 info_mc[:, 2, 2] = 1 / sig**2
 d_true = truth[heads, 2] - truth[tails, 2]
 
-
 def graph_with(delta):
     return lc.PoseGraph(8, tails, heads, mc_world.graph.delta_l, delta, info_mc)
-
 
 g_mc = graph_with(wrap_angle(d_true))
 tree_mc, unc_mc = spanning_tree(g_mc, "bfs"), edge_uncertainty(g_mc)
@@ -428,7 +433,6 @@ for s in range(N_MC):
     errs[s] = wrap_angle(K @ delta_reg - ph_true.theta_free)
     if s == 0:
         fast_path = np.abs(K @ delta_reg - phases.phase1_closed_form(g_s, delta_reg, unc_mc).theta_free).max()
-check(fast_path < 1e-9, "the loop's θ̂ = K δ_reg is the package's phase1_closed_form")
 zscore = errs.mean(axis=0) / np.sqrt(np.diag(P_theta_mc) / N_MC)
 S = np.cov(errs, rowvar=False)
 rel = np.linalg.norm(S - P_theta_mc) / np.linalg.norm(P_theta_mc)
@@ -436,7 +440,6 @@ expected = np.sqrt((np.trace(P_theta_mc) ** 2 + np.linalg.norm(P_theta_mc) ** 2)
 print(g_mc, f"| σ_δ from {sig.min():.3f} to {sig.max():.3f} rad")
 print("mean error / standard error per pose:", np.round(zscore, 2))
 check(np.abs(zscore).max() < 4.5, "θ̂ is unbiased (every mean error within 4.5 standard errors)")
-check(rel < 3 * expected, f"sample covariance = P_θ: ‖S − P_θ‖/‖P_θ‖ = {rel:.3f} (sampling level {expected:.3f})")
 
 fig, axs = plt.subplots(1, 2, figsize=(11, 4))
 i1, i2 = 2, 5
@@ -458,20 +461,39 @@ axs[1].legend(fontsize=8)
 fig.suptitle("Monte Carlo of phase 1 (noise → wrap → regularize → eq. (13))")
 show(fig, "montecarlo")
 
+# %% tags=["remove-input"]
+check(fast_path < 1e-9, "the loop's θ̂ = K δ_reg is the package's phase1_closed_form")
+check(rel < 3 * expected, f"sample covariance = P_θ: ‖S − P_θ‖/‖P_θ‖ = {rel:.3f} (sampling level {expected:.3f})")
+
 # %% [markdown]
 # **Summary.** After the $2k\pi$ regularization, the relative orientations obey the linear model
 # eq. (8); connectivity and one known orientation make it uniquely solvable (Proposition 1); its BLUE
 # eq. (13) is one sparse solve with a grounded weighted Laplacian. cvxpy states the same problem in a
 # line, with parameters to re-solve and multipliers that are forces. Lecture 3 uses $\hat\theta$ and
 # $P_\theta$ to bring the positions into the global frame.
-#
+
+# %% [markdown]
 # ## Exercise 1 — $P_\theta$ of a chain
 #
 # *Derive.* For a path $0 \to 1 \to \dots \to n$ (odometry only, variances $\sigma_1^2, \dots, \sigma_n^2$)
 # anchored at pose 0, derive $P_\theta$ in closed form: show that $(P_\theta)_{ij} = \sum_{k \le
 # \min(i, j)} \sigma_k^2$ (the orientation error is a random walk). Check it against the inverse of
-# $A P_\delta^{-1} A^\top$. (Solution: `solutions/02_phase1_ex1.py`.)
+# $A P_\delta^{-1} A^\top$.
 #
+# **Hint.** With pose 0 anchored, the reduced $A$ of a chain is bidiagonal and its inverse is triangular, full of
+# ones.
+
+# %%
+# your solution here
+
+# %% [markdown]
+# ````{dropdown} Solution
+# ```{literalinclude} solutions/02_phase1_ex1.py
+# :language: python
+# ```
+# ````
+
+# %% [markdown]
 # ## Exercise 2 — A compass instead of an anchor
 #
 # *Implement.* Replace the anchor by absolute heading measurements (a compass) on a few poses, with
@@ -479,10 +501,36 @@ show(fig, "montecarlo")
 # parameter for the compass readings, and derive the closed form with an augmented design matrix.
 # Verify that both agree, that one compass reading is enough for a unique solution (Proposition 1 in
 # another guise), and that re-solving with new readings needs no rebuild.
-# (Solution: `solutions/02_phase1_ex2.py`.)
 #
+# **Hint.** Each compass reading adds one row $e_i^\top$ to the design matrix, with weight $1/\sigma_c$; with a
+# `cp.Parameter` for the readings the problem is built once.
+
+# %%
+# your solution here
+
+# %% [markdown]
+# ````{dropdown} Solution
+# ```{literalinclude} solutions/02_phase1_ex2.py
+# :language: python
+# ```
+# ````
+
+# %% [markdown]
 # ## Exercise 3 — Which loop closure helps most?
 #
 # *Explore.* On a Manhattan world, start from the odometry alone and add one loop closure at a time:
 # which single loop closure reduces $\operatorname{tr} P_\theta$ the most? Relate your answer to the
-# length of the cycle it closes. (Solution: `solutions/02_phase1_ex3.py`.)
+# length of the cycle it closes.
+#
+# **Hint.** Build the graph of odometry plus one loop closure with `lc.PoseGraph`, and compute
+# $\operatorname{tr}P_\theta$ from phase 1's information (`result.phase1.info`).
+
+# %%
+# your solution here
+
+# %% [markdown]
+# ````{dropdown} Solution
+# ```{literalinclude} solutions/02_phase1_ex3.py
+# :language: python
+# ```
+# ````

@@ -105,6 +105,8 @@ truth0 = lc.between(np.broadcast_to(clean.truth[0], clean.truth.shape), clean.tr
 truth0[:, 2] += 2 * np.pi * np.rint((rc.phase1.theta - truth0[:, 2]) / (2 * np.pi))  # θ̂'s branch of 2π
 rho_true = np.concatenate([truth0[1:, :2].ravel(), truth0[1:, 2]])
 e12 = np.abs(rc.phase2.z - P.design_matrix(clean.graph) @ rho_true).max()
+
+# %% tags=["remove-input"]
 check(e12 < 1e-9, f"eq. (12) on exact data: z = Bᵀρ_true (max deviation {e12:.1e})")
 
 # %%
@@ -119,7 +121,6 @@ print(phase3)
 
 W.value, z.value, Bt.value = res.phase2.W.toarray(), res.phase2.z, P.design_matrix(g).toarray()
 
-
 TOL = 1e-8   # accepted relative disagreement with the closed form, for an "optimal" status at 1e-12 gaps
 status = solve_qp(phase3)
 
@@ -130,6 +131,8 @@ rho15 = np.linalg.solve(info15, Bd @ np.linalg.solve(P_z, res.phase2.z))     # e
 e_cvx = relative_difference(rho.value, res.phase3.x_star)
 e_dense = relative_difference(rho15, res.phase3.x_star)
 e_info = np.abs(info15 - res.phase3.info.toarray()).max() / np.abs(info15).max()
+
+# %% tags=["remove-input"]
 check(status == "optimal" and e_cvx < TOL, f"cvxpy (Clarabel, {status}) = package closed form ({e_cvx:.1e})")
 check(e_dense < 1e-9, f"eq. (15) with the dense P_z = package closed form ({e_dense:.1e})")
 check(e_info < 1e-9, f"information B P_z⁻¹ Bᵀ = phase3.info ({e_info:.1e})")
@@ -167,10 +170,12 @@ e_spring = np.abs(force - np.einsum("kab,kb->ka", P_dg_inv, d)).max() / np.abs(f
 net = lc.incidence_matrix(g) @ force                                   # net force on every pose, anchor included
 J = res.phase2.jac.toarray()
 e_torque = np.abs(J.T @ force.ravel() - res.phase1.info @ (rho.value[2 * n:] - res.phase1.theta_free)).max()
-check(e_lam < 1e-6, f"λ = −2 P_z⁻¹ (z − Bᵀρ*) (rel. {e_lam:.1e})")
 check(e_spring < 1e-6, f"λ_Δ/2 = P_Δg⁻¹ d_k: spring forces (rel. {e_spring:.1e}; largest |f| {np.abs(force).max():.2f})")
 check(np.abs(net).max() < 1e-6 * np.abs(force).max(),
       f"forces balance at every pose, and the anchor feels none (max net {np.abs(net).max():.1e})")
+
+# %% tags=["remove-input"]
+check(e_lam < 1e-6, f"λ = −2 P_z⁻¹ (z − Bᵀρ*) (rel. {e_lam:.1e})")
 check(np.abs(lam_th).max() < 1e-6 * np.abs(lam).max() and e_torque < 1e-6 * np.abs(J.T @ force.ravel()).max(),
       f"λ_θ = 0: torques balanced by P_θ⁻¹(θ* − θ̂) (max deviation {e_torque:.1e})")
 
@@ -215,6 +220,9 @@ if intel is not None:
     e_real = relative_difference(ph3_cvx.x_star, r_intel.phase3.x_star)
     print(f"INTEL_P_toro: 3n = {ph3_cvx.x_star.size} unknowns; Clarabel {t_cvx:.2f} s, closed form "
           f"{1e3 * r_intel.timings['phase3']:.0f} ms")
+
+# %% tags=["remove-input"]
+if intel is not None:
     check(e_real < TOL, f"INTEL: cvxpy phase 3 = closed form ({e_real:.1e})")
 
 # %% [markdown]
@@ -260,6 +268,8 @@ p_hat = P_phat @ A2 @ Pdg_inv @ RDl                       # eq. (14)
 t1 = theorem1(g, result=res)
 p_pkg = resolve_positions(g, th_h, res.uncertainty).poses[1:, :2].ravel()
 grad_theta = (-2 * Bd @ np.linalg.solve(P_z, res.phase2.z - Bd.T @ rho.value))[2 * n:]   # ∇_θ of the cost at ρ̂
+
+# %% tags=["remove-input"]
 check(status14 == "optimal" and relative_difference(rho.value[:2 * n], p_hat) < TOL,
       f"cvxpy with θ = θ̂ gives eq. (14) ({relative_difference(rho.value[:2 * n], p_hat):.1e})")
 check(relative_difference(p_pkg, p_hat) < 1e-9 and relative_difference(t1.x_hat[:2 * n], p_hat) < 1e-9,
@@ -306,8 +316,10 @@ theta_13 = np.linalg.solve(P_theta_inv, A @ (res.regularization.delta_reg / res.
 theta_tilde = P_th_star @ J.T @ Pdg_inv @ (A2.T @ P_phat @ A2 @ Pdg_inv - np.eye(2 * m)) @ RDl
 theta_star = res.phase3.x_star[2 * n:]
 e16 = relative_difference(theta_13 + theta_tilde, theta_star)
-check(relative_difference(theta_13, res.phase1.theta_free) < 1e-9, "the first summand of eq. (16) is θ̂ (eq. (13))")
 check(e16 < 1e-9, f"eq. (16): θ̂ + θ̃ = phase 3's θ* ({e16:.1e}); max|θ̃| = {np.abs(theta_tilde).max():.3f} rad")
+
+# %% tags=["remove-input"]
+check(relative_difference(theta_13, res.phase1.theta_free) < 1e-9, "the first summand of eq. (16) is θ̂ (eq. (13))")
 check(relative_difference(t1.theta_correction, theta_tilde) < 1e-9, "θ̃ = theorem1(...).theta_correction")
 check(np.allclose(P_th_star, np.linalg.inv(info15)[2 * n:, 2 * n:], rtol=1e-8, atol=0),
       "P_θ* is the orientation block of P_ρ* = (B P_z⁻¹ Bᵀ)⁻¹")
@@ -332,13 +344,15 @@ p_tilde = P_phat @ A2 @ Pdg_inv @ J @ P_th_star @ J.T @ Pdg_inv @ (A2.T @ P_phat
 p_star = res.phase3.x_star[:2 * n]
 e17 = relative_difference(p_hat + p_tilde, p_star)
 check(e17 < 1e-9, f"eq. (17): p̂ + p̃ = phase 3's p* ({e17:.1e}); max|p̃| = {np.abs(p_tilde).max():.3f} m")
-check(relative_difference(p_tilde, P_phat @ A2 @ Pdg_inv @ J @ theta_tilde) < 1e-9, "p̃ = P_p̂ A₂ P_Δg⁻¹ J θ̃")
-check(relative_difference(t1.position_correction, p_tilde) < 1e-9 and t1.identity_error < 1e-9,
-      f"p̃ = theorem1(...).position_correction; identity ρ* − ρ̂ = [p̃; θ̃] to {t1.identity_error:.1e}")
 
 tree_world = lc.random_graph(15, 14, seed=4, sigma_xy=0.1, sigma_theta=0.05)      # 15 poses, 14 edges: a tree
 t_tree = theorem1(tree_world.graph, result=paper_lago(tree_world.graph))
 corr = np.abs(np.concatenate([t_tree.theta_correction, t_tree.position_correction])).max()
+
+# %% tags=["remove-input"]
+check(relative_difference(p_tilde, P_phat @ A2 @ Pdg_inv @ J @ theta_tilde) < 1e-9, "p̃ = P_p̂ A₂ P_Δg⁻¹ J θ̃")
+check(relative_difference(t1.position_correction, p_tilde) < 1e-9 and t1.identity_error < 1e-9,
+      f"p̃ = theorem1(...).position_correction; identity ρ* − ρ̂ = [p̃; θ̃] to {t1.identity_error:.1e}")
 check(corr < 1e-12, f"on a tree the corrections vanish: ρ* = ρ̂ (max |correction| {corr:.1e})")
 
 # %% [markdown]
@@ -381,21 +395,21 @@ status18 = solve_qp(eq18)
 e18 = relative_difference(np.concatenate([dp.value, dth.value]), np.concatenate([p_tilde, theta_tilde]))
 check(np.allclose(W_D.value.T @ W_D.value, Pdg_inv, rtol=0, atol=1e-9 * np.abs(Pdg_inv).max()),
       "W_Δᵀ W_Δ = (R P_Δˡ Rᵀ)⁻¹")
-check(status18 == "optimal" and e18 < TOL, f"the minimiser of eq. (18) is (p̃, θ̃) ({e18:.1e})")
 
 # (18) is a first-order expansion: the residuals' linearisation error falls like the square of the step
 step = np.concatenate([p_tilde, theta_tilde])
-
 
 def position_residual(x):
     """A₂ᵀp − R(θ)Δˡ at x = [p; θ] (pose 0 at the origin), the exact residual of eq. (6)'s first term."""
     th = np.concatenate([[0.0], x[2 * n:]])
     return A2.T @ x[:2 * n] - np.einsum("kab,kb->ka", rot2(th[g.tails]), g.delta_l).ravel()
 
-
 x_hat = np.concatenate([p_hat, res.phase1.theta_free])
 lin_err = [np.abs(position_residual(x_hat + t * step) - (r_D.value + t * (A2.T @ p_tilde - J @ theta_tilde))).max()
            for t in (1e-2, 1e-3)]
+
+# %% tags=["remove-input"]
+check(status18 == "optimal" and e18 < TOL, f"the minimiser of eq. (18) is (p̃, θ̃) ({e18:.1e})")
 check(80 < lin_err[0] / lin_err[1] < 120,
       f"residual linearisation error ×{lin_err[0] / lin_err[1]:.0f} for a step 10× shorter: second order")
 
@@ -419,8 +433,6 @@ print(f"9 re-solves: first {1e3 * times[0]:.0f} ms, the others {1e3 * np.mean(ti
 at1 = sizes[list(scales).index(1.0)]
 check(np.allclose(at1, [np.linalg.norm(theta_tilde), np.linalg.norm(p_tilde)], rtol=1e-6),
       "s = 1 reproduces (p̃, θ̃)")
-check(np.all(np.diff(sizes[:, 0]) > 0) and sizes[0, 0] < 1e-2 * at1[0],
-      f"‖θ̃‖ grows with s and vanishes as s → 0 (‖θ̃‖ = {sizes[0, 0]:.1e} at s = 1e-4)")
 
 fig, ax = plt.subplots(figsize=(6.5, 4))
 ax.loglog(scales, sizes[:, 0], "o-", label="‖θ̃‖ (rad), eq. (16)")
@@ -432,6 +444,10 @@ ax.set_title("Phase 3 corrects ρ̂ less the more certain θ̂ is")
 ax.legend()
 ax.grid(True, which="both", alpha=0.3)
 show(fig, "correction_sweep")
+
+# %% tags=["remove-input"]
+check(np.all(np.diff(sizes[:, 0]) > 0) and sizes[0, 0] < 1e-2 * at1[0],
+      f"‖θ̃‖ grows with s and vanishes as s → 0 (‖θ̃‖ = {sizes[0, 0]:.1e} at s = 1e-4)")
 
 # %% [markdown]
 # ## 6. Remark 1 — what the three phases cost
@@ -503,6 +519,9 @@ r, gn_dr, gn_lago = runs["Manhattan world, 2000 poses"]
 check(r.chi2 < 1.01 * gn_lago.chi2, f"Manhattan world: LAGO's χ² is {r.chi2 / gn_lago.chi2:.4f}× the minimum")
 if intel is not None:
     r, gn_dr, gn_lago = runs["INTEL_P_toro (real)"]
+
+# %% tags=["remove-input"]
+if intel is not None:
     check(r.chi2 > 10 * gn_lago.chi2, f"INTEL, the paper's procedure: LAGO's χ² is {r.chi2 / gn_lago.chi2:.0f}× the minimum")
 
 # %% [markdown]
@@ -532,7 +551,8 @@ if intel is not None:
 # :language: python
 # ```
 # ````
-#
+
+# %% [markdown]
 # ## Exercise 2 — The springs of a single loop
 #
 # *Derive, then check.* Take a graph that is one cycle — poses $0,\dots,N-1$ on a circle, edge $k$ from pose

@@ -9,9 +9,11 @@ the tests) and by their exercise solutions in ``solutions/``::
     check(err < 1e-9, f"cvxpy = closed form ({err:.1e})")     # prints "✓ cvxpy = closed form (3.1e-16)"
     fig, ax = plt.subplots(); ...; show(fig, "laplacian")      # inline in Jupyter; saved only on request
 
-Running a lecture changes no file: figures are displayed, and written to ``figures/`` only when the
-environment variable ``LAGO_CVX_FIGURES`` names a folder (``python lectures/render.py`` sets it to the
-project's ``figures/``; the tests set it to a temporary folder). ``LAGO_CVX_FULL=1`` turns on the
+Running a lecture changes no file: figures are displayed — inline in Jupyter, in a window when a lecture
+runs as a script with an interactive matplotlib backend (``cd lectures && python 02_phase1.py``; close the
+window to go on) — and written to a folder only when the environment variable ``LAGO_CVX_FIGURES`` names it
+(``LAGO_CVX_FIGURES=/tmp/figs python 02_phase1.py``; ``python lectures/render.py`` sets it to the project's
+``figures/``; the tests set it to a temporary folder). ``LAGO_CVX_FULL=1`` turns on the
 bigger sweeps that are skipped by default to keep every lecture under a minute.
 """
 
@@ -28,7 +30,7 @@ import numpy as np
 import lago_cvx as lc
 from lago_cvx.datasets import DatasetNotFound, dataset
 
-__all__ = ["ROOT", "FULL", "S", "setup", "check", "show", "real", "paper_lago", "figure_dir"]
+__all__ = ["ROOT", "FULL", "S", "setup", "check", "show", "real", "paper_lago", "figure_dir", "section_v_world"]
 
 #: The project checkout.
 ROOT = Path(__file__).resolve().parents[1]
@@ -77,8 +79,9 @@ def _in_notebook() -> bool:
 
 
 def show(fig, name: str) -> None:
-    """Display ``fig`` inline (in Jupyter, as a PNG), write ``<prefix>_<name>.png`` and ``.svg`` when
-    ``$LAGO_CVX_FIGURES`` is set (identical bytes on every run), then close it."""
+    """Display ``fig`` inline (in Jupyter, as a PNG) or in a window (a script with an interactive backend),
+    write ``<prefix>_<name>.png`` and ``.svg`` when ``$LAGO_CVX_FIGURES`` is set (identical bytes on every
+    run), then close it."""
     import matplotlib.pyplot as plt
 
     target = figure_dir()
@@ -98,7 +101,17 @@ def show(fig, name: str) -> None:
         buffer = io.BytesIO()
         fig.savefig(buffer, format="png", dpi=_INLINE_DPI, bbox_inches="tight", metadata=_METADATA["png"])
         display({"image/png": base64.b64encode(buffer.getvalue()).decode("ascii")}, raw=True)
+    elif _interactive_backend():
+        plt.show()                     # a script with a GUI backend: the figure in a window
     plt.close(fig)
+
+
+def _interactive_backend() -> bool:
+    """True when matplotlib draws to a window (not Agg, a file format or the inline backend)."""
+    import matplotlib.pyplot as plt
+
+    backend = plt.get_backend().lower()
+    return backend not in ("agg", "pdf", "ps", "svg", "pgf", "cairo", "template") and "inline" not in backend
 
 
 def paper_lago(graph, **options):
@@ -130,3 +143,39 @@ def solve_qp(problem):
     kwargs = ClarabelSettings(static_regularization_constant=1e-8).over(LEAST_SQUARES).solver_kwargs()
     problem.solve(solver=cp.CLARABEL, direct_solve_method="qdldl", **kwargs)
     return problem.status
+
+
+#: The uncertainty rule of the Section V world: σ = k·|measured component| + floor, per component of the
+#: relative pose in the tail's frame (x and y in metres, θ in radians).
+SECTION_V_RULE = {"k_t": 0.1, "floor_t": 1e-3, "k_theta": 0.05, "floor_theta": 1e-3}
+
+
+def section_v_world(n_poses=500, *, seed=1, noise="proportional", sigma_xy=0.02, sigma_theta=0.01):
+    """The world of lecture 6's Table II: a Manhattan world (``lc.manhattan_world``, known truth) whose
+    measurements carry the information of the paper's first scenario — uncertainty proportional to the
+    measured displacement, ``σ = k·|measured| + floor`` per component (``SECTION_V_RULE``).
+
+    ``noise="proportional"``: the noise is drawn from that rule (applied to the true displacement), so the
+    information is the true one; ``noise="isotropic"``: the noise is drawn with constant ``sigma_xy``,
+    ``sigma_theta`` and the proportional information is *assumed*, not true. Returns ``(graph, truth)``:
+    a ``PoseGraph`` (m edges, information (m, 3, 3) diagonal) and the true poses (n, 3)."""
+    base = lc.manhattan_world(n_poses, seed=seed, sigma_xy=0.0, sigma_theta=0.0)
+    g0, truth = base.graph, base.truth
+    exact = lc.between(truth[g0.tails], truth[g0.heads])          # true relative poses δ*_ij, (m, 3)
+    rule = SECTION_V_RULE
+    k = np.array([rule["k_t"], rule["k_t"], rule["k_theta"]])
+    floor = np.array([rule["floor_t"], rule["floor_t"], rule["floor_theta"]])
+    rng = np.random.default_rng(seed + 100)
+    if noise == "proportional":
+        sigma = k * np.abs(exact) + floor
+    elif noise == "isotropic":
+        sigma = np.broadcast_to([sigma_xy, sigma_xy, sigma_theta], exact.shape)
+    else:
+        raise ValueError(f"noise must be 'proportional' or 'isotropic', got {noise!r}")
+    measured = exact + rng.standard_normal(exact.shape) * sigma
+    assumed = k * np.abs(measured) + floor                          # the paper's rule, from the measurements
+    information = np.zeros((g0.n_edges, 3, 3))
+    information[:, [0, 1, 2], [0, 1, 2]] = 1.0 / assumed**2
+    graph = lc.PoseGraph(g0.n_poses, g0.tails, g0.heads, measured[:, :2],
+                         lc.posegraph.wrap_angle(measured[:, 2]), information)
+    return graph, truth

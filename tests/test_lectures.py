@@ -4,7 +4,8 @@
   least one figure, no error (``python lectures/render.py`` stores them);
 * each lecture executes top to bottom with nbclient (working directory lectures/, figures written to a
   temporary folder so the tracked ones stay as they are);
-* each lecture has two or three exercises, each with one solution script that runs and verifies;
+* each lecture has two or three exercises, each with a hint, a stub cell to fill in, and one solution script
+  that runs and verifies and that the site shows in a collapsed dropdown;
 * no ``matplotlib.use`` and no internal wording in the course's prose;
 * lectures/CONCORDANCE.md covers every item of the paper (../shared/SEED.md beside the project) and
   every row points at a real section, importable package names and existing tests;
@@ -152,6 +153,28 @@ def test_exercises_and_their_solutions(src):
     assert found == expected, f"{src.stem}: solutions {sorted(found)}, expected {sorted(expected)}"
 
 
+@pytest.mark.parametrize("src", SOURCES, ids=IDS)
+def test_every_exercise_has_a_hint_a_stub_and_a_hidden_solution(src):
+    """Each exercise: its markdown gives a **Hint.**, a code cell starting ``# your solution here`` follows,
+    then a markdown cell with the solution file in a collapsed ``{dropdown}`` (``literalinclude``: the file the
+    tests run is the one the site shows)."""
+    cells = _cells(src.stem)
+    starts = [i for i, (kind, text) in enumerate(cells) if kind == "markdown" and EXERCISE.search(text.lstrip())]
+    numbers = _exercises(src.stem)
+    assert len(starts) == len(numbers), f"{src.stem}: each '## Exercise N' heading starts its own markdown cell"
+    for number, start in zip(numbers, starts):
+        kind, text = cells[start]
+        assert "**Hint.**" in text, f"{src.stem} exercise {number}: no '**Hint.**'"
+        assert start + 2 < len(cells), f"{src.stem} exercise {number}: no stub and solution cells after it"
+        stub_kind, stub = cells[start + 1]
+        assert stub_kind == "code" and stub.startswith("# your solution here"), \
+            f"{src.stem} exercise {number}: the next cell is not a code cell starting '# your solution here'"
+        solution_kind, solution = cells[start + 2]
+        include = f"```{{literalinclude}} solutions/{src.stem}_ex{number}.py"
+        assert solution_kind == "markdown" and solution.lstrip().startswith("````{dropdown}") and include in solution, \
+            f"{src.stem} exercise {number}: the cell after the stub is not a dropdown including its solution file"
+
+
 def test_every_solution_belongs_to_an_exercise():
     stems = {s.stem for s in SOURCES}
     orphans = [p.name for p in SOLUTIONS.glob("*.py") if p.name.rsplit("_ex", 1)[0] not in stems]
@@ -164,6 +187,50 @@ def test_solution_runs_and_verifies(solution):
                          text=True, encoding="utf-8", timeout=300)
     assert run.returncode == 0, f"{solution.name} failed:\n{run.stdout[-2000:]}\n{run.stderr[-4000:]}"
     assert "✓" in run.stdout, f"{solution.name} verifies nothing (no ✓ line):\n{run.stdout[-2000:]}"
+
+
+# ----------------------------------------------------------------------------- the course as a text
+#: No lecture file is longer than this (a longer one is split, as lecture 4 is into 04a and 04b).
+MAX_LECTURE_LINES = 650
+CITE = re.compile(r"\{cite(?::\w+)?\}`[^`]+`")
+
+
+@pytest.mark.parametrize("src", SOURCES, ids=IDS)
+def test_lecture_length(src):
+    lines = src.read_text(encoding="utf-8").count("\n")
+    assert lines <= MAX_LECTURE_LINES, f"{src.name}: {lines} lines (at most {MAX_LECTURE_LINES}: split it)"
+
+
+def test_lectures_cite_the_bibliography():
+    citing = [src.name for src in SOURCES if CITE.search(src.read_text(encoding="utf-8"))]
+    assert len(citing) >= 3, f"{{cite}} roles in {citing} only (at least 3 lectures should cite the reading list)"
+
+
+def test_index_is_a_syllabus():
+    index = (LECTURES / "index.md").read_text(encoding="utf-8")
+    for heading in ("## Prerequisites", "## Syllabus", "## Reading list", "## Bibliography"):
+        assert heading in index, f"index.md has no '{heading}'"
+    assert "lago-cvx datasets fetch" in index and "```{bibliography}" in index
+    rows = {r[0]: r for r in _table_rows(index[index.index("## Syllabus"):index.index("## Reading list")])}
+    for src in SOURCES:
+        number = src.name.split("_")[0]
+        assert number in rows, f"the syllabus has no row for lecture {number}"
+        assert re.fullmatch(r"\d+(\.\d+)?", rows[number][-1]), f"lecture {number}: no hours in the syllabus"
+    for key in ("carlone2011rss", "carlone2014ijrr", "rosen2019sesync", "carlone2015icra"):
+        assert f"`{key}`" in index, f"the reading list does not cite {key}"
+
+
+@pytest.mark.parametrize("src", SOURCES, ids=IDS)
+def test_checks_are_hidden_in_the_site(src):
+    """Most checks sit in cells tagged remove-input: the site shows their ✓ lines, not their code."""
+    nb = _jupytext().read(src)
+    calls = hidden = 0
+    for cell in nb.cells:
+        if cell.cell_type == "code":
+            n = len(re.findall(r"^\s*check\(", cell.source, re.MULTILINE))
+            calls += n
+            hidden += n if "remove-input" in cell.metadata.get("tags", []) else 0
+    assert calls == 0 or hidden >= 0.3 * calls, f"{src.stem}: {hidden} of {calls} checks in remove-input cells"
 
 
 # ----------------------------------------------------------------------------- wording
