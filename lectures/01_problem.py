@@ -2,8 +2,16 @@
 # # Lecture 1 — The problem: planar pose-graph SLAM as a least-squares problem
 #
 # Section III of Carlone, Aragues, Castellanos, Bona, *A Linear Approximation for Graph-based
-# Simultaneous Localization and Mapping* (RSS 2011), derived step by step and checked numerically with
-# the package `lago_cvx`.
+# Simultaneous Localization and Mapping* (RSS 2011) {cite}`carlone2011rss`, derived step by step and checked
+# numerically with the package `lago_cvx`.
+#
+# **The idea in one paragraph.** A robot that drives and looks around measures only *relative* motions:
+# how far it moved and turned between two poses, and, when it recognises a place, where it is relative to
+# an earlier pose. Each measurement is an edge of a graph whose nodes are the poses. The map is the set of
+# poses that agrees best with all edges at once — a weighted least-squares problem. It would be linear if
+# the headings were known, because a relative position is measured in the frame of the robot and must be
+# turned into the map's frame by the unknown heading: that rotation is the one non-linearity of the
+# problem, and the rest of the course is about getting around it.
 #
 # **Learning goals.** After this lecture you can
 #

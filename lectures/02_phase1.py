@@ -6,6 +6,13 @@
 # orientations alone determine the orientations, by *linear* weighted least squares. That is LAGO's
 # phase 1.
 #
+# **The idea in one paragraph.** Headings add up: the heading of a pose is the heading of its
+# neighbour plus the measured turn between them. Around a loop the measured turns should therefore sum to
+# zero (once whole turns are accounted for), and where they do not, the disagreement is noise to be shared
+# out. Sharing it out in the way that best respects how certain each turn is, is a linear least-squares
+# problem in the headings alone — no positions involved. Its normal matrix is a weighted graph Laplacian,
+# as sparse as the graph (figure of section 4).
+#
 # **Learning goals.** After this lecture you can
 #
 # * state eq. (8), $A^\top\theta = \delta$, and explain why it is linear only after the $2k\pi$
@@ -315,8 +322,10 @@ density_cov = np.mean(np.abs(P_theta) > 1e-12 * np.abs(P_theta).max())
 
 fig, axs = plt.subplots(1, 2, figsize=(11, 5.2))
 axs[0].spy(package.info, markersize=1.5)
+axs[0].set(xlabel="pose (column)", ylabel="pose (row)")
 axs[0].set_title(f"information A P_δ⁻¹ Aᵀ\n{density_info:.1%} non-zero", pad=24)
 im = axs[1].imshow(np.log10(np.abs(P_theta)), cmap="viridis")
+axs[1].set(xlabel="pose (column)", ylabel="pose (row)")
 axs[1].set_title(f"covariance P_θ, log₁₀ |entries|\n{density_cov:.0%} non-zero", pad=24)
 fig.colorbar(im, ax=axs[1], shrink=0.8)
 fig.suptitle(f"Phase 1 on a Manhattan world ({n + 1} poses, {m} edges)", y=1.04)

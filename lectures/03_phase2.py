@@ -8,6 +8,13 @@
 # frame of pose $i$) into the global frame with $\hat\theta_i$, and propagates the uncertainty of both
 # $\Delta^l$ and $\hat\theta$ to first order. No optimization happens here.
 #
+# **The idea in one paragraph.** With the headings from phase 1, each measured displacement — recorded in
+# the robot's own frame — can be turned into the map's frame. The turned displacement inherits two
+# uncertainties: that of the measurement itself, and that of the heading used to turn it, which swings the
+# displacement sideways like a lever, more the longer it is. Phase 2 does the turning and adds up both
+# uncertainties to first order; the covariance it produces is dense, but its inverse is as sparse as the
+# graph (figure of section 5), which is what makes phase 3 cheap.
+#
 # **Learning goals.** After this lecture you can
 #
 # * build the phase-2 vector $z$ of eq. (9) and the Jacobians $H$, $J$ of eq. (11);
@@ -295,6 +302,7 @@ axs[2].spy(res_m.phase2.W, markersize=0.6, color="tab:green", aspect="auto")
 axs[2].set_title(f"$W$ ({res_m.phase2.W.shape[0]}×{res_m.phase2.W.shape[1]}): {res_m.phase2.W.nnz} non-zeros")
 for ax in axs:
     ax.set_xlabel("entry of z = [Δᵍ (2m); θ̂ (n)]")
+    ax.set_ylabel("row")
 fig.suptitle(f"Phase 2 on a Manhattan world (m = {mw.n_edges}, n = {mw.n_poses - 1}): dense covariance, sparse inverse", y=1.02)
 show(fig, "spy")
 
@@ -410,7 +418,7 @@ check(large["nonlin"] > 0.5 * large["floor"], "at σ_θ = 0.3 rad the non-linear
 # into the global frame with phase 1's orientations (eq. (9)) and propagates the uncertainty to first
 # order (eqs. (10)–(11)). The covariance $P_z$ contains $P_\theta$, which is entrywise positive exactly
 # when the graph minus the reference pose is connected; its inverse always has the explicit sparse
-# square root $W$, which is what phase 3 (lecture 4) uses as the weight of its least-squares problem.
+# square root $W$, which is what phase 3 (lecture 4a) uses as the weight of its least-squares problem.
 # First order is exact as the noise vanishes; at $\sigma_\theta = 0.3$ rad its error is already visible.
 
 # %% [markdown]

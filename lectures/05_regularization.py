@@ -24,7 +24,7 @@
 # edges; the incidence matrix $A$ ($(n+1)\times m$, column of edge $(i,j)$: $-1$ at $i$, $+1$ at $j$;
 # `lc.incidence_matrix`) and its reduced form without pose 0's row ($n\times m$, `lc.reduced_incidence`);
 # $\delta$ the measured relative orientations, $\delta_{\rm reg} = \delta + 2\pi k$ the regularized ones; $l$ the number of chords.
-# The letter $B$ in $C = [I_l\ B]$ is unrelated to the $B$ of phase 3 (lecture 4).
+# The letter $B$ in $C = [I_l\ B]$ is unrelated to the $B$ of phase 3 (lecture 4a).
 
 # %%
 import cvxpy as cp
