@@ -11,7 +11,8 @@
 # poses that agrees best with all edges at once — a weighted least-squares problem. It would be linear if
 # the headings were known, because a relative position is measured in the frame of the robot and must be
 # turned into the map's frame by the unknown heading: that rotation is the one non-linearity of the
-# problem, and the rest of the course is about getting around it.
+# problem, and the rest of the course is about getting around it. The figure below is the course's running
+# example, a 60-pose Manhattan world: the truth with its edges, and what composing the odometry alone gives.
 #
 # **Learning goals.** After this lecture you can
 #
@@ -44,7 +45,7 @@ from scipy.stats import chi2 as chi2_law
 from scipy.stats import multivariate_normal
 
 import lago_cvx as lc
-from _lecture import S, check, real, setup, show
+from _lecture import S, check, intuition_figure, real, setup, show
 from lago_cvx import plotting
 from lago_cvx.datasets import REFERENCE_CHI2
 from lago_cvx.errors import GraphError
@@ -55,6 +56,9 @@ from lago_cvx.synthetic import add_noise
 
 setup("01_problem")
 rng = np.random.default_rng(0)
+
+# %% tags=["remove-input"]
+show(intuition_figure("01"), "intuition")
 
 # %% [markdown]
 # ## 1. Pose compounding, eq. (1)

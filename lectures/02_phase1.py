@@ -11,7 +11,8 @@
 # zero (once whole turns are accounted for), and where they do not, the disagreement is noise to be shared
 # out. Sharing it out in the way that best respects how certain each turn is, is a linear least-squares
 # problem in the headings alone — no positions involved. Its normal matrix is a weighted graph Laplacian,
-# as sparse as the graph (figure of section 4).
+# as sparse as the graph (figure of section 4). Below, the running example's headings: added up, the turns
+# drift; shared out by phase 1, they follow the truth.
 #
 # **Learning goals.** After this lecture you can
 #
@@ -39,7 +40,7 @@ import scipy.sparse.linalg as spla
 from scipy.sparse import csgraph
 
 import lago_cvx as lc
-from _lecture import check, paper_lago, real, setup, show
+from _lecture import check, intuition_figure, paper_lago, real, setup, show
 from lago_cvx import phases
 from lago_cvx.errors import GraphError
 from lago_cvx.graph import spanning_tree
@@ -50,6 +51,9 @@ from lago_cvx.uncertainty import edge_uncertainty
 
 setup("02_phase1")
 INTEL = real("carlone/INTEL_P_toro.graph")
+
+# %% tags=["remove-input"]
+show(intuition_figure("02"), "intuition")
 
 # %% [markdown]
 # ## 1. Eq. (8): the orientations obey a linear model — once regularized

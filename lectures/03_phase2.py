@@ -13,7 +13,9 @@
 # uncertainties: that of the measurement itself, and that of the heading used to turn it, which swings the
 # displacement sideways like a lever, more the longer it is. Phase 2 does the turning and adds up both
 # uncertainties to first order; the covariance it produces is dense, but its inverse is as sparse as the
-# graph (figure of section 5), which is what makes phase 3 cheap.
+# graph (figure of section 5), which is what makes phase 3 cheap. Below, the running example's odometric
+# displacements turned by phase 1's headings and chained: far better than dead reckoning, yet the loops
+# still do not close — that is left to phase 3.
 #
 # **Learning goals.** After this lecture you can
 #
@@ -39,7 +41,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 import lago_cvx as lc
-from _lecture import S, check, paper_lago, real, setup, show
+from _lecture import S, check, intuition_figure, paper_lago, real, setup, show
 from lago_cvx import phases, plotting
 from lago_cvx.graph import spanning_tree
 from lago_cvx.posegraph import between, rot2, wrap_angle
@@ -48,6 +50,9 @@ from lago_cvx.synthetic import add_noise
 from lago_cvx.uncertainty import edge_uncertainty
 
 setup("03_phase2")
+
+# %% tags=["remove-input"]
+show(intuition_figure("03"), "intuition")
 
 # %% [markdown]
 # ## 1. The phase-2 vector $z$, eq. (9)

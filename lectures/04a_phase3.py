@@ -9,8 +9,8 @@
 # positions would now follow from a linear least-squares fit. They are not exact, and the loops say so: the
 # turned displacements do not close. Phase 3 lets the orientations move a little to close them better,
 # treating the turned displacements and the phase-1 orientations as one linear measurement of all poses.
-# Like a network of springs, every edge pulls its two poses towards the measured displacement; the figure
-# below (section 1) draws those springs and how hard each one pulls. Theorem 1 says that this last, linear
+# Like a network of springs, every edge pulls its two poses towards the measured displacement (section 1
+# draws the springs). The figure below shows the step on the running example: from $\hat\rho$ to $\rho^*$. Theorem 1 says that this last, linear
 # step is the first-order correction that leads the sub-optimal estimate of phase 1 towards a minimum of
 # the cost. Lecture 4b measures that claim on real data.
 #
@@ -56,9 +56,12 @@ from lago_cvx.posegraph import rot2
 from lago_cvx.positions import resolve_positions
 from lago_cvx.refinement import jacobian, odometry_guess
 from lago_cvx.theorem1 import theorem1
-from _lecture import S, check, paper_lago, real, setup, show, solve_qp
+from _lecture import S, check, intuition_figure, paper_lago, real, setup, show, solve_qp
 
 setup("04a_phase3")
+
+# %% tags=["remove-input"]
+show(intuition_figure("04a"), "intuition")
 
 # %% [markdown]
 # ## 1. The phase-3 model, eq. (12), and its solution, eq. (15)

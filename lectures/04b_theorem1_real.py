@@ -13,9 +13,9 @@
 # step turns the map about pose 0 by an almost constant angle, and the positions it returns were weighed
 # in frames that are no longer the poses' frames: what was a residual along a cheap axis becomes one
 # along a stiff axis. The orientations of phase 3 are then good — re-solve the positions for them and the
-# cost is within a fraction of a per cent of the minimum — but its positions are not. The figure of
-# section 2 shows that turn on INTEL: the difference between phase 3's orientations and the optimum's is
-# almost the same angle at every pose.
+# cost is within a fraction of a per cent of the minimum — but its positions are not. The figure below
+# shows INTEL both ways: at this scale the two maps look alike, both slightly turned against the minimum
+# (grey), yet their χ² (in the titles) differ by almost two orders of magnitude. Section 2 measures the turn.
 #
 # **Learning goals.** After this lecture you can
 #
@@ -48,7 +48,7 @@ from lago_cvx.plotting import plot_covariances, plot_trajectory
 from lago_cvx.posegraph import wrap_angle
 from lago_cvx.positions import resolve_positions
 from lago_cvx.theorem1 import frozen_and_model, theorem1
-from _lecture import FULL, check, paper_lago, real, setup, show
+from _lecture import FULL, check, intuition_figure, paper_lago, real, setup, show
 
 setup("04b_theorem1_real")
 
@@ -59,6 +59,9 @@ n = g.n_poses - 1
 info15 = res.phase3.info.toarray()                        # B P_z⁻¹ Bᵀ (lecture 4a, section 1)
 intel = real("carlone/INTEL_P_toro.graph")
 r_intel = paper_lago(intel) if intel is not None else None
+
+# %% tags=["remove-input"]
+show(intuition_figure("04b"), "intuition")
 
 # %% [markdown]
 # ## 1. Theorem 1 measured on real data

@@ -8,17 +8,15 @@
 # Phase 1 (lecture 2) treats the relative orientations $\delta$ as real numbers whose sums around every loop
 # vanish up to noise. A sensor reports them only modulo $2\pi$: after a full turn the loop closure reads
 # $\approx 0$, not $2\pi$. Each must first be corrected by the right multiple of $2\pi$: *regularization*.
+# Below, phase 1 on the running example with and without the corrections.
 #
 # **Learning goals.** After this lecture you can
 #
-# 1. explain the wraparound problem and see what it does to phase 1;
-# 2. tell a cycle from a circuit, build the fundamental circuits of a spanning tree (Definition 1) and
-#    check that they form a cycle basis (Theorem 2) of dimension $l = m - n$ (Corollary 1), with matrix
-#    $C = [I_l\ B]$ (Corollary 2, eq. (19));
-# 3. state the zero-sum property (eqs. (20)–(21)), prove Theorem 3 with the correction of eqs. (22)–(23),
-#    and relate it to phase 1 through a cvxpy problem and its multipliers;
-# 4. use Proposition 2 and Corollary 3 to see why the paper corrects only loop closures, and reproduce Table I;
-# 5. measure when the rounding finds the true $k$, and how the chordal regularizer (beyond the paper) helps.
+# 1. explain the wraparound problem, and the fundamental circuits of a spanning tree as a cycle basis
+#    (Definition 1, Theorem 2, Corollaries 1–2, eq. (19));
+# 2. state the zero-sum property (eqs. (20)–(21)) and prove Theorem 3 (eqs. (22)–(23));
+# 3. use Proposition 2 and Corollary 3 to see why the paper corrects only loop closures, and reproduce Table I;
+# 4. measure when the rounding finds the true $k$, and how the chordal regularizer (beyond the paper) helps.
 #
 # **Notation.** $n+1$ poses $p_0,\dots,p_n$, pose 0 the reference (package: `graph.n_poses` $= n+1$); $m$
 # edges; the incidence matrix $A$ ($(n+1)\times m$, column of edge $(i,j)$: $-1$ at $i$, $+1$ at $j$;
@@ -39,11 +37,14 @@ from lago_cvx.plotting import plot_edges, plot_trajectory
 from lago_cvx.regularization import regularize
 from lago_cvx.rounding import AMBIGUITY_MARGIN
 from lago_cvx.uncertainty import edge_uncertainty
-from _lecture import FULL, check, paper_lago, real, setup, show, solve_qp
+from _lecture import FULL, check, intuition_figure, paper_lago, real, setup, show, solve_qp
 
 setup("05_regularization")
 TWO_PI = 2 * np.pi
 
+
+# %% tags=["remove-input"]
+show(intuition_figure("05"), "intuition")
 
 # %% [markdown]
 # ## 1. The wraparound problem
@@ -338,9 +339,8 @@ check(np.allclose(reg.delta_reg, gn.delta + v, atol=1e-9) and np.all(reg.k[tree.
       "regularize(graph, tree) returns the same δ_reg")
 
 # %% [markdown]
-# **Eq. (22) has many solutions, and phase 1 picks one.** The correction of eq. (23) puts each circuit's
-# whole residual on its chord. Another solution spreads it over all edges, weighted by their
-# certainty: the smallest weighted correction,
+# **Eq. (22) has many solutions, and phase 1 picks one.** Eq. (23) puts each circuit's whole residual on its
+# chord. Another solution spreads it over all edges, weighted by certainty: the smallest weighted correction,
 #
 # $$ \min_v\ \lVert P_\delta^{-1/2} v\rVert^2 \quad\text{subject to}\quad Cv = -C\delta .$$
 #

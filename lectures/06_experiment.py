@@ -10,10 +10,10 @@
 #
 # **The idea in one paragraph.** A robot drives around an office floor; odometry corrected by scan matching
 # gives a trajectory that is right locally and drifts globally, and loop closures say where it came back to
-# a place it had seen (Fig. 1, section 3). LAGO turns those measurements into a map in closed form. Whether
-# that map is "accurate" depends on how it is scored: by the relations it predicts against true ones
-# (Table II, which needs a known truth), or by the cost it leaves (χ², which the real graphs allow). The
+# a place it had seen (Fig. 1, section 3). LAGO turns those measurements into a map in closed form, scored
+# by the relations it predicts against true ones (Table II, which needs a truth) or by the χ² it leaves. The
 # paper's scores say that the way each measurement's uncertainty is stated matters as much as the method.
+# Below: INTEL's dead reckoning and the paper's LAGO, each against the minimum of χ² (grey).
 #
 # **Learning goals.** After this lecture you can
 #
@@ -33,10 +33,9 @@
 # whose truth is known and whose uncertainty follows the paper's proportional rule, with the package's
 # Gauss–Newton standing in for TORO, and print the paper's values beside ours.
 #
-# **Cost.** Every χ² below is the cost of eq. (3) (the full SLAM cost), in the g2o convention
-# $\chi^2 = \sum_{ij} e_{ij}^\top \Omega_{ij} e_{ij}$, no factor ½ (`lago_cvx.metrics.chi2`).
-# **Notation.** $n+1$ poses $p_0 \dots p_n$ (`graph.n_poses` $= n+1$), $m$ edges, $A$ the incidence matrix
-# ($(n+1)\times m$), $\delta$ the relative orientations, $P_\delta$ their variances.
+# **Notation.** χ² is the cost of eq. (3), $\sum_{ij} e_{ij}^\top \Omega_{ij} e_{ij}$, no factor ½
+# (`lago_cvx.metrics.chi2`); $n+1$ poses, $m$ edges, $A$ the $(n+1)\times m$ incidence matrix, $\delta$ the
+# relative orientations, $P_\delta$ their variances.
 
 # %%
 import cvxpy as cp
@@ -45,7 +44,7 @@ import numpy as np
 from dataclasses import replace
 
 import lago_cvx as lc
-from _lecture import FULL, check, real, section_v_world, setup, show
+from _lecture import FULL, check, intuition_figure, real, section_v_world, setup, show
 from lago_cvx import phases, plotting
 from lago_cvx.datasets import DATASET_FILES, REFERENCE_CHI2
 from lago_cvx.posegraph import between, wrap_angle
@@ -56,6 +55,9 @@ from lago_cvx.uncertainty import edge_uncertainty
 
 setup("06_experiment")
 INTEL = real("carlone/INTEL_P_toro.graph")
+
+# %% tags=["remove-input"]
+show(intuition_figure("06"), "intuition")
 
 # %% [markdown]
 # ## 1. Table I — the Intel graph and its regularization
@@ -185,9 +187,8 @@ if INTEL is not None:
 # ## 3. Fig. 1 — the odometric trajectory with the loop closures
 #
 # Fig. 1 shows the odometric trajectory (wheel odometry corrected by scan matching: the file's odometric
-# edges) and, dotted, the loop closures between the poses it puts them at. The trajectory is dead
-# reckoning, the odometric measurements composed by eq. (1) from $p_0$ (`lc.odometry_guess`, along the
-# odometric tree); it is also what the file's vertex lines hold.
+# edges) and, dotted, the loop closures. The trajectory is dead reckoning, the odometric measurements
+# composed by eq. (1) from $p_0$ (`lc.odometry_guess`); it is also what the file's vertex lines hold.
 
 # %%
 if INTEL is not None:
@@ -216,10 +217,9 @@ if INTEL is not None:
 #
 # ## 4. Fig. 2 — (a) the estimated configuration, (b) the swept-footprint grid
 #
-# **(a)** is the estimate of the three-phase procedure. We draw the paper's procedure and, beside it, the
-# package's default route (breadth-first tree, chordal regularization, full information, positions
-# re-solved — beyond the paper, README "The default route") and the minimum of eq. (3) found by
-# Gauss–Newton.
+# **(a)** is the estimate of the three-phase procedure, drawn beside the package's default route (beyond the
+# paper: breadth-first tree, chordal regularization, full information, positions re-solved) and the minimum
+# of eq. (3) found by Gauss–Newton.
 #
 # **(b)** in the paper is the occupancy grid built by placing the laser scans at the estimated poses. The
 # graph file has **no laser scans**, so that map cannot be drawn. The closest honest substitute uses the

@@ -30,7 +30,8 @@ import numpy as np
 import lago_cvx as lc
 from lago_cvx.datasets import DatasetNotFound, dataset
 
-__all__ = ["ROOT", "FULL", "S", "setup", "check", "show", "real", "paper_lago", "figure_dir", "section_v_world"]
+__all__ = ["ROOT", "FULL", "S", "setup", "check", "show", "real", "paper_lago", "figure_dir", "section_v_world",
+           "running_example", "intuition_figure"]
 
 #: The project checkout.
 ROOT = Path(__file__).resolve().parents[1]
@@ -179,3 +180,98 @@ def section_v_world(n_poses=500, *, seed=1, noise="proportional", sigma_xy=0.02,
     graph = lc.PoseGraph(g0.n_poses, g0.tails, g0.heads, measured[:, :2],
                          lc.posegraph.wrap_angle(measured[:, 2]), information)
     return graph, truth
+
+
+def running_example():
+    """The course's running example: a 60-pose Manhattan world with 26 loop closures whose headings wind
+    over more than two turns (``lc.manhattan_world(60, seed=1, sigma_xy=0.1, sigma_theta=0.05)``); the real
+    graph that goes with it is INTEL (``carlone/INTEL_P_toro.graph``)."""
+    return lc.manhattan_world(60, seed=1, sigma_xy=0.1, sigma_theta=0.05)
+
+
+def _xy(ax, poses, style, label, **kw):
+    ax.plot(poses[:, 0], poses[:, 1], style, label=label, markersize=3, linewidth=1.2, **kw)
+
+
+def intuition_figure(lecture: str):
+    """The figure a lecture opens with, on the running example (and INTEL for 04b, 06); returns the figure.
+
+    ``lecture`` is the lecture's stem prefix: ``"01"``, ``"02"``, ``"03"``, ``"04a"``, ``"04b"``, ``"05"``, ``"06"``."""
+    import matplotlib.pyplot as plt
+
+    from lago_cvx.posegraph import wrap_angle
+    from lago_cvx.theorem1 import theorem1
+
+    world = running_example()
+    g, truth = world.graph, world.truth
+    if lecture == "01":
+        fig, axes = plt.subplots(1, 2, figsize=(11, 4.6))
+        for ax, poses, title in ((axes[0], truth, "the true poses and the measured edges"),
+                                 (axes[1], lc.odometry_guess(g), "dead reckoning: odometry composed")):
+            for k in range(g.n_edges):
+                i, j = g.tails[k], g.heads[k]
+                ax.plot(poses[[i, j], 0], poses[[i, j], 1], "-" if g.is_odometric[k] else ":",
+                        color="tab:blue" if g.is_odometric[k] else "tab:red", linewidth=1.0)
+            ax.plot([], [], "-", color="tab:blue", label="odometry")
+            ax.plot([], [], ":", color="tab:red", label="loop closures")
+            ax.set(title=title, xlabel="x [m]", ylabel="y [m]", aspect="equal")
+            ax.legend(fontsize=8, loc="best")
+        fig.suptitle("The running example: where is the robot, given only relative measurements?")
+    elif lecture in ("02", "05"):
+        res = lc.lago(g, route="seed")
+        fig, ax = plt.subplots(figsize=(9, 4))
+        k = np.arange(g.n_poses)
+        ax.plot(k, truth[:, 2], "k-", linewidth=2, label="true heading")
+        ax.plot(k, lc.odometry_guess(g)[:, 2], "--", color="tab:orange", label="turns added up (dead reckoning)")
+        ax.plot(k, res.phase1.theta, ".", color="tab:blue", label="phase 1: loops shared out")
+        if lecture == "05":
+            raw = lc.phases.phase1_closed_form(g, g.delta, lc.uncertainty.edge_uncertainty(g)).theta
+            ax.plot(k, raw, "x", color="tab:red", markersize=4, label="phase 1 without the 2kπ corrections")
+        ax.set(xlabel="pose index", ylabel="heading θ [rad]",
+               title="Headings of the running example" + (": whole turns matter" if lecture == "05" else ""))
+        ax.legend(fontsize=8)
+    elif lecture in ("03", "04a"):
+        t = theorem1(g, regularization="tree", information="marginal", positions="phase3")
+        fig, ax = plt.subplots(figsize=(6.5, 5.5))
+        _xy(ax, truth, "k-", "truth")
+        if lecture == "03":
+            ph2 = t.result.phase2
+            chain = np.vstack([[0.0, 0.0], np.cumsum(ph2.delta_g[g.is_odometric], axis=0)])
+            _xy(ax, lc.odometry_guess(g), "--", "dead reckoning", color="tab:orange")
+            _xy(ax, chain, ".-", "odometric Δᵍ turned by phase 1's θ̂, chained", color="tab:blue")
+            ax.set_title("Phase 2: displacements turned into the map's frame")
+        else:
+            _xy(ax, t.poses(t.x_hat), ".-", "ρ̂: θ̂ of phase 1, positions of eq. (14)", color="tab:orange")
+            _xy(ax, t.poses(t.x_star), ".-", "ρ*: phase 3", color="tab:blue")
+            ax.set_title("Phase 3 corrects ρ̂ by one linear step")
+        ax.set(xlabel="x [m]", ylabel="y [m]", aspect="equal")
+        ax.legend(fontsize=8)
+    elif lecture in ("04b", "06"):
+        intel = real("carlone/INTEL_P_toro.graph")
+        fig, axes = plt.subplots(1, 2, figsize=(11, 5))
+        if intel is None:
+            for ax in axes:
+                ax.set(xlabel="x [m]", ylabel="y [m]", title="INTEL not available")
+            return fig
+        if lecture == "04b":
+            t = theorem1(intel, regularization="tree", information="marginal", positions="phase3")
+            best = lc.refine(intel, t.result.poses).poses
+            star = t.poses(t.x_star)
+            from lago_cvx.positions import resolve_positions
+            again = resolve_positions(intel, star[:, 2], t.result.uncertainty).poses
+            panels = ((star, f"phase 3's ρ*: χ² = {lc.chi2(intel, star):.0f}"),
+                      (again, f"θ* kept, positions re-solved: χ² = {lc.chi2(intel, again):.1f}"))
+        else:
+            best = lc.refine(intel, lc.lago(intel).poses).poses
+            panels = ((lc.odometry_guess(intel), "odometry composed (dead reckoning)"),
+                      (lc.lago(intel, route="seed").poses, "LAGO, the paper's procedure"))
+        for ax, (poses, title) in zip(axes, panels):
+            _xy(ax, best, "-", "minimum of χ²", color="0.6")
+            _xy(ax, poses, "-", "estimate", color="tab:blue")
+            ax.set(title=title, xlabel="x [m]", ylabel="y [m]", aspect="equal")
+            ax.legend(fontsize=8, loc="lower left")
+        fig.suptitle("INTEL" + (": the same orientations, two ways to place the positions" if lecture == "04b" else ""))
+    else:
+        raise ValueError(f"no intuition figure for lecture {lecture!r}")
+    fig.tight_layout()
+    return fig
