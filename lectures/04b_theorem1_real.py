@@ -9,10 +9,10 @@
 # **The idea in one paragraph.** Lecture 4a proved that phase 3 is one Gauss–Newton step from the
 # sub-optimal estimate $\hat\rho$, of the cost expanded to first order with every edge's translational
 # weight turned by the orientations of phase 1, $\hat\theta$ — the weights are *frozen*. Theorem 1 says
-# the step leads towards a minimum. On graphs whose translational information is very anisotropic, the
+# the step leads towards a minimum. On INTEL, whose translational information is very anisotropic, the
 # step turns the map about pose 0 by an almost constant angle, and the positions it returns were weighed
 # in frames that are no longer the poses' frames: what was a residual along a cheap axis becomes one
-# along a stiff axis. The orientations of phase 3 are then good — re-solve the positions for them and the
+# along a stiff axis. The orientations of phase 3 are good there — re-solve the positions for them and the
 # cost is within a fraction of a per cent of the minimum — but its positions are not. The figure below
 # shows INTEL both ways: at this scale the two maps look alike, both slightly turned against the minimum
 # (grey), yet their χ² (in the titles) differ by almost two orders of magnitude. Section 2 measures the turn.
