@@ -190,9 +190,12 @@ for _ in range(400):
 draws = np.array(draws)
 mean_z = (draws.mean() - 3 * m) / (np.sqrt(6 * m) / np.sqrt(draws.size))
 print(f"400 draws: mean f = {draws.mean():.1f} (3m = {3 * m}), std = {draws.std(ddof=1):.1f} (√(6m) = {np.sqrt(6 * m):.1f})")
+
+# %% tags=["remove-input"]
 check(abs(mean_z) < 4 and abs(draws.std(ddof=1) / np.sqrt(6 * m) - 1) < 0.15,
       "the mean and spread of f(truth) over 400 draws match the χ²(3m) law")
 
+# %%
 fig, ax = plt.subplots(figsize=(7.5, 3.8))
 grid = np.linspace(draws.min() / 2 - 60, draws.max() + 60, 400)
 ax.hist(draws, bins=30, density=True, color="tab:blue", alpha=0.5, label="f(truth), 400 noise draws")
@@ -357,12 +360,15 @@ A8_red = lc.reduced_incidence(square).toarray()
 A2_8_red = np.kron(A8_red, np.eye(2))
 print(square, f"→ n = {n8}, m = {m8}")
 print("A (rows: poses 0…7; columns: edges 0…10):\n", A8.astype(int))
+
+# %% tags=["remove-input"]
 check(np.all(A8.sum(axis=0) == 0) and np.all(np.abs(A8).sum(axis=0) == 2), "each column of A holds one −1 and one +1")
 check(np.allclose(A8.T @ truth8[:, 2], truth8[heads8, 2] - truth8[tails8, 2]), "Aᵀθ⁺ = (θ_j − θ_i) for every edge")
 check(np.array_equal(A8_red, np.delete(A8, 0, axis=0)), "lc.reduced_incidence = A without the row of pose 0")
 check(np.array_equal(design_matrix(square).toarray()[:2 * m8, :2 * n8], A2_8_red.T),
       "design_matrix's first block = reduced A₂ᵀ = (A ⊗ I₂)ᵀ without pose 0")
 
+# %%
 def residual_7(p, theta):
     """Residual of the first equation of eq. (7), A₂ᵀp − R(θ)Δˡ, pose 0 at the origin."""
     th_all = np.concatenate([[0.0], theta])
@@ -371,8 +377,11 @@ def residual_7(p, theta):
 p_rand, t1, t2 = rng.normal(size=2 * n8), rng.normal(size=n8), rng.normal(size=n8)
 superposition = residual_7(p_rand, t1 + t2) - residual_7(p_rand, t1) - residual_7(p_rand, t2) + residual_7(p_rand, 0 * t1)
 p_lin = residual_7(2 * p_rand, t1) - 2 * residual_7(p_rand, t1) + residual_7(0 * p_rand, t1)
+
+# %% tags=["remove-input"]
 check(np.abs(p_lin).max() < 1e-12, "for fixed θ the first equation of eq. (7) is affine in p")
 
+# %%
 fig, axs = plt.subplots(1, 2, figsize=(11, 4.6), gridspec_kw={"width_ratios": [1, 1.25]})
 plotting.plot_trajectory(axs[0], truth8, label="odometric edges", color="tab:blue", linewidth=1.5, style="-o", markersize=4)
 plotting.plot_edges(axs[0], square, truth8, which="loop_closures", color="tab:red", linewidth=1.5, alpha=0.8,

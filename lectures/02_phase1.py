@@ -92,11 +92,14 @@ theta_true0 = w0.truth[1:, 2] - w0.truth[0, 2]
 raw = A0.T @ theta_true0 - g0.delta
 ph0 = phases.phase1_closed_form(g0, reg0.delta_reg, unc0)
 print(g0, f"| true headings up to {theta_true0.max() / np.pi:.1f}π")
+
+# %% tags=["remove-input"]
 check(np.abs(raw).max() > 6 and np.allclose(raw / (2 * np.pi), np.round(raw / (2 * np.pi)), atol=1e-9),
       f"raw δ violate eq. (8) by multiples of 2π ({np.sum(np.abs(raw) > 1)} edges, up to {np.abs(raw).max() / np.pi:.0f}π)")
 check(np.abs(A0.T @ theta_true0 - reg0.delta_reg).max() < 1e-9, "the regularized δ satisfy eq. (8) exactly")
 check(np.abs(ph0.theta_free - theta_true0).max() < 1e-9, "and phase 1 returns the true unwrapped headings")
 
+# %%
 w1 = lc.circle_world(300, laps=4, seed=1, sigma_xy=0.05, sigma_theta=0.02)
 g1 = w1.graph
 reg1, unc1 = regularized(g1)
@@ -106,10 +109,13 @@ eps = reg1.delta_reg - A1.T @ theta_true1
 noise = wrap_angle(g1.delta - A1.T @ theta_true1)
 standardized = eps / np.sqrt(unc1.var_delta)
 print(g1, f"| standardized residual: mean {standardized.mean():+.3f}, std {standardized.std():.3f}")
+
+# %% tags=["remove-input"]
 check(np.abs(eps - noise).max() < 1e-9, "δ_reg − Aᵀθ_true is exactly the wrapped measurement noise")
 check(abs(standardized.mean()) < 4 / np.sqrt(g1.n_edges) and abs(standardized.std() - 1) < 0.1,
       "and it is standard normal after scaling by P_δ^(−1/2)")
 
+# %%
 fig, axs = plt.subplots(1, 2, figsize=(11, 3.6))
 axs[0].plot(raw / np.pi, ".", color="tab:red", label="raw δ")
 axs[0].plot((A0.T @ theta_true0 - reg0.delta_reg) / np.pi, ".", color="tab:blue", label="regularized δ")
@@ -250,8 +256,12 @@ solve(phase1)
 package = phases.phase1_closed_form(g, reg.delta_reg, unc)
 err, bound = agreement(θ.value, w_δ.value)
 print(g, f"| status {phase1.status}")
+
+# %% tags=["remove-input"]
 check(np.abs(package.theta_free - closed_form(w_δ.value)[0]).max() < 1e-9,
       "lago_cvx.phases.phase1_closed_form = eq. (13)")
+
+# %%
 pkg_problem, pkg_theta = phases.phase1_problem(g, reg.delta_reg, unc)
 solve(pkg_problem)
 
@@ -282,8 +292,11 @@ for s in scales:
 odo = g.is_odometric
 dead_reckoning = np.sum(np.where(g.heads > g.tails, 1.0, -1.0)[odo] * reg.delta_reg[odo])  # θ of the last pose
 print("θ̂ of the last pose:", np.round(last, 4), f"| dead reckoning: {dead_reckoning:.4f}")
+
+# %% tags=["remove-input"]
 check(all(np.diff(traces) < 0), "tr P_θ decreases as the loop closures gain weight")
 
+# %%
 fig, axs = plt.subplots(1, 2, figsize=(11, 3.6))
 axs[0].semilogx(scales, last, "o-")
 axs[0].axhline(dead_reckoning, color="0.5", ls="--", label="dead reckoning")
@@ -318,8 +331,12 @@ def grounded_laplacian(graph, var_delta):
     return L[1:][:, 1:]
 
 laplacian = grounded_laplacian(g, unc.var_delta)
+
+# %% tags=["remove-input"]
 check(abs(package.info - laplacian).max() < 1e-12 * abs(laplacian).max(),
       "Phase1.info = A P_δ⁻¹ Aᵀ = the grounded weighted Laplacian")
+
+# %%
 P_theta = np.linalg.inv(package.info.toarray())
 density_info = package.info.nnz / n**2
 density_cov = np.mean(np.abs(P_theta) > 1e-12 * np.abs(P_theta).max())
@@ -385,12 +402,15 @@ slope = np.gradient(np.array(costs), c_values)
 sign = np.sign(np.sum(slope[1:-1] * forces[1:-1, 1]))
 print("c − θ̂_k:", np.round(c_values[::2] - theta_hat_k, 3), "| multipliers (anchor, compass):\n", np.round(forces[::2], 3))
 print(f"cvxpy's sign convention here: d(optimal cost)/dc = {sign:+.0f} × (multiplier of θ_k = c)")
+
+# %% tags=["remove-input"]
 check(abs(one_anchor_force) < 1e-6 * np.abs(forces).max(), f"one anchor holds no force: multiplier {one_anchor_force:.1e}")
 check(np.abs(forces.sum(axis=1)).max() < 1e-6 * np.abs(forces).max(), "the two anchors hold equal and opposite forces")
 check(np.abs(np.abs(slope[1:-1]) - np.abs(forces[1:-1, 1])).max() < 1e-3 * np.abs(forces).max(),
       "|multiplier of θ_k = c| = |d(optimal cost)/dc|")
 check(abs(forces[4, 1]) < 1e-3 * np.abs(forces).max(), "and it vanishes when c = θ̂_k: the compass agrees with phase 1")
 
+# %%
 fig, ax = plt.subplots(figsize=(6.5, 3.8))
 ax.plot(c_values - theta_hat_k, costs, "o-", label="optimal cost with θ_k = c")
 dc = np.array([-0.012, 0.012])
@@ -452,8 +472,11 @@ rel = np.linalg.norm(S - P_theta_mc) / np.linalg.norm(P_theta_mc)
 expected = np.sqrt((np.trace(P_theta_mc) ** 2 + np.linalg.norm(P_theta_mc) ** 2) / N_MC) / np.linalg.norm(P_theta_mc)
 print(g_mc, f"| σ_δ from {sig.min():.3f} to {sig.max():.3f} rad")
 print("mean error / standard error per pose:", np.round(zscore, 2))
+
+# %% tags=["remove-input"]
 check(np.abs(zscore).max() < 4.5, "θ̂ is unbiased (every mean error within 4.5 standard errors)")
 
+# %%
 fig, axs = plt.subplots(1, 2, figsize=(11, 4))
 i1, i2 = 2, 5
 axs[0].plot(errs[:, i1], errs[:, i2], ".", ms=2, color="0.5", label=f"{N_MC} samples")

@@ -110,9 +110,13 @@ J_blocks = np.zeros((2 * m, n))
 for k, i in enumerate(small.tails):
     if i != 0:
         J_blocks[2 * k:2 * k + 2, i - 1] = S @ ph2.delta_g[k]
+
+# %% tags=["remove-input"]
 check(np.abs(J - J_fd).max() < 1e-7 * np.abs(J).max(), f"J = ∂(RΔˡ)/∂θ (finite differences agree to {np.abs(J - J_fd).max():.0e})")
 check(np.array_equal(J != 0, J_blocks != 0) and np.abs(J - J_blocks).max() < 1e-12,
       f"one block SΔᵍ per edge, in the tail's column: nnz(J) = {ph2.jac.nnz} = 2 × (edges not leaving pose 0)")
+
+# %%
 H = np.block([[R, J], [np.zeros((n, 2 * m)), np.eye(n)]])
 
 # %% [markdown]

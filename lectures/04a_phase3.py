@@ -346,8 +346,11 @@ check(np.allclose(P_th_star, np.linalg.inv(info15)[2 * n:, 2 * n:], rtol=1e-8, a
 p_tilde = P_phat @ A2 @ Pdg_inv @ J @ P_th_star @ J.T @ Pdg_inv @ (A2.T @ P_phat @ A2 @ Pdg_inv - np.eye(2 * m)) @ RDl
 p_star = res.phase3.x_star[:2 * n]
 e17 = relative_difference(p_hat + p_tilde, p_star)
+
+# %% tags=["remove-input"]
 check(e17 < 1e-9, f"eq. (17): p̂ + p̃ = phase 3's p* ({e17:.1e}); max|p̃| = {np.abs(p_tilde).max():.3f} m")
 
+# %%
 tree_world = lc.random_graph(15, 14, seed=4, sigma_xy=0.1, sigma_theta=0.05)      # 15 poses, 14 edges: a tree
 t_tree = theorem1(tree_world.graph, result=paper_lago(tree_world.graph))
 corr = np.abs(np.concatenate([t_tree.theta_correction, t_tree.position_correction])).max()
@@ -396,9 +399,12 @@ W_D.value = sla.block_diag(*(res.uncertainty.sqrt_info_delta_l @ np.swapaxes(rot
 w_d.value = res.uncertainty.sqrt_info_delta
 status18 = solve_qp(eq18)
 e18 = relative_difference(np.concatenate([dp.value, dth.value]), np.concatenate([p_tilde, theta_tilde]))
+
+# %% tags=["remove-input"]
 check(np.allclose(W_D.value.T @ W_D.value, Pdg_inv, rtol=0, atol=1e-9 * np.abs(Pdg_inv).max()),
       "W_Δᵀ W_Δ = (R P_Δˡ Rᵀ)⁻¹")
 
+# %%
 # (18) is a first-order expansion: the residuals' linearisation error falls like the square of the step
 step = np.concatenate([p_tilde, theta_tilde])
 
@@ -434,9 +440,12 @@ sizes = np.array(sizes)
 w_d.value = res.uncertainty.sqrt_info_delta
 print(f"9 re-solves: first {1e3 * times[0]:.0f} ms, the others {1e3 * np.mean(times[1:]):.0f} ms on average")
 at1 = sizes[list(scales).index(1.0)]
+
+# %% tags=["remove-input"]
 check(np.allclose(at1, [np.linalg.norm(theta_tilde), np.linalg.norm(p_tilde)], rtol=1e-6),
       "s = 1 reproduces (p̃, θ̃)")
 
+# %%
 fig, ax = plt.subplots(figsize=(6.5, 4))
 ax.loglog(scales, sizes[:, 0], "o-", label="‖θ̃‖ (rad), eq. (16)")
 ax.loglog(scales, sizes[:, 1], "s-", label="‖p̃‖ (m), eq. (17)")
@@ -519,7 +528,11 @@ fig.tight_layout()
 show(fig, "remark1_cost")
 
 r, gn_dr, gn_lago = runs["Manhattan world, 2000 poses"]
+
+# %% tags=["remove-input"]
 check(r.chi2 < 1.01 * gn_lago.chi2, f"Manhattan world: LAGO's χ² is {r.chi2 / gn_lago.chi2:.4f}× the minimum")
+
+# %%
 if intel is not None:
     r, gn_dr, gn_lago = runs["INTEL_P_toro (real)"]
 

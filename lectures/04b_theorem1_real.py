@@ -320,8 +320,11 @@ slope = np.polyfit(np.log10(noise_scales), np.log10(excess[:, :, 0].mean(0)), 1)
 print("noise scale:        " + "  ".join(f"{s:9.0e}" for s in noise_scales))
 for k, label in enumerate(("full", "marginal")):
     print(f"excess, {label:8s}:  " + "  ".join(f"{v:9.1e}" for v in excess[:, :, k].mean(0)))
+
+# %% tags=["remove-input"]
 check(excess[:, -1, 1].min() > 0.05, f"information='marginal': excess stays ≥ {excess[:, -1, 1].min():.2f} as σ → 0")
 
+# %%
 fig, ax = plt.subplots(figsize=(6.5, 4.2))
 for k, (label, mk) in enumerate((("information='full' (default)", "o-"), ("information='marginal' (the paper's split)", "s-"))):
     ax.loglog(noise_scales, excess[:, :, k].mean(0), mk, label=label)
@@ -351,8 +354,11 @@ cov = res.phase3.pose_covariances()
 dense = np.linalg.inv(info15)
 blocks = np.array([dense[np.ix_(idx, idx)] for idx in ([2 * q, 2 * q + 1, 2 * n + q] for q in range(n))])
 e_cov = np.abs(cov[1:] - blocks).max() / np.abs(blocks).max()
+
+# %% tags=["remove-input"]
 check(e_cov < 1e-9 and np.all(cov[0] == 0), f"pose_covariances = 3×3 blocks of the dense (B P_z⁻¹ Bᵀ)⁻¹ ({e_cov:.1e})")
 
+# %%
 if intel is not None:
     nn = intel.n_poses - 1
     lu = spla.splu(sp.csc_matrix(r_intel.phase3.info))

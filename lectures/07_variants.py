@@ -158,8 +158,11 @@ c2, c1, c0 = np.polyfit(phis, costs, 2)
 depth = c1**2 / (4 * c2)                       # F(0) − min_φ F(φ)
 strain = {s.id: s for s in res.strain}[250]
 print(f"force ν(φ) = {intercept:.4f} + ({slope:.2f})·φ; cost F(φ) = {c0:.4f} + {c1:.4f}·φ + {c2:.2f}·φ²")
+
+# %% tags=["remove-input"]
 check(np.abs(np.polyval([slope, intercept], phis) - forces).max() < 1e-6 * np.abs(forces).max(), "the force is linear in φ")
 
+# %%
 fig, axs = plt.subplots(1, 2, figsize=(11, 3.8))
 axs[0].plot(phis, forces, "o-")
 axs[0].axhline(0, color="k", lw=0.6)
@@ -221,7 +224,11 @@ for s in bad.strain:
     print(f"anchor {s.id:3d} ({s.kind:11s}): χ²_θ {s.chi2_theta if s.chi2_theta is not None else float('nan'):8.3f}  "
           f"χ²_p {s.chi2_position if s.chi2_position is not None else float('nan'):9.2f}  p = {s.p_value:.2g}  "
           f"strained: {s.strained}")
+
+# %% tags=["remove-input"]
 check(bad.strained == [0, 250], "the anchor moved 5 m is strained — and so is pose 0, which it pulls against")
+
+# %%
 released = lc.lago(w.graph, anchors={0: tuple(truth[0]), 250: (None, None, far[2]), 120: (None, None, truth[120, 2])})
 drop = bad.phase3.system.cost(bad.phase3.solution.x) - released.phase3.system.cost(released.phase3.solution.x)
 s250 = {s.id: s for s in bad.strain}[250]
@@ -307,7 +314,11 @@ pv = V.PoseVariables(wr.graph, 3, x, boxed.regularization.theta_tree)
 walls = room(pv)[0].constraints[0]                       # n_hᵀ p_v ≤ c_h, 4 rows per pose (+x, −x, +y, −y)
 by_hand = cp.Problem(problem.objective, problem.constraints + [walls])
 status = solve(by_hand)
+
+# %% tags=["remove-input"]
 check(np.abs(x.value - boxed.phase3.x).max() < 1e-6, f"by hand ({status}) = constrained_lago's phase 3")
+
+# %%
 lam = np.asarray(walls.dual_value, dtype=float).reshape(-1, 4)            # (poses, walls)
 px, py = x.value[0:2 * wr.graph.n_poses:2], x.value[1:2 * wr.graph.n_poses:2]
 slack = np.array([hi[0], -lo[0], hi[1], -lo[1]]) - np.column_stack([px, -px, py, -py])   # c_h − n_hᵀp_v ≥ 0
@@ -315,10 +326,13 @@ normals = np.array([[1, 0], [-1, 0], [0, 1], [0, -1]], float)
 wall_force = -lam @ normals                                               # the walls push inward
 touching = lam.max(1) > 1e-6 * lam.max()
 print(f"{int(touching.sum())} poses are held by a wall; largest force {np.linalg.norm(wall_force, axis=1).max():.1f}")
+
+# %% tags=["remove-input"]
 check(np.all(lam >= -1e-7 * lam.max()), "wall multipliers are ≥ 0")
 check(np.abs(lam * slack).max() < 1e-6 * lam.max() * np.ptp(tr[:, :2]),
       "complementary slackness: a wall pushes only on the poses that touch it")
 
+# %%
 fig, axes = plt.subplots(1, 2, figsize=(12, 5.5))
 for ax, resv, title in ((axes[0], plain, "LAGO"), (axes[1], boxed, "LAGO + room, with the wall forces")):
     plot_trajectory(ax, tr, color="0.6", linewidth=2.5, label="truth")

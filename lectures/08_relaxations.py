@@ -86,10 +86,13 @@ observed = wrong / draws
 se = np.sqrt(predicted * (1 - predicted) / draws)                                 # binomial standard error
 print(f"{tree.n_chords} chords, {draws} draws: mean P[wrong k] predicted {predicted.mean():.3f}, "
       f"observed {observed.mean():.3f}")
+
+# %% tags=["remove-input"]
 check(abs(observed.mean() - predicted.mean()) < 4 * np.sqrt(np.mean(se**2) / tree.n_chords) + 0.01,
       "(W) predicts the average failure rate of the tree rounding")
 check(np.all(np.abs(observed - predicted) <= 5 * se + 1.0 / draws), "…and every chord's, within 5 binomial standard errors")
 
+# %%
 fig, ax = plt.subplots(figsize=(5.5, 3.6))
 order = np.argsort(sig_c)
 ax.plot(sig_c[order], predicted[order], "-", label="(W): erfc(π / √2 σ_c)")
@@ -164,9 +167,12 @@ Lc = sp.csr_matrix((np.sqrt(omega), (np.arange(m), g.heads)), shape=(m, n)) \
     - sp.csr_matrix((np.sqrt(omega) * np.exp(1j * g.delta), (np.arange(m), g.tails)), shape=(m, n))
 col = spla.spsolve((Lc.conj().T @ Lc).tocsc(), u0)
 z = X.value + 1j * Y.value
+
+# %% tags=["remove-input"]
 check(np.abs(col / col[0] - z).max() < 1e-8 and abs(1 / col[0].real - chordal.value) < 1e-8 * chordal.value,
       "(G): the relaxed solution is the anchor's column of L⁻¹, its cost 1/(L⁻¹)₀₀")
 
+# %%
 profiles = {}
 for sig in (0.0, 0.05, 0.1, 0.3):
     gs = lc.manhattan_world(n, seed=0, sigma_theta=sig).graph
@@ -176,12 +182,15 @@ for sig in (0.0, 0.05, 0.1, 0.3):
     profiles[sig] = np.hypot(X.value, Y.value)
     print(f"σ_θ = {sig:4.2f}: ‖r_i‖ median {np.median(profiles[sig]):.3g}, min {profiles[sig].min():.3g}; "
           f"rank correlation with the hops from the anchor {spearmanr(profiles[sig], hops).correlation:+.2f}")
+
+# %% tags=["remove-input"]
 check(np.abs(profiles[0.0] - 1).max() < 1e-9, "noiseless: every ‖r_i‖ = 1 (the relaxation is tight)")
 check(all(spearmanr(profiles[sg], hops).correlation < -0.8 for sg in (0.05, 0.1, 0.3)),
       "with noise, ‖r_i‖ falls with the distance from the anchor (rank correlation < −0.8)")
 check(np.median(profiles[0.05]) > np.median(profiles[0.1]) > np.median(profiles[0.3]),
       "…and falls faster the more the cycles disagree")
 
+# %%
 other = chordal_closed_form(g, omega, anchor=int(g.ids[n - 1]))              # the same data, anchor at the last pose
 ratio = other.norms / closed.norms
 turn = wrap_angle(other.theta - closed.theta)
@@ -232,6 +241,8 @@ sweep = rotation_noise_sweep(sweep_sigmas, seeds=range(10 if FULL else 4), n_pos
                              regularizers=regs)
 print(format_sweep(sweep))
 by = {(r["sigma_theta"], r["regularizer"]): r for r in sweep}
+
+# %% tags=["remove-input"]
 check(all(by[(sg, "chordal")]["optimal"] >= by[(sg, "tree (odometry)")]["optimal"]
           and by[(sg, "integer program")]["optimal"] >= by[(sg, "tree (odometry)")]["optimal"] for sg in sweep_sigmas),
       "the chordal relaxation and the integer program never do worse than the paper's odometric-tree rounding")
@@ -240,6 +251,7 @@ check(any(by[(sg, "chordal")]["optimal"] > by[(sg, "tree (odometry)")]["optimal"
 check(all(by[(sg, "tree (odometry)")]["optimal"] <= by[(sg, "tree (bfs)")]["optimal"] for sg in sweep_sigmas),
       "the odometric tree (long paths) is never better than the breadth-first tree")
 
+# %%
 fig, ax = plt.subplots(figsize=(6, 3.6))
 for name, style in zip(regs, ("o--", "s:", "^-.", "D-")):
     ax.plot(sweep_sigmas, [by[(sg, name)]["optimal"] / by[(sg, name)]["trials"] for sg in sweep_sigmas], style, label=name)
