@@ -362,7 +362,7 @@ def print_table(title, table, runs):
 
 def compare(table):
     """The paper's findings, each a ratio of two entries (row, scenario, column), in the paper and here; a
-    finding agrees when both ratios lie on the same side of 1."""
+    finding agrees when both ratios lie on the same side of 1 (within 2 % of 1: no difference)."""
     it, lago, prop, iden = "Gauss–Newton, converged", "LAGO, the paper's procedure", "proportional", "P = I₃"
     paper_row = {lago: "LAGO", it: "TORO, 1000 iterations"}
     findings = [("P = I₃ lowers LAGO's ε_θ", (lago, prop, 1), (lago, iden, 1)),
@@ -376,8 +376,9 @@ def compare(table):
     for name, (row, scn, col), (row2, scn2, col2) in findings:
         p = PAPER_TABLE_II[paper_row[row]][scn][col] / PAPER_TABLE_II[paper_row[row2]][scn2][col2]
         o = table[scn][row][col] / table[scn2][row2][col2]
-        agree[name] = (p > 1) == (o > 1)
-        print(f"{name:70s} {p:7.2f} {o:7.2f}  {'agrees' if agree[name] else 'DISAGREES'}")
+        side = [0 if abs(np.log(r)) < np.log(1.02) else np.sign(np.log(r)) for r in (p, o)]
+        agree[name] = side[0] == side[1]
+        print(f"{name:70s} {p:7.2f} {o:7.2f}  {'agrees' if agree[name] else 'DISAGREES'}{'' if side[1] else ' (≈ 1)'}")
     return agree
 
 
@@ -392,37 +393,28 @@ print_table("\nWorld B — isotropic noise, the proportional P assumed", table_b
 agree_b = compare(table_b)
 
 # %% tags=["remove-input"]
-a, b = table_a, table_b
-check(a["proportional"]["LAGO, the paper's procedure"][0] < a["proportional"]["Gauss–Newton, converged"][0],
-      "world A, proportional P: LAGO's ε_t is below that of Gauss–Newton from odometry, which stops in a local minimum")
-check(a["proportional"]["LAGO, the paper's procedure"][1] < a["P = I₃"]["LAGO, the paper's procedure"][1],
-      "world A: the true (proportional) P gives LAGO a lower ε_θ than P = I₃ — the paper found the opposite")
-check(agree_b["P = I₃ lowers LAGO's ε_θ"] and agree_b["P = I₃ lowers the iterative solver's ε_θ"],
-      "world B: P = I₃ lowers ε_θ for both methods, as in the paper")
-check(agree_b["proportional P: LAGO's ε_t / the iterative solver's"]
-      and agree_b["LAGO's ε_t, proportional P / P = I₃"] and agree_b["the iterative solver's ε_t, proportional P / P = I₃"],
-      "world B: under the proportional P the iterative solver beats LAGO in ε_t, and both lose to P = I₃, as in the paper")
+a, b, L, G = table_a, table_b, "LAGO, the paper's procedure", "Gauss–Newton, converged"
+check(all(a["proportional"][r][c] < a["P = I₃"][r][c] for r in (L, G) for c in (0, 1)),
+      "world A: the true (proportional) P gives both methods a lower ε_t and ε_θ than P = I₃ — the paper found the opposite")
+check(all(agree_b[f] for f in list(agree_b)[:4]), "world B: P = I₃ lowers ε_t and ε_θ of both methods, as in the paper")
+check(all(abs(t[s][L][0] / t[s][G][0] - 1) < 0.05 for t in (a, b) for s in t),
+      "LAGO's ε_t is within 5 % of the converged iterative solver's in both worlds and both scenarios")
 
 # %% [markdown]
-# **World A, the scenario as stated.** Here the proportional $P$ is the true covariance, and it helps:
-# every method's $\varepsilon_\theta$ is lower with it than with $P = I_3$ — the **opposite** of the paper,
-# where $P = I_3$ gave the lower $\varepsilon_\theta$ for both methods. The edges that do not move along an
-# axis carry information $10^6$ there, and Gauss–Newton from odometry stops in a local minimum: its
-# $\varepsilon_t$ is six times the minimum's and worse than LAGO's, again the opposite of the paper's TORO. TORO
-# is built to escape such starts; Gauss–Newton is not, and this is where the stand-in differs most. With
-# $P = I_3$ the two methods end at nearly the same relations.
+# **World A, the scenario as stated.** Here the proportional $P$ is the true covariance, and it helps: with
+# it, both methods' $\varepsilon_\theta$ *and* $\varepsilon_t$ are lower than with $P = I_3$ — the **opposite**
+# of the paper on its four scenario findings, where $P = I_3$ did better. Gauss–Newton from odometry reaches
+# the minimum of χ², and LAGO's relations come within a few per cent of the minimum's.
 #
-# **World B, the proportional $P$ assumed but not true.** Now the paper's pattern appears, finding by
-# finding (the lines marked "agrees"): $P = I_3$ lowers $\varepsilon_\theta$ for both methods; under the
-# proportional $P$ the converged iterative solver beats LAGO in $\varepsilon_t$, and both are worse than with
-# $P = I_3$, LAGO by more. The size of LAGO's loss differs: $27\times$ in the paper, a few times here. This
-# is the frozen-weight mechanism of lecture 4b: a badly stated, very anisotropic $P$ is what makes phase 3's
-# weights at $\hat\theta$ wrong, and it costs LAGO, which takes one step with them, more than an iterative
-# solver, which re-weighs at every step. The paper's numbers are what one expects if INTEL's real errors were
-# not proportional to the displacements — which its Table II, $P = I_3$ doing better, already suggests.
-# One finding differs in both worlds: with $P = I_3$ the paper's LAGO beats TORO in $\varepsilon_t$ (ratio
-# 0.58), while here LAGO and the converged solver end at the same relations (ratio 1.00–1.02). A converged
-# Gauss–Newton *is* the minimum of χ²; TORO after 1000 iterations apparently was not.
+# **World B, the proportional $P$ assumed but not true.** Now the paper's pattern across the scenarios
+# appears (the first four findings agree): $P = I_3$ lowers $\varepsilon_\theta$ of both methods about ten
+# times and $\varepsilon_t$ about three times. What does not appear is the paper's gap between the methods:
+# there LAGO loses $27\times$ in $\varepsilon_t$ to the proportional $P$ and TORO $3\times$; here LAGO and the
+# converged iterative solver end within 3 % of each other in every case (≈ 1: within 2 %). So Table II's
+# scenarios look like an *assumed* proportional $P$ — its $P = I_3$ doing better already suggests that
+# INTEL's real errors were not proportional to the displacements — but its large LAGO penalty is not
+# reproduced by these worlds, and where it comes from (TORO's 100 or 1000 iterations are not a converged
+# solver; INTEL's own information, lecture 4b) cannot be told from them.
 #
 # ## 6. Fig. 3 — errors versus iterations
 #
@@ -431,8 +423,8 @@ check(agree_b["proportional P: LAGO's ε_t / the iterative solver's"]
 # below LAGO's line in $\varepsilon_t$. Here the solid line is Gauss–Newton from odometry, the stand-in of
 # section 5, run one iteration at a time until it converges (Gauss–Newton keeps no state between
 # iterations, so this is the same run — checked against the χ² log of the uninterrupted run), on both
-# worlds. Gauss–Newton converges in a few dozen iterations: beyond that its line is flat, so 100 iterations
-# show whether it crosses LAGO's line or not.
+# worlds. Gauss–Newton converges in well under 100 iterations: beyond that its line is flat, so 100
+# iterations show whether it crosses LAGO's line or not.
 
 # %%
 HORIZON = 100
@@ -468,17 +460,16 @@ fig.tight_layout()
 show(fig, "fig3")
 
 # %% tags=["remove-input"]
-lago_a = table_a["proportional"]["LAGO, the paper's procedure"][0]
-lago_b = table_b["proportional"]["LAGO, the paper's procedure"][0]
-crossed = next((i for i, v in enumerate(curves["world B (isotropic noise)"][:, 0]) if v < lago_b), None)
-check(curves["world A (proportional noise)"][:, 0].min() > lago_a,
-      "world A: Gauss–Newton's ε_t never comes down to LAGO's line")
-check(crossed is not None, f"world B: Gauss–Newton's ε_t crosses LAGO's line at iteration {crossed}, as TORO's does in the paper")
+for (label, errs), table in zip(curves.items(), (table_a, table_b)):
+    lago = table["proportional"]["LAGO, the paper's procedure"][0]
+    reach = next((i for i, v in enumerate(errs[:, 0]) if v <= lago), None)
+    check(reach is not None and reach >= 2 and errs[-1, 0] > 0.9 * lago, f"{label}: Gauss–Newton from odometry first "
+          f"reaches LAGO's ε_t after {reach} iterations, and ends at {errs[-1, 0] / lago:.3f} of it")
 
 # %% [markdown]
-# In world B the solid line crosses LAGO's dashed line, as TORO's does in the paper; in world A it levels off
-# above it, in a local minimum. In both, an iterative solver needs iterations where LAGO needs none: one
-# Gauss–Newton iteration from odometry is far worse than LAGO.
+# In both worlds the solid line crosses LAGO's dashed line in $\varepsilon_t$ and ends just below it (the
+# ratios are printed above), where TORO in the paper ends almost five times below. In both, an iterative
+# solver needs iterations where LAGO needs none: one Gauss–Newton iteration from odometry is far worse.
 #
 # ## 7. The abstract's claim on every real graph
 #

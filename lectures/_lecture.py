@@ -163,6 +163,7 @@ def section_v_world(n_poses=500, *, seed=1, noise="proportional", sigma_xy=0.02,
     base = lc.manhattan_world(n_poses, seed=seed, sigma_xy=0.0, sigma_theta=0.0)
     g0, truth = base.graph, base.truth
     exact = lc.between(truth[g0.tails], truth[g0.heads])          # true relative poses δ*_ij, (m, 3)
+    exact[:, 2] = lc.posegraph.wrap_angle(exact[:, 2])             # a turn as the sensor reports it
     rule = SECTION_V_RULE
     k = np.array([rule["k_t"], rule["k_t"], rule["k_theta"]])
     floor = np.array([rule["floor_t"], rule["floor_t"], rule["floor_theta"]])
@@ -174,11 +175,11 @@ def section_v_world(n_poses=500, *, seed=1, noise="proportional", sigma_xy=0.02,
     else:
         raise ValueError(f"noise must be 'proportional' or 'isotropic', got {noise!r}")
     measured = exact + rng.standard_normal(exact.shape) * sigma
+    measured[:, 2] = lc.posegraph.wrap_angle(measured[:, 2])
     assumed = k * np.abs(measured) + floor                          # the paper's rule, from the measurements
     information = np.zeros((g0.n_edges, 3, 3))
     information[:, [0, 1, 2], [0, 1, 2]] = 1.0 / assumed**2
-    graph = lc.PoseGraph(g0.n_poses, g0.tails, g0.heads, measured[:, :2],
-                         lc.posegraph.wrap_angle(measured[:, 2]), information)
+    graph = lc.PoseGraph(g0.n_poses, g0.tails, g0.heads, measured[:, :2], measured[:, 2], information)
     return graph, truth
 
 

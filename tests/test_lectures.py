@@ -30,6 +30,7 @@ import tokenize
 from functools import lru_cache
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -231,6 +232,37 @@ def test_checks_are_hidden_in_the_site(src):
             calls += n
             hidden += n if "remove-input" in cell.metadata.get("tags", []) else 0
     assert calls == 0 or hidden >= 0.3 * calls, f"{src.stem}: {hidden} of {calls} checks in remove-input cells"
+
+
+def _lecture_helpers():
+    spec = importlib.util.spec_from_file_location("lectures_helpers", LECTURES / "_lecture.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.mark.parametrize("noise", ["proportional", "isotropic"])
+def test_section_v_world_states_the_papers_rule(noise):
+    """Lecture 6's Table II world: information 1/σ² with σ = k·|measured component| + floor (the paper's
+    first scenario), whichever noise the measurements carry; the measurement errors are as drawn."""
+    helpers = _lecture_helpers()
+    graph, truth = helpers.section_v_world(200, seed=3, noise=noise)
+    rule = helpers.SECTION_V_RULE
+    measured = np.column_stack([graph.delta_l, graph.delta])
+    k = np.array([rule["k_t"], rule["k_t"], rule["k_theta"]])
+    floor = np.array([rule["floor_t"], rule["floor_t"], rule["floor_theta"]])
+    sigma = k * np.abs(measured) + floor
+    diagonal = graph.information[:, [0, 1, 2], [0, 1, 2]]
+    np.testing.assert_allclose(diagonal, 1.0 / sigma**2, rtol=1e-12)
+    assert not np.any(graph.information - np.einsum("ka,ab->kab", diagonal, np.eye(3)))
+    import lago_cvx as lc
+
+    exact = lc.between(truth[graph.tails], truth[graph.heads])
+    error = measured - exact
+    error[:, 2] = (error[:, 2] + np.pi) % (2 * np.pi) - np.pi
+    drawn = k * np.abs(exact) + floor if noise == "proportional" else np.array([0.02, 0.02, 0.01])
+    z = error / drawn
+    assert abs(z.std() - 1) < 0.1 and np.abs(z).max() < 6, f"standardized errors: std {z.std():.3f}, max {np.abs(z).max():.1f}"
 
 
 # ----------------------------------------------------------------------------- wording
