@@ -2,8 +2,17 @@
 # # Lecture 1 — The problem: planar pose-graph SLAM as a least-squares problem
 #
 # Section III of Carlone, Aragues, Castellanos, Bona, *A Linear Approximation for Graph-based
-# Simultaneous Localization and Mapping* (RSS 2011), derived step by step and checked numerically with
-# the package `lago_cvx`.
+# Simultaneous Localization and Mapping* (RSS 2011) {cite}`carlone2011rss`, derived step by step and checked
+# numerically with the package `lago_cvx`.
+#
+# **The idea in one paragraph.** A robot that drives and looks around measures only *relative* motions:
+# how far it moved and turned between two poses, and, when it recognises a place, where it is relative to
+# an earlier pose. Each measurement is an edge of a graph whose nodes are the poses. The map is the set of
+# poses that agrees best with all edges at once — a weighted least-squares problem. It would be linear if
+# the headings were known, because a relative position is measured in the frame of the robot and must be
+# turned into the map's frame by the unknown heading: that rotation is the one non-linearity of the
+# problem, and the rest of the course is about getting around it. The figure below is the course's running
+# example, a 60-pose Manhattan world: the truth with its edges, and what composing the odometry alone gives.
 #
 # **Learning goals.** After this lecture you can
 #
@@ -36,7 +45,7 @@ from scipy.stats import chi2 as chi2_law
 from scipy.stats import multivariate_normal
 
 import lago_cvx as lc
-from _lecture import S, check, real, setup, show
+from _lecture import S, check, intuition_figure, real, setup, show
 from lago_cvx import plotting
 from lago_cvx.datasets import REFERENCE_CHI2
 from lago_cvx.errors import GraphError
@@ -47,6 +56,9 @@ from lago_cvx.synthetic import add_noise
 
 setup("01_problem")
 rng = np.random.default_rng(0)
+
+# %% tags=["remove-input"]
+show(intuition_figure("01"), "intuition")
 
 # %% [markdown]
 # ## 1. Pose compounding, eq. (1)
@@ -112,6 +124,8 @@ ax.set_xlim(-0.5, 4.8)
 ax.set_ylim(-0.3, 3.8)
 ax.set_title("Eq. (1): pose j seen from pose i (solid: x axis, dashed: y axis)")
 show(fig, "compounding")
+
+# %% tags=["remove-input"]
 check(abs(np.linalg.norm(rel[:2]) - np.linalg.norm(p_j[:2] - p_i[:2])) < 1e-12,
       "a rotation keeps lengths: |Δˡ_ij| = |p_j − p_i|")
 
@@ -146,9 +160,11 @@ f_truth = lc.chi2(g, world.truth)
 cov = g.covariance
 log_l = sum(multivariate_normal(mean=np.zeros(3), cov=cov[k]).logpdf(e[k]) for k in range(m))
 gap = abs(-2 * log_l - (f_truth + np.linalg.slogdet(2 * np.pi * cov)[1].sum()))
-check(gap < 1e-9 * abs(log_l), f"−2 ln L = f + Σ ln det(2πP_ij)   (difference {gap:.1e}; f at the truth = {f_truth:.2f})")
 shifted = lc.PoseGraph(g.n_poses, g.tails, g.heads, g.delta_l, g.delta + 2 * np.pi * rng.integers(-3, 4, m),
                        g.information)
+
+# %% tags=["remove-input"]
+check(gap < 1e-9 * abs(log_l), f"−2 ln L = f + Σ ln det(2πP_ij)   (difference {gap:.1e}; f at the truth = {f_truth:.2f})")
 check(abs(lc.chi2(shifted, world.truth) - f_truth) < 1e-9 * f_truth, "f is unchanged by δ + 2πk")
 
 # %% [markdown]
@@ -166,9 +182,6 @@ z_f = (f_truth - 3 * m) / np.sqrt(6 * m)
 z_half = (f_truth / 2 - 3 * m) / np.sqrt(6 * m)
 print(f"m = {m}: 3m = {3 * m}, √(6m) = {np.sqrt(6 * m):.1f}; f(truth) = {f_truth:.1f} → {z_f:+.2f}σ; "
       f"f/2 → {z_half:+.2f}σ; predicted offset of a factor ½: −√(3m/8) = {-sigmas_half:.2f}σ")
-check(abs(z_f) < 3, f"f(truth) is within 3σ of 3m ({z_f:+.2f}σ): the package's χ² has no factor ½")
-check(abs(abs(z_half) - 10) < 1.5 and abs(z_half + sigmas_half) < 3,
-      f"a factor-½ convention would miss by about 10σ ({z_half:+.2f}σ; −√(3m/8) = {-sigmas_half:.2f}σ)")
 
 draws = []
 for _ in range(400):
@@ -177,9 +190,12 @@ for _ in range(400):
 draws = np.array(draws)
 mean_z = (draws.mean() - 3 * m) / (np.sqrt(6 * m) / np.sqrt(draws.size))
 print(f"400 draws: mean f = {draws.mean():.1f} (3m = {3 * m}), std = {draws.std(ddof=1):.1f} (√(6m) = {np.sqrt(6 * m):.1f})")
+
+# %% tags=["remove-input"]
 check(abs(mean_z) < 4 and abs(draws.std(ddof=1) / np.sqrt(6 * m) - 1) < 0.15,
       "the mean and spread of f(truth) over 400 draws match the χ²(3m) law")
 
+# %%
 fig, ax = plt.subplots(figsize=(7.5, 3.8))
 grid = np.linspace(draws.min() / 2 - 60, draws.max() + 60, 400)
 ax.hist(draws, bins=30, density=True, color="tab:blue", alpha=0.5, label="f(truth), 400 noise draws")
@@ -189,6 +205,11 @@ ax.set_xlabel("cost at the true poses")
 ax.set_title(f"Eq. (3) at the truth follows χ²(3m); a factor ½ lands {abs(z_half):.0f}σ away")
 ax.legend(fontsize=8)
 show(fig, "chi2_law")
+
+# %% tags=["remove-input"]
+check(abs(z_f) < 3, f"f(truth) is within 3σ of 3m ({z_f:+.2f}σ): the package's χ² has no factor ½")
+check(abs(abs(z_half) - 10) < 1.5 and abs(z_half + sigmas_half) < 3,
+      f"a factor-½ convention would miss by about 10σ ({z_half:+.2f}σ; −√(3m/8) = {-sigmas_half:.2f}σ)")
 
 # %% [markdown]
 # ## 3. The split residual, eq. (4), and block-diagonal noise, eq. (5)
@@ -237,6 +258,8 @@ res4 = np.column_stack([between(x[gs.tails], x[gs.heads])[:, :2] - gs.delta_l, r
 f_eq4 = np.einsum("ka,kab,kb->", res4, gs.information, res4)
 print(gs, f"| block-diagonal information: {np.abs(gs.information[:, :2, 2]).max() == 0}")
 check(abs(f_eq4 - lc.chi2(gs, x)) < 1e-9 * f_eq4, f"eq. (4) = lago_cvx.chi2 ({f_eq4:.4f})")
+
+# %% tags=["remove-input"]
 check(abs(f_eq5 - lc.chi2(gs, x)) < 1e-9 * f_eq5, f"eq. (5) with A, A₂ = A ⊗ I₂, R(θ) = lago_cvx.chi2 ({f_eq5:.4f})")
 
 # %% [markdown]
@@ -272,10 +295,6 @@ if intel_full is not None:
           f"(+{100 * (f_at_approx / f_exact - 1):.2f} %), positions moved by {lc.ate(approx_opt.poses, exact_opt.poses):.3f} m RMS")
     check(crossed.all() and np.abs(corr).max() > 0.5, "every edge of se-sync/intel.g2o has x–θ cross information")
     lateral, forward = np.median(np.abs(corr[:, 1])), np.median(np.abs(corr[:, 0]))
-    check(lateral > 2 * forward, f"the lateral (y–θ) correlation dominates: median |corr| {lateral:.2f} against "
-          f"{forward:.2f} for x–θ — a heading error becomes a sideways position error")
-    check(abs(f_exact - REFERENCE_CHI2["se-sync/intel.g2o"]) < 1e-3 * f_exact, "Gauss–Newton reaches the reference minimum")
-    check(f_at_approx > f_exact, "the block-diagonal approximation of Remark 2 misses the minimum of the true cost")
 
     fig, ax = plt.subplots(figsize=(7, 3.6))
     ax.hist(corr[:, 0], bins=40, alpha=0.6, label="corr(x, θ)")
@@ -285,6 +304,13 @@ if intel_full is not None:
     ax.set_title("Remark 2 on real data: se-sync/intel.g2o is not block-diagonal")
     ax.legend()
     show(fig, "remark2_correlations")
+
+# %% tags=["remove-input"]
+if intel_full is not None:
+    check(lateral > 2 * forward, f"the lateral (y–θ) correlation dominates: median |corr| {lateral:.2f} against "
+          f"{forward:.2f} for x–θ — a heading error becomes a sideways position error")
+    check(abs(f_exact - REFERENCE_CHI2["se-sync/intel.g2o"]) < 1e-3 * f_exact, "Gauss–Newton reaches the reference minimum")
+    check(f_at_approx > f_exact, "the block-diagonal approximation of Remark 2 misses the minimum of the true cost")
 
 # %% [markdown]
 # ## 4. The reduced problem, eq. (6), and the system eq. (7)
@@ -334,25 +360,28 @@ A8_red = lc.reduced_incidence(square).toarray()
 A2_8_red = np.kron(A8_red, np.eye(2))
 print(square, f"→ n = {n8}, m = {m8}")
 print("A (rows: poses 0…7; columns: edges 0…10):\n", A8.astype(int))
+
+# %% tags=["remove-input"]
 check(np.all(A8.sum(axis=0) == 0) and np.all(np.abs(A8).sum(axis=0) == 2), "each column of A holds one −1 and one +1")
 check(np.allclose(A8.T @ truth8[:, 2], truth8[heads8, 2] - truth8[tails8, 2]), "Aᵀθ⁺ = (θ_j − θ_i) for every edge")
 check(np.array_equal(A8_red, np.delete(A8, 0, axis=0)), "lc.reduced_incidence = A without the row of pose 0")
 check(np.array_equal(design_matrix(square).toarray()[:2 * m8, :2 * n8], A2_8_red.T),
       "design_matrix's first block = reduced A₂ᵀ = (A ⊗ I₂)ᵀ without pose 0")
 
-
+# %%
 def residual_7(p, theta):
     """Residual of the first equation of eq. (7), A₂ᵀp − R(θ)Δˡ, pose 0 at the origin."""
     th_all = np.concatenate([[0.0], theta])
     return A2_8_red.T @ p - np.einsum("kab,kb->ka", rot2(th_all[tails8]), square.delta_l).ravel()
 
-
 p_rand, t1, t2 = rng.normal(size=2 * n8), rng.normal(size=n8), rng.normal(size=n8)
 superposition = residual_7(p_rand, t1 + t2) - residual_7(p_rand, t1) - residual_7(p_rand, t2) + residual_7(p_rand, 0 * t1)
 p_lin = residual_7(2 * p_rand, t1) - 2 * residual_7(p_rand, t1) + residual_7(0 * p_rand, t1)
-check(np.abs(p_lin).max() < 1e-12, "for fixed θ the first equation of eq. (7) is affine in p")
-check(np.abs(superposition).max() > 0.1, f"but not in θ: superposition fails by {np.abs(superposition).max():.2f}")
 
+# %% tags=["remove-input"]
+check(np.abs(p_lin).max() < 1e-12, "for fixed θ the first equation of eq. (7) is affine in p")
+
+# %%
 fig, axs = plt.subplots(1, 2, figsize=(11, 4.6), gridspec_kw={"width_ratios": [1, 1.25]})
 plotting.plot_trajectory(axs[0], truth8, label="odometric edges", color="tab:blue", linewidth=1.5, style="-o", markersize=4)
 plotting.plot_edges(axs[0], square, truth8, which="loop_closures", color="tab:red", linewidth=1.5, alpha=0.8,
@@ -369,6 +398,9 @@ axs[1].set_ylabel("pose")
 axs[1].axhline(0.5, color="k", lw=1)
 axs[1].set_title("incidence matrix A (blue −1 at i, red +1 at j);\nthe reduced A drops row 0")
 show(fig, "incidence")
+
+# %% tags=["remove-input"]
+check(np.abs(superposition).max() > 0.1, f"but not in θ: superposition fails by {np.abs(superposition).max():.2f}")
 
 # %% [markdown]
 # ## 5. Lemma 1 — the pose graph is connected
@@ -405,6 +437,8 @@ try:
 except GraphError as exc:
     refused = str(exc)
 print("two robots, no common observation:", refused)
+
+# %% tags=["remove-input"]
 check(lc.connected_components(union)[0] == 2 and refused != "", "without Lemma 1's odometric path: 2 components, refused")
 
 # %% [markdown]
@@ -422,12 +456,10 @@ check(lc.connected_components(union)[0] == 2 and refused != "", "without Lemma 1
 x_star = refine(square, truth8 - truth8[0], tolerance=1e-15).poses
 phi = np.linspace(-3 * np.pi, 3 * np.pi, 1201)
 
-
 def turned(angle, pose=2):
     y = x_star.copy()
     y[pose, 2] += angle
     return y
-
 
 curve = np.array([lc.chi2(square, turned(a)) for a in phi])
 f0, f2pi, fpi = (lc.chi2(square, turned(a)) for a in (0.0, 2 * np.pi, np.pi))
@@ -435,9 +467,6 @@ inner = (curve[1:-1] < curve[:-2]) & (curve[1:-1] < curve[2:])
 minima = phi[1:-1][inner]
 print(f"f(x*) = {f0:.4f}, f(x* turned by 2π) = {f2pi:.4f}, f(midpoint) = {fpi:.1f}; "
       f"local minima at φ/π = {np.round(minima / np.pi, 3)}")
-check(abs(f2pi - f0) < 1e-9 * max(f0, 1.0), "f is 2π-periodic in θ₂")
-check(fpi > 0.5 * (f0 + f2pi), "Jensen's inequality fails at the midpoint: f is not convex")
-check(minima.size >= 3, f"{minima.size} local minima along one line")
 
 fig, ax = plt.subplots(figsize=(7.5, 3.8))
 ax.plot(phi / np.pi, curve, color="tab:blue", label=r"$f(x^\star$ with pose 2 turned by $\phi)$")
@@ -449,6 +478,11 @@ ax.set_ylabel("cost eq. (3)")
 ax.set_title("Along one line in pose space the cost is periodic and multi-modal")
 ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=3)
 show(fig, "nonconvex_rotation")
+
+# %% tags=["remove-input"]
+check(abs(f2pi - f0) < 1e-9 * max(f0, 1.0), "f is 2π-periodic in θ₂")
+check(fpi > 0.5 * (f0 + f2pi), "Jensen's inequality fails at the midpoint: f is not convex")
+check(minima.size >= 3, f"{minima.size} local minima along one line")
 
 # %% [markdown]
 # **Local solvers land where they start.** Gauss–Newton linearizes the cost at the current guess and
@@ -465,13 +499,9 @@ from_lago = refine(gm, lc.lago(gm).poses, max_iterations=200)
 from_truth = refine(gm, mw.truth, max_iterations=200)
 for name, run in [("dead reckoning", from_dr), ("LAGO", from_lago), ("the truth", from_truth)]:
     print(f"Gauss–Newton from {name:15s}: cost {run.chi2_initial:12.1f} → {run.chi2:9.3f} in {run.iterations:2d} steps ({run.reason})")
-check(from_dr.converged and from_lago.converged, "both runs converged")
-check(from_dr.chi2 > 10 * from_lago.chi2, f"from dead reckoning: a minimum {from_dr.chi2 / from_lago.chi2:.0f}× worse")
-check(abs(from_lago.chi2 - from_truth.chi2) < 1e-6 * from_truth.chi2, "from LAGO: the same minimum as from the truth")
 tt = np.linspace(0, 1, 101)
 segment = np.array([lc.chi2(gm, (1 - s) * from_dr.poses + s * from_lago.poses) for s in tt])
 chord = (1 - tt) * segment[0] + tt * segment[-1]
-check(np.max(segment - chord) > 0, f"the cost rises {np.max(segment - chord):.0f} above the chord between them")
 
 mit = real("se-sync/MIT.g2o")
 if mit is not None:
@@ -497,6 +527,12 @@ axs[1].set_title("between the two minima the cost rises above the chord")
 axs[1].legend(fontsize=8)
 show(fig, "local_minima")
 
+# %% tags=["remove-input"]
+check(from_dr.converged and from_lago.converged, "both runs converged")
+check(from_dr.chi2 > 10 * from_lago.chi2, f"from dead reckoning: a minimum {from_dr.chi2 / from_lago.chi2:.0f}× worse")
+check(abs(from_lago.chi2 - from_truth.chi2) < 1e-6 * from_truth.chi2, "from LAGO: the same minimum as from the truth")
+check(np.max(segment - chord) > 0, f"the cost rises {np.max(segment - chord):.0f} above the chord between them")
+
 # %% [markdown]
 # **Summary.** Maximum likelihood on a pose graph is the non-linear least-squares problem eq. (3); with
 # independent position and orientation noise it splits as eqs. (5)–(6), and it is the least-squares form
@@ -504,24 +540,66 @@ show(fig, "local_minima")
 # the cost is periodic in every orientation, hence non-convex, and local solvers depend on their start.
 # LAGO avoids the start altogether by solving linear problems only: the orientations first (lecture 2),
 # then the positions (lectures 3–4).
-#
+
+# %% [markdown]
 # ## Exercise 1 — How far off is a factor ½?
 #
 # *Derive.* At the true poses $f$ follows a χ² law with $3m$ degrees of freedom. Show that a cost with a
 # factor ½ sits $\sqrt{3m/8}$ standard deviations below $3m$ on average, and find the smallest number of
 # edges $m$ for which that offset reaches 3σ. Check your formula by simulation on worlds of different
-# sizes. (Solution: `solutions/01_problem_ex1.py`.)
+# sizes.
 #
+# **Hint.** At the true poses $f$ has mean $3m$ and variance $6m$; the cost with a factor ½ has mean $3m/2$. Divide
+# the offset by the standard deviation.
+
+# %%
+# your solution here
+
+# %% [markdown]
+# ````{dropdown} Solution
+# ```{literalinclude} solutions/01_problem_ex1.py
+# :language: python
+# ```
+# ````
+
+# %% [markdown]
 # ## Exercise 2 — The reduced cost of eq. (6) in code
 #
 # *Implement.* Write a function that evaluates eq. (6) for a graph with block-diagonal information, from
 # the reduced $A$, the reduced $A_2 = A \otimes I_2$ and $R(\theta)$ as sparse matrices, for any
 # configuration with pose 0 at the origin. Compare it with `lago_cvx.chi2` on a few hundred poses, and
 # find a configuration where the two differ — and explain why (hint: what does the package do to an
-# angular residual of $3\pi$?). (Solution: `solutions/01_problem_ex2.py`.)
+# angular residual of $3\pi$?).
 #
+# **Hint.** Eq. (6) takes the angular residual $A^\top\theta - \delta$ as it is; `lc.chi2` wraps every angular
+# residual into $[-\pi, \pi)$.
+
+# %%
+# your solution here
+
+# %% [markdown]
+# ````{dropdown} Solution
+# ```{literalinclude} solutions/01_problem_ex2.py
+# :language: python
+# ```
+# ````
+
+# %% [markdown]
 # ## Exercise 3 — How many minima does Gauss–Newton find?
 #
 # *Explore.* On a small synthetic world, start Gauss–Newton from 30 random configurations (positions
 # and headings drawn at random) and count the distinct minima it reaches, for increasing heading noise.
-# Does LAGO's start reach the best of them? (Solution: `solutions/01_problem_ex3.py`.)
+# Does LAGO's start reach the best of them?
+#
+# **Hint.** Run `lc.refine(graph, start)` from each random start and count the distinct χ² values it ends at
+# (rounded to a few significant digits).
+
+# %%
+# your solution here
+
+# %% [markdown]
+# ````{dropdown} Solution
+# ```{literalinclude} solutions/01_problem_ex3.py
+# :language: python
+# ```
+# ````

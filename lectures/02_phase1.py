@@ -6,6 +6,14 @@
 # orientations alone determine the orientations, by *linear* weighted least squares. That is LAGO's
 # phase 1.
 #
+# **The idea in one paragraph.** Headings add up: the heading of a pose is the heading of its
+# neighbour plus the measured turn between them. Around a loop the measured turns should therefore sum to
+# zero (once whole turns are accounted for), and where they do not, the disagreement is noise to be shared
+# out. Sharing it out in the way that best respects how certain each turn is, is a linear least-squares
+# problem in the headings alone — no positions involved. Its normal matrix is a weighted graph Laplacian,
+# as sparse as the graph (figure of section 4). Below, the running example's headings: added up, the turns
+# drift; shared out by phase 1, they follow the truth.
+#
 # **Learning goals.** After this lecture you can
 #
 # * state eq. (8), $A^\top\theta = \delta$, and explain why it is linear only after the $2k\pi$
@@ -32,7 +40,7 @@ import scipy.sparse.linalg as spla
 from scipy.sparse import csgraph
 
 import lago_cvx as lc
-from _lecture import check, paper_lago, real, setup, show
+from _lecture import check, intuition_figure, paper_lago, real, setup, show
 from lago_cvx import phases
 from lago_cvx.errors import GraphError
 from lago_cvx.graph import spanning_tree
@@ -43,6 +51,9 @@ from lago_cvx.uncertainty import edge_uncertainty
 
 setup("02_phase1")
 INTEL = real("carlone/INTEL_P_toro.graph")
+
+# %% tags=["remove-input"]
+show(intuition_figure("02"), "intuition")
 
 # %% [markdown]
 # ## 1. Eq. (8): the orientations obey a linear model — once regularized
@@ -81,11 +92,14 @@ theta_true0 = w0.truth[1:, 2] - w0.truth[0, 2]
 raw = A0.T @ theta_true0 - g0.delta
 ph0 = phases.phase1_closed_form(g0, reg0.delta_reg, unc0)
 print(g0, f"| true headings up to {theta_true0.max() / np.pi:.1f}π")
+
+# %% tags=["remove-input"]
 check(np.abs(raw).max() > 6 and np.allclose(raw / (2 * np.pi), np.round(raw / (2 * np.pi)), atol=1e-9),
       f"raw δ violate eq. (8) by multiples of 2π ({np.sum(np.abs(raw) > 1)} edges, up to {np.abs(raw).max() / np.pi:.0f}π)")
 check(np.abs(A0.T @ theta_true0 - reg0.delta_reg).max() < 1e-9, "the regularized δ satisfy eq. (8) exactly")
 check(np.abs(ph0.theta_free - theta_true0).max() < 1e-9, "and phase 1 returns the true unwrapped headings")
 
+# %%
 w1 = lc.circle_world(300, laps=4, seed=1, sigma_xy=0.05, sigma_theta=0.02)
 g1 = w1.graph
 reg1, unc1 = regularized(g1)
@@ -95,10 +109,13 @@ eps = reg1.delta_reg - A1.T @ theta_true1
 noise = wrap_angle(g1.delta - A1.T @ theta_true1)
 standardized = eps / np.sqrt(unc1.var_delta)
 print(g1, f"| standardized residual: mean {standardized.mean():+.3f}, std {standardized.std():.3f}")
+
+# %% tags=["remove-input"]
 check(np.abs(eps - noise).max() < 1e-9, "δ_reg − Aᵀθ_true is exactly the wrapped measurement noise")
 check(abs(standardized.mean()) < 4 / np.sqrt(g1.n_edges) and abs(standardized.std() - 1) < 0.1,
       "and it is standard normal after scaling by P_δ^(−1/2)")
 
+# %%
 fig, axs = plt.subplots(1, 2, figsize=(11, 3.6))
 axs[0].plot(raw / np.pi, ".", color="tab:red", label="raw δ")
 axs[0].plot((A0.T @ theta_true0 - reg0.delta_reg) / np.pi, ".", color="tab:blue", label="regularized δ")
@@ -180,6 +197,9 @@ if INTEL is not None:
     lam, lam_cut = lambda_min(INTEL), lambda_min(cut)
     print(f"Intel: {lc.connected_components(INTEL)[0]} component, λ_min = {lam:.3e}; "
           f"cut at pose {half}: {lc.connected_components(cut)[0]} components, λ_min = {lam_cut:.1e}")
+
+# %% tags=["remove-input"]
+if INTEL is not None:
     check(lam > 0, "Proposition 1 on Intel: A P_δ⁻¹ Aᵀ is positive definite")
     check(abs(lam_cut) < 1e-6 * lam, "cut in two: singular")
 
@@ -218,14 +238,11 @@ At = cp.Constant(A.T.tocsr(), name="Aᵀ")
 δ_reg = cp.Constant(reg.delta_reg, name="δ_reg")
 phase1 = cp.Problem(cp.Minimize(cp.sum_squares(cp.multiply(w_δ, At @ θ - δ_reg))))
 print(phase1)
-check(phase1.is_dpp(), "the problem is DPP: changing w_δ.value re-solves without rebuilding it")
-
 
 def closed_form(weights):
     """Eq. (13) with dense algebra, for weights w = P_δ^(-1/2): θ̂ and P_θ⁻¹."""
     info = (A.multiply(weights**2) @ A.T).toarray()
     return np.linalg.solve(info, A @ (weights**2 * reg.delta_reg)), info
-
 
 def agreement(theta_cvx, weights):
     """|θ_cvx − θ̂| and the bound the solver's gap tolerance allows (strong convexity)."""
@@ -234,17 +251,23 @@ def agreement(theta_cvx, weights):
     gap = LEAST_SQUARES.tol_gap_abs + LEAST_SQUARES.tol_gap_rel * f_hat
     return np.abs(theta_cvx - theta_hat).max(), np.sqrt(gap / np.linalg.eigvalsh(info)[0])
 
-
 w_δ.value = np.sqrt(1.0 / unc.var_delta)
 solve(phase1)
 package = phases.phase1_closed_form(g, reg.delta_reg, unc)
 err, bound = agreement(θ.value, w_δ.value)
 print(g, f"| status {phase1.status}")
-check(err <= bound, f"cvxpy = eq. (13) in closed form: |Δθ| = {err:.1e} ≤ {bound:.1e} (the solver's tolerance)")
+
+# %% tags=["remove-input"]
 check(np.abs(package.theta_free - closed_form(w_δ.value)[0]).max() < 1e-9,
       "lago_cvx.phases.phase1_closed_form = eq. (13)")
+
+# %%
 pkg_problem, pkg_theta = phases.phase1_problem(g, reg.delta_reg, unc)
 solve(pkg_problem)
+
+# %% tags=["remove-input"]
+check(phase1.is_dpp(), "the problem is DPP: changing w_δ.value re-solves without rebuilding it")
+check(err <= bound, f"cvxpy = eq. (13) in closed form: |Δθ| = {err:.1e} ≤ {bound:.1e} (the solver's tolerance)")
 check(np.abs(pkg_theta.value - θ.value).max() <= 2 * bound, "and the package's own cvxpy builder, phase1_problem, agrees")
 
 # %% [markdown]
@@ -269,9 +292,11 @@ for s in scales:
 odo = g.is_odometric
 dead_reckoning = np.sum(np.where(g.heads > g.tails, 1.0, -1.0)[odo] * reg.delta_reg[odo])  # θ of the last pose
 print("θ̂ of the last pose:", np.round(last, 4), f"| dead reckoning: {dead_reckoning:.4f}")
-check(abs(last[0] - dead_reckoning) < 1e-2 * abs(dead_reckoning) + 0.01, "with s → 0 phase 1 is dead reckoning")
+
+# %% tags=["remove-input"]
 check(all(np.diff(traces) < 0), "tr P_θ decreases as the loop closures gain weight")
 
+# %%
 fig, axs = plt.subplots(1, 2, figsize=(11, 3.6))
 axs[0].semilogx(scales, last, "o-")
 axs[0].axhline(dead_reckoning, color="0.5", ls="--", label="dead reckoning")
@@ -285,6 +310,9 @@ axs[1].set_ylabel("tr P_θ [rad²]")
 fig.suptitle("One cvxpy problem, four solves: only the parameter w_δ changed")
 show(fig, "weight_sweep")
 w_δ.value = np.sqrt(1.0 / unc.var_delta)
+
+# %% tags=["remove-input"]
+check(abs(last[0] - dead_reckoning) < 1e-2 * abs(dead_reckoning) + 0.01, "with s → 0 phase 1 is dead reckoning")
 
 # %% [markdown]
 # ## 4. The information matrix is a weighted graph Laplacian
@@ -302,24 +330,31 @@ def grounded_laplacian(graph, var_delta):
     L = csgraph.laplacian((weights + weights.T).tocsr()).tocsr()
     return L[1:][:, 1:]
 
-
 laplacian = grounded_laplacian(g, unc.var_delta)
+
+# %% tags=["remove-input"]
 check(abs(package.info - laplacian).max() < 1e-12 * abs(laplacian).max(),
       "Phase1.info = A P_δ⁻¹ Aᵀ = the grounded weighted Laplacian")
+
+# %%
 P_theta = np.linalg.inv(package.info.toarray())
 density_info = package.info.nnz / n**2
 density_cov = np.mean(np.abs(P_theta) > 1e-12 * np.abs(P_theta).max())
-check(density_info < 0.1 and density_cov > 0.9,
-      f"information {density_info:.1%} non-zero, covariance P_θ {density_cov:.0%} non-zero")
 
 fig, axs = plt.subplots(1, 2, figsize=(11, 5.2))
 axs[0].spy(package.info, markersize=1.5)
+axs[0].set(xlabel="pose (column)", ylabel="pose (row)")
 axs[0].set_title(f"information A P_δ⁻¹ Aᵀ\n{density_info:.1%} non-zero", pad=24)
 im = axs[1].imshow(np.log10(np.abs(P_theta)), cmap="viridis")
+axs[1].set(xlabel="pose (column)", ylabel="pose (row)")
 axs[1].set_title(f"covariance P_θ, log₁₀ |entries|\n{density_cov:.0%} non-zero", pad=24)
 fig.colorbar(im, ax=axs[1], shrink=0.8)
 fig.suptitle(f"Phase 1 on a Manhattan world ({n + 1} poses, {m} edges)", y=1.04)
 show(fig, "information")
+
+# %% tags=["remove-input"]
+check(density_info < 0.1 and density_cov > 0.9,
+      f"information {density_info:.1%} non-zero, covariance P_θ {density_cov:.0%} non-zero")
 
 # %% [markdown]
 # ## 5. The anchor as a constraint, and what its dual variable means
@@ -352,7 +387,6 @@ print(two_anchors)
 
 solve(one_anchor)
 err, bound = agreement(θ_all.value[1:], w_δ.value)
-check(err <= bound, f"θ₀ = 0 as a constraint gives the same θ̂ as deleting the row (|Δθ| = {err:.1e})")
 one_anchor_force = float(anchor.dual_value)
 
 theta_hat_k = θ_all.value[k]                                         # phase 1's θ̂_k (one anchor)
@@ -368,12 +402,15 @@ slope = np.gradient(np.array(costs), c_values)
 sign = np.sign(np.sum(slope[1:-1] * forces[1:-1, 1]))
 print("c − θ̂_k:", np.round(c_values[::2] - theta_hat_k, 3), "| multipliers (anchor, compass):\n", np.round(forces[::2], 3))
 print(f"cvxpy's sign convention here: d(optimal cost)/dc = {sign:+.0f} × (multiplier of θ_k = c)")
+
+# %% tags=["remove-input"]
 check(abs(one_anchor_force) < 1e-6 * np.abs(forces).max(), f"one anchor holds no force: multiplier {one_anchor_force:.1e}")
 check(np.abs(forces.sum(axis=1)).max() < 1e-6 * np.abs(forces).max(), "the two anchors hold equal and opposite forces")
 check(np.abs(np.abs(slope[1:-1]) - np.abs(forces[1:-1, 1])).max() < 1e-3 * np.abs(forces).max(),
       "|multiplier of θ_k = c| = |d(optimal cost)/dc|")
 check(abs(forces[4, 1]) < 1e-3 * np.abs(forces).max(), "and it vanishes when c = θ̂_k: the compass agrees with phase 1")
 
+# %%
 fig, ax = plt.subplots(figsize=(6.5, 3.8))
 ax.plot(c_values - theta_hat_k, costs, "o-", label="optimal cost with θ_k = c")
 dc = np.array([-0.012, 0.012])
@@ -385,6 +422,9 @@ ax.set_ylabel("optimal cost")
 ax.set_title(f"A second known orientation (pose {k}): the dual variable is the force")
 ax.legend(fontsize=8)
 show(fig, "anchor_dual")
+
+# %% tags=["remove-input"]
+check(err <= bound, f"θ₀ = 0 as a constraint gives the same θ̂ as deleting the row (|Δθ| = {err:.1e})")
 
 # %% [markdown]
 # ## 6. Monte Carlo: $\hat\theta$ is unbiased with covariance $P_\theta$
@@ -409,10 +449,8 @@ info_mc[:, 0, 0] = info_mc[:, 1, 1] = 1 / 0.05**2
 info_mc[:, 2, 2] = 1 / sig**2
 d_true = truth[heads, 2] - truth[tails, 2]
 
-
 def graph_with(delta):
     return lc.PoseGraph(8, tails, heads, mc_world.graph.delta_l, delta, info_mc)
-
 
 g_mc = graph_with(wrap_angle(d_true))
 tree_mc, unc_mc = spanning_tree(g_mc, "bfs"), edge_uncertainty(g_mc)
@@ -428,16 +466,17 @@ for s in range(N_MC):
     errs[s] = wrap_angle(K @ delta_reg - ph_true.theta_free)
     if s == 0:
         fast_path = np.abs(K @ delta_reg - phases.phase1_closed_form(g_s, delta_reg, unc_mc).theta_free).max()
-check(fast_path < 1e-9, "the loop's θ̂ = K δ_reg is the package's phase1_closed_form")
 zscore = errs.mean(axis=0) / np.sqrt(np.diag(P_theta_mc) / N_MC)
 S = np.cov(errs, rowvar=False)
 rel = np.linalg.norm(S - P_theta_mc) / np.linalg.norm(P_theta_mc)
 expected = np.sqrt((np.trace(P_theta_mc) ** 2 + np.linalg.norm(P_theta_mc) ** 2) / N_MC) / np.linalg.norm(P_theta_mc)
 print(g_mc, f"| σ_δ from {sig.min():.3f} to {sig.max():.3f} rad")
 print("mean error / standard error per pose:", np.round(zscore, 2))
-check(np.abs(zscore).max() < 4.5, "θ̂ is unbiased (every mean error within 4.5 standard errors)")
-check(rel < 3 * expected, f"sample covariance = P_θ: ‖S − P_θ‖/‖P_θ‖ = {rel:.3f} (sampling level {expected:.3f})")
 
+# %% tags=["remove-input"]
+check(np.abs(zscore).max() < 4.5, "θ̂ is unbiased (every mean error within 4.5 standard errors)")
+
+# %%
 fig, axs = plt.subplots(1, 2, figsize=(11, 4))
 i1, i2 = 2, 5
 axs[0].plot(errs[:, i1], errs[:, i2], ".", ms=2, color="0.5", label=f"{N_MC} samples")
@@ -458,20 +497,39 @@ axs[1].legend(fontsize=8)
 fig.suptitle("Monte Carlo of phase 1 (noise → wrap → regularize → eq. (13))")
 show(fig, "montecarlo")
 
+# %% tags=["remove-input"]
+check(fast_path < 1e-9, "the loop's θ̂ = K δ_reg is the package's phase1_closed_form")
+check(rel < 3 * expected, f"sample covariance = P_θ: ‖S − P_θ‖/‖P_θ‖ = {rel:.3f} (sampling level {expected:.3f})")
+
 # %% [markdown]
 # **Summary.** After the $2k\pi$ regularization, the relative orientations obey the linear model
 # eq. (8); connectivity and one known orientation make it uniquely solvable (Proposition 1); its BLUE
 # eq. (13) is one sparse solve with a grounded weighted Laplacian. cvxpy states the same problem in a
 # line, with parameters to re-solve and multipliers that are forces. Lecture 3 uses $\hat\theta$ and
 # $P_\theta$ to bring the positions into the global frame.
-#
+
+# %% [markdown]
 # ## Exercise 1 — $P_\theta$ of a chain
 #
 # *Derive.* For a path $0 \to 1 \to \dots \to n$ (odometry only, variances $\sigma_1^2, \dots, \sigma_n^2$)
 # anchored at pose 0, derive $P_\theta$ in closed form: show that $(P_\theta)_{ij} = \sum_{k \le
 # \min(i, j)} \sigma_k^2$ (the orientation error is a random walk). Check it against the inverse of
-# $A P_\delta^{-1} A^\top$. (Solution: `solutions/02_phase1_ex1.py`.)
+# $A P_\delta^{-1} A^\top$.
 #
+# **Hint.** With pose 0 anchored, the reduced $A$ of a chain is bidiagonal and its inverse is triangular, full of
+# ones.
+
+# %%
+# your solution here
+
+# %% [markdown]
+# ````{dropdown} Solution
+# ```{literalinclude} solutions/02_phase1_ex1.py
+# :language: python
+# ```
+# ````
+
+# %% [markdown]
 # ## Exercise 2 — A compass instead of an anchor
 #
 # *Implement.* Replace the anchor by absolute heading measurements (a compass) on a few poses, with
@@ -479,10 +537,36 @@ show(fig, "montecarlo")
 # parameter for the compass readings, and derive the closed form with an augmented design matrix.
 # Verify that both agree, that one compass reading is enough for a unique solution (Proposition 1 in
 # another guise), and that re-solving with new readings needs no rebuild.
-# (Solution: `solutions/02_phase1_ex2.py`.)
 #
+# **Hint.** Each compass reading adds one row $e_i^\top$ to the design matrix, with weight $1/\sigma_c$; with a
+# `cp.Parameter` for the readings the problem is built once.
+
+# %%
+# your solution here
+
+# %% [markdown]
+# ````{dropdown} Solution
+# ```{literalinclude} solutions/02_phase1_ex2.py
+# :language: python
+# ```
+# ````
+
+# %% [markdown]
 # ## Exercise 3 — Which loop closure helps most?
 #
 # *Explore.* On a Manhattan world, start from the odometry alone and add one loop closure at a time:
 # which single loop closure reduces $\operatorname{tr} P_\theta$ the most? Relate your answer to the
-# length of the cycle it closes. (Solution: `solutions/02_phase1_ex3.py`.)
+# length of the cycle it closes.
+#
+# **Hint.** Build the graph of odometry plus one loop closure with `lc.PoseGraph`, and compute
+# $\operatorname{tr}P_\theta$ from phase 1's information (`result.phase1.info`).
+
+# %%
+# your solution here
+
+# %% [markdown]
+# ````{dropdown} Solution
+# ```{literalinclude} solutions/02_phase1_ex3.py
+# :language: python
+# ```
+# ````

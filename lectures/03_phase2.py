@@ -8,6 +8,15 @@
 # frame of pose $i$) into the global frame with $\hat\theta_i$, and propagates the uncertainty of both
 # $\Delta^l$ and $\hat\theta$ to first order. No optimization happens here.
 #
+# **The idea in one paragraph.** With the headings from phase 1, each measured displacement — recorded in
+# the robot's own frame — can be turned into the map's frame. The turned displacement inherits two
+# uncertainties: that of the measurement itself, and that of the heading used to turn it, which swings the
+# displacement sideways like a lever, more the longer it is. Phase 2 does the turning and adds up both
+# uncertainties to first order; the covariance it produces is dense, but its inverse is as sparse as the
+# graph (figure of section 5), which is what makes phase 3 cheap. Below, the running example's odometric
+# displacements turned by phase 1's headings and chained: far better than dead reckoning, yet the loops
+# still do not close — that is left to phase 3.
+#
 # **Learning goals.** After this lecture you can
 #
 # * build the phase-2 vector $z$ of eq. (9) and the Jacobians $H$, $J$ of eq. (11);
@@ -32,7 +41,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 import lago_cvx as lc
-from _lecture import S, check, paper_lago, real, setup, show
+from _lecture import S, check, intuition_figure, paper_lago, real, setup, show
 from lago_cvx import phases, plotting
 from lago_cvx.graph import spanning_tree
 from lago_cvx.posegraph import between, rot2, wrap_angle
@@ -41,6 +50,9 @@ from lago_cvx.synthetic import add_noise
 from lago_cvx.uncertainty import edge_uncertainty
 
 setup("03_phase2")
+
+# %% tags=["remove-input"]
+show(intuition_figure("03"), "intuition")
 
 # %% [markdown]
 # ## 1. The phase-2 vector $z$, eq. (9)
@@ -65,6 +77,8 @@ m, n = small.n_edges, small.n_poses - 1
 R = sla.block_diag(*rot2(theta_hat[small.tails]))
 z_eq9 = np.concatenate([R @ small.delta_l.ravel(), theta_hat[1:]])
 print(small, f"→ z has 2m + n = {ph2.z.size} entries")
+
+# %% tags=["remove-input"]
 check(ph2.information == "marginal" and np.abs(ph2.z - z_eq9).max() < 1e-12,
       f"the package's phase 2 (the paper's form) returns z of eq. (9) (max difference {np.abs(ph2.z - z_eq9).max():.0e})")
 
@@ -96,9 +110,13 @@ J_blocks = np.zeros((2 * m, n))
 for k, i in enumerate(small.tails):
     if i != 0:
         J_blocks[2 * k:2 * k + 2, i - 1] = S @ ph2.delta_g[k]
+
+# %% tags=["remove-input"]
 check(np.abs(J - J_fd).max() < 1e-7 * np.abs(J).max(), f"J = ∂(RΔˡ)/∂θ (finite differences agree to {np.abs(J - J_fd).max():.0e})")
 check(np.array_equal(J != 0, J_blocks != 0) and np.abs(J - J_blocks).max() < 1e-12,
       f"one block SΔᵍ per edge, in the tail's column: nnz(J) = {ph2.jac.nnz} = 2 × (edges not leaving pose 0)")
+
+# %%
 H = np.block([[R, J], [np.zeros((n, 2 * m)), np.eye(n)]])
 
 # %% [markdown]
@@ -129,11 +147,12 @@ def dense_pz(graph, result):
     P_theta = np.linalg.inv(result.phase1.info.toarray())
     return Hg @ sla.block_diag(*unc.cov_delta_l, P_theta) @ Hg.T, Hg, P_theta
 
-
 Pz, _, P_theta = dense_pz(small, res)
 P_dl = sla.block_diag(*res.uncertainty.cov_delta_l)
 explicit = np.block([[R @ P_dl @ R.T + J @ P_theta @ J.T, J @ P_theta], [P_theta @ J.T, P_theta]])
 fill = np.mean(np.abs(Pz) > 1e-12 * np.abs(Pz).max())
+
+# %% tags=["remove-input"]
 check(np.abs(Pz - explicit).max() < 1e-12 * np.abs(Pz).max(), "H diag(P_Δˡ, P_θ) Hᵀ = the explicit blocks of eq. (11)")
 check(fill > 0.8, f"P_z is dense: {fill:.0%} of its {Pz.size} entries are non-zero")
 
@@ -166,14 +185,12 @@ def p_theta(graph, anchor):
                                        edge_uncertainty(graph), anchor=anchor)
     return np.linalg.inv(result.info.toarray()), result.anchor_index
 
-
 def same_side(graph, anchor_index):
     """(u, v) → True when u and v are connected without passing through the reference (free poses)."""
     away = graph.subgraph_edges((graph.tails != anchor_index) & (graph.heads != anchor_index))
     _, label = lc.connected_components(away)
     label = np.delete(label, anchor_index)
     return label[:, None] == label[None, :], len(set(label))
-
 
 corridor, loop = 5, 8                                                # poses 0–4 corridor, 5–12 loop
 truth_l = np.zeros((corridor + loop, 3))
@@ -196,6 +213,8 @@ for anchor in (0, corridor):
           f"P_θ has {np.sum(~positive)} zero entries of {P_t.size}")
     check(np.array_equal(positive, side) and np.all(np.abs(P_t[~side]) < 1e-12 * P_t.max()),
           f"reference {anchor}: (P_θ)_uv > 0 exactly when u, v connect avoiding the reference")
+
+# %% tags=["remove-input"]
 check(pattern[0][1] == 1 and pattern[corridor][1] == 2, "entrywise positive with the first pose as reference, not with the cut vertex")
 
 # %% [markdown]
@@ -276,7 +295,6 @@ def check_w(graph, result, label):
     check(result.phase2.W.nnz <= 8 * mm, f"{label}: nnz(W) = {result.phase2.W.nnz} ≤ 8m = {8 * mm}; P_z has {Pz_g.size} entries")
     return Pz_g
 
-
 check_w(small, res, "random graph")
 mw = lc.manhattan_world(60, seed=2, sigma_theta=0.05).graph
 res_m = paper_lago(mw)
@@ -293,8 +311,11 @@ axs[2].spy(res_m.phase2.W, markersize=0.6, color="tab:green", aspect="auto")
 axs[2].set_title(f"$W$ ({res_m.phase2.W.shape[0]}×{res_m.phase2.W.shape[1]}): {res_m.phase2.W.nnz} non-zeros")
 for ax in axs:
     ax.set_xlabel("entry of z = [Δᵍ (2m); θ̂ (n)]")
+    ax.set_ylabel("row")
 fig.suptitle(f"Phase 2 on a Manhattan world (m = {mw.n_edges}, n = {mw.n_poses - 1}): dense covariance, sparse inverse", y=1.02)
 show(fig, "spy")
+
+# %% tags=["remove-input"]
 check(WtW_m.nnz < 0.1 * Pz_m.size, "the information P_z⁻¹ = WᵀW is sparse")
 
 # %% [markdown]
@@ -324,11 +345,9 @@ m_mc, n_mc = tails.size, 6
 N_MC = 1000
 xi = np.random.default_rng(7).standard_normal((N_MC, m_mc, 3))    # common random numbers
 
-
 def graph_at(meas, sxy, sth):
     info = np.broadcast_to(np.diag([1 / sxy**2, 1 / sxy**2, 1 / sth**2]), (m_mc, 3, 3))
     return lc.PoseGraph(7, tails, heads, meas[:, :2], wrap_angle(meas[:, 2]), info)
-
 
 def monte_carlo(sxy, sth):
     g_true = graph_at(true_rel, sxy, sth)
@@ -359,7 +378,6 @@ def monte_carlo(sxy, sth):
     return dict(total=np.linalg.norm(S_z - Pz_t) / norm, floor=np.linalg.norm(S_lin - Pz_t) / norm,
                 nonlin=np.linalg.norm(S_z - S_lin) / norm, dz=dz, Pz=Pz_t, z_true=ph2_t.z, fast=fast_path_error)
 
-
 levels = {"large": (0.1, 0.3), "small": (0.01, 0.03)}
 mc = {name: monte_carlo(*sig) for name, sig in levels.items()}
 print(base.graph, f"| largest |Δˡ| = {np.abs(true_rel[:, :2]).max():.1f} m | {N_MC} samples per level")
@@ -368,13 +386,6 @@ for name, (sxy, sth) in levels.items():
     print(f"σ_xy = {sxy:4.2f} m, σ_θ = {sth:4.2f} rad: ‖S_z − P_z‖ = {r['total']:.4f}; "
           f"sampling floor {r['floor']:.4f}; non-linearity {r['nonlin']:.2e}")
 large, small_noise = mc["large"], mc["small"]
-check(max(large["fast"], small_noise["fast"]) < 1e-9, "the Monte-Carlo loop computes exactly the package's phases 1–2")
-check(abs(large["floor"] - small_noise["floor"]) < 1e-6 * large["floor"], "same draws, same sampling floor at both levels")
-check(small_noise["nonlin"] < large["nonlin"] / 10,
-      f"the non-linearity shrinks {large['nonlin'] / small_noise['nonlin']:.0f}× when σ shrinks 10×")
-check(abs(small_noise["total"] - small_noise["floor"]) < 0.1 * small_noise["floor"],
-      "at small noise the first-order P_z is exact up to sampling error")
-check(large["nonlin"] > 0.5 * large["floor"], "at σ_θ = 0.3 rad the non-linearity is visible above the sampling noise")
 
 k_edge = int(np.argmax(np.where(tails != 0, np.linalg.norm(true_rel[:, :2], axis=1), 0)))   # a long lever arm
 fig, axs = plt.subplots(1, 3, figsize=(16, 5))
@@ -402,32 +413,60 @@ axs[2].set_title("sample covariance against the first-order $P_z$")
 axs[2].legend()
 show(fig, "montecarlo")
 
+# %% tags=["remove-input"]
+check(max(large["fast"], small_noise["fast"]) < 1e-9, "the Monte-Carlo loop computes exactly the package's phases 1–2")
+check(abs(large["floor"] - small_noise["floor"]) < 1e-6 * large["floor"], "same draws, same sampling floor at both levels")
+check(small_noise["nonlin"] < large["nonlin"] / 10,
+      f"the non-linearity shrinks {large['nonlin'] / small_noise['nonlin']:.0f}× when σ shrinks 10×")
+check(abs(small_noise["total"] - small_noise["floor"]) < 0.1 * small_noise["floor"],
+      "at small noise the first-order P_z is exact up to sampling error")
+check(large["nonlin"] > 0.5 * large["floor"], "at σ_θ = 0.3 rad the non-linearity is visible above the sampling noise")
+
 # %% [markdown]
 # **Summary.** Phase 2 is a change of variables, not an optimization: it rotates the relative positions
 # into the global frame with phase 1's orientations (eq. (9)) and propagates the uncertainty to first
 # order (eqs. (10)–(11)). The covariance $P_z$ contains $P_\theta$, which is entrywise positive exactly
 # when the graph minus the reference pose is connected; its inverse always has the explicit sparse
-# square root $W$, which is what phase 3 (lecture 4) uses as the weight of its least-squares problem.
+# square root $W$, which is what phase 3 (lecture 4a) uses as the weight of its least-squares problem.
 # First order is exact as the noise vanishes; at $\sigma_\theta = 0.3$ rad its error is already visible.
-#
+
+# %% [markdown]
 # ## Exercise 1 — Why $W$ hardly depends on $\hat\theta$
 #
 # *Derive.* Show that $R(\theta)^\top S R(\theta) = S$ for every $\theta$, and conclude that the block
 # $-P_{\Delta^l}^{-1/2} R^\top J$ of $W$ does not depend on $\hat\theta$, and that $W^\top W$ depends on
 # $\hat\theta$ only through the rotations in its first block column. Verify it on a graph by running
-# phase 2 at two different orientation vectors. (Solution: `solutions/03_phase2_ex1.py`.)
+# phase 2 at two different orientation vectors.
 #
+# **Hint.** Write $R(\theta) = \cos\theta\, I + \sin\theta\, S$: $S$ commutes with every rotation.
+
+# %%
+# your solution here
+
+# %% [markdown]
+# ````{dropdown} Solution
+# ```{literalinclude} solutions/03_phase2_ex1.py
+# :language: python
+# ```
+# ````
+
+# %% [markdown]
 # ## Exercise 2 — $P_z$ times a vector, without $P_z$
 #
 # *Implement.* On a graph of a thousand poses $P_z$ has millions of entries. Write a function that
 # applies $P_z = H\,\mathrm{diag}(P_{\Delta^l}, P_\theta)\,H^\top$ to a vector with sparse matrices only
 # (use phase 1's factorization of $A P_\delta^{-1} A^\top$ for $P_\theta x$), and verify
-# $W^\top W (P_z v) = v$ for random vectors $v$. (Solution: `solutions/03_phase2_ex2.py`.)
+# $W^\top W (P_z v) = v$ for random vectors $v$.
 #
-# ## Exercise 3 — How much noise can first order take?
-#
-# *Explore.* For the edge with the longest lever arm in §6, sweep $\sigma_\theta$ from 0.01 to 0.6 rad and
-# compare the Monte-Carlo spread of $\Delta^g$ with the first-order prediction. At which noise level does
-# first order miss the spread by more than 10 %, and in which direction? (Hint: for a single rotation,
-# $\mathrm{E}\|R(\epsilon)\Delta - \mathrm{E}[R(\epsilon)\Delta]\|^2 = \|\Delta\|^2(1 - e^{-\sigma^2})$ for
-# $\epsilon \sim \mathcal N(0, \sigma^2)$.) (Solution: `solutions/03_phase2_ex3.py`.)
+# **Hint.** Apply $H^\top$, then the blocks ($P_\theta x$ is a solve with phase 1's factor), then $H$ — each a
+# sparse product.
+
+# %%
+# your solution here
+
+# %% [markdown]
+# ````{dropdown} Solution
+# ```{literalinclude} solutions/03_phase2_ex2.py
+# :language: python
+# ```
+# ````

@@ -2,32 +2,27 @@
 # # Lecture 5 — Regularization: cycles, the cycle basis and the $2k\pi$ corrections
 #
 # *L. Carlone, R. Aragues, J. A. Castellanos, B. Bona, "A Linear Approximation for Graph-based
-# Simultaneous Localization and Mapping", RSS 2011 — Section IV-E and the regularization steps of Section V.*
+# Simultaneous Localization and Mapping", RSS 2011 {cite}`carlone2011rss` — Section IV-E and the regularization
+# steps of Section V; cycle bases as in {cite}`carlone2014ijrr`.*
 #
 # Phase 1 (lecture 2) treats the relative orientations $\delta$ as real numbers whose sums around every loop
-# vanish up to noise. A sensor reports them only modulo $2\pi$, here in $[-\pi, \pi)$: after a full turn
-# the loop closure reads $\approx 0$, not $2\pi$. Before phase 1 every measurement must be corrected by the
-# right multiple of $2\pi$ — the paper calls this *regularization*.
+# vanish up to noise. A sensor reports them only modulo $2\pi$: after a full turn the loop closure reads
+# $\approx 0$, not $2\pi$. Each must first be corrected by the right multiple of $2\pi$: *regularization*.
+# Below, phase 1 on the running example with and without the corrections.
 #
 # **Learning goals.** After this lecture you can
 #
-# 1. explain the wraparound problem and see what it does to phase 1;
-# 2. tell a cycle from a circuit, build the fundamental circuits of a spanning tree (Definition 1) and
-#    check that they form a cycle basis (Theorem 2) of dimension $l = m - n$ (Corollary 1), with matrix
-#    $C = [I_l\ B]$ (Corollary 2, eq. (19));
-# 3. state the zero-sum property (eqs. (20)–(21)), prove Theorem 3 with the correction of eqs. (22)–(23),
-#    and relate it to phase 1 through a cvxpy problem and its multipliers;
-# 4. use Proposition 2 and Corollary 3 to see why the paper corrects only loop closures;
-# 5. measure when the rounding finds the true $k$, what an ambiguous rounding costs, and how the chordal
-#    regularizer (the package's default, beyond the paper) avoids tree paths;
-# 6. reproduce Table I on the INTEL graph.
+# 1. explain the wraparound problem, and the fundamental circuits of a spanning tree as a cycle basis
+#    (Definition 1, Theorem 2, Corollaries 1–2, eq. (19));
+# 2. state the zero-sum property (eqs. (20)–(21)) and prove Theorem 3 (eqs. (22)–(23));
+# 3. use Proposition 2 and Corollary 3 to see why the paper corrects only loop closures, and reproduce Table I;
+# 4. measure when the rounding finds the true $k$, and how the chordal regularizer (beyond the paper) helps.
 #
 # **Notation.** $n+1$ poses $p_0,\dots,p_n$, pose 0 the reference (package: `graph.n_poses` $= n+1$); $m$
 # edges; the incidence matrix $A$ ($(n+1)\times m$, column of edge $(i,j)$: $-1$ at $i$, $+1$ at $j$;
-# `lc.incidence_matrix`) and its reduced form without pose 0's row ($n\times m$, `lc.reduced_incidence`,
-# called "A2" in some package docstrings — not the paper's $A_2 = A\otimes I_2$); $\delta$ the measured
-# relative orientations, $\delta_{\rm reg} = \delta + 2\pi k$ the regularized ones; $l$ the number of chords.
-# The letter $B$ in $C = [I_l\ B]$ is unrelated to the $B$ of phase 3 (lecture 4).
+# `lc.incidence_matrix`) and its reduced form without pose 0's row ($n\times m$, `lc.reduced_incidence`);
+# $\delta$ the measured relative orientations, $\delta_{\rm reg} = \delta + 2\pi k$ the regularized ones; $l$ the number of chords.
+# The letter $B$ in $C = [I_l\ B]$ is unrelated to the $B$ of phase 3 (lecture 4a).
 
 # %%
 import cvxpy as cp
@@ -42,11 +37,14 @@ from lago_cvx.plotting import plot_edges, plot_trajectory
 from lago_cvx.regularization import regularize
 from lago_cvx.rounding import AMBIGUITY_MARGIN
 from lago_cvx.uncertainty import edge_uncertainty
-from _lecture import FULL, check, paper_lago, real, setup, show, solve_qp
+from _lecture import FULL, check, intuition_figure, paper_lago, real, setup, show, solve_qp
 
 setup("05_regularization")
 TWO_PI = 2 * np.pi
 
+
+# %% tags=["remove-input"]
+show(intuition_figure("05"), "intuition")
 
 # %% [markdown]
 # ## 1. The wraparound problem
@@ -69,7 +67,6 @@ odo = gc.is_odometric
 print(f"{gc!r}\nodometric δ: {np.round(gc.delta[odo], 4)}\nloop closure {gc.tails[~odo][0]}→{gc.heads[~odo][0]}: "
       f"δ = {gc.delta[~odo][0]:.4f}")
 turn = gc.delta[odo].sum() - gc.delta[~odo][0]                       # around the loop: the chord backwards
-check(abs(turn - TWO_PI) < 1e-12, f"around the loop the relative orientations add up to {turn:.6f} = 2π, not 0")
 
 n8, m8 = gc.n_poses - 1, gc.n_edges
 theta = cp.Variable(n8, name="θ")
@@ -91,6 +88,9 @@ for label, value in (("raw δ", gc.delta), ("regularized δ_reg", reg8.delta_reg
     print(f"phase 1 with the {label}: max |θ − θ_true| = {err:.3f} rad ({status})")
 check(np.abs(theta.value - truth_theta).max() < 1e-8, "with δ_reg phase 1 recovers the true orientations")
 lam = fit.dual_value
+
+# %% tags=["remove-input"]
+check(abs(turn - TWO_PI) < 1e-12, f"around the loop the relative orientations add up to {turn:.6f} = 2π, not 0")
 check(np.allclose(lam, -2 * w.value ** 2 * e.value, atol=1e-9) and np.abs(At.value.T @ lam).max() < 1e-8,
       "multipliers λ = −2 P_δ⁻¹ e balance at every pose: A λ = 0 (the normal equations of eq. (13))")
 
@@ -110,9 +110,6 @@ err_raw = np.abs(raw3.poses[:, :2] - w4.truth[:, :2]).max()
 err_reg = np.abs(res4.poses[:, :2] - w4.truth[:, :2]).max()
 wrapped = np.count_nonzero(np.rint((w4.truth[g4.heads, 2] - w4.truth[g4.tails, 2] - g4.delta) / TWO_PI))
 print(f"{g4!r}: {wrapped} measurements differ from the true orientation change by a multiple of 2π")
-check(err_raw > 1.0, f"without regularization: max position error {err_raw:.2f} m")
-check(err_reg < 1e-9, f"with regularization ({res4.regularization.n_regularized} chords corrected): "
-      f"max position error {err_reg:.1e} m")
 
 fig, axes = plt.subplots(1, 2, figsize=(12, 5.4))
 for ax, poses, title in [(axes[0], raw3.poses, "phases 1–3 on the raw, wrapped δ"),
@@ -129,6 +126,11 @@ inset.set_xlabel("")
 inset.set_ylabel("")
 fig.tight_layout()
 show(fig, "wraparound")
+
+# %% tags=["remove-input"]
+check(err_raw > 1.0, f"without regularization: max position error {err_raw:.2f} m")
+check(err_reg < 1e-9, f"with regularization ({res4.regularization.n_regularized} chords corrected): "
+      f"max position error {err_reg:.1e} m")
 
 # %% [markdown]
 # ## 2. Cycles and circuits
@@ -156,12 +158,10 @@ A8 = lc.incidence_matrix(eight).toarray().astype(int)
 print("edges:", [f"{i}→{j}" for i, j in zip(tails8, heads8)])
 print("incidence matrix A:\n", A8)
 
-
 def degrees(graph, c):
     """How many edges of the support of c meet each pose."""
     used = c != 0
     return np.bincount(np.concatenate([graph.tails[used], graph.heads[used]]), minlength=graph.n_poses)
-
 
 loop_a = np.array([1, 1, 1, 0, 0, 0, 1, 0, 0])        # 0→1→2→3→0
 loop_b = np.array([0, 0, 0, 1, 1, 1, 0, 1, 0])        # 3→4→5→6→3
@@ -172,6 +172,8 @@ for name, c in (("loop 0-1-2-3", loop_a), ("loop 3-4-5-6", loop_b), ("both loops
     print(f"{name:13s}: degrees {deg}, A c = {A8 @ c} → {kind}")
 check(np.all(A8 @ eight_cycle == 0) and degrees(eight, eight_cycle)[3] == 4 and np.all(degrees(eight, eight_cycle) % 2 == 0),
       "both loops together: every degree even, pose 3 has degree 4 — a cycle that is not a circuit")
+
+# %% tags=["remove-input"]
 check(all(set(degrees(eight, c)[degrees(eight, c) > 0]) == {2} and np.all(A8 @ c == 0) for c in (loop_a, loop_b)),
       "each loop alone is a circuit (every degree exactly 2) and A c = 0")
 
@@ -212,7 +214,6 @@ for row, k in zip(C8, tree8.chords):
     check(set(deg[deg > 0]) == {2} and np.all(A8 @ row == 0) and row[k] == 1 and np.all(row[tree8.chords[tree8.chords != k]] == 0),
           f"Definition 1: chord {tails8[k]}→{heads8[k]} + its tree path is a circuit, with no other chord")
 coef = eight_cycle[tree8.chords]
-check(np.array_equal(C8.T @ coef, eight_cycle), f"Theorem 2: the figure-eight cycle = Σ (its chord entries {coef}) × circuits")
 check(C8.shape[0] == lc.cyclomatic_number(eight) == eight.n_edges - (eight.n_poses - 1),
       f"Corollary 1: l = m − n = {eight.n_edges} − {eight.n_poses - 1} = {C8.shape[0]}")
 
@@ -231,6 +232,9 @@ for ax, c, title in [(axes[0], eight_cycle, "a cycle (not a circuit)")] + \
     ax.margins(0.2)
 fig.tight_layout()
 show(fig, "circuits")
+
+# %% tags=["remove-input"]
+check(np.array_equal(C8.T @ coef, eight_cycle), f"Theorem 2: the figure-eight cycle = Σ (its chord entries {coef}) × circuits")
 
 # %% [markdown]
 # The same on larger graphs and every kind of tree, including a real one: the rows are circuits,
@@ -301,15 +305,16 @@ for name, gr, kinds in CASES:
 #
 # $$ C(\delta + v) = 0 \iff Cv = -C\delta . \tag{22}$$
 #
-# **Theorem 3** (existence of correction factors). *For any relative orientation measurements $\delta$ there
-# is a correction $v$ such that $\delta + v$ satisfies the zero-sum property.* Proof: by eq. (19), in the
+# **Theorem 3** (existence of correction factors), which the paper states "under the assumption of noiseless
+# angular measurements". *Given the relative orientation measurements $\delta$, there is a correction $v$
+# such that $\delta + v$ satisfies the zero-sum property.* Proof: by eq. (19), in the
 # order [chords, tree edges], the correction of eq. (23) solves eq. (22):
 #
 # $$ v = \begin{bmatrix} -C\delta\\ 0_n\end{bmatrix}\quad\Longrightarrow\quad Cv = [I_l\ B]\begin{bmatrix} -C\delta\\ 0_n\end{bmatrix} = -C\delta . \tag{23}$$
 #
-# Only the chords are corrected. For exact measurements $C\delta\in 2\pi\mathbb Z^l$ (the $2\pi$-multiple
-# property), so $v$ consists of multiples of $2\pi$ and does not change what the measurements say. With
-# noise $C\delta$ is only close to multiples of $2\pi$, and the paper rounds: $v_c = 2\pi k_c$,
+# Only the chords are corrected. The noiseless assumption is what makes $v$ harmless: then $C\delta\in
+# 2\pi\mathbb Z^l$ (the $2\pi$-multiple property), so $v$ consists of multiples of $2\pi$ and does not change
+# what the measurements say. With noise $C\delta$ is only close to multiples of $2\pi$, and the paper rounds: $v_c = 2\pi k_c$,
 # $k_c = -\operatorname{round}((C\delta)_c/2\pi)$, so that $(C\delta_{\rm reg})_c\in(-\pi,\pi]$; the rest is noise,
 # which phase 1 averages. `lago_cvx.regularization.regularize(graph, tree)` (the `"tree"` regularizer)
 # does exactly this, computing $C\delta$ through tree path sums without forming $C$.
@@ -328,20 +333,20 @@ check(np.abs(C @ v + C @ gn.delta).max() < 1e-9, "eq. (23) solves eq. (22): C v 
 check(np.abs(C @ (gn.delta + v)).max() < 1e-9 and np.abs(v / TWO_PI - np.rint(v / TWO_PI)).max() < 1e-9,
       "Theorem 3: δ + v has the zero-sum property (21), v = 2πk on the chords only")
 reg = regularize(gn, tree)
+
+# %% tags=["remove-input"]
 check(np.allclose(reg.delta_reg, gn.delta + v, atol=1e-9) and np.all(reg.k[tree.tree_edges] == 0),
       "regularize(graph, tree) returns the same δ_reg")
 
 # %% [markdown]
-# **Eq. (22) has many solutions, and phase 1 picks one.** The correction of eq. (23) puts each circuit's
-# whole residual on its chord. Another solution spreads it over all edges, weighted by their
-# certainty: the smallest weighted correction,
+# **Eq. (22) has many solutions, and phase 1 picks one.** Eq. (23) puts each circuit's whole residual on its
+# chord. Another solution spreads it over all edges, weighted by certainty: the smallest weighted correction,
 #
 # $$ \min_v\ \lVert P_\delta^{-1/2} v\rVert^2 \quad\text{subject to}\quad Cv = -C\delta .$$
 #
 # Since $\{x: Cx = 0\}$ is exactly the set of orientation differences $A^\top\theta$, this is phase 1 in
-# disguise: $\delta + v^\star = A^\top\hat\theta$. So the two steps divide the work: regularization removes the
-# integer part of $C\delta$ (multiples of $2\pi$, chords only, eq. (23)), phase 1 removes the noise (a real
-# correction, all edges). The multipliers $\nu$ of the $l$ constraints are one per fundamental circuit — the
+# disguise: $\delta + v^\star = A^\top\hat\theta$: regularization removes the integer part of $C\delta$ (chords
+# only, eq. (23)), phase 1 the noise (all edges). The multipliers $\nu$ of the $l$ constraints are one per fundamental circuit — the
 # "tension" of each loop, $\nu = 2(CP_\delta C^\top)^{-1}C\delta$. For correctly regularized measurements the
 # weighted size of $v^\star$ is the phase-1 residual, a $\chi^2$ with $l$ degrees of freedom: about $l$. We solve it
 # with $C\delta$ a parameter, first for the regularized and then for the raw measurements of a noisy winding
@@ -374,12 +379,8 @@ ph1 = P.phase1_closed_form(gq, regq.delta_reg, uq)
 diffs = lc.reduced_incidence(gq).T @ ph1.theta_free
 e_ph1 = np.abs(regq.delta_reg + v_reg - diffs).max()
 nu_formula = 2 * np.linalg.solve(Cq @ np.diag(uq.var_delta) @ Cq.T, Cq @ regq.delta_reg)
-check(e_ph1 < 1e-8, f"δ_reg + v* = Aᵀθ̂ of phase 1 ({e_ph1:.1e})")
 check(np.allclose(np.abs(nu_reg), np.abs(nu_formula), rtol=1e-6, atol=1e-9 * np.abs(nu_formula).max()),
       "|ν| = |2 (C P_δ Cᵀ)⁻¹ C δ_reg|: one tension per fundamental circuit")
-check(out["δ_reg"][2] < 2 * Cq.shape[0] and out["raw δ"][2] > 10 * out["δ_reg"][2],
-      f"after regularization the correction is noise-sized (weighted size {out['δ_reg'][2]:.0f}, about l); "
-      f"without it {out['raw δ'][2] / out['δ_reg'][2]:.0f}× larger")
 
 fig, axes = plt.subplots(1, 2, figsize=(12, 3.8))
 axes[0].hist(Cq @ gq.delta / TWO_PI, bins=60, color="tab:red")
@@ -392,6 +393,12 @@ for ax in axes:
 fig.suptitle(f"noisy circle world, 4 laps, {Cq.shape[0]} fundamental circuits of the odometric tree")
 fig.tight_layout()
 show(fig, "circuit_sums")
+
+# %% tags=["remove-input"]
+check(e_ph1 < 1e-8, f"δ_reg + v* = Aᵀθ̂ of phase 1 ({e_ph1:.1e})")
+check(out["δ_reg"][2] < 2 * Cq.shape[0] and out["raw δ"][2] > 10 * out["δ_reg"][2],
+      f"after regularization the correction is noise-sized (weighted size {out['δ_reg'][2]:.0f}, about l); "
+      f"without it {out['raw δ'][2] / out['δ_reg'][2]:.0f}× larger")
 check(np.abs(Cq @ regq.delta_reg).max() < np.pi, f"after rounding every circuit sum lies in (−π, π] "
       f"(largest {np.abs(Cq @ regq.delta_reg).max():.3f} rad)")
 
@@ -422,6 +429,8 @@ for name, gr in [("circle 120 poses, 4 laps", g4), ("Manhattan 300 poses", CASES
 
 reg4 = regularize(g4, lc.spanning_tree(g4, "odometry"))             # the 4-lap circle of section 1
 turns = np.rint((w4.truth[g4.heads, 2] - w4.truth[g4.tails, 2] - g4.delta) / TWO_PI).astype(int)
+
+# %% tags=["remove-input"]
 check(np.array_equal(reg4.k, turns) and np.all(reg4.k[g4.is_odometric] == 0),
       f"4-lap circle: k = number of full turns between the two poses, on loop closures only "
       f"(k ∈ {sorted(set(reg4.k[~g4.is_odometric].tolist()))})")
@@ -436,8 +445,7 @@ check(np.array_equal(reg4.k, turns) and np.all(reg4.k[g4.is_odometric] == 0),
 # $$ k_c = k^{\rm true}_c \iff (C\nu)_c \in (-\pi, \pi] :$$
 #
 # the rounding is right exactly when the noise accumulated around the chord's fundamental circuit stays
-# below $\pi$ (because $(C\delta)_c = (C\nu)_c - 2\pi k_c^{\rm true}$). Long circuits accumulate more noise. The
-# odometric tree of Proposition 2 makes circuits as long as the trajectory between two visits; a
+# below $\pi$ (as $(C\delta)_c = (C\nu)_c - 2\pi k_c^{\rm true}$); long circuits accumulate more. The odometric tree of Proposition 2 makes circuits as long as the trajectory between two visits; a
 # breadth-first tree (`"bfs"`, the package's default tree) keeps them short. We sweep the rotation noise on
 # Manhattan worlds and count wrong circuits; the package also reports chords whose residual lies within a
 # margin (`lago_cvx.rounding.AMBIGUITY_MARGIN`) of $\pm\pi$ as `ambiguous` (a warning, not a detector).
@@ -482,11 +490,13 @@ print(f"{'σ_θ':>5s} " + " ".join(f"{k + ': wrong':>16s}" for k in wrong) + " "
 for i, sig in enumerate(SIGMAS):
     print(f"{sig:5.2f} " + " ".join(f"{wrong[k][i]:16.1f}" for k in wrong) + " " +
           " ".join(f"{ambiguous[k][i]:20.1f}" for k in TREES))
-check(margin_ok, f"circuit noise margin: k wrong ⇔ |C ν| > π, verified on {verified} chords")
 check(all(wrong[k][0] == 0 for k in wrong), f"σ_θ = {SIGMAS[0]}: every k right with every regularizer")
+first_bad = {k: next((s for s, x in zip(SIGMAS, wrong[k]) if x > 0), np.inf) for k in wrong}
+
+# %% tags=["remove-input"]
+check(margin_ok, f"circuit noise margin: k wrong ⇔ |C ν| > π, verified on {verified} chords")
 check(all(b <= o for b, o in zip(wrong["bfs"], wrong["odometry"])),
       "the BFS tree's short circuits are never worse than the odometric tree's")
-first_bad = {k: next((s for s, x in zip(SIGMAS, wrong[k]) if x > 0), np.inf) for k in wrong}
 check(first_bad["odometry"] <= first_bad["bfs"] < first_bad["chordal"] < np.inf,
       f"first noise level with a wrong circuit: odometric {first_bad['odometry']}, BFS {first_bad['bfs']}, "
       f"chordal {first_bad['chordal']}")
@@ -519,9 +529,8 @@ show(fig, "noise_margin")
 # $r_i = (\cos\theta_i, \sin\theta_i)$, the measurement $r_j = R(\delta_e) r_i$ linear in them, $\lVert r_i\rVert = 1$
 # dropped, a sparse least squares (`regularization.chordal.chordal_problem` in cvxpy, `chordal_closed_form`)
 # — and rounds every edge against that estimate. $\delta$ enters the relaxation only through $\cos\delta$ and
-# $\sin\delta$, so the relaxation itself does not care how the measurements were wrapped, and no noise is
-# accumulated along a tree path. Section 7's sweep already shows it keeps the right $k$ to a larger noise
-# level than either tree — but not at any noise level.
+# $\sin\delta$: it ignores how the measurements were wrapped and accumulates no noise along a tree path.
+# Section 7's sweep shows it keeps the right $k$ to a larger noise level than either tree — not to any.
 #
 # **Real data: M3500a** (`carlone/input_M3500a_g2o.g2o`, the M3500 world with extra rotation noise). No
 # ground truth: we compare χ² with the reference minimum and count the circuits on which two
@@ -562,20 +571,15 @@ if m3500a is not None:
     show(fig, "m3500a")
 
 # %% [markdown]
-# The `ambiguous` list is a warning, not a detector: a chord whose $k$ is wrong can have any residual in
-# $(-\pi,\pi]$, so the circuits on which the corrections disagree outnumber the flagged chords.
+# The `ambiguous` list is a warning, not a detector: a wrong $k$ can leave any residual in $(-\pi,\pi]$.
 #
 # ## 9. The regularization steps of Section V and Table I
 #
-# The regularization steps (Section V): the paper's experiment solves SLAM from real data in three steps:
-# (1) extract the odometric and loop-closing constraints from the sensor data — here they come in the file; (2) **regularize** the
-# orientation measurements, with the cycle basis $C$ of the odometric tree and the correction
-# $v = [-(C\delta)^\top\ 0^\top]^\top$ of eq. (23), rounded; (3) run the three phases. Table I lists, for the
-# Intel Research Lab dataset, the number of nodes, odometric constraints, loop-closing constraints, and
-# loop closures that needed a correction $2k\pi$, $k\neq 0$.
-#
-# `carlone/INTEL_P_toro.graph` is that graph. Table I (Intel Research Lab): 1228 nodes, 1227 odometric
-# constraints, 278 loop closing constraints, 198 chords needing regularization — computed below.
+# The regularization steps (Section V): (1) extract the odometric and loop-closing constraints — here they
+# come in the file; (2) **regularize** the orientations with the cycle basis $C$ of the odometric tree and the
+# correction $v = [-(C\delta)^\top\ 0^\top]^\top$ of eq. (23), rounded; (3) run the three phases. Table I
+# (Intel Research Lab, `carlone/INTEL_P_toro.graph`): 1228 nodes, 1227 odometric constraints, 278 loop
+# closing constraints, 198 chords needing a correction $2k\pi$, $k\neq 0$ — computed below.
 
 # %%
 TABLE_I = {"nodes": 1228, "odometric constraints": 1227, "loop closing constraints": 278,
@@ -588,7 +592,6 @@ if intel is not None:
     print(f"{'Table I':32s} {'paper':>6s} {'computed':>9s}")
     for key, value in TABLE_I.items():
         print(f"{key:32s} {value:6d} {computed[key]:9d}")
-    check(computed == TABLE_I, "Table I reproduced on INTEL_P_toro with the odometric tree")
     check(np.all(steps.regularization.k[intel.is_odometric] == 0) and steps.tree.kind == "odometry",
           "the corrections sit on loop closures only (Corollary 3)")
     bfs_reg = regularize(intel, lc.spanning_tree(intel, "bfs"))
@@ -596,6 +599,10 @@ if intel is not None:
                                     @ (steps.regularization.delta_reg - bfs_reg.delta_reg) / TWO_PI))
     print(f"with the BFS tree {bfs_reg.n_regularized} chords need a correction instead; the two corrections "
           f"disagree on {same} circuits")
+
+# %% tags=["remove-input"]
+if intel is not None:
+    check(computed == TABLE_I, "Table I reproduced on INTEL_P_toro with the odometric tree")
     check(same == 0, "on INTEL the two trees' corrections are equivalent: the count depends on the tree, "
           "the regularized graph does not")
 
@@ -606,19 +613,38 @@ if intel is not None:
 # of $T$ of its chord entries times the fundamental circuits — hence that the fundamental circuits span the
 # cycle space (Theorem 2). Then check it: express every fundamental circuit of the BFS tree of a
 # Manhattan world in the basis of the odometric tree, i.e. verify $C_{\rm bfs} = C_{\rm bfs}[:, \text{odometric
-# chords}]\; C_{\rm odo}$. Solution: `solutions/05_regularization_ex1.py`.
+# chords}]\; C_{\rm odo}$.
 #
+# **Hint.** Subtract from $c$ the combination of fundamental circuits weighted by its chord entries: what is left
+# lives on the tree and has $Ac = 0$.
+
+# %%
+# your solution here
+
+# %% [markdown]
+# ````{dropdown} Solution
+# ```{literalinclude} solutions/05_regularization_ex1.py
+# :language: python
+# ```
+# ````
+
+# %% [markdown]
 # ## Exercise 2 — The paper's regularization from scratch
 #
 # *Implement.* Without `regularize`: integrate $\delta$ along a spanning tree from pose 0 (walk the tree in
 # breadth-first order), compute each chord's circuit sum $(C\delta)_c = \delta_c - (\theta_j - \theta_i)$, round to
 # $k_c$ with residuals in $(-\pi, \pi]$, and form $\delta_{\rm reg}$. Check that your $k$ equals the package's on a
 # synthetic world and, with the datasets, that the odometric tree of INTEL gives Table I's count.
-# Solution: `solutions/05_regularization_ex2.py`.
 #
-# ## Exercise 3 — How much noise can each regularizer take?
-#
-# *Explore.* On Manhattan worlds of 500 poses, find for the odometric tree, the BFS tree and the chordal
-# regularizer the smallest rotation noise $\sigma_\theta$ at which a fundamental circuit gets a wrong $k$, and
-# what that does to χ² relative to LAGO with the true integers. Solution:
-# `solutions/05_regularization_ex3.py`.
+# **Hint.** In breadth-first order a tree edge $i\to j$ is reached from one end: $\theta_j = \theta_i + \delta_k$
+# (or $\theta_i = \theta_j - \delta_k$ when reversed).
+
+# %%
+# your solution here
+
+# %% [markdown]
+# ````{dropdown} Solution
+# ```{literalinclude} solutions/05_regularization_ex2.py
+# :language: python
+# ```
+# ````

@@ -1,12 +1,19 @@
 # %% [markdown]
 # # Lecture 6 — The experiment: Section V on the Intel Research Lab graph
 #
-# The paper (Carlone, Aragues, Castellanos, Bona, *A Linear Approximation for Graph-based Simultaneous
-# Localization and Mapping*, RSS 2011) validates LAGO on one real graph, the Intel Research Lab data set,
-# with two tables (Table I, Table II) and three figures (Fig. 1–3). This lecture re-runs that experiment
-# with `lago_cvx` on `carlone/INTEL_P_toro.graph`, the Intel graph in TORO format, and then asks the
-# question the abstract answers — is the linear estimate accurate enough that refinement is often
-# unnecessary? — on every benchmark graph at hand.
+# The paper {cite}`carlone2011rss` validates LAGO on one real graph, the Intel Research Lab data set, with
+# two tables (Table I, Table II) and three figures (Fig. 1–3). This lecture re-runs that experiment with
+# `lago_cvx` on `carlone/INTEL_P_toro.graph`, the Intel graph in TORO format; runs Table II's two
+# covariance scenarios on a world with known truth; and then asks the question the abstract answers — is
+# the linear estimate accurate enough that refinement is often unnecessary? — on every benchmark graph at
+# hand.
+#
+# **The idea in one paragraph.** A robot drives around an office floor; odometry corrected by scan matching
+# gives a trajectory that is right locally and drifts globally, and loop closures say where it came back to
+# a place it had seen (Fig. 1, section 3). LAGO turns those measurements into a map in closed form, scored
+# by the relations it predicts against true ones (Table II, which needs a truth) or by the χ² it leaves. The
+# paper's scores say that the way each measurement's uncertainty is stated matters as much as the method.
+# Below: INTEL's dead reckoning and the paper's LAGO, each against the minimum of χ² (grey).
 #
 # **Learning goals.** After this lecture you can
 #
@@ -23,12 +30,12 @@
 # the grid of the space the robot's footprint swept instead). TORO, the iterative solver of Table II and
 # Fig. 3, is a separate C++ program that is not part of this package, and the ground-truth relations of the
 # benchmark behind Table II are not available; sections 5–6 compute the same metric on a synthetic world
-# whose truth is known, against the package's Gauss–Newton and Levenberg–Marquardt solvers.
+# whose truth is known and whose uncertainty follows the paper's proportional rule, with the package's
+# Gauss–Newton standing in for TORO, and print the paper's values beside ours.
 #
-# **Cost.** Every χ² below is the cost of eq. (3) (the full SLAM cost), in the g2o convention
-# $\chi^2 = \sum_{ij} e_{ij}^\top \Omega_{ij} e_{ij}$, no factor ½ (`lago_cvx.metrics.chi2`).
-# **Notation.** $n+1$ poses $p_0 \dots p_n$ (`graph.n_poses` $= n+1$), $m$ edges, $A$ the incidence matrix
-# ($(n+1)\times m$), $\delta$ the relative orientations, $P_\delta$ their variances.
+# **Notation.** χ² is the cost of eq. (3), $\sum_{ij} e_{ij}^\top \Omega_{ij} e_{ij}$, no factor ½
+# (`lago_cvx.metrics.chi2`); $n+1$ poses, $m$ edges, $A$ the $(n+1)\times m$ incidence matrix, $\delta$ the
+# relative orientations, $P_\delta$ their variances.
 
 # %%
 import cvxpy as cp
@@ -37,16 +44,20 @@ import numpy as np
 from dataclasses import replace
 
 import lago_cvx as lc
-from _lecture import FULL, check, real, setup, show
-from lago_cvx import peers, phases, plotting
+from _lecture import FULL, check, intuition_figure, real, section_v_world, setup, show
+from lago_cvx import phases, plotting
 from lago_cvx.datasets import DATASET_FILES, REFERENCE_CHI2
 from lago_cvx.posegraph import between, wrap_angle
 from lago_cvx.solvers import solve
-from lago_cvx.theorem1 import theorem1
+from lago_cvx.positions import resolve_positions
+from lago_cvx.theorem1 import frozen_and_model, theorem1
 from lago_cvx.uncertainty import edge_uncertainty
 
 setup("06_experiment")
 INTEL = real("carlone/INTEL_P_toro.graph")
+
+# %% tags=["remove-input"]
+show(intuition_figure("06"), "intuition")
 
 # %% [markdown]
 # ## 1. Table I — the Intel graph and its regularization
@@ -81,7 +92,6 @@ if INTEL is not None:
     print(f"{'Table I (INTEL)':32s} {'paper':>7s} {'computed':>9s}")
     for key in TABLE_I:
         print(f"{key:32s} {TABLE_I[key]:7d} {ours[key]:9d}")
-    check(ours == TABLE_I, "Table I reproduced: 1228 nodes, 1227 odometric, 278 loop closures, 198 chords with k ≠ 0")
     check(np.array_equal(np.sort(tree.tree_edges), np.flatnonzero(g.is_odometric)),
           "Proposition 2: the odometric edges are a spanning tree")
     check(np.array_equal(tree.chords, np.flatnonzero(~g.is_odometric)),
@@ -95,8 +105,6 @@ if INTEL is not None:
     bfs = lc.lago(g, route="seed", spanning_tree="bfs")
     print(f"the count depends on the tree: with a breadth-first tree only {bfs.regularization.n_regularized} "
           f"of {bfs.tree.n_chords} chords need k ≠ 0")
-    check(bfs.regularization.n_regularized < 198 and abs(bfs.chi2 - paper.chi2) < 1e-8 * paper.chi2,
-          "…but the estimate does not: same χ² with either tree")
 
     fig, ax = plt.subplots(figsize=(7, 3.2))
     ax.hist(r / (2 * np.pi), bins=np.arange(r.min() / (2 * np.pi) - 0.5, r.max() / (2 * np.pi) + 0.5, 0.05),
@@ -105,20 +113,25 @@ if INTEL is not None:
            title="INTEL, odometric tree: cycle residuals cluster at whole turns")
     show(fig, "cycle_residuals")
 
+# %% tags=["remove-input"]
+if INTEL is not None:
+    check(ours == TABLE_I, "Table I reproduced: 1228 nodes, 1227 odometric, 278 loop closures, 198 chords with k ≠ 0")
+    check(bfs.regularization.n_regularized < 198 and abs(bfs.chi2 - paper.chi2) < 1e-8 * paper.chi2,
+          "…but the estimate does not: same χ² with either tree")
+
 # %% [markdown]
 # All four numbers of Table I come out exactly, and the histogram shows why the rounding is safe on this
 # graph: the cycle residuals cluster at whole numbers of turns (the robot's turns between the two ends of a
 # loop closure), and none comes within the ambiguity margin of a half turn, where rounding would have to
-# guess. The last number of Table I is a property of the
-# tree, not of the data: a breadth-first tree has shorter paths that accumulate fewer turns, fewer chords
-# need a correction, and the regularized orientations differ from the odometric tree's only by whole turns
-# per pose — the estimate is the same.
+# guess. The last number of Table I is a property of the tree, not of the data: a breadth-first tree has
+# shorter paths that accumulate fewer turns, fewer chords need a correction, and the regularized
+# orientations differ from the odometric tree's only by whole turns per pose — the estimate is the same.
 #
 # ## 2. Why step (ii) matters: phase 1 as a cvxpy problem
 #
 # Phase 1, eq. (13), is the weighted least-squares problem $\min_\theta \|P_\delta^{-1/2}(A^\top\theta -
 # \delta)\|^2$ with the reference orientation fixed, $\theta_0 = 0$ (the paper deletes row 0 of $A$; here we
-# keep all $n+1$ orientations and add the constraint, which lets us read its multiplier). Built from named
+# keep all $n+1$ orientations and add the constraint). Built from named
 # parameters, cvxpy prints the equation back:
 
 # %%
@@ -136,18 +149,12 @@ if INTEL is not None:
     status = solve(phase1)
     theta_reg, cost_reg = theta.value.copy(), phase1.value
     err = np.abs(theta_reg - paper.phase1.theta).max()
+
+# %% tags=["remove-input"]
+if INTEL is not None:
     check(status == "optimal" and err < 1e-8, f"cvxpy ({status}) = the closed form of eq. (13): max |Δθ| = {err:.1e} rad")
-    scale = np.abs(w.value**2 * (A.T @ theta_reg - delta.value)).max()
-    check(abs(reference.dual_value) < 1e-6 * scale,
-          f"the multiplier of θ₀ = 0 vanishes ({float(reference.dual_value):.1e}, against edge forces up to "
-          f"{scale:.1e}): one reference pose only fixes the frame")
 
 # %% [markdown]
-# The multiplier of $\theta_0 = 0$ is the "force" the data exert on the reference pose. It is zero because
-# every column of $A$ sums to zero ($\mathbf 1^\top A = 0$): the gradients of all poses add up to zero,
-# stationarity makes the free ones zero, so the reference's is zero too — a single reference pose removes
-# the rotation gauge and nothing else (lecture 7 anchors several poses, where the forces are not zero).
-#
 # Now the point of step (ii). Change the parameter to the raw measurements — no rebuild, just `.value` —
 # and solve again: without the corrections $2\pi k$, the loop closures contradict the odometry by whole
 # turns, which phase 1 cannot tell from noise, and spreads over the trajectory.
@@ -162,8 +169,6 @@ if INTEL is not None:
     ph2 = phases.phase2(g, theta_raw, unc, information="marginal", delta_reg=g.delta)
     raw_poses = phases.phase3_closed_form(g, ph2).poses    # phases 2–3 on the unregularized orientations
     print(f"χ² of the three phases: regularized {paper.chi2:.4g}, raw {lc.chi2(g, raw_poses):.4g}")
-    check(cost_raw > 100 * cost_reg and lc.chi2(g, raw_poses) > 100 * paper.chi2,
-          "without regularization phase 1 fits whole turns as noise: the result is meaningless")
 
     fig, axs = plt.subplots(1, 2, figsize=(11, 5))
     for ax, poses, title in ((axs[0], paper.poses, "with the 2kπ corrections (Theorem 3)"),
@@ -173,21 +178,23 @@ if INTEL is not None:
     fig.suptitle("INTEL: the three phases with and without step (ii)")
     show(fig, "regularization_matters")
 
+# %% tags=["remove-input"]
+if INTEL is not None:
+    check(cost_raw > 100 * cost_reg and lc.chi2(g, raw_poses) > 100 * paper.chi2,
+          "without regularization phase 1 fits whole turns as noise: the result is meaningless")
+
 # %% [markdown]
 # ## 3. Fig. 1 — the odometric trajectory with the loop closures
 #
 # Fig. 1 shows the odometric trajectory (wheel odometry corrected by scan matching: the file's odometric
-# edges) and, dotted, the loop closures between the poses it puts them at. The trajectory is dead
-# reckoning, the odometric measurements composed by eq. (1) from $p_0$ (`lc.odometry_guess`, along the
-# odometric tree); it is also what the file's vertex lines hold.
+# edges) and, dotted, the loop closures. The trajectory is dead reckoning, the odometric measurements
+# composed by eq. (1) from $p_0$ (`lc.odometry_guess`); it is also what the file's vertex lines hold.
 
 # %%
 if INTEL is not None:
     odo = lc.odometry_guess(g, spanning_tree="odometry")   # dead reckoning along the odometric tree
     dxy = np.abs(odo[:, :2] - g.initial[:, :2]).max()
     dth = np.abs(wrap_angle(odo[:, 2] - g.initial[:, 2])).max()
-    check(dxy < 1e-5 and dth < 1e-5, f"dead reckoning = the file's vertices to their 6 printed decimals "
-          f"({dxy:.1e} m, {dth:.1e} rad)")
     fig, ax = plt.subplots(figsize=(7, 7))
     plotting.plot_trajectory(ax, odo, color="tab:blue", linewidth=0.9, label=f"odometric trajectory ({g.n_poses} poses)")
     odo_lc = np.flatnonzero(~g.is_odometric)
@@ -199,16 +206,20 @@ if INTEL is not None:
     ax.legend(loc="lower left")
     show(fig, "fig1")
 
+# %% tags=["remove-input"]
+if INTEL is not None:
+    check(dxy < 1e-5 and dth < 1e-5, f"dead reckoning = the file's vertices to their 6 printed decimals "
+          f"({dxy:.1e} m, {dth:.1e} rad)")
+
 # %% [markdown]
-# Scan matching keeps the trajectory locally consistent, but the drift accumulates: the loop closures,
-# which join places the robot visited twice, are long segments across the map.
+# Scan matching keeps the trajectory locally consistent, but the drift accumulates: the loop closures, which
+# join places visited twice, are long segments across the map.
 #
 # ## 4. Fig. 2 — (a) the estimated configuration, (b) the swept-footprint grid
 #
-# **(a)** is the estimate of the three-phase procedure. We draw the paper's procedure and, beside it, the
-# package's default route (breadth-first tree, chordal regularization, full information, positions
-# re-solved — beyond the paper, README "The default route") and the minimum of eq. (3) found by
-# Gauss–Newton.
+# **(a)** is the estimate of the three-phase procedure, drawn beside the package's default route (beyond the
+# paper: breadth-first tree, chordal regularization, full information, positions re-solved) and the minimum
+# of eq. (3) found by Gauss–Newton.
 #
 # **(b)** in the paper is the occupancy grid built by placing the laser scans at the estimated poses. The
 # graph file has **no laser scans**, so that map cannot be drawn. The closest honest substitute uses the
@@ -234,12 +245,9 @@ def swept_grid(poses, resolution=0.2, radius=0.3):
     grid[cells[:, 0], cells[:, 1]] = True
     return grid, lo, grid.sum() * resolution**2
 
-
 if INTEL is not None:
     default = lc.lago(g)
     optimum = lc.refine(g, default.poses)
-    check(optimum.converged and abs(optimum.chi2 - REFERENCE_CHI2["carlone/INTEL_P_toro.graph"]) < 1e-5 * optimum.chi2,
-          f"Gauss–Newton from LAGO reaches χ² = {optimum.chi2:.3f}, the lowest known for this file")
     fig, axs = plt.subplots(1, 3, figsize=(17, 5.8))
     for ax, poses, title in ((axs[0], paper.poses, f"(a) the paper's procedure, χ² = {paper.chi2:.0f}"),
                              (axs[1], default.poses, f"default route, χ² = {default.chi2:.1f}"),
@@ -262,6 +270,11 @@ if INTEL is not None:
     show(fig, "fig2b_substitute")
     areas["minimum"] = swept_grid(optimum.poses)[2]
     print({k: f"{v:.1f} m²" for k, v in areas.items()})
+
+# %% tags=["remove-input"]
+if INTEL is not None:
+    check(optimum.converged and abs(optimum.chi2 - REFERENCE_CHI2["carlone/INTEL_P_toro.graph"]) < 1e-5 * optimum.chi2,
+          f"Gauss–Newton from LAGO reaches χ² = {optimum.chi2:.3f}, the lowest known for this file")
     check(areas["the paper's procedure"] < 0.7 * areas["odometric trajectory"]
           and abs(areas["the paper's procedure"] - areas["minimum"]) < 0.05 * areas["minimum"],
           "LAGO's corridors overlap where the robot drove twice: its swept area is the minimum's (±5 %), "
@@ -271,20 +284,34 @@ if INTEL is not None:
 # At the scale of the map the paper's estimate is hard to tell from the minimum, and its swept area is the
 # minimum's. The χ² in the titles says otherwise; section 7 comes back to it.
 #
-# ## 5. Table II — the benchmark metric on a world with ground truth
+# ## 5. Table II — the paper's two scenarios on a world with ground truth
 #
 # Table II scores estimates with the SLAM benchmark metric of Kümmerle et al. (2009): over a set of
 # relations $(i,j)$ with known true relative pose $\delta^*_{ij}$, the estimate's relative pose
 # $\hat\delta_{ij} = \hat p_j \ominus \hat p_i$ (eq. (1)) is compared with it,
 # $$\varepsilon_t = \frac1N\sum_{(i,j)}\big\|\mathrm{trans}(\hat\delta_{ij}\ominus\delta^*_{ij})\big\|^2\ [\mathrm m^2],
 # \qquad \varepsilon_\theta = \frac1N\sum_{(i,j)}\mathrm{rot}(\hat\delta_{ij}\ominus\delta^*_{ij})^2\ [\mathrm{rad}^2].$$
-# For Intel the benchmark's relations are hand-checked scan alignments; that file is not available here,
-# and neither is TORO, the iterative solver the paper compares with. The substitute keeps the metric and
-# the question: on a synthetic Manhattan world (`lc.manhattan_world`) with ground truth, the relations
-# are the edges of the graph with their *true* relative poses, and the iterative solvers are the package's
-# Gauss–Newton and Levenberg–Marquardt on eq. (3), started from odometry, stopped after 1, 2, 5, 10 and all
-# iterations (`lc.refine(..., max_iterations=k)`). As in the paper, two covariance scenarios: the
-# generator's own $P_{ij} = \mathrm{diag}(P_{\Delta l,ij}, P_{\delta,ij})$, and $P_{ij} = I_3$.
+#
+# **The paper's two scenarios.** In one, $P_{ij} = I_3$ for every edge. In the other,
+# $P_{ij} = \mathrm{diag}(P_{\Delta l,ij}, P_{\delta,ij})$ with "the corresponding uncertainties […] assumed
+# to be proportional to the respective measurements, e.g. bigger displacements correspond to higher
+# uncertainty". The paper gives no constants; we take, per component of the measured relative pose,
+# $\sigma = 0.1\,|\Delta l_x| + 1\,\mathrm{mm}$ (and the same for $y$) and $\sigma_\delta = 0.05\,|\delta| +
+# 10^{-3}$ rad (`_lecture.section_v_world`): a floor keeps the information finite on edges that do not move
+# along an axis, as INTEL's file does (lecture 4b, section 2).
+#
+# **What replaces what is missing.** INTEL's benchmark relations (hand-checked scan alignments) are not
+# available: the world is a 500-pose Manhattan world, the relations its edges with their true relative poses. TORO is not available either. **Gauss–Newton on eq. (3), started from
+# odometry, stands in for it** — it is the "direct (iterative) method" of Remark 1, and it is the
+# package's own (`lc.refine`). It is not TORO: TORO does stochastic gradient descent on a tree
+# parametrization of the poses, takes hundreds of cheap steps, and is built to survive a poor initial
+# guess; Gauss–Newton takes a few expensive steps and can stop in a local minimum. The minimum of χ²
+# (Gauss–Newton from LAGO) is the best any iterative solver can reach.
+#
+# **Two worlds.** The paper's scenario as it is stated has noise that really is proportional to the
+# displacement; then the proportional $P$ is the *true* covariance (world A). But on real data nobody
+# knows the noise; the proportional $P$ may be only an assumption. World B draws isotropic noise
+# ($\sigma_{xy} = 2$ cm, $\sigma_\theta = 0.01$ rad) and keeps the same proportional rule for $P$.
 
 # %%
 def relation_errors(graph, poses, truth):
@@ -296,104 +323,153 @@ def relation_errors(graph, poses, truth):
     return float(np.mean(np.sum(d[:, :2] ** 2, 1))), float(np.mean(wrap_angle(d[:, 2]) ** 2))
 
 
-world = lc.manhattan_world(500, seed=1, sigma_xy=0.05, sigma_theta=0.02)
-truth = world.graph
-scenarios = {"P = diag(P_Δl, P_δ)": truth,
-             "P = I₃": replace(truth, information=np.broadcast_to(np.eye(3), truth.information.shape).copy())}
-STOPS = (1, 2, 5, 10)
-table, runs = {}, {}
-for name, gs in scenarios.items():
-    start = lc.odometry_guess(gs)
-    rows = {"odometry": start}
-    for method, short in (("gauss-newton", "GN"), ("levenberg-marquardt", "LM")):
-        full = lc.refine(gs, start, method=method, max_iterations=200)
-        check(full.converged, f"{name}: {short} from odometry converges ({len(full.log) - 1} iterations)")
+#: The paper's Table II (INTEL; ε_t [m²], ε_θ [rad²]) as far as its scan can be read: the scan prints one
+#: line of exponents (−3, −4, −4, −4) between the two TORO rows, read here as applying to both.
+PAPER_TABLE_II = {"TORO, 100 iterations": {"proportional": (2.60e-3, 2.30e-4), "P = I₃": (6.16e-4, 1.62e-4)},
+                  "TORO, 1000 iterations": {"proportional": (1.90e-3, 2.18e-4), "P = I₃": (5.83e-4, 1.62e-4)},
+                  "LAGO": {"proportional": (0.91e-2, 2.25e-4), "P = I₃": (3.36e-4, 2.00e-4)}}
+STOPS = (1, 10, 100)
+
+
+def table_ii(graph, truth):
+    """The rows of Table II for both scenarios of ``graph`` (its own P, then P = I₃)."""
+    table, runs = {}, {}
+    identity = np.broadcast_to(np.eye(3), graph.information.shape).copy()
+    for scenario, gs in (("proportional", graph), ("P = I₃", replace(graph, information=identity))):
+        start = lc.odometry_guess(gs)
+        rows = {"odometry": start}
         for stop in STOPS:
-            rows[f"{short}, {stop} it."] = lc.refine(gs, start, method=method, max_iterations=stop).poses
-        rows[f"{short}, all it."] = full.poses
-        runs[(name, short)] = full
-    rows["LAGO, the paper's procedure"] = lc.lago(gs, route="seed").poses
-    rows["LAGO, default route"] = lc.lago(gs).poses
-    table[name] = {row: relation_errors(world.graph, p, world.truth) for row, p in rows.items()}
+            rows[f"Gauss–Newton, {stop} it."] = lc.refine(gs, start, max_iterations=stop).poses
+        runs[scenario] = lc.refine(gs, start, max_iterations=1000)
+        rows["Gauss–Newton, converged"] = runs[scenario].poses
+        default = lc.lago(gs)
+        rows["minimum of χ² (from LAGO)"] = lc.refine(gs, default.poses).poses
+        rows["LAGO, the paper's procedure"] = lc.lago(gs, route="seed").poses
+        rows["LAGO, default route"] = default.poses
+        table[scenario] = {row: relation_errors(graph, p, truth) for row, p in rows.items()}
+    return table, runs
 
-names = list(table)
-print(f"Table II substitute: {world.graph.n_poses} poses, {world.graph.n_edges} relations "
-      f"(the edges, {world.graph.n_loop_closures} of them loop closures)")
-print(f"{'':30s}" + "".join(f"{n:>28s}" for n in names))
-print(f"{'':30s}" + "".join(f"{'ε_t [m²]':>14s}{'ε_θ [rad²]':>14s}" for _ in names))
-for row in table[names[0]]:
-    print(f"{row:30s}" + "".join(f"{table[n][row][0]:14.3e}{table[n][row][1]:14.3e}" for n in names))
+
+def print_table(title, table, runs):
+    print(f"{title}\n{'':36s}{'proportional P':>26s}{'P = I₃':>26s}")
+    print(f"{'':36s}" + f"{'ε_t [m²]':>13s}{'ε_θ [rad²]':>13s}" * 2)
+    for row in PAPER_TABLE_II:
+        print(f"{'paper: ' + row:36s}" + "".join(f"{v[0]:13.2e}{v[1]:13.2e}" for v in PAPER_TABLE_II[row].values()))
+    for row in table["proportional"]:
+        print(f"{row:36s}" + "".join(f"{table[s][row][0]:13.2e}{table[s][row][1]:13.2e}" for s in table))
+    print("Gauss–Newton converged after " + ", ".join(f"{r.iterations} iterations ({s})" for s, r in runs.items()))
+
+
+def compare(table):
+    """The paper's findings, each a ratio of two entries (row, scenario, column), in the paper and here; a
+    finding agrees when both ratios lie on the same side of 1 (within 2 % of 1: no difference)."""
+    it, lago, prop, iden = "Gauss–Newton, converged", "LAGO, the paper's procedure", "proportional", "P = I₃"
+    paper_row = {lago: "LAGO", it: "TORO, 1000 iterations"}
+    findings = [("P = I₃ lowers LAGO's ε_θ", (lago, prop, 1), (lago, iden, 1)),
+                ("P = I₃ lowers the iterative solver's ε_θ", (it, prop, 1), (it, iden, 1)),
+                ("LAGO's ε_t, proportional P / P = I₃", (lago, prop, 0), (lago, iden, 0)),
+                ("the iterative solver's ε_t, proportional P / P = I₃", (it, prop, 0), (it, iden, 0)),
+                ("proportional P: LAGO's ε_t / the iterative solver's", (lago, prop, 0), (it, prop, 0)),
+                ("P = I₃: LAGO's ε_t / the iterative solver's", (lago, iden, 0), (it, iden, 0))]
+    agree = {}
+    print(f"{'finding (iterative: TORO 1000 it. in the paper, converged Gauss–Newton here)':70s} {'paper':>7s} {'here':>7s}")
+    for name, (row, scn, col), (row2, scn2, col2) in findings:
+        p = PAPER_TABLE_II[paper_row[row]][scn][col] / PAPER_TABLE_II[paper_row[row2]][scn2][col2]
+        o = table[scn][row][col] / table[scn2][row2][col2]
+        side = [0 if abs(np.log(r)) < np.log(1.02) else np.sign(np.log(r)) for r in (p, o)]
+        agree[name] = side[0] == side[1]
+        print(f"{name:70s} {p:7.2f} {o:7.2f}  {'agrees' if agree[name] else 'DISAGREES'}{'' if side[1] else ' (≈ 1)'}")
+    return agree
+
+
+world_a, truth_a = section_v_world(noise="proportional")
+world_b, truth_b = section_v_world(noise="isotropic")
+print(f"{world_a.n_poses} poses, {world_a.n_edges} relations (the edges, {world_a.n_loop_closures} loop closures)")
+table_a, runs_a = table_ii(world_a, truth_a)
+table_b, runs_b = table_ii(world_b, truth_b)
+print_table("\nWorld A — noise proportional to the displacement (the proportional P is true)", table_a, runs_a)
+agree_a = compare(table_a)
+print_table("\nWorld B — isotropic noise, the proportional P assumed", table_b, runs_b)
+agree_b = compare(table_b)
+
+# %% tags=["remove-input"]
+a, b, L, G = table_a, table_b, "LAGO, the paper's procedure", "Gauss–Newton, converged"
+check(all(a["proportional"][r][c] < a["P = I₃"][r][c] for r in (L, G) for c in (0, 1)),
+      "world A: the true (proportional) P gives both methods a lower ε_t and ε_θ than P = I₃ — the paper found the opposite")
+check(all(agree_b[f] for f in list(agree_b)[:4]), "world B: P = I₃ lowers ε_t and ε_θ of both methods, as in the paper")
+check(all(abs(t[s][L][0] / t[s][G][0] - 1) < 0.05 for t in (a, b) for s in t),
+      "LAGO's ε_t is within 5 % of the converged iterative solver's in both worlds and both scenarios")
 
 # %% [markdown]
-# How to read it, with the checks below: on this world LAGO is not an approximation one pays for — its
-# relations are as accurate as those of the converged iterative solvers (both scenarios), while one
-# iteration from odometry is far worse and a few are needed to catch up. With $P = I_3$ every method is
-# worse in rotation, because the identity under-weights the precise orientation measurements. What the
-# substitute cannot say is how TORO's 100 and 1000 iterations compare: TORO is a different algorithm
-# (stochastic gradient descent on an incremental parametrization), which needs hundreds of iterations where
-# Gauss–Newton needs a handful.
-
-# %%
-for name in names:
-    t = table[name]
-    converged = t["GN, all it."]
-    for route in ("LAGO, the paper's procedure", "LAGO, default route"):
-        check(t[route][0] < 1.05 * converged[0] and t[route][1] < 1.05 * converged[1],
-              f"{name}: {route} is within 5 % of converged Gauss–Newton in ε_t and ε_θ "
-              f"({t[route][0] / converged[0]:.3f}, {t[route][1] / converged[1]:.3f})")
-    check(t["GN, 1 it."][0] > 10 * t["LAGO, the paper's procedure"][0],
-          f"{name}: one Gauss–Newton iteration from odometry is > 10× worse in ε_t")
-check(all(table["P = I₃"][row][1] > table["P = diag(P_Δl, P_δ)"][row][1] for row in table[names[0]] if row != "odometry"),
-      "P = I₃ costs every method rotation accuracy (ε_θ larger than with the true covariances)")
-
-# %% [markdown]
+# **World A, the scenario as stated.** Here the proportional $P$ is the true covariance, and it helps: with
+# it, both methods' $\varepsilon_\theta$ *and* $\varepsilon_t$ are lower than with $P = I_3$ — the **opposite**
+# of the paper on its four scenario findings, where $P = I_3$ did better. Gauss–Newton from odometry reaches
+# the minimum of χ², and LAGO's relations come within a few per cent of the minimum's.
+#
+# **World B, the proportional $P$ assumed but not true.** Now the paper's pattern across the scenarios
+# appears (the first four findings agree): $P = I_3$ lowers $\varepsilon_\theta$ of both methods about ten
+# times and $\varepsilon_t$ about three times. What does not appear is the paper's gap between the methods:
+# there LAGO loses $27\times$ in $\varepsilon_t$ to the proportional $P$ and TORO $3\times$; here LAGO and the
+# converged iterative solver end within 3 % of each other in every case (≈ 1: within 2 %). So Table II's
+# scenarios look like an *assumed* proportional $P$ — its $P = I_3$ doing better already suggests that
+# INTEL's real errors were not proportional to the displacements — but its large LAGO penalty is not
+# reproduced by these worlds, and where it comes from (TORO's 100 or 1000 iterations are not a converged
+# solver; INTEL's own information, lecture 4b) cannot be told from them.
+#
 # ## 6. Fig. 3 — errors versus iterations
 #
-# Fig. 3 plots, for the first scenario, (a) $\varepsilon_t$ and (b) $\varepsilon_\theta$ of the iterative
-# solver against its iterations (TORO, solid) and the level of the three-phase procedure (dashed). Here the
-# solid lines are Gauss–Newton and Levenberg–Marquardt from odometry. Gauss–Newton keeps no state between
-# iterations, so running it one iteration at a time from where it stopped is the same run; we check that
-# against the χ² log of the uninterrupted run. Levenberg–Marquardt carries its damping λ from one iteration to
-# the next, so its $k$-th point is a fresh run with `max_iterations=k`, a prefix of the full run (checked
-# the same way).
+# Fig. 3 of the paper plots, for the proportional scenario, (a) $\varepsilon_t$ and (b) $\varepsilon_\theta$ of
+# TORO over 0–1000 iterations (solid) against the level of the three-phase procedure (dashed); TORO ends
+# below LAGO's line in $\varepsilon_t$. Here the solid line is Gauss–Newton from odometry, the stand-in of
+# section 5, run one iteration at a time until it converges (Gauss–Newton keeps no state between
+# iterations, so this is the same run — checked against the χ² log of the uninterrupted run), on both
+# worlds. Gauss–Newton converges in well under 100 iterations: beyond that its line is flat, so 100
+# iterations show whether it crosses LAGO's line or not.
 
 # %%
-name = names[0]
-gs = scenarios[name]
-start = lc.odometry_guess(gs)
+HORIZON = 100
 curves = {}
-poses, gn_chi2 = start, [lc.chi2(gs, start)]
-curves["Gauss–Newton"] = [relation_errors(world.graph, poses, world.truth)]
-for _ in range(len(runs[(name, "GN")].log) - 1):
-    poses = lc.refine(gs, poses, max_iterations=1).poses
-    gn_chi2.append(lc.chi2(gs, poses))
-    curves["Gauss–Newton"].append(relation_errors(world.graph, poses, world.truth))
-check(np.allclose(gn_chi2, [e["chi2"] for e in runs[(name, "GN")].log], rtol=1e-9),
-      "one iteration at a time = the uninterrupted Gauss–Newton run (same χ² at every iteration)")
-lm_runs = [lc.refine(gs, start, method="levenberg-marquardt", max_iterations=k)
-           for k in range(len(runs[(name, "LM")].log))]
-check(np.allclose([r.chi2 for r in lm_runs], [e["chi2"] for e in runs[(name, "LM")].log], rtol=1e-9),
-      "Levenberg–Marquardt stopped after k trials = the first k trials of the full run")
-curves["Levenberg–Marquardt"] = [relation_errors(world.graph, r.poses, world.truth) for r in lm_runs]
+for label, (world, truth, runs) in {"world A (proportional noise)": (world_a, truth_a, runs_a),
+                                    "world B (isotropic noise)": (world_b, truth_b, runs_b)}.items():
+    poses = lc.odometry_guess(world)
+    chis, errs = [lc.chi2(world, poses)], [relation_errors(world, poses, truth)]
+    for _ in range(runs["proportional"].iterations):
+        poses = lc.refine(world, poses, max_iterations=1).poses
+        chis.append(lc.chi2(world, poses))
+        errs.append(relation_errors(world, poses, truth))
+    check(np.allclose(chis, [e["chi2"] for e in runs["proportional"].log], rtol=1e-9),
+          f"{label}: one iteration at a time = the uninterrupted Gauss–Newton run")
+    curves[label] = np.array(errs)
 
-fig, axs = plt.subplots(1, 2, figsize=(12, 4.2))
-for panel, (ax, label) in enumerate(zip(axs, ("(a) translation error squared ε_t [m²]",
-                                             "(b) angular error squared ε_θ [rad²]"))):
-    for (solver, values), color in zip(curves.items(), ("tab:blue", "tab:orange")):
-        ax.semilogy([v[panel] for v in values], "-o", ms=3, color=color, label=f"{solver} from odometry")
-    for route, style in (("LAGO, the paper's procedure", "--"), ("LAGO, default route", ":")):
-        ax.axhline(table[name][route][panel], color="k", linestyle=style, linewidth=1.0, label=route)
-    ax.set(xlabel="iterations", title=label)
-axs[0].legend(fontsize=8)
-fig.suptitle(f"Fig. 3 — errors versus iterations (synthetic world, {name})")
+fig, axs = plt.subplots(2, 2, figsize=(11, 7.5))
+for row, (label, errs) in enumerate(curves.items()):
+    table = table_a if row == 0 else table_b
+    for col, name in enumerate(("ε_t [m²]", "ε_θ [rad²]")):
+        ax = axs[row, col]
+        k = np.arange(errs.shape[0])
+        ax.semilogy(k, errs[:, col], "-o", ms=3, color="tab:blue", label="Gauss–Newton from odometry")
+        ax.semilogy([k[-1], HORIZON], [errs[-1, col]] * 2, ":", color="tab:blue", label="(converged: no change)")
+        for route, style in (("LAGO, the paper's procedure", "--"), ("LAGO, default route", "-.")):
+            ax.axhline(table["proportional"][route][col], color="k", linestyle=style, linewidth=1.0, label=route)
+        ax.set(xlabel="iterations", ylabel=name, title=f"{label}: {'(a)' if col == 0 else '(b)'} {name}",
+               xlim=(0, HORIZON))
+        ax.grid(True, which="both", alpha=0.3)
+axs[0, 0].legend(fontsize=8)
+fig.suptitle("Fig. 3 — errors versus iterations, proportional P (Gauss–Newton standing in for TORO)")
+fig.tight_layout()
 show(fig, "fig3")
-gn_reach = next(i for i, v in enumerate(curves["Gauss–Newton"]) if v[0] <= table[name]["LAGO, the paper's procedure"][0])
-print(f"Gauss–Newton from odometry first matches LAGO's ε_t after {gn_reach} iterations")
-check(gn_reach >= 2, "the iterative solver needs several iterations to reach the level LAGO gets in closed form")
+
+# %% tags=["remove-input"]
+for (label, errs), table in zip(curves.items(), (table_a, table_b)):
+    lago = table["proportional"]["LAGO, the paper's procedure"][0]
+    reach = next((i for i, v in enumerate(errs[:, 0]) if v <= lago), None)
+    check(reach is not None and reach >= 2 and errs[-1, 0] > 0.9 * lago, f"{label}: Gauss–Newton from odometry first "
+          f"reaches LAGO's ε_t after {reach} iterations, and ends at {errs[-1, 0] / lago:.3f} of it")
 
 # %% [markdown]
-# The shape is the paper's: the iterative solver starts at the odometry's error, falls, and levels off at the
-# dashed line, which the closed-form estimate reaches with no iterations at all.
+# In both worlds the solid line crosses LAGO's dashed line in $\varepsilon_t$ and ends just below it (the
+# ratios are printed above), where TORO in the paper ends almost five times below. In both, an iterative
+# solver needs iterations where LAGO needs none: one Gauss–Newton iteration from odometry is far worse.
 #
 # ## 7. The abstract's claim on every real graph
 #
@@ -460,14 +536,14 @@ if rows:
     check(all(r["it_lago"] <= 10 for r in rows.values()),
           "from LAGO Gauss–Newton reaches the minimum on every file within 10 iterations")
 if "carlone/INTEL_P_toro.graph" in rows:
-    check(round(rows["carlone/INTEL_P_toro.graph"]["paper"]) == 78,
+    check(rows["carlone/INTEL_P_toro.graph"]["paper"] > 50,
           f"INTEL: the paper's procedure leaves {rows['carlone/INTEL_P_toro.graph']['paper']:.1f}× the minimum")
 
 # %% [markdown]
 # So the claim needs its qualifier. With the paper's procedure it holds — within a few per cent of the
 # minimum — on some of these graphs (the list is printed) and fails on the others, by large factors: on
-# INTEL itself, the graph of Section V, the paper's procedure leaves about 78× the minimum χ² (checked
-# above). The failures have two causes, which the two diagnostic columns tell apart. Where chords are
+# INTEL itself, the graph of Section V, the paper's procedure leaves more than 50× the minimum χ² (the
+# factor is printed above). The failures have two causes, which the two diagnostic columns tell apart. Where chords are
 # ambiguous, the rounding of Theorem 3 along the odometric tree picks wrong integers and already
 # $\hat\rho$ is far off (lecture 8 takes this up). Where no chord is ambiguous — INTEL among them —
 # $\hat\rho$ is within a few per cent of the minimum and phase 3 itself makes it worse; the next section
@@ -479,90 +555,87 @@ if "carlone/INTEL_P_toro.graph" in rows:
 # Theorem 1 (the three phases approximate the solution of eq. (6); phase 3 is a local correction of the
 # sub-optimal estimate $\hat\rho = [\hat p; \hat\theta]$ "leading it towards a minimum") has two parts: the
 # identity $\rho^* = \hat\rho + $ the corrections of eqs. (16)–(17), and the claim that the correction lowers
-# the cost. Lecture 4 measures both with `lago_cvx.theorem1`; here is INTEL. $\hat p$ is eq. (14), the
-# positions that are best for phase 1's $\hat\theta$.
+# the cost. Lecture 4b measures both and explains the failure; here are INTEL's numbers for that
+# explanation. Phase 3 is the step from $\hat\rho$ ($\hat p$ of eq. (14)) that minimises the expansion of
+# eq. (18), whose translational weights are frozen at $\hat\theta$. With those weights the step works. Its orientations $\theta^*$ are good, too: with the
+# positions re-solved for them, $F(\theta^*)$, χ² is *lower* than at $\hat\theta$. They differ from the
+# optimum's orientations by an almost constant angle — the map turned about pose 0 as a near-rigid body. But
+# its positions $p^*$ were weighed in the frames of $\hat\theta$, and INTEL's information is stiff by eight
+# orders of magnitude across the direction of motion (lecture 4b, section 2: $\sigma = 0.1\lVert\Delta^l\rVert$
+# with a floor of 0.1 mm there, against 0.3 m along it). That is the paper's proportional scenario in one
+# direction only, and it is exactly where frozen weights fail.
 
 # %%
 if INTEL is not None:
     t1 = theorem1(g, route="seed")
     ref = REFERENCE_CHI2["carlone/INTEL_P_toro.graph"]
+    star = t1.poses(t1.x_star)
+    frozen, _ = frozen_and_model(t1.result, star)
+    F_hat = lc.chi2(g, resolve_positions(g, t1.result.phase1.theta, t1.result.uncertainty).poses)
+    turn = wrap_angle(star[1:, 2] - optimum.poses[1:, 2])
+    parts = {name: lc.chi2_parts(g, p) for name, p in (("phase 3 (ρ*)", star), ("minimum", optimum.poses))}
     print(f"identity ρ* = ρ̂ + corrections (eqs. (16)–(17)): relative error {t1.identity_error:.1e}")
-    print(f"χ²(ρ̂) = {t1.chi2_suboptimal:9.2f}  ({t1.chi2_suboptimal / ref:.3f}× the minimum): θ̂ of phase 1, p̂ of eq. (14)")
-    print(f"χ²(ρ*) = {t1.chi2_phase3:9.2f}  ({t1.chi2_phase3 / ref:.1f}× the minimum): phase 3")
-    print(f"positions re-solved for θ*: χ² = {t1.chi2_resolved:.2f}  ({t1.chi2_resolved / ref:.4f}× the minimum)")
-    check(t1.identity_error < 1e-9, "the identity of Theorem 1's proof holds")
-    check(t1.chi2_suboptimal < 1.05 * ref < t1.chi2_phase3 / 50,
-          "the claim does not: ρ̂ is within 5 % of the minimum, phase 3 moves it to more than 50×")
-    parts = {name: lc.chi2_parts(g, p) for name, p in (("the paper's procedure", paper.poses), ("minimum", optimum.poses))}
+    print(f"χ²(ρ̂) = {t1.chi2_suboptimal:.2f} ({t1.chi2_suboptimal / ref:.3f}× the minimum {ref:.2f}); χ²(ρ*) = "
+          f"{t1.chi2_phase3:.2f} ({t1.chi2_phase3 / ref:.1f}×); with the weights frozen at θ̂, χ²(ρ*) = {frozen:.2f}")
+    print(f"positions re-solved: F(θ̂) = {F_hat:.2f}, F(θ*) = {t1.chi2_resolved:.2f}")
+    print(f"θ* − θ_opt: mean {turn.mean():+.4f} rad, spread {turn.std():.4f} rad")
     for name, p in parts.items():
-        print(f"{name:22s} translation {p['translation']:9.1f}  rotation {p['rotation']:7.1f}")
-    info_t = g.information[:, 0, 0]
-    print(f"INTEL's translational information Ω_xx spans {info_t.min():.3g} … {info_t.max():.3g}")
-    check(info_t.max() / info_t.min() > 1e6 and 1 / np.sqrt(info_t.max()) < 1e-3,
-          f"more than six orders of magnitude; the most precise edges claim σ = {1e3 / np.sqrt(info_t.max()):.2f} mm")
-    check(abs(parts["the paper's procedure"]["rotation"] - parts["minimum"]["rotation"]) < 0.02 * parts["minimum"]["rotation"]
-          and parts["the paper's procedure"]["translation"] > 100 * parts["minimum"]["translation"],
-          "the excess is translational: the rotational part of χ² is the minimum's to 2 %")
-    check(t1.chi2_resolved < 1.01 * ref, "positions re-solved for phase 3's orientations: within 1 % of the minimum")
+        print(f"{name:14s} translational part of χ² {p['translation']:9.1f}, rotational {p['rotation']:7.1f}")
+
+# %% tags=["remove-input"]
+if INTEL is not None:
+    check(t1.identity_error < 1e-9, "the identity of Theorem 1's proof holds")
+    check(frozen < t1.chi2_suboptimal < 1.05 * ref < t1.chi2_phase3 / 50,
+          "ρ̂ is within 5 % of the minimum; the step lowers χ² with frozen weights and raises it above 50× with the true ones")
+    check(t1.chi2_resolved < F_hat and t1.chi2_resolved < 1.01 * ref,
+          "F(θ*) < F(θ̂), within 1 % of the minimum: the orientations of phase 3 are not what fails")
+    check(turn.std() < 0.1 * abs(turn.mean()), "θ* − θ_opt is a near-constant angle: a near-rigid turn")
+    check(parts["phase 3 (ρ*)"]["translation"] - parts["minimum"]["translation"] > 0.99 * (t1.chi2_phase3 - ref),
+          "the excess is in the positions: the translational part of χ²")
 
 # %% [markdown]
-# Phase 3 is one Gauss–Newton step of the linearization eq. (18) taken from $\hat\rho$, with nothing to
-# limit its length. INTEL's translational information spans more than six orders of magnitude (printed and
-# checked above; some edges claim sub-millimetre precision), so the position residuals that ordinary
-# orientation noise leaves at $\hat\rho$ dominate the step; the positions phase 3 returns are not the best
-# ones for its own orientations, and they carry the excess — the rotational part of χ² is the minimum's.
-# Re-solving the positions for the orientations, which is what the default route does, brings INTEL to
-# within 1 % of the minimum.
-#
-# ## 9. Side by side with GTSAM's LAGO
-#
-# GTSAM ships LAGO as `gtsam.lago.initialize` (`lago_cvx.peers.gtsam_lago`, optional extra). It follows the
-# paper's procedure along the odometric path, with diagonal noise models (each edge gets its marginal
-# standard deviations). We run it on INTEL, then on INTEL with isotropic translational noise
-# ($\sigma_x = \sigma_y$ per edge, same trace).
-
-# %%
-if INTEL is not None and peers.have_gtsam():
-    theirs, _ = peers.gtsam_lago(g, odometric_path=True)
-    print(f"INTEL: χ² GTSAM {lc.chi2(g, theirs):.4g}, the paper's procedure here {paper.chi2:.4g}")
-    cov = g.covariance
-    iso = np.zeros_like(g.information)
-    iso[:, 0, 0] = iso[:, 1, 1] = 2.0 / (cov[:, 0, 0] + cov[:, 1, 1])
-    iso[:, 2, 2] = 1.0 / cov[:, 2, 2]
-    g_iso = replace(g, information=iso)
-    a, b = lc.lago(g_iso, route="seed").chi2, lc.chi2(g_iso, peers.gtsam_lago(g_iso, odometric_path=True)[0])
-    print(f"isotropic INTEL: χ² here {a:.9g}, GTSAM {b:.9g}")
-    check(abs(a - b) < 1e-6 * b, "with isotropic translational noise the two implementations agree")
-    check(lc.chi2(g, theirs) > paper.chi2, "with INTEL's anisotropic noise they do not")
-elif INTEL is not None:
-    print("GTSAM is not installed (pip install 'lago-cvx[gtsam]'): skipping the comparison")
+# Re-solving the positions for the orientations of phase 3, which is what the default route does, brings
+# INTEL to within 1 % of the minimum.
 
 # %% [markdown]
-# With isotropic noise the two are the same estimate. With INTEL's anisotropic noise they differ, and
-# reading GTSAM's source (`computePoses` in `gtsam/slam/lago.cpp`) shows where: its final linear solve
-# writes each relative position in the global frame, $R(\hat\theta_i)\Delta l_{ij}$, but whitens that
-# residual with the noise model of the tail's frame, where eq. (10) rotates $P_{\Delta l}$ by
-# $R(\hat\theta_i)$ first. This is our reading of GTSAM's implementation, consistent with the isotropic
-# check; it is not a statement about the paper.
-#
 # ## Exercise 1 — The metric needs no alignment
 #
 # Absolute trajectory errors need the estimate rigidly aligned to the truth first (the estimate lives in the
 # frame of its reference pose). Show that $\varepsilon_t$ and $\varepsilon_\theta$ of section 5 do not: for
 # any rigid motion $T$ of the plane, $(T\oplus\hat p_i)^{-1}\oplus(T\oplus\hat p_j) = \hat p_i^{-1}\oplus
-# \hat p_j$. Check it numerically on the LAGO estimate of section 5 with a random $T$, and show that the ATE
-# (`lc.ate(..., align=False)`) does change. *Solution: `solutions/06_experiment_ex1.py`.*
+# \hat p_j$. Check it numerically on a LAGO estimate of the world of section 5 with a random $T$, and show
+# that the ATE (`lc.ate(..., align=False)`) does change.
 #
+# **Hint.** Apply $T$ with `lc.compose(np.broadcast_to(T, poses.shape), poses)`; `relation_errors` of
+# section 5 takes the graph, the estimate and the truth.
+
+# %%
+# your solution here
+
+# %% [markdown]
+# ````{dropdown} Solution
+# ```{literalinclude} solutions/06_experiment_ex1.py
+# :language: python
+# ```
+# ````
+
+# %% [markdown]
 # ## Exercise 2 — Table I for every graph
 #
 # Write the Table I row (poses, odometric edges, loop closures, chords needing regularization) of every
 # real graph, once with the odometric and once with the breadth-first tree. Check Corollary 3 (with the
 # odometric tree the chords are exactly the loop closures) on every file. Which tree needs fewer
-# corrections, why would you expect it, and is it a theorem? *Solution: `solutions/06_experiment_ex2.py`.*
+# corrections, why would you expect it, and is it a theorem?
 #
-# ## Exercise 3 — Make a synthetic world fail like INTEL
-#
-# Section 8 blames INTEL's very precise translational information. Test the explanation: take a synthetic
-# Manhattan world, multiply the translational block of every information matrix by $s = 1, 10^2, 10^4$, and
-# measure χ²(LAGO)/χ²(min) for the paper's procedure and for the default route. At what $s$ does the paper's
-# procedure stop being "already accurate"? *Solution: `solutions/06_experiment_ex3.py`.*
+# **Hint.** Section 1 does it for INTEL: `lc.spanning_tree(graph, "odometry")`, `lc.cycle_basis`, and
+# $k = -\mathrm{round}(C\delta / 2\pi)$; `lago_cvx.datasets.DATASET_FILES` lists the files.
+
+# %%
+# your solution here
+
+# %% [markdown]
+# ````{dropdown} Solution
+# ```{literalinclude} solutions/06_experiment_ex2.py
+# :language: python
+# ```
+# ````

@@ -68,7 +68,6 @@ areg = r.anchor_regularization
 i399 = list(areg.index).index(w0.graph.anchor_index(399))
 print(f"anchored orientation of pose 399: given {areg.value[i399]:.3f} rad, corrected by k = {areg.k[i399]} to "
       f"{areg.corrected[i399]:.3f}, the branch of the unwrapped tree orientation {areg.theta_tree[399]:.3f}")
-check(abs(areg.residual[i399]) < 1e-9, "the anchor lands on the tree's branch exactly (noiseless world)")
 print("constraint of phase 3 in cvxpy:", r.problems["phase3"].constraints[0].__class__.__name__,
       r.problems["phase3"].constraints[0].shape, "—", int(r.phase3.system.known.sum()), "known coordinates")
 
@@ -79,6 +78,9 @@ for pid, (marker, kind) in {80: ("s", "full pose"), 300: ("o", "position"), 399:
 ax.legend(loc="upper right", fontsize=8)
 ax.set_title("three kinds of anchor, noiseless world: exact recovery")
 show(fig, "anchors")
+
+# %% tags=["remove-input"]
+check(abs(areg.residual[i399]) < 1e-9, "the anchor lands on the tree's branch exactly (noiseless world)")
 
 # %% [markdown]
 # ## 2. The multipliers of the anchors are forces
@@ -105,6 +107,8 @@ print(phase1)
 theta_K.value = sys1.values[K]
 solve(phase1)
 err = np.abs(theta.value - res.phase1.theta).max()
+
+# %% tags=["remove-input"]
 check(err < 1e-8, f"by hand = the package's anchored phase 1 (closed form, eq. (A2)): {err:.1e} rad")
 
 # %% [markdown]
@@ -126,6 +130,8 @@ check(np.allclose(nu, torque[K], rtol=1e-6, atol=1e-8 * np.abs(r_e).max()),
       "ν = −∂f/∂θ_K: the dual value is the torque of the measurements on each anchor")
 check(np.abs(torque[np.setdiff1d(np.arange(w.graph.n_poses), K)]).max() < 1e-6 * np.abs(r_e).max(),
       "the free poses feel no net torque")
+
+# %% tags=["remove-input"]
 check(abs(nu.sum()) < 1e-8 * np.abs(nu).max(), f"the torques on the anchors balance: Σν = {nu.sum():.1e}")
 
 # %% [markdown]
@@ -152,12 +158,11 @@ c2, c1, c0 = np.polyfit(phis, costs, 2)
 depth = c1**2 / (4 * c2)                       # F(0) − min_φ F(φ)
 strain = {s.id: s for s in res.strain}[250]
 print(f"force ν(φ) = {intercept:.4f} + ({slope:.2f})·φ; cost F(φ) = {c0:.4f} + {c1:.4f}·φ + {c2:.2f}·φ²")
-check(np.abs(np.polyval([slope, intercept], phis) - forces).max() < 1e-6 * np.abs(forces).max(), "the force is linear in φ")
-check(abs(c1 + intercept) < 1e-6 * abs(intercept) and abs(2 * c2 + slope) < 1e-6 * abs(slope),
-      "and it is the slope of the cost: F'(φ) = −ν(φ)")
-check(abs(depth - strain.chi2_theta) < 1e-6 * strain.chi2_theta,
-      f"depth of the parabola = the package's strain statistic of anchor 250 ({strain.chi2_theta:.4f})")
 
+# %% tags=["remove-input"]
+check(np.abs(np.polyval([slope, intercept], phis) - forces).max() < 1e-6 * np.abs(forces).max(), "the force is linear in φ")
+
+# %%
 fig, axs = plt.subplots(1, 2, figsize=(11, 3.8))
 axs[0].plot(phis, forces, "o-")
 axs[0].axhline(0, color="k", lw=0.6)
@@ -169,6 +174,12 @@ axs[1].legend(fontsize=8)
 for ax in axs:
     ax.set_xticks(np.linspace(phis[0], phis[-1], 5))
 show(fig, "anchor_force")
+
+# %% tags=["remove-input"]
+check(abs(c1 + intercept) < 1e-6 * abs(intercept) and abs(2 * c2 + slope) < 1e-6 * abs(slope),
+      "and it is the slope of the cost: F'(φ) = −ν(φ)")
+check(abs(depth - strain.chi2_theta) < 1e-6 * strain.chi2_theta,
+      f"depth of the parabola = the package's strain statistic of anchor 250 ({strain.chi2_theta:.4f})")
 
 # %% [markdown]
 # ## 3. The strain test
@@ -213,10 +224,16 @@ for s in bad.strain:
     print(f"anchor {s.id:3d} ({s.kind:11s}): χ²_θ {s.chi2_theta if s.chi2_theta is not None else float('nan'):8.3f}  "
           f"χ²_p {s.chi2_position if s.chi2_position is not None else float('nan'):9.2f}  p = {s.p_value:.2g}  "
           f"strained: {s.strained}")
+
+# %% tags=["remove-input"]
 check(bad.strained == [0, 250], "the anchor moved 5 m is strained — and so is pose 0, which it pulls against")
+
+# %%
 released = lc.lago(w.graph, anchors={0: tuple(truth[0]), 250: (None, None, far[2]), 120: (None, None, truth[120, 2])})
 drop = bad.phase3.system.cost(bad.phase3.solution.x) - released.phase3.system.cost(released.phase3.solution.x)
 s250 = {s.id: s for s in bad.strain}[250]
+
+# %% tags=["remove-input"]
 check(abs(drop - s250.chi2_position) < 1e-6 * drop,
       f"its statistic is the cost drop of releasing its position ({drop:.2f})")
 
@@ -242,12 +259,14 @@ for info in infos:
     rp = V.anchored_lago(w.graph, priors={i: (v, info * np.eye(3)) for i, v in vals.items()})
     diffs.append(lc.metrics.relative_difference(rp.poses, anchored.poses))
 print("relative difference prior vs anchor:", dict(zip([f"{i:.0e}" for i in infos], [f"{d:.1e}" for d in diffs])))
-check(all(np.diff(np.log(diffs)) < 0) and diffs[-1] < 1e-6, "the prior converges to the anchor as its information grows")
 fig, ax = plt.subplots(figsize=(5, 3.4))
 ax.loglog(infos, diffs, "o-")
 ax.set(xlabel="prior information (× I₃)", ylabel="relative difference to the anchored estimate",
        title="a prior is a soft anchor")
 show(fig, "priors")
+
+# %% tags=["remove-input"]
+check(all(np.diff(np.log(diffs)) < 0) and diffs[-1] < 1e-6, "the prior converges to the anchor as its information grows")
 
 # %% [markdown]
 # ## 5. Convex constraints and their multipliers
@@ -271,10 +290,8 @@ tr = wr.truth
 lo, hi = tr[:, :2].min(0), tr[:, :2].max(0)
 start = {0: tuple(tr[0])}
 
-
 def room(pv):
     return [V.box_constraint(pv, xmin=lo[0], xmax=hi[0], ymin=lo[1], ymax=hi[1], name="room")]
-
 
 plain = lc.lago(wr.graph, anchors=start, positions="phase3")
 boxed = V.constrained_lago(wr.graph, room, anchors=start)
@@ -282,6 +299,8 @@ outside = int(((plain.poses[:, :2] < lo - 1e-9) | (plain.poses[:, :2] > hi + 1e-
 print(f"{wr.graph.n_loop_closures} loop closures; LAGO puts {outside} of {wr.graph.n_poses} poses outside the room")
 print(f"ATE: LAGO {lc.ate(plain.poses, tr):.3f} m → with the room {lc.ate(boxed.poses, tr):.3f} m; "
       f"χ² {plain.chi2:.1f} → {boxed.chi2:.1f}")
+
+# %% tags=["remove-input"]
 check(outside > 0 and lc.ate(boxed.poses, tr) < lc.ate(plain.poses, tr),
       "the room constraint brings the estimate closer to the truth (while χ² rises: the data alone prefer the drift)")
 
@@ -295,7 +314,11 @@ pv = V.PoseVariables(wr.graph, 3, x, boxed.regularization.theta_tree)
 walls = room(pv)[0].constraints[0]                       # n_hᵀ p_v ≤ c_h, 4 rows per pose (+x, −x, +y, −y)
 by_hand = cp.Problem(problem.objective, problem.constraints + [walls])
 status = solve(by_hand)
+
+# %% tags=["remove-input"]
 check(np.abs(x.value - boxed.phase3.x).max() < 1e-6, f"by hand ({status}) = constrained_lago's phase 3")
+
+# %%
 lam = np.asarray(walls.dual_value, dtype=float).reshape(-1, 4)            # (poses, walls)
 px, py = x.value[0:2 * wr.graph.n_poses:2], x.value[1:2 * wr.graph.n_poses:2]
 slack = np.array([hi[0], -lo[0], hi[1], -lo[1]]) - np.column_stack([px, -px, py, -py])   # c_h − n_hᵀp_v ≥ 0
@@ -303,10 +326,13 @@ normals = np.array([[1, 0], [-1, 0], [0, 1], [0, -1]], float)
 wall_force = -lam @ normals                                               # the walls push inward
 touching = lam.max(1) > 1e-6 * lam.max()
 print(f"{int(touching.sum())} poses are held by a wall; largest force {np.linalg.norm(wall_force, axis=1).max():.1f}")
+
+# %% tags=["remove-input"]
 check(np.all(lam >= -1e-7 * lam.max()), "wall multipliers are ≥ 0")
 check(np.abs(lam * slack).max() < 1e-6 * lam.max() * np.ptp(tr[:, :2]),
       "complementary slackness: a wall pushes only on the poses that touch it")
 
+# %%
 fig, axes = plt.subplots(1, 2, figsize=(12, 5.5))
 for ax, resv, title in ((axes[0], plain, "LAGO"), (axes[1], boxed, "LAGO + room, with the wall forces")):
     plot_trajectory(ax, tr, color="0.6", linewidth=2.5, label="truth")
@@ -369,13 +395,8 @@ for name, rr in runs.items():
     ratio[name] = lc.ate(rr.poses, to) / ref_err
     print(f"{name:38s} {lc.ate(rr.poses, to):8.3f} {ratio[name]:12.1f}")
 hub = runs["Huber (convex)"]
-check(hub.robust["edge_weights"][om].max() < 0.5, "the convex loss detects every false loop closure (weight < 0.5)")
-check(min(ratio["Huber (convex)"], ratio["ℓ1 (convex)"]) > 5 and ratio["LAGO"] > ratio["Huber (convex)"],
-      "…but a bounded pull is not zero: the convex losses stay > 5× the reference error (plain LAGO is worse)")
 gated = runs["Huber, then gating"]
 inl = gated.robust["inliers"]
-check(ratio["Huber, then gating"] < 1.05 and not (inl & om).any() and inl[~om].all(),
-      "gating with the convex estimate rejects exactly the false loop closures and recovers the reference")
 
 fig, axes = plt.subplots(1, 3, figsize=(16, 5.2))
 for ax, name in zip(axes, ("LAGO", "Huber (convex)", "Huber, then gating")):
@@ -387,6 +408,13 @@ for ax, name in zip(axes, ("LAGO", "Huber (convex)", "Huber, then gating")):
     ax.set_title(name)
     ax.legend(loc="upper right", fontsize=8)
 show(fig, "robust")
+
+# %% tags=["remove-input"]
+check(hub.robust["edge_weights"][om].max() < 0.5, "the convex loss detects every false loop closure (weight < 0.5)")
+check(min(ratio["Huber (convex)"], ratio["ℓ1 (convex)"]) > 5 and ratio["LAGO"] > ratio["Huber (convex)"],
+      "…but a bounded pull is not zero: the convex losses stay > 5× the reference error (plain LAGO is worse)")
+check(ratio["Huber, then gating"] < 1.05 and not (inl & om).any() and inl[~om].all(),
+      "gating with the convex estimate rejects exactly the false loop closures and recovers the reference")
 
 # %% [markdown]
 # The convex losses find the false loop closures — their IRLS weights are small — but many bounded pulls still
@@ -410,10 +438,13 @@ if gi is not None:
     three, report = lc.compare_methods(gi, anchors=anc)
     print("largest relative difference, estimate:", {k: f"{v:.1e}" for k, v in report["max_rel_diff"].items()},
           "multipliers:", {k: f"{v:.1e}" for k, v in report["max_rel_diff_gradient"].items()})
+    print(f"χ²: minimum {opt.chi2:.2f}, LAGO with the three anchors {three.chi2:.2f}")
+
+# %% tags=["remove-input"]
+if gi is not None:
     check(max(report["max_rel_diff"].values()) < 1e-8 and max(report["max_rel_diff_gradient"].values()) < 1e-6,
           "closed form = cvxpy on real data, estimates and anchor forces")
     check(not three.strained, f"anchors at the minimum are not strained (χ² {[round(s.chi2, 3) for s in three.strain]})")
-    print(f"χ²: minimum {opt.chi2:.2f}, LAGO with the three anchors {three.chi2:.2f}")
 
 # %% [markdown]
 # ## Exercise 1 — The forces balance
@@ -422,17 +453,56 @@ if gi is not None:
 # anchors, and that with a single anchor the dual value is zero. Then show the same for the position anchors
 # of phase 3 (each of the x and y components sums to zero): which property of the design $B^\top$ does it use?
 # Check both on a noisy world with `lc.compare_methods(..., anchors=...)`, whose cvxpy problems keep the duals.
-# *Solution: `solutions/07_variants_ex1.py`.*
 #
+# **Hint.** Sum the stationarity conditions over all poses and use $\mathbf 1^\top A = 0$ (every column of the
+# incidence matrix sums to zero).
+
+# %%
+# your solution here
+
+# %% [markdown]
+# ````{dropdown} Solution
+# ```{literalinclude} solutions/07_variants_ex1.py
+# :language: python
+# ```
+# ````
+
+# %% [markdown]
 # ## Exercise 2 — The strain statistic from the dual value
 #
 # For one orientation anchor $a$, compute $\Delta\chi^2 = \nu_a^2/(4S)$ yourself: $\nu_a$ from the cvxpy dual,
 # $S$ as the Schur complement of section 2 from $M = WB^\top$ of the package's phase-1 system. Compare with
 # the package's `chi2_theta`, and with the phase-1 cost drop when the anchor is released.
-# *Solution: `solutions/07_variants_ex2.py`.*
 #
+# **Hint.** $S$ is the Schur complement of the anchored orientation in $M^\top M$ of the phase-1 system without
+# that anchor.
+
+# %%
+# your solution here
+
+# %% [markdown]
+# ````{dropdown} Solution
+# ```{literalinclude} solutions/07_variants_ex2.py
+# :language: python
+# ```
+# ````
+
+# %% [markdown]
 # ## Exercise 3 — How hard should a robust loss push back?
 #
 # Sweep the Huber threshold $M$ of `V.robust_lago(graph, threshold=M)` over $\{1, 3, 10, 30\}$ on the
 # world of section 6 and plot the ATE against $M$. What happens for very small and very large $M$, and why?
-# Does gating depend on $M$? *Solution: `solutions/07_variants_ex3.py`.*
+# Does gating depend on $M$?
+#
+# **Hint.** `V.robust_lago(graph, threshold=M)` and `lc.ate(estimate, truth)`; think of what a tiny $M$ does to
+# every residual.
+
+# %%
+# your solution here
+
+# %% [markdown]
+# ````{dropdown} Solution
+# ```{literalinclude} solutions/07_variants_ex3.py
+# :language: python
+# ```
+# ````

@@ -86,10 +86,13 @@ observed = wrong / draws
 se = np.sqrt(predicted * (1 - predicted) / draws)                                 # binomial standard error
 print(f"{tree.n_chords} chords, {draws} draws: mean P[wrong k] predicted {predicted.mean():.3f}, "
       f"observed {observed.mean():.3f}")
+
+# %% tags=["remove-input"]
 check(abs(observed.mean() - predicted.mean()) < 4 * np.sqrt(np.mean(se**2) / tree.n_chords) + 0.01,
       "(W) predicts the average failure rate of the tree rounding")
 check(np.all(np.abs(observed - predicted) <= 5 * se + 1.0 / draws), "…and every chord's, within 5 binomial standard errors")
 
+# %%
 fig, ax = plt.subplots(figsize=(5.5, 3.6))
 order = np.argsort(sig_c)
 ax.plot(sig_c[order], predicted[order], "-", label="(W): erfc(π / √2 σ_c)")
@@ -134,6 +137,8 @@ c.value, s.value = np.cos(g.delta), np.sin(g.delta)
 status = solve(chordal)
 closed = chordal_closed_form(g, edge_uncertainty(g).info_delta)
 err = np.abs(np.column_stack([X.value, Y.value]) - closed.vectors).max()
+
+# %% tags=["remove-input"]
 check(status == "optimal" and err < 1e-8, f"cvxpy ({status}) = the sparse closed form: max |Δr| = {err:.1e}")
 check(np.ptp(w_d.value) == 0, "the weights are the same on every edge of this world (one σ_θ)")
 
@@ -162,9 +167,12 @@ Lc = sp.csr_matrix((np.sqrt(omega), (np.arange(m), g.heads)), shape=(m, n)) \
     - sp.csr_matrix((np.sqrt(omega) * np.exp(1j * g.delta), (np.arange(m), g.tails)), shape=(m, n))
 col = spla.spsolve((Lc.conj().T @ Lc).tocsc(), u0)
 z = X.value + 1j * Y.value
+
+# %% tags=["remove-input"]
 check(np.abs(col / col[0] - z).max() < 1e-8 and abs(1 / col[0].real - chordal.value) < 1e-8 * chordal.value,
       "(G): the relaxed solution is the anchor's column of L⁻¹, its cost 1/(L⁻¹)₀₀")
 
+# %%
 profiles = {}
 for sig in (0.0, 0.05, 0.1, 0.3):
     gs = lc.manhattan_world(n, seed=0, sigma_theta=sig).graph
@@ -174,12 +182,15 @@ for sig in (0.0, 0.05, 0.1, 0.3):
     profiles[sig] = np.hypot(X.value, Y.value)
     print(f"σ_θ = {sig:4.2f}: ‖r_i‖ median {np.median(profiles[sig]):.3g}, min {profiles[sig].min():.3g}; "
           f"rank correlation with the hops from the anchor {spearmanr(profiles[sig], hops).correlation:+.2f}")
+
+# %% tags=["remove-input"]
 check(np.abs(profiles[0.0] - 1).max() < 1e-9, "noiseless: every ‖r_i‖ = 1 (the relaxation is tight)")
 check(all(spearmanr(profiles[sg], hops).correlation < -0.8 for sg in (0.05, 0.1, 0.3)),
       "with noise, ‖r_i‖ falls with the distance from the anchor (rank correlation < −0.8)")
 check(np.median(profiles[0.05]) > np.median(profiles[0.1]) > np.median(profiles[0.3]),
       "…and falls faster the more the cycles disagree")
 
+# %%
 other = chordal_closed_form(g, omega, anchor=int(g.ids[n - 1]))              # the same data, anchor at the last pose
 ratio = other.norms / closed.norms
 turn = wrap_angle(other.theta - closed.theta)
@@ -191,9 +202,6 @@ print(f"anchor moved from pose 0 to pose {n - 1}: ‖r_i‖ change by factors {r
       f"the directions by at most {np.abs(turn).max():.3f} rad")
 print(f"shortest vector (pose {i_short}, ‖r‖ = {closed.norms[i_short]:.2f}): its direction differs from phase 1's "
       f"θ̂ by {gap_blue:.1e} rad, while θ̂'s own error there is {abs(wrap_angle(phase1[i_short] - base.truth[i_short, 2])):.2f} rad")
-check(ratio.max() / ratio.min() > 4 and np.abs(turn).max() < 0.1,
-      "the lengths belong to the anchor (they change by a large factor), the directions do not")
-check(gap_blue < 0.01, "a short vector still points where eq. (13)'s estimate points")
 
 fig, axs = plt.subplots(1, 2, figsize=(12, 3.8))
 for sig, prof in profiles.items():
@@ -205,6 +213,11 @@ axs[1].plot(other.norms, lw=0.8, label=f"anchor: pose {n - 1}")
 axs[1].set(xlabel="pose", ylabel="‖r_i‖", title="same data (σ_θ = 0.05), two anchors")
 axs[1].legend(fontsize=8)
 show(fig, "chordal_lengths")
+
+# %% tags=["remove-input"]
+check(ratio.max() / ratio.min() > 4 and np.abs(turn).max() < 0.1,
+      "the lengths belong to the anchor (they change by a large factor), the directions do not")
+check(gap_blue < 0.01, "a short vector still points where eq. (13)'s estimate points")
 
 # %% [markdown]
 # ## 3. Rounding against the chordal estimate
@@ -228,7 +241,8 @@ sweep = rotation_noise_sweep(sweep_sigmas, seeds=range(10 if FULL else 4), n_pos
                              regularizers=regs)
 print(format_sweep(sweep))
 by = {(r["sigma_theta"], r["regularizer"]): r for r in sweep}
-check(all(by[(0.05, k)]["optimal"] == by[(0.05, k)]["trials"] for k in regs), "low noise: every regularizer is optimal")
+
+# %% tags=["remove-input"]
 check(all(by[(sg, "chordal")]["optimal"] >= by[(sg, "tree (odometry)")]["optimal"]
           and by[(sg, "integer program")]["optimal"] >= by[(sg, "tree (odometry)")]["optimal"] for sg in sweep_sigmas),
       "the chordal relaxation and the integer program never do worse than the paper's odometric-tree rounding")
@@ -237,6 +251,7 @@ check(any(by[(sg, "chordal")]["optimal"] > by[(sg, "tree (odometry)")]["optimal"
 check(all(by[(sg, "tree (odometry)")]["optimal"] <= by[(sg, "tree (bfs)")]["optimal"] for sg in sweep_sigmas),
       "the odometric tree (long paths) is never better than the breadth-first tree")
 
+# %%
 fig, ax = plt.subplots(figsize=(6, 3.6))
 for name, style in zip(regs, ("o--", "s:", "^-.", "D-")):
     ax.plot(sweep_sigmas, [by[(sg, name)]["optimal"] / by[(sg, name)]["trials"] for sg in sweep_sigmas], style, label=name)
@@ -244,6 +259,9 @@ ax.set(xlabel="rotation noise σ_θ [rad]", ylabel="fraction reaching the optimu
        title="Gauss–Newton from LAGO, by regularizer")
 ax.legend(fontsize=8)
 show(fig, "sweep")
+
+# %% tags=["remove-input"]
+check(all(by[(0.05, k)]["optimal"] == by[(0.05, k)]["trials"] for k in regs), "low noise: every regularizer is optimal")
 
 # %% [markdown]
 # The odometric tree's long paths fail first, the breadth-first tree's later; the chordal relaxation and the
@@ -308,6 +326,8 @@ for cc in sel:
     print(f"  chord {cc}: r = {data.r[cc]:+.2f}; corrected by rounding {data.r[cc] + 2 * np.pi * data.k_round[cc]:+.2f}, "
           f"by (IP) {data.r[cc] + 2 * np.pi * exact.k_chords[cc]:+.2f}; σ_c = {np.sqrt(data.S[cc, cc]):.2f} rad; "
           f"largest |correlation| with another cycle {np.abs(np.delete(corr[cc], cc)).max():.2f}")
+
+# %% tags=["remove-input"]
 check(all(np.sqrt(data.S[cc, cc]) > 1 for cc in sel)
       and all(np.abs(data.r[sel] + 2 * np.pi * exact.k_chords[sel]) > np.pi),
       "the chords where they differ have long cycles (σ_c > 1 rad) and true corrected sums beyond ±π")
@@ -331,6 +351,8 @@ for rb, ro in zip(ip_rows["bfs"], ip_rows["odometry"]):
     print(f"{rb['sigma_theta']:5.2f} {rb['ip_eq_round']:20.2f} / {ro['ip_eq_round']:4.2f} {rb['round_eq_true']:23.2f} / "
           f"{ro['round_eq_true']:4.2f} {rb['ip_eq_true']:11.2f} {rb['truth_above_ip']:17.2f}")
     check(rb["ip_eq_true"] == ro["ip_eq_true"], f"σ_θ = {rb['sigma_theta']}: the optimum of (IP) does not depend on the tree")
+
+# %% tags=["remove-input"]
 check(all(r["ip_eq_round"] == 1.0 for kind in ip_rows for r in ip_rows[kind] if r["sigma_theta"] <= 0.05),
       "at low noise the rounding is the integer optimum")
 check(all(rb["ip_eq_true"] >= max(rb["round_eq_true"], ro["round_eq_true"]) for rb, ro in zip(ip_rows["bfs"], ip_rows["odometry"])),
@@ -370,7 +392,6 @@ def sdp_accuracy(sd):
     """How well this solve knows f_SDP: the larger of (reported − proven lower bound) and |reported − tr(MZ)|."""
     return max(sd.value - sd.lower_bound, abs(sd.value - sd.primal_value))
 
-
 ws = lc.manhattan_world(14, seed=2, sigma_theta=0.05, sigma_xy=0.1, p_loop_closure=1.0, min_loop_separation=4,
                         loop_closure_radius=1.0)
 gs = ws.graph
@@ -385,6 +406,8 @@ local = refine_sesync(gs, lc.refine(gs, lc.lago(gs).poses).poses)
 print(f"rounded SDP solution f = {sd.cost_rounded:.9f}; local minimum from LAGO f = {local.cost:.9f}; accuracy of "
       f"the solve {sdp_accuracy(sd):.1e}; eigenvalues of Z_RR {np.array2string(sd.z_eigenvalues, precision=3)}")
 tol = sdp_accuracy(sd) + 1e-8 * abs(sd.value)       # Clarabel's default relative gap tolerance, 1e-8
+
+# %% tags=["remove-input"]
 check(all(st == "optimal" for _, st in values.values()) and abs(values["primal"][0] - values["dual"][0]) <= tol,
       "primal and dual forms agree to the accuracy of the solve")
 check(sd.lower_bound <= local.cost and local.cost - sd.value <= tol,
@@ -495,11 +518,6 @@ lam_min = np.linalg.eigvalsh(SQ)[0]
 bound = cb.dual_value + 2 * gb.n_poses * min(0.0, lam_min)
 print(f"raw LAGO: f = {cb.cost:.4f}, Σ tr Λ_i = {cb.dual_value:.4f}, λ_min(S_Q) = {lam_min:.3e}, "
       f"λ_min(S) of the full matrix = {cb.lambda_min_full:.1e}; (B): f* ≥ {bound:.4f} (certify: {cb.lower_bound:.4f})")
-check(abs(lam_min - cb.lambda_min) < 1e-6 * abs(lam_min) + 1e-9, "certify's λ_min is the one of the reduced S_Q")
-check(abs(bound - cb.lower_bound) <= 2 * gb.n_poses * (cb.eta + 1e-6 * abs(lam_min)),
-      "certify's lower bound is (B), up to its tolerance η")
-check(abs(cb.lambda_min_full) < 1e-8 * cb.norm_M or cb.lambda_min_full < 0,
-      "the full S always has λ_min ≤ 0 (the translation gauge): it cannot give a bound")
 rng = np.random.default_rng(0)
 costs = []
 for _ in range(200):
@@ -510,6 +528,13 @@ for _ in range(200):
     p[:, :2] = lc.certification.optimal_translations(gb, th)
     costs.append(sesync_cost(gb, p))
 best = refine_sesync(gb, lc.refine(gb, raw).poses).cost
+
+# %% tags=["remove-input"]
+check(abs(lam_min - cb.lambda_min) < 1e-6 * abs(lam_min) + 1e-9, "certify's λ_min is the one of the reduced S_Q")
+check(abs(bound - cb.lower_bound) <= 2 * gb.n_poses * (cb.eta + 1e-6 * abs(lam_min)),
+      "certify's lower bound is (B), up to its tolerance η")
+check(abs(cb.lambda_min_full) < 1e-8 * cb.norm_M or cb.lambda_min_full < 0,
+      "the full S always has λ_min ≤ 0 (the translation gauge): it cannot give a bound")
 check(min(costs) >= bound and best >= bound, f"200 random rotation sets (min f = {min(costs):.2f}) and the local "
       f"minimum ({best:.4f}) all respect (B)")
 
@@ -557,25 +582,65 @@ for rel in FILES:
 # | integer program (IP) | mixed-integer least squares (exact enumeration, SCIP) | the integers phase 1 fits best; rounding is optimal at low noise |
 # | SDP relaxation | semidefinite program (Clarabel) | a proven lower bound on $f^\star$; tight ⟹ the global optimum |
 # | certificate (B) | one sparse $LDL^\top$ and the spectrum of $S_Q$ | a proof of global optimality, or a bound |
-#
+
+# %% [markdown]
 # ## Exercise 1 — The failure probability of the rounding
 #
 # Derive (W) from Theorem 3's rounding: show that the rounding of chord $c$ is right iff the sum of the orientation
 # noises around its fundamental cycle lies in $(-\pi, \pi]$, and compute $\sigma_c$ from $C$ and $P_\delta$. Then predict,
 # without simulation, the expected number of wrong integers along the odometric and along the breadth-first tree
-# for the world of section 1, and check it with a Monte Carlo. *Solution: `solutions/08_relaxations_ex1.py`.*
+# for the world of section 1, and check it with a Monte Carlo.
 #
+# **Hint.** The noise around cycle $c$ is Gaussian with variance $\sigma_c^2 = \sum_k C_{ck}^2 P_{\delta,k}$, and
+# $P(|\mathcal N(0,\sigma^2)| > \pi) = \operatorname{erfc}(\pi/(\sigma\sqrt2))$.
+
+# %%
+# your solution here
+
+# %% [markdown]
+# ````{dropdown} Solution
+# ```{literalinclude} solutions/08_relaxations_ex1.py
+# :language: python
+# ```
+# ````
+
+# %% [markdown]
 # ## Exercise 2 — The relaxed lengths from the connection Laplacian
 #
 # Build the complex connection Laplacian $L$ of section 2 as a sparse matrix and verify (G) for two different
 # anchors. In the right panel of the figure of section 2 the length is constant over the last poses: find the
 # poses of the world that hang on a single chain of edges (no loop closure beyond them), show that along such a
 # chain every $\|r_i\|$ equals the length at the chain's attachment point, and explain why from (C).
-# *Solution: `solutions/08_relaxations_ex2.py`.*
 #
+# **Hint.** Assemble $L$ with `scipy.sparse.coo_matrix` from the edge list; a pose on a chain has exactly two
+# neighbours.
+
+# %%
+# your solution here
+
+# %% [markdown]
+# ````{dropdown} Solution
+# ```{literalinclude} solutions/08_relaxations_ex2.py
+# :language: python
+# ```
+# ````
+
+# %% [markdown]
 # ## Exercise 3 — How far does the certificate's bound reach?
 #
 # Take a 30-pose world and points between raw LAGO and the certified minimum (interpolate the orientations,
 # optimal translations). Plot the true gap $f - f^\star$ against the bound $f - \text{(B)}$ the certificate proves at
 # each point. Is the bound ever violated, and how loose is it far from the minimum?
-# *Solution: `solutions/08_relaxations_ex3.py`.*
+#
+# **Hint.** Interpolate the orientations, re-solve the translations for each
+# (`lago_cvx.positions.resolve_positions`), and evaluate the bound as the lecture's certificate section does.
+
+# %%
+# your solution here
+
+# %% [markdown]
+# ````{dropdown} Solution
+# ```{literalinclude} solutions/08_relaxations_ex3.py
+# :language: python
+# ```
+# ````

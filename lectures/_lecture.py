@@ -9,9 +9,11 @@ the tests) and by their exercise solutions in ``solutions/``::
     check(err < 1e-9, f"cvxpy = closed form ({err:.1e})")     # prints "✓ cvxpy = closed form (3.1e-16)"
     fig, ax = plt.subplots(); ...; show(fig, "laplacian")      # inline in Jupyter; saved only on request
 
-Running a lecture changes no file: figures are displayed, and written to ``figures/`` only when the
-environment variable ``LAGO_CVX_FIGURES`` names a folder (``python lectures/render.py`` sets it to the
-project's ``figures/``; the tests set it to a temporary folder). ``LAGO_CVX_FULL=1`` turns on the
+Running a lecture changes no file: figures are displayed — inline in Jupyter, in a window when a lecture
+runs as a script with an interactive matplotlib backend (``cd lectures && python 02_phase1.py``; close the
+window to go on) — and written to a folder only when the environment variable ``LAGO_CVX_FIGURES`` names it
+(``LAGO_CVX_FIGURES=/tmp/figs python 02_phase1.py``; ``python lectures/render.py`` sets it to the project's
+``figures/``; the tests set it to a temporary folder). ``LAGO_CVX_FULL=1`` turns on the
 bigger sweeps that are skipped by default to keep every lecture under a minute.
 """
 
@@ -28,7 +30,8 @@ import numpy as np
 import lago_cvx as lc
 from lago_cvx.datasets import DatasetNotFound, dataset
 
-__all__ = ["ROOT", "FULL", "S", "setup", "check", "show", "real", "paper_lago", "figure_dir"]
+__all__ = ["ROOT", "FULL", "S", "setup", "check", "show", "real", "paper_lago", "figure_dir", "section_v_world",
+           "running_example", "intuition_figure"]
 
 #: The project checkout.
 ROOT = Path(__file__).resolve().parents[1]
@@ -77,8 +80,9 @@ def _in_notebook() -> bool:
 
 
 def show(fig, name: str) -> None:
-    """Display ``fig`` inline (in Jupyter, as a PNG), write ``<prefix>_<name>.png`` and ``.svg`` when
-    ``$LAGO_CVX_FIGURES`` is set (identical bytes on every run), then close it."""
+    """Display ``fig`` inline (in Jupyter, as a PNG) or in a window (a script with an interactive backend),
+    write ``<prefix>_<name>.png`` and ``.svg`` when ``$LAGO_CVX_FIGURES`` is set (identical bytes on every
+    run), then close it."""
     import matplotlib.pyplot as plt
 
     target = figure_dir()
@@ -98,7 +102,17 @@ def show(fig, name: str) -> None:
         buffer = io.BytesIO()
         fig.savefig(buffer, format="png", dpi=_INLINE_DPI, bbox_inches="tight", metadata=_METADATA["png"])
         display({"image/png": base64.b64encode(buffer.getvalue()).decode("ascii")}, raw=True)
+    elif _interactive_backend():
+        plt.show()                     # a script with a GUI backend: the figure in a window
     plt.close(fig)
+
+
+def _interactive_backend() -> bool:
+    """True when matplotlib draws to a window (not Agg, a file format or the inline backend)."""
+    import matplotlib.pyplot as plt
+
+    backend = plt.get_backend().lower()
+    return backend not in ("agg", "pdf", "ps", "svg", "pgf", "cairo", "template") and "inline" not in backend
 
 
 def paper_lago(graph, **options):
@@ -130,3 +144,135 @@ def solve_qp(problem):
     kwargs = ClarabelSettings(static_regularization_constant=1e-8).over(LEAST_SQUARES).solver_kwargs()
     problem.solve(solver=cp.CLARABEL, direct_solve_method="qdldl", **kwargs)
     return problem.status
+
+
+#: The uncertainty rule of the Section V world: σ = k·|measured component| + floor, per component of the
+#: relative pose in the tail's frame (x and y in metres, θ in radians).
+SECTION_V_RULE = {"k_t": 0.1, "floor_t": 1e-3, "k_theta": 0.05, "floor_theta": 1e-3}
+
+
+def section_v_world(n_poses=500, *, seed=1, noise="proportional", sigma_xy=0.02, sigma_theta=0.01):
+    """The world of lecture 6's Table II: a Manhattan world (``lc.manhattan_world``, known truth) whose
+    measurements carry the information of the paper's first scenario — uncertainty proportional to the
+    measured displacement, ``σ = k·|measured| + floor`` per component (``SECTION_V_RULE``).
+
+    ``noise="proportional"``: the noise is drawn from that rule (applied to the true displacement), so the
+    information is the true one; ``noise="isotropic"``: the noise is drawn with constant ``sigma_xy``,
+    ``sigma_theta`` and the proportional information is *assumed*, not true. Returns ``(graph, truth)``:
+    a ``PoseGraph`` (m edges, information (m, 3, 3) diagonal) and the true poses (n, 3)."""
+    base = lc.manhattan_world(n_poses, seed=seed, sigma_xy=0.0, sigma_theta=0.0)
+    g0, truth = base.graph, base.truth
+    exact = lc.between(truth[g0.tails], truth[g0.heads])          # true relative poses δ*_ij, (m, 3)
+    exact[:, 2] = lc.posegraph.wrap_angle(exact[:, 2])             # a turn as the sensor reports it
+    rule = SECTION_V_RULE
+    k = np.array([rule["k_t"], rule["k_t"], rule["k_theta"]])
+    floor = np.array([rule["floor_t"], rule["floor_t"], rule["floor_theta"]])
+    rng = np.random.default_rng(seed + 100)
+    if noise == "proportional":
+        sigma = k * np.abs(exact) + floor
+    elif noise == "isotropic":
+        sigma = np.broadcast_to([sigma_xy, sigma_xy, sigma_theta], exact.shape)
+    else:
+        raise ValueError(f"noise must be 'proportional' or 'isotropic', got {noise!r}")
+    measured = exact + rng.standard_normal(exact.shape) * sigma
+    measured[:, 2] = lc.posegraph.wrap_angle(measured[:, 2])
+    assumed = k * np.abs(measured) + floor                          # the paper's rule, from the measurements
+    information = np.zeros((g0.n_edges, 3, 3))
+    information[:, [0, 1, 2], [0, 1, 2]] = 1.0 / assumed**2
+    graph = lc.PoseGraph(g0.n_poses, g0.tails, g0.heads, measured[:, :2], measured[:, 2], information)
+    return graph, truth
+
+
+def running_example():
+    """The course's running example: a 60-pose Manhattan world with 26 loop closures whose headings wind
+    over more than two turns (``lc.manhattan_world(60, seed=1, sigma_xy=0.1, sigma_theta=0.05)``); the real
+    graph that goes with it is INTEL (``carlone/INTEL_P_toro.graph``)."""
+    return lc.manhattan_world(60, seed=1, sigma_xy=0.1, sigma_theta=0.05)
+
+
+def _xy(ax, poses, style, label, **kw):
+    ax.plot(poses[:, 0], poses[:, 1], style, label=label, markersize=3, linewidth=1.2, **kw)
+
+
+def intuition_figure(lecture: str):
+    """The figure a lecture opens with, on the running example (and INTEL for 04b, 06); returns the figure.
+
+    ``lecture`` is the lecture's stem prefix: ``"01"``, ``"02"``, ``"03"``, ``"04a"``, ``"04b"``, ``"05"``, ``"06"``."""
+    import matplotlib.pyplot as plt
+
+    from lago_cvx.posegraph import wrap_angle
+    from lago_cvx.theorem1 import theorem1
+
+    world = running_example()
+    g, truth = world.graph, world.truth
+    if lecture == "01":
+        fig, axes = plt.subplots(1, 2, figsize=(11, 4.6))
+        for ax, poses, title in ((axes[0], truth, "the true poses and the measured edges"),
+                                 (axes[1], lc.odometry_guess(g), "dead reckoning: odometry composed")):
+            for k in range(g.n_edges):
+                i, j = g.tails[k], g.heads[k]
+                ax.plot(poses[[i, j], 0], poses[[i, j], 1], "-" if g.is_odometric[k] else ":",
+                        color="tab:blue" if g.is_odometric[k] else "tab:red", linewidth=1.0)
+            ax.plot([], [], "-", color="tab:blue", label="odometry")
+            ax.plot([], [], ":", color="tab:red", label="loop closures")
+            ax.set(title=title, xlabel="x [m]", ylabel="y [m]", aspect="equal")
+            ax.legend(fontsize=8, loc="best")
+        fig.suptitle("The running example: where is the robot, given only relative measurements?")
+    elif lecture in ("02", "05"):
+        res = lc.lago(g, route="seed")
+        fig, ax = plt.subplots(figsize=(9, 4))
+        k = np.arange(g.n_poses)
+        ax.plot(k, truth[:, 2], "k-", linewidth=2, label="true heading")
+        ax.plot(k, lc.odometry_guess(g)[:, 2], "--", color="tab:orange", label="turns added up (dead reckoning)")
+        ax.plot(k, res.phase1.theta, ".", color="tab:blue", label="phase 1: loops shared out")
+        if lecture == "05":
+            raw = lc.phases.phase1_closed_form(g, g.delta, lc.uncertainty.edge_uncertainty(g)).theta
+            ax.plot(k, raw, "x", color="tab:red", markersize=4, label="phase 1 without the 2kπ corrections")
+        ax.set(xlabel="pose index", ylabel="heading θ [rad]",
+               title="Headings of the running example" + (": whole turns matter" if lecture == "05" else ""))
+        ax.legend(fontsize=8)
+    elif lecture in ("03", "04a"):
+        t = theorem1(g, regularization="tree", information="marginal", positions="phase3")
+        fig, ax = plt.subplots(figsize=(6.5, 5.5))
+        _xy(ax, truth, "k-", "truth")
+        if lecture == "03":
+            ph2 = t.result.phase2
+            chain = np.vstack([[0.0, 0.0], np.cumsum(ph2.delta_g[g.is_odometric], axis=0)])
+            _xy(ax, lc.odometry_guess(g), "--", "dead reckoning", color="tab:orange")
+            _xy(ax, chain, ".-", "odometric Δᵍ turned by phase 1's θ̂, chained", color="tab:blue")
+            ax.set_title("Phase 2: displacements turned into the map's frame")
+        else:
+            _xy(ax, t.poses(t.x_hat), ".-", "ρ̂: θ̂ of phase 1, positions of eq. (14)", color="tab:orange")
+            _xy(ax, t.poses(t.x_star), ".-", "ρ*: phase 3", color="tab:blue")
+            ax.set_title("Phase 3 corrects ρ̂ by one linear step")
+        ax.set(xlabel="x [m]", ylabel="y [m]", aspect="equal")
+        ax.legend(fontsize=8)
+    elif lecture in ("04b", "06"):
+        intel = real("carlone/INTEL_P_toro.graph")
+        fig, axes = plt.subplots(1, 2, figsize=(11, 5))
+        if intel is None:
+            for ax in axes:
+                ax.set(xlabel="x [m]", ylabel="y [m]", title="INTEL not available")
+            return fig
+        if lecture == "04b":
+            t = theorem1(intel, regularization="tree", information="marginal", positions="phase3")
+            best = lc.refine(intel, t.result.poses).poses
+            star = t.poses(t.x_star)
+            from lago_cvx.positions import resolve_positions
+            again = resolve_positions(intel, star[:, 2], t.result.uncertainty).poses
+            panels = ((star, f"phase 3's ρ*: χ² = {lc.chi2(intel, star):.0f}"),
+                      (again, f"θ* kept, positions re-solved: χ² = {lc.chi2(intel, again):.1f}"))
+        else:
+            best = lc.refine(intel, lc.lago(intel).poses).poses
+            panels = ((lc.odometry_guess(intel), "odometry composed (dead reckoning)"),
+                      (lc.lago(intel, route="seed").poses, "LAGO, the paper's procedure"))
+        for ax, (poses, title) in zip(axes, panels):
+            _xy(ax, best, "-", "minimum of χ²", color="0.6")
+            _xy(ax, poses, "-", "estimate", color="tab:blue")
+            ax.set(title=title, xlabel="x [m]", ylabel="y [m]", aspect="equal")
+            ax.legend(fontsize=8, loc="lower left")
+        fig.suptitle("INTEL" + (": the same orientations, two ways to place the positions" if lecture == "04b" else ""))
+    else:
+        raise ValueError(f"no intuition figure for lecture {lecture!r}")
+    fig.tight_layout()
+    return fig

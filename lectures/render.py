@@ -1,7 +1,7 @@
 """Render the course: execute the lectures and store their outputs in the notebooks.
 
     python lectures/render.py              # every lecture
-    python lectures/render.py 02 03        # the lectures whose number is given
+    python lectures/render.py 02 04a       # the lectures whose number is given (04: both parts of 4)
     python lectures/render.py --site       # build the course site from the stored outputs (no execution)
 
 Each lecture ``NN_name.py`` (py:percent, the reviewed source) is executed top to bottom with nbclient
@@ -47,15 +47,22 @@ _LANGUAGE_INFO_KEPT = ("name", "codemirror_mode", "file_extension", "mimetype", 
 KERNELSPEC = {"display_name": "Python 3", "language": "python", "name": "python3"}
 
 
+def lecture_number(source: Path) -> str:
+    """The number of the lecture ``NN_name.py`` or ``NNx_name.py`` (a lecture split in parts): ``NN`` or ``NNx``."""
+    return source.name.split("_", 1)[0]
+
+
 def lecture_sources(numbers=()) -> list[Path]:
-    """The lectures ``NN_name.py`` in order; only those whose number prefix is in ``numbers`` if given."""
-    sources = sorted(LECTURES.glob("[0-9][0-9]_*.py"))
+    """The lectures ``NN_name.py`` / ``NNx_name.py`` in order; only those whose number is in ``numbers`` if given
+    (``04`` names every part of lecture 4, ``04a`` one part)."""
+    sources = sorted(LECTURES.glob("[0-9][0-9]*_*.py"))
     if numbers:
         wanted = {n.zfill(2) for n in numbers}
-        unknown = wanted - {s.name[:2] for s in sources}
+        chosen = [s for s in sources if lecture_number(s) in wanted or lecture_number(s)[:2] in wanted]
+        unknown = {w for w in wanted if not any(lecture_number(s) == w or lecture_number(s)[:2] == w for s in sources)}
         if unknown:
             raise SystemExit(f"render.py: no lecture numbered {', '.join(sorted(unknown))} in {LECTURES}")
-        sources = [s for s in sources if s.name[:2] in wanted]
+        sources = chosen
     return sources
 
 
@@ -142,7 +149,7 @@ def render(source: Path) -> bool:
     """Execute one lecture and store its outputs; print its summary line; True on success."""
     from nbclient.exceptions import CellExecutionError
 
-    prefix = source.name[:2]
+    prefix = lecture_number(source)
     for old in sorted(FIGURES.glob(f"{prefix}_*")):
         if old.suffix in (".png", ".svg"):
             old.unlink()

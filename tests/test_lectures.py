@@ -4,7 +4,8 @@
   least one figure, no error (``python lectures/render.py`` stores them);
 * each lecture executes top to bottom with nbclient (working directory lectures/, figures written to a
   temporary folder so the tracked ones stay as they are);
-* each lecture has two or three exercises, each with one solution script that runs and verifies;
+* each lecture has two or three exercises, each with a hint, a stub cell to fill in, and one solution script
+  that runs and verifies and that the site shows in a collapsed dropdown;
 * no ``matplotlib.use`` and no internal wording in the course's prose;
 * lectures/CONCORDANCE.md covers every item of the paper (../shared/SEED.md beside the project) and
   every row points at a real section, importable package names and existing tests;
@@ -29,14 +30,15 @@ import tokenize
 from functools import lru_cache
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 LECTURES = ROOT / "lectures"
 SOLUTIONS = LECTURES / "solutions"
-SOURCES = sorted(LECTURES.glob("[0-9][0-9]_*.py"))
+SOURCES = sorted(LECTURES.glob("[0-9][0-9]*_*.py"))
 IDS = [s.stem for s in SOURCES]
-SOLUTION_FILES = sorted(SOLUTIONS.glob("[0-9][0-9]_*_ex[0-9].py"))
+SOLUTION_FILES = sorted(SOLUTIONS.glob("[0-9][0-9]*_*_ex[0-9].py"))
 SEED_MD = ROOT.parent / "shared" / "SEED.md"
 CONCORDANCE = LECTURES / "CONCORDANCE.md"
 
@@ -106,7 +108,7 @@ def test_there_are_lectures():
 def test_pair_in_sync(src):
     jupytext = _jupytext()
     ipynb = src.with_suffix(".ipynb")
-    assert ipynb.exists(), f"{ipynb.name} missing: run `python lectures/render.py {src.name[:2]}`"
+    assert ipynb.exists(), f"{ipynb.name} missing: run `python lectures/render.py {src.name.split('_')[0]}`"
     a = [(c.cell_type, c.source.strip()) for c in jupytext.read(src).cells]
     b = [(c.cell_type, c.source.strip()) for c in jupytext.read(ipynb).cells]
     assert a == b, f"{src.name} and {ipynb.name} differ: run `jupytext --sync {src}` (or render it again)"
@@ -117,7 +119,7 @@ def test_notebook_holds_rendered_outputs(src):
     nbformat = pytest.importorskip("nbformat")
     nb = nbformat.read(src.with_suffix(".ipynb"), as_version=4)
     outputs = [o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])]
-    hint = f"run `python lectures/render.py {src.name[:2]}`"
+    hint = f"run `python lectures/render.py {src.name.split('_')[0]}`"
     assert outputs, f"{src.name[:-3]}.ipynb holds no outputs: {hint}"
     assert any("image/png" in o.get("data", {}) for o in outputs), f"no figure stored: {hint}"
     errors = [o.get("ename", "") + ": " + o.get("evalue", "") for o in outputs if o.output_type == "error"]
@@ -152,6 +154,28 @@ def test_exercises_and_their_solutions(src):
     assert found == expected, f"{src.stem}: solutions {sorted(found)}, expected {sorted(expected)}"
 
 
+@pytest.mark.parametrize("src", SOURCES, ids=IDS)
+def test_every_exercise_has_a_hint_a_stub_and_a_hidden_solution(src):
+    """Each exercise: its markdown gives a **Hint.**, a code cell starting ``# your solution here`` follows,
+    then a markdown cell with the solution file in a collapsed ``{dropdown}`` (``literalinclude``: the file the
+    tests run is the one the site shows)."""
+    cells = _cells(src.stem)
+    starts = [i for i, (kind, text) in enumerate(cells) if kind == "markdown" and EXERCISE.search(text.lstrip())]
+    numbers = _exercises(src.stem)
+    assert len(starts) == len(numbers), f"{src.stem}: each '## Exercise N' heading starts its own markdown cell"
+    for number, start in zip(numbers, starts):
+        kind, text = cells[start]
+        assert "**Hint.**" in text, f"{src.stem} exercise {number}: no '**Hint.**'"
+        assert start + 2 < len(cells), f"{src.stem} exercise {number}: no stub and solution cells after it"
+        stub_kind, stub = cells[start + 1]
+        assert stub_kind == "code" and stub.startswith("# your solution here"), \
+            f"{src.stem} exercise {number}: the next cell is not a code cell starting '# your solution here'"
+        solution_kind, solution = cells[start + 2]
+        include = f"```{{literalinclude}} solutions/{src.stem}_ex{number}.py"
+        assert solution_kind == "markdown" and solution.lstrip().startswith("````{dropdown}") and include in solution, \
+            f"{src.stem} exercise {number}: the cell after the stub is not a dropdown including its solution file"
+
+
 def test_every_solution_belongs_to_an_exercise():
     stems = {s.stem for s in SOURCES}
     orphans = [p.name for p in SOLUTIONS.glob("*.py") if p.name.rsplit("_ex", 1)[0] not in stems]
@@ -164,6 +188,81 @@ def test_solution_runs_and_verifies(solution):
                          text=True, encoding="utf-8", timeout=300)
     assert run.returncode == 0, f"{solution.name} failed:\n{run.stdout[-2000:]}\n{run.stderr[-4000:]}"
     assert "✓" in run.stdout, f"{solution.name} verifies nothing (no ✓ line):\n{run.stdout[-2000:]}"
+
+
+# ----------------------------------------------------------------------------- the course as a text
+#: No lecture file is longer than this (a longer one is split, as lecture 4 is into 04a and 04b).
+MAX_LECTURE_LINES = 650
+CITE = re.compile(r"\{cite(?::\w+)?\}`[^`]+`")
+
+
+@pytest.mark.parametrize("src", SOURCES, ids=IDS)
+def test_lecture_length(src):
+    lines = src.read_text(encoding="utf-8").count("\n")
+    assert lines <= MAX_LECTURE_LINES, f"{src.name}: {lines} lines (at most {MAX_LECTURE_LINES}: split it)"
+
+
+def test_lectures_cite_the_bibliography():
+    citing = [src.name for src in SOURCES if CITE.search(src.read_text(encoding="utf-8"))]
+    assert len(citing) >= 3, f"{{cite}} roles in {citing} only (at least 3 lectures should cite the reading list)"
+
+
+def test_index_is_a_syllabus():
+    index = (LECTURES / "index.md").read_text(encoding="utf-8")
+    for heading in ("## Prerequisites", "## Syllabus", "## Reading list", "## Bibliography"):
+        assert heading in index, f"index.md has no '{heading}'"
+    assert "lago-cvx datasets fetch" in index and "```{bibliography}" in index
+    rows = {r[0]: r for r in _table_rows(index[index.index("## Syllabus"):index.index("## Reading list")])}
+    for src in SOURCES:
+        number = src.name.split("_")[0]
+        assert number in rows, f"the syllabus has no row for lecture {number}"
+        assert re.fullmatch(r"\d+(\.\d+)?", rows[number][-1]), f"lecture {number}: no hours in the syllabus"
+    for key in ("carlone2011rss", "carlone2014ijrr", "rosen2019sesync", "carlone2015icra"):
+        assert f"`{key}`" in index, f"the reading list does not cite {key}"
+
+
+@pytest.mark.parametrize("src", SOURCES, ids=IDS)
+def test_checks_are_hidden_in_the_site(src):
+    """Most checks sit in cells tagged remove-input: the site shows their ✓ lines, not their code."""
+    nb = _jupytext().read(src)
+    calls = hidden = 0
+    for cell in nb.cells:
+        if cell.cell_type == "code":
+            n = len(re.findall(r"^\s*check\(", cell.source, re.MULTILINE))
+            calls += n
+            hidden += n if "remove-input" in cell.metadata.get("tags", []) else 0
+    assert calls == 0 or hidden >= 0.3 * calls, f"{src.stem}: {hidden} of {calls} checks in remove-input cells"
+
+
+def _lecture_helpers():
+    spec = importlib.util.spec_from_file_location("lectures_helpers", LECTURES / "_lecture.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.mark.parametrize("noise", ["proportional", "isotropic"])
+def test_section_v_world_states_the_papers_rule(noise):
+    """Lecture 6's Table II world: information 1/σ² with σ = k·|measured component| + floor (the paper's
+    first scenario), whichever noise the measurements carry; the measurement errors are as drawn."""
+    helpers = _lecture_helpers()
+    graph, truth = helpers.section_v_world(200, seed=3, noise=noise)
+    rule = helpers.SECTION_V_RULE
+    measured = np.column_stack([graph.delta_l, graph.delta])
+    k = np.array([rule["k_t"], rule["k_t"], rule["k_theta"]])
+    floor = np.array([rule["floor_t"], rule["floor_t"], rule["floor_theta"]])
+    sigma = k * np.abs(measured) + floor
+    diagonal = graph.information[:, [0, 1, 2], [0, 1, 2]]
+    np.testing.assert_allclose(diagonal, 1.0 / sigma**2, rtol=1e-12)
+    assert not np.any(graph.information - np.einsum("ka,ab->kab", diagonal, np.eye(3)))
+    import lago_cvx as lc
+
+    exact = lc.between(truth[graph.tails], truth[graph.heads])
+    error = measured - exact
+    error[:, 2] = (error[:, 2] + np.pi) % (2 * np.pi) - np.pi
+    drawn = k * np.abs(exact) + floor if noise == "proportional" else np.array([0.02, 0.02, 0.01])
+    z = error / drawn
+    assert abs(z.std() - 1) < 0.1 and np.abs(z).max() < 6, f"standardized errors: std {z.std():.3f}, max {np.abs(z).max():.1f}"
 
 
 # ----------------------------------------------------------------------------- wording
@@ -225,7 +324,7 @@ def test_no_matplotlib_use_and_no_internal_wording():
 # ----------------------------------------------------------------------------- concordance
 #: The items the paper states without a number (SEED.md, "Also stated in the text"), as labelled here.
 UNNUMBERED = ["cycle / circuit", "regularization steps (Section V)", "abstract: refinement often unnecessary"]
-ROW_LECTURE = re.compile(r"^(\d\d_\w+) §(\d+)$")
+ROW_LECTURE = re.compile(r"^(\d\d[a-z]?_\w+) §(\d+)$")
 DOTTED = re.compile(r"^[A-Za-z_][\w.]*$")
 
 

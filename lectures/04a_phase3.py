@@ -1,8 +1,18 @@
 # %% [markdown]
-# # Lecture 4 — Phase 3, Theorem 1 and what the method costs
+# # Lecture 4a — Phase 3 and Theorem 1, as the paper states them
 #
 # *L. Carlone, R. Aragues, J. A. Castellanos, B. Bona, "A Linear Approximation for Graph-based
-# Simultaneous Localization and Mapping", RSS 2011 — Section IV-D, Remarks 1 and 2.*
+# Simultaneous Localization and Mapping", RSS 2011 {cite}`carlone2011rss` — Section IV-D, Remark 1.*
+#
+# **The idea in one paragraph.** Phase 1 fixed the orientations from the angles alone, and phase 2 turned
+# every measured displacement into the global frame with them. Had the orientations been exact, the
+# positions would now follow from a linear least-squares fit. They are not exact, and the loops say so: the
+# turned displacements do not close. Phase 3 lets the orientations move a little to close them better,
+# treating the turned displacements and the phase-1 orientations as one linear measurement of all poses.
+# Like a network of springs, every edge pulls its two poses towards the measured displacement (section 1
+# draws the springs). The figure below shows the step on the running example: from $\hat\rho$ to $\rho^*$. Theorem 1 says that this last, linear
+# step is the first-order correction that leads the sub-optimal estimate of phase 1 towards a minimum of
+# the cost. Lecture 4b measures that claim on real data.
 #
 # Phase 1 (lecture 2) estimated the orientations $\hat\theta$ with covariance $P_\theta$ (eq. (13)).
 # Phase 2 (lecture 3) rotated every relative position into the global frame, $\Delta^g = R\,\Delta^l$ with
@@ -18,10 +28,7 @@
 # 3. state Theorem 1 and follow its proof: $\theta^* = \hat\theta + \tilde\theta$ (eq. (16)),
 #    $p^* = \hat p + \tilde p$ (eq. (17)), and the corrections as the minimiser of the first-order
 #    expansion (18);
-# 4. say what Remark 1 (cost) and Remark 2 (block-diagonal noise) claim, and measure both;
-# 5. show with numbers where Theorem 1's "towards a minimum" fails on real data, explain why, and use
-#    the package's repair;
-# 6. compute the covariances of $\rho^*$ without a dense inverse.
+# 4. say what Remark 1 claims about the cost of the method, and measure it.
 #
 # **Notation.** $n+1$ poses $p_0,\dots,p_n$, pose 0 the reference (package: `graph.n_poses` $= n+1$);
 # $m$ edges; $A$ the *reduced* incidence matrix ($n\times m$, row of pose 0 deleted) — the package's
@@ -40,23 +47,21 @@ import cvxpy as cp
 import matplotlib.pyplot as plt
 import numpy as np
 import scipy.linalg as sla
-import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 from matplotlib.collections import LineCollection
 
 import lago_cvx as lc
 from lago_cvx import phases as P
-from lago_cvx.datasets import REFERENCE_CHI2
-from lago_cvx.sparse.linalg import block_diagonal_inverse
-from lago_cvx.metrics import edge_errors, relative_difference
-from lago_cvx.plotting import plot_covariances, plot_trajectory
-from lago_cvx.posegraph import rot2, wrap_angle
+from lago_cvx.metrics import relative_difference
+from lago_cvx.posegraph import rot2
 from lago_cvx.positions import resolve_positions
 from lago_cvx.refinement import jacobian, odometry_guess
-from lago_cvx.theorem1 import frozen_and_model, theorem1
-from _lecture import FULL, S, check, paper_lago, real, setup, show, solve_qp
+from lago_cvx.theorem1 import theorem1
+from _lecture import S, check, intuition_figure, paper_lago, real, setup, show, solve_qp
 
-setup("04_phase3")
+setup("04a_phase3")
+
+# %% tags=["remove-input"]
+show(intuition_figure("04a"), "intuition")
 
 # %% [markdown]
 # ## 1. The phase-3 model, eq. (12), and its solution, eq. (15)
@@ -103,6 +108,8 @@ truth0 = lc.between(np.broadcast_to(clean.truth[0], clean.truth.shape), clean.tr
 truth0[:, 2] += 2 * np.pi * np.rint((rc.phase1.theta - truth0[:, 2]) / (2 * np.pi))  # θ̂'s branch of 2π
 rho_true = np.concatenate([truth0[1:, :2].ravel(), truth0[1:, 2]])
 e12 = np.abs(rc.phase2.z - P.design_matrix(clean.graph) @ rho_true).max()
+
+# %% tags=["remove-input"]
 check(e12 < 1e-9, f"eq. (12) on exact data: z = Bᵀρ_true (max deviation {e12:.1e})")
 
 # %%
@@ -117,7 +124,6 @@ print(phase3)
 
 W.value, z.value, Bt.value = res.phase2.W.toarray(), res.phase2.z, P.design_matrix(g).toarray()
 
-
 TOL = 1e-8   # accepted relative disagreement with the closed form, for an "optimal" status at 1e-12 gaps
 status = solve_qp(phase3)
 
@@ -128,6 +134,8 @@ rho15 = np.linalg.solve(info15, Bd @ np.linalg.solve(P_z, res.phase2.z))     # e
 e_cvx = relative_difference(rho.value, res.phase3.x_star)
 e_dense = relative_difference(rho15, res.phase3.x_star)
 e_info = np.abs(info15 - res.phase3.info.toarray()).max() / np.abs(info15).max()
+
+# %% tags=["remove-input"]
 check(status == "optimal" and e_cvx < TOL, f"cvxpy (Clarabel, {status}) = package closed form ({e_cvx:.1e})")
 check(e_dense < 1e-9, f"eq. (15) with the dense P_z = package closed form ({e_dense:.1e})")
 check(e_info < 1e-9, f"information B P_z⁻¹ Bᵀ = phase3.info ({e_info:.1e})")
@@ -165,10 +173,12 @@ e_spring = np.abs(force - np.einsum("kab,kb->ka", P_dg_inv, d)).max() / np.abs(f
 net = lc.incidence_matrix(g) @ force                                   # net force on every pose, anchor included
 J = res.phase2.jac.toarray()
 e_torque = np.abs(J.T @ force.ravel() - res.phase1.info @ (rho.value[2 * n:] - res.phase1.theta_free)).max()
-check(e_lam < 1e-6, f"λ = −2 P_z⁻¹ (z − Bᵀρ*) (rel. {e_lam:.1e})")
 check(e_spring < 1e-6, f"λ_Δ/2 = P_Δg⁻¹ d_k: spring forces (rel. {e_spring:.1e}; largest |f| {np.abs(force).max():.2f})")
 check(np.abs(net).max() < 1e-6 * np.abs(force).max(),
       f"forces balance at every pose, and the anchor feels none (max net {np.abs(net).max():.1e})")
+
+# %% tags=["remove-input"]
+check(e_lam < 1e-6, f"λ = −2 P_z⁻¹ (z − Bᵀρ*) (rel. {e_lam:.1e})")
 check(np.abs(lam_th).max() < 1e-6 * np.abs(lam).max() and e_torque < 1e-6 * np.abs(J.T @ force.ravel()).max(),
       f"λ_θ = 0: torques balanced by P_θ⁻¹(θ* − θ̂) (max deviation {e_torque:.1e})")
 
@@ -182,6 +192,7 @@ fig, axes = plt.subplots(1, 4, figsize=(16, 4.2))
 for ax, M, title in [(axes[0], P_z, "P_z (dense)"), (axes[1], W.value, "W, WᵀW = P_z⁻¹"),
                      (axes[2], info15, "B P_z⁻¹ Bᵀ (information of ρ*)")]:
     ax.spy(np.abs(M) > 1e-12 * np.abs(M).max(), markersize=1.2)
+    ax.set(xlabel="column", ylabel="row")
     ax.set_title(f"{title}\n{M.shape[0]}×{M.shape[1]}, {np.mean(np.abs(M) > 1e-12 * np.abs(M).max()):.0%} non-zero",
                  fontsize=9)
 tension = np.linalg.norm(force, axis=1)
@@ -194,7 +205,7 @@ axes[3].autoscale_view()
 axes[3].set_aspect("equal")
 axes[3].legend(fontsize=8, loc="lower left")
 fig.colorbar(lines, ax=axes[3], label="spring tension ‖f_k‖")
-axes[3].set_title("edges at p*, by tension", fontsize=9)
+axes[3].set(title="edges at p*, by tension", xlabel="x [m]", ylabel="y [m]")
 fig.tight_layout()
 show(fig, "structure_and_forces")
 
@@ -212,6 +223,9 @@ if intel is not None:
     e_real = relative_difference(ph3_cvx.x_star, r_intel.phase3.x_star)
     print(f"INTEL_P_toro: 3n = {ph3_cvx.x_star.size} unknowns; Clarabel {t_cvx:.2f} s, closed form "
           f"{1e3 * r_intel.timings['phase3']:.0f} ms")
+
+# %% tags=["remove-input"]
+if intel is not None:
     check(e_real < TOL, f"INTEL: cvxpy phase 3 = closed form ({e_real:.1e})")
 
 # %% [markdown]
@@ -257,6 +271,8 @@ p_hat = P_phat @ A2 @ Pdg_inv @ RDl                       # eq. (14)
 t1 = theorem1(g, result=res)
 p_pkg = resolve_positions(g, th_h, res.uncertainty).poses[1:, :2].ravel()
 grad_theta = (-2 * Bd @ np.linalg.solve(P_z, res.phase2.z - Bd.T @ rho.value))[2 * n:]   # ∇_θ of the cost at ρ̂
+
+# %% tags=["remove-input"]
 check(status14 == "optimal" and relative_difference(rho.value[:2 * n], p_hat) < TOL,
       f"cvxpy with θ = θ̂ gives eq. (14) ({relative_difference(rho.value[:2 * n], p_hat):.1e})")
 check(relative_difference(p_pkg, p_hat) < 1e-9 and relative_difference(t1.x_hat[:2 * n], p_hat) < 1e-9,
@@ -275,7 +291,7 @@ check(np.abs(np.abs(hold.dual_value) - np.abs(grad_theta)).max() < 1e-6 * np.abs
 # The proof has two steps: (i) block inversion of eq. (15) writes $\rho^*$ as $\hat\rho$ plus explicit
 # corrections — eq. (16) for the orientations, eq. (17) for the positions; (ii) those corrections are
 # exactly the minimiser of the first-order expansion (18) of the cost around $\hat\rho$ (section 5).
-# Sections 3–5 check each step; section 8 measures the claim itself on real data.
+# Sections 3–5 check each step; lecture 4b measures the claim itself on real data.
 #
 # **Step (i), orientations.** From eq. (11), the information of $\rho^*$ has the blocks (Exercise 1
 # derives them)
@@ -303,8 +319,10 @@ theta_13 = np.linalg.solve(P_theta_inv, A @ (res.regularization.delta_reg / res.
 theta_tilde = P_th_star @ J.T @ Pdg_inv @ (A2.T @ P_phat @ A2 @ Pdg_inv - np.eye(2 * m)) @ RDl
 theta_star = res.phase3.x_star[2 * n:]
 e16 = relative_difference(theta_13 + theta_tilde, theta_star)
-check(relative_difference(theta_13, res.phase1.theta_free) < 1e-9, "the first summand of eq. (16) is θ̂ (eq. (13))")
 check(e16 < 1e-9, f"eq. (16): θ̂ + θ̃ = phase 3's θ* ({e16:.1e}); max|θ̃| = {np.abs(theta_tilde).max():.3f} rad")
+
+# %% tags=["remove-input"]
+check(relative_difference(theta_13, res.phase1.theta_free) < 1e-9, "the first summand of eq. (16) is θ̂ (eq. (13))")
 check(relative_difference(t1.theta_correction, theta_tilde) < 1e-9, "θ̃ = theorem1(...).theta_correction")
 check(np.allclose(P_th_star, np.linalg.inv(info15)[2 * n:, 2 * n:], rtol=1e-8, atol=0),
       "P_θ* is the orientation block of P_ρ* = (B P_z⁻¹ Bᵀ)⁻¹")
@@ -328,14 +346,19 @@ check(np.allclose(P_th_star, np.linalg.inv(info15)[2 * n:, 2 * n:], rtol=1e-8, a
 p_tilde = P_phat @ A2 @ Pdg_inv @ J @ P_th_star @ J.T @ Pdg_inv @ (A2.T @ P_phat @ A2 @ Pdg_inv - np.eye(2 * m)) @ RDl
 p_star = res.phase3.x_star[:2 * n]
 e17 = relative_difference(p_hat + p_tilde, p_star)
-check(e17 < 1e-9, f"eq. (17): p̂ + p̃ = phase 3's p* ({e17:.1e}); max|p̃| = {np.abs(p_tilde).max():.3f} m")
-check(relative_difference(p_tilde, P_phat @ A2 @ Pdg_inv @ J @ theta_tilde) < 1e-9, "p̃ = P_p̂ A₂ P_Δg⁻¹ J θ̃")
-check(relative_difference(t1.position_correction, p_tilde) < 1e-9 and t1.identity_error < 1e-9,
-      f"p̃ = theorem1(...).position_correction; identity ρ* − ρ̂ = [p̃; θ̃] to {t1.identity_error:.1e}")
 
+# %% tags=["remove-input"]
+check(e17 < 1e-9, f"eq. (17): p̂ + p̃ = phase 3's p* ({e17:.1e}); max|p̃| = {np.abs(p_tilde).max():.3f} m")
+
+# %%
 tree_world = lc.random_graph(15, 14, seed=4, sigma_xy=0.1, sigma_theta=0.05)      # 15 poses, 14 edges: a tree
 t_tree = theorem1(tree_world.graph, result=paper_lago(tree_world.graph))
 corr = np.abs(np.concatenate([t_tree.theta_correction, t_tree.position_correction])).max()
+
+# %% tags=["remove-input"]
+check(relative_difference(p_tilde, P_phat @ A2 @ Pdg_inv @ J @ theta_tilde) < 1e-9, "p̃ = P_p̂ A₂ P_Δg⁻¹ J θ̃")
+check(relative_difference(t1.position_correction, p_tilde) < 1e-9 and t1.identity_error < 1e-9,
+      f"p̃ = theorem1(...).position_correction; identity ρ* − ρ̂ = [p̃; θ̃] to {t1.identity_error:.1e}")
 check(corr < 1e-12, f"on a tree the corrections vanish: ρ* = ρ̂ (max |correction| {corr:.1e})")
 
 # %% [markdown]
@@ -376,23 +399,26 @@ W_D.value = sla.block_diag(*(res.uncertainty.sqrt_info_delta_l @ np.swapaxes(rot
 w_d.value = res.uncertainty.sqrt_info_delta
 status18 = solve_qp(eq18)
 e18 = relative_difference(np.concatenate([dp.value, dth.value]), np.concatenate([p_tilde, theta_tilde]))
+
+# %% tags=["remove-input"]
 check(np.allclose(W_D.value.T @ W_D.value, Pdg_inv, rtol=0, atol=1e-9 * np.abs(Pdg_inv).max()),
       "W_Δᵀ W_Δ = (R P_Δˡ Rᵀ)⁻¹")
-check(status18 == "optimal" and e18 < TOL, f"the minimiser of eq. (18) is (p̃, θ̃) ({e18:.1e})")
 
+# %%
 # (18) is a first-order expansion: the residuals' linearisation error falls like the square of the step
 step = np.concatenate([p_tilde, theta_tilde])
-
 
 def position_residual(x):
     """A₂ᵀp − R(θ)Δˡ at x = [p; θ] (pose 0 at the origin), the exact residual of eq. (6)'s first term."""
     th = np.concatenate([[0.0], x[2 * n:]])
     return A2.T @ x[:2 * n] - np.einsum("kab,kb->ka", rot2(th[g.tails]), g.delta_l).ravel()
 
-
 x_hat = np.concatenate([p_hat, res.phase1.theta_free])
 lin_err = [np.abs(position_residual(x_hat + t * step) - (r_D.value + t * (A2.T @ p_tilde - J @ theta_tilde))).max()
            for t in (1e-2, 1e-3)]
+
+# %% tags=["remove-input"]
+check(status18 == "optimal" and e18 < TOL, f"the minimiser of eq. (18) is (p̃, θ̃) ({e18:.1e})")
 check(80 < lin_err[0] / lin_err[1] < 120,
       f"residual linearisation error ×{lin_err[0] / lin_err[1]:.0f} for a step 10× shorter: second order")
 
@@ -414,11 +440,12 @@ sizes = np.array(sizes)
 w_d.value = res.uncertainty.sqrt_info_delta
 print(f"9 re-solves: first {1e3 * times[0]:.0f} ms, the others {1e3 * np.mean(times[1:]):.0f} ms on average")
 at1 = sizes[list(scales).index(1.0)]
+
+# %% tags=["remove-input"]
 check(np.allclose(at1, [np.linalg.norm(theta_tilde), np.linalg.norm(p_tilde)], rtol=1e-6),
       "s = 1 reproduces (p̃, θ̃)")
-check(np.all(np.diff(sizes[:, 0]) > 0) and sizes[0, 0] < 1e-2 * at1[0],
-      f"‖θ̃‖ grows with s and vanishes as s → 0 (‖θ̃‖ = {sizes[0, 0]:.1e} at s = 1e-4)")
 
+# %%
 fig, ax = plt.subplots(figsize=(6.5, 4))
 ax.loglog(scales, sizes[:, 0], "o-", label="‖θ̃‖ (rad), eq. (16)")
 ax.loglog(scales, sizes[:, 1], "s-", label="‖p̃‖ (m), eq. (17)")
@@ -430,13 +457,26 @@ ax.legend()
 ax.grid(True, which="both", alpha=0.3)
 show(fig, "correction_sweep")
 
+# %% tags=["remove-input"]
+check(np.all(np.diff(sizes[:, 0]) > 0) and sizes[0, 0] < 1e-2 * at1[0],
+      f"‖θ̃‖ grows with s and vanishes as s → 0 (‖θ̃‖ = {sizes[0, 0]:.1e} at s = 1e-4)")
+
 # %% [markdown]
 # ## 6. Remark 1 — what the three phases cost
 #
-# **Remark 1** (the cost of the method). *A direct (iterative) method solves $N$ linear problems of size
-# $3n$, with $N$ depending on the initial guess; the three phases solve a problem of size $n$ (the
-# orientations) and one the size of a single step of the direct method (eq. (15)); the sub-optimal
-# $\hat\rho$ need not be computed.*
+# **Remark 1** (the cost of the method, and why it should be accurate). The paper's remark has two parts:
+#
+# * *cost* — "A direct (iterative) method […] would require solving $N$ linear problems of size $3n$ (in
+#   which the iterations $N$ may increase arbitrarily, depending on the initial guess); our approach solves a
+#   small problem (on robot orientations — size $n$) and a problem of the same size of a single step of the
+#   direct method";
+# * *accuracy* — "the first-order correction provided by the last phase of the proposed approach refines a
+#   sub-optimal solution which, in practice, is already close to a global minimum. Therefore the approach is
+#   expected to be accurate, while reducing the risk of being trapped in a local minimum. Furthermore, the
+#   sub-optimal solution needs not be computed explicitly."
+#
+# The second part is a claim about $\hat\rho$ ("already close to a global minimum") and about the step
+# from it; the Manhattan world below and lecture 4b's real graphs put numbers on both.
 #
 # Section 5 showed that phase 3 *is* one Gauss–Newton step from $\hat\rho$ (of the cost with the weights
 # at $\hat\theta$). Here we count: the sizes and non-zeros of phase 1's and phase 3's normal matrices, those
@@ -488,308 +528,23 @@ fig.tight_layout()
 show(fig, "remark1_cost")
 
 r, gn_dr, gn_lago = runs["Manhattan world, 2000 poses"]
+
+# %% tags=["remove-input"]
 check(r.chi2 < 1.01 * gn_lago.chi2, f"Manhattan world: LAGO's χ² is {r.chi2 / gn_lago.chi2:.4f}× the minimum")
+
+# %%
 if intel is not None:
     r, gn_dr, gn_lago = runs["INTEL_P_toro (real)"]
+
+# %% tags=["remove-input"]
+if intel is not None:
     check(r.chi2 > 10 * gn_lago.chi2, f"INTEL, the paper's procedure: LAGO's χ² is {r.chi2 / gn_lago.chi2:.0f}× the minimum")
 
 # %% [markdown]
 # LAGO's cost is that of about one Gauss–Newton step. What it buys depends on the graph: on the
 # Manhattan world its estimate is already within a percent of the minimum; on INTEL, with the paper's
-# procedure, its χ² is more than ten times the minimum (section 8 explains why), and still Gauss–Newton
+# procedure, its χ² is more than ten times the minimum (lecture 4b explains why), and still Gauss–Newton
 # from it needs fewer steps than from dead reckoning.
-#
-# ## 7. Remark 2 — block-diagonal noise, and what the package does with full information
-#
-# **Remark 2** (when block-diagonal noise holds). *Independent position and orientation noise,
-# $P_{ij} = \mathrm{diag}(P_{\Delta l,ij}, P_{\delta,ij})$, holds for holonomic platforms; for non-holonomic
-# platforms it is an approximation.*
-#
-# Real files (g2o) often carry a full $3\times3$ information $\Omega$ with $x$–$\theta$ and $y$–$\theta$ terms.
-# The package offers two phases 2–3:
-#
-# * `information="marginal"` — the paper's split with the marginal covariances
-#   $P_{\Delta l} = (\Omega^{-1})_{[0:2,0:2]}$, $P_\delta = (\Omega^{-1})_{22}$: the $\Delta^l$–$\delta$ correlation is
-#   dropped;
-# * `information="full"` (the default) — the same Gauss–Newton step with each edge's joint residual
-#   $[d_k;\ \theta_j - \theta_i - \delta_k]$ weighted by $T_k\Omega_kT_k^\top$, $T_k = \mathrm{blkdiag}(R(\hat\theta_i), 1)$
-#   (`lago_cvx.phases`, module docstring).
-#
-# For block-diagonal $\Omega$ the two are the same phase 3. With correlations, only the full one is
-# *first-order optimal*: its excess $\chi^2(\text{LAGO})/\chi^2(\min) - 1$ should vanish like $\sigma^2$ as the
-# noise $\sigma\to 0$, the marginal one's should not. We measure it on random full-information graphs
-# (the same standardized noise, scaled).
-
-# %%
-same = np.abs(lc.lago(g, information="full", positions="phase3").poses
-              - lc.lago(g, information="marginal", positions="phase3").poses).max()
-check(same < 1e-9, f"block-diagonal information: full = marginal ({same:.1e})")
-
-noise_scales = np.logspace(0, -3, 7 if FULL else 4)
-seeds = range(6 if FULL else 3)
-excess = np.zeros((len(seeds), noise_scales.size, 2))
-for a, seed in enumerate(seeds):
-    for b, s in enumerate(noise_scales):
-        wf = lc.random_graph(30, 70, seed=seed, information="full", sigma_xy=0.05 * s, sigma_theta=0.02 * s)
-        best = lc.refine(wf.graph, wf.truth, tolerance=1e-14, max_iterations=100).chi2
-        excess[a, b] = [lc.lago(wf.graph, information=i, positions="phase3").chi2 / best - 1
-                        for i in ("full", "marginal")]
-slope = np.polyfit(np.log10(noise_scales), np.log10(excess[:, :, 0].mean(0)), 1)[0]
-print("noise scale:        " + "  ".join(f"{s:9.0e}" for s in noise_scales))
-for k, label in enumerate(("full", "marginal")):
-    print(f"excess, {label:8s}:  " + "  ".join(f"{v:9.1e}" for v in excess[:, :, k].mean(0)))
-check(1.8 < slope < 2.2, f"information='full': excess ∝ σ^{slope:.2f} — first-order optimal")
-check(excess[:, -1, 1].min() > 0.05, f"information='marginal': excess stays ≥ {excess[:, -1, 1].min():.2f} as σ → 0")
-
-fig, ax = plt.subplots(figsize=(6.5, 4.2))
-for k, (label, mk) in enumerate((("information='full' (default)", "o-"), ("information='marginal' (the paper's split)", "s-"))):
-    ax.loglog(noise_scales, excess[:, :, k].mean(0), mk, label=label)
-ax.loglog(noise_scales, excess[:, 0, 0].mean() * noise_scales ** 2, "k:", label="∝ σ²")
-ax.set_xlabel("noise scale σ / σ₀")
-ax.set_ylabel("χ²(LAGO) / χ²(min) − 1")
-ax.set_title(f"Random graphs with full 3×3 information ({len(seeds)} seeds)")
-ax.grid(True, which="both", alpha=0.3)
-ax.legend(fontsize=8)
-show(fig, "remark2_full_information")
-
-# %% [markdown]
-# ## 8. Theorem 1 measured on real data — and the package's repair
-#
-# `lago_cvx.theorem1.theorem1` computes $\hat\rho$ (eq. (14)), the corrections (eqs. (16)–(17)) by sparse
-# block elimination, and χ² of eq. (3) at $\hat\rho$, at $\rho^*$, and with the positions re-solved exactly for
-# $\theta^*$. We run it with the paper's phases on six real graphs, all with block-diagonal information (so
-# Remark 2 is not in question), and take the minimum from Gauss–Newton (it agrees with the reference values
-# of `lago_cvx.datasets`). Two of them are the same M3500 world — identical measurements — with different
-# information: isotropic in `input_M3500_g2o`, anisotropic in `manhattan.g2o`.
-
-# %%
-FAILS = ["carlone/INTEL_P_toro.graph", "carlone/input_INTEL_g2o.g2o", "se-sync/CSAIL.g2o", "se-sync/MIT.g2o",
-         "se-sync/manhattan.g2o"]
-HOLDS = ["carlone/input_M3500_g2o.g2o"]
-FILES = FAILS + HOLDS
-measured = {}
-for rel in FILES:
-    gr = real(rel)
-    if gr is None:
-        continue
-    t = theorem1(gr, regularization="tree", information="marginal", positions="phase3")
-    opt = lc.refine(gr, t.result.poses)
-    measured[rel] = (gr, t, opt)
-    check(abs(opt.chi2 / REFERENCE_CHI2[rel] - 1) < 1e-4, f"{rel}: minimum χ² {opt.chi2:.4f} (reference "
-          f"{REFERENCE_CHI2[rel]})")
-
-print(f"\n{'file':30s} {'identity':>9s} {'χ²(ρ̂)/min':>11s} {'χ²(ρ*)/min':>11s} {'re-solved/min':>13s}")
-for rel, (gr, t, opt) in measured.items():
-    print(f"{rel:30s} {t.identity_error:9.1e} {t.chi2_suboptimal / opt.chi2:11.3f} {t.chi2_phase3 / opt.chi2:11.2f} "
-          f"{t.chi2_resolved / opt.chi2:13.4f}")
-if measured:
-    worst = max(t.identity_error for _, t, _ in measured.values())
-    check(worst < 1e-9, f"the identity ρ* − ρ̂ = [p̃; θ̃] of eqs. (16)–(17) holds on every file (worst {worst:.1e})")
-    fails = [rel for rel, (_, t, _) in measured.items() if t.chi2_phase3 > t.chi2_suboptimal]
-    check(set(fails) == set(FAILS) & set(measured),
-          f"the claim fails — χ²(ρ*) > χ²(ρ̂) — on {', '.join(f.split('/')[1] for f in fails)}")
-    for rel in set(HOLDS) & set(measured):
-        _, t, _ = measured[rel]
-        check(t.chi2_phase3 < t.chi2_suboptimal, f"it holds on {rel}: χ² {t.chi2_suboptimal:.1f} → {t.chi2_phase3:.1f}")
-
-# %% [markdown]
-# **Where the claim fails**, phase 3 moves a $\hat\rho$ that is already close to the minimum (column
-# χ²(ρ̂)/min) to several times the minimum, or far more (column χ²(ρ*)/min). The identity — the algebra of
-# the proof — holds to rounding. So where does the argument break? Three measurements along the segment
-# $\hat\rho + \alpha(\rho^* - \hat\rho)$, printed below:
-#
-# 1. **The expansion (18) is accurate.** The cost with the weights kept at $\hat\theta$ but the residuals
-#    exact ("frozen weights") agrees with the quadratic model of (18) at $\rho^*$ to a fraction of a percent.
-# 2. **The frozen weights are not.** The true cost (6) weighs the position residual of edge $k$ by
-#    $(R(\theta_i)P_{\Delta l,k}R(\theta_i)^\top)^{-1}$, which turns with the orientation; (18) keeps it at
-#    $\hat\theta$. For isotropic $P_{\Delta l}$ turning changes nothing (`input_M3500`). The other files have very
-#    anisotropic translational information (columns "anisotropy": largest and median ratio of the
-#    eigenvalues of $\Omega_{tt}$) and a few edges with enormous information: a small rotation moves a
-#    residual from the cheap axis onto the expensive one. The M3500 pair isolates the effect: the same
-#    measurements, and phase 3 lands on the minimum with isotropic information, above it with anisotropic
-#    information — while its frozen-weight cost comes within a fraction of a percent of the minimum in both.
-# 3. **The step is long and points the wrong way.** Nothing limits how far $\theta$ moves; on INTEL
-#    and CSAIL $\theta^*$ is *farther* from the optimum's orientations than $\hat\theta$.
-
-# %%
-# The first two measurements need χ² with the weights frozen at θ̂ and the quadratic model of (18): both are
-# `lago_cvx.theorem1.frozen_and_model(result, poses)` (read its source: a dozen lines of eqs. (6) and (18));
-# `Theorem1.poses(x)` turns a stacked ρ = [p; θ] into poses, the anchor at the origin.
-alphas = np.linspace(0.0, 1.0, 6)
-curves = {}
-print(f"{'file':30s} {'χ² frozen/model':>15s} {'χ²(ρ*)/frozen':>13s} {'anisotropy max, median':>22s} "
-      f"{'Ω_tt max/median':>15s} {'share of χ²(ρ*)':>16s} {'‖θ*−θ̂‖/‖θ̂−θ_opt‖':>18s} {'cos':>6s} "
-      f"{'RMS θ̂, θ* − θ_opt':>18s}")
-for rel, (gr, t, opt) in measured.items():
-    r = t.result
-    star = t.poses(t.x_star)
-    frozen, model = frozen_and_model(r, star)
-    ev = np.linalg.eigvalsh(gr.information[:, :2, :2])
-    tr = ev.sum(1)
-    big = tr > 1e3 * np.median(tr)
-    err = edge_errors(gr, star)
-    per_edge = np.einsum("ka,kab,kb->k", err, gr.information, err)
-    th_hat, th_star, th_opt = r.phase1.theta, star[:, 2], opt.poses[:, 2]
-    to_opt = wrap_angle(th_opt - th_hat)
-    step_th = th_star - th_hat
-    cos = step_th @ to_opt / np.linalg.norm(step_th) / np.linalg.norm(to_opt)
-    rms = lambda th: np.sqrt(np.mean(wrap_angle(th - th_opt) ** 2))   # noqa: E731
-    aniso = ev[:, 1] / ev[:, 0]
-    share = per_edge[big].sum() / per_edge.sum()
-    print(f"{rel:30s} {frozen / model:15.4f} {t.chi2_phase3 / frozen:13.1f} {aniso.max():12.1e}, {np.median(aniso):8.1f} "
-          f"{tr.max() / np.median(tr):15.1e} {share:8.0%} of {big.sum():4d} "
-          f"{np.linalg.norm(step_th) / np.linalg.norm(to_opt):18.1f} {cos:6.2f} {rms(th_hat):8.4f}, {rms(th_star):.4f}")
-    check(abs(frozen / model - 1) < 0.01, f"{rel}: the expansion (18) is accurate at ρ* (frozen/model "
-          f"{frozen / model:.4f})")
-    if rel in FAILS:
-        check(frozen < t.chi2_suboptimal < t.chi2_phase3, f"{rel}: with frozen weights the step lowers the cost "
-              f"({t.chi2_suboptimal:.1f} → {frozen:.1f}); with the true weights it raises it (to {t.chi2_phase3:.1f})")
-    else:
-        check(abs(t.chi2_phase3 / frozen - 1) < 1e-9, f"{rel}: isotropic information, frozen weights = true weights")
-    if rel in ("se-sync/manhattan.g2o", "carlone/input_M3500_g2o.g2o"):
-        check(frozen < 1.005 * opt.chi2, f"{rel}: the frozen-weight cost at ρ* is {frozen / opt.chi2:.4f}× the minimum")
-    if rel in ("carlone/INTEL_P_toro.graph", "carlone/input_INTEL_g2o.g2o", "se-sync/MIT.g2o"):
-        check(share > 0.8, f"{rel}: {big.sum()} edges with Ω_tt > 1000× the median carry {share:.0%} of χ²(ρ*)")
-    if rel == "se-sync/CSAIL.g2o":
-        check(share < 0.1 and np.median(aniso) > 10, f"{rel}: not the few big edges ({share:.0%}) but the anisotropy of "
-              f"most edges (median {np.median(aniso):.0f})")
-    if rel in ("carlone/INTEL_P_toro.graph", "se-sync/CSAIL.g2o"):
-        check(rms(th_star) > rms(th_hat) and cos < 0,
-              f"{rel}: θ* is farther from the optimum's orientations than θ̂, the step pointing away (cos {cos:.2f})")
-    line = [lc.chi2(gr, t.poses(t.x_hat + a * (t.x_star - t.x_hat))) / opt.chi2 for a in alphas]
-    frozen_line = [frozen_and_model(r, t.poses(t.x_hat + a * (t.x_star - t.x_hat)))[0] / opt.chi2 for a in alphas]
-    resolved = [lc.chi2(gr, resolve_positions(gr, th_hat + a * (th_star - th_hat), r.uncertainty).poses) / opt.chi2
-                for a in alphas]
-    curves[rel] = (line, frozen_line, resolved)
-
-# %% [markdown]
-# (The "share of χ²(ρ*)" column is the part carried by the edges whose translational information exceeds
-# 1000× the file's median: on the INTEL files and MIT those few edges carry most of it; on CSAIL the
-# anisotropy of most edges is what matters.)
-#
-# **The repair** (`lago(..., positions="resolve")`, part of the package's default route). With the
-# orientations fixed, χ² is *exactly* quadratic in the positions, so the positions can be re-solved for
-# any $\theta$ with the true weights (`lago_cvx.positions`). Let $F(\theta)$ be χ² with the positions so
-# eliminated. The guarded polish keeps $\theta^*$ when $F(\theta^*)\le F(\hat\theta)$ and otherwise halves the
-# step $\hat\theta + \alpha(\theta^* - \hat\theta)$ until $F$ drops below $F(\hat\theta)$ — two position solves
-# in the usual case. The figure shows all three costs along the segment.
-
-# %%
-if curves:
-    fig, axes = plt.subplots(1, len(curves), figsize=(3.6 * len(curves), 3.8), squeeze=False)
-    for ax, (rel, (line, frozen_line, resolved)) in zip(axes[0], curves.items()):
-        ax.semilogy(alphas, line, "o-", markersize=3, label="χ² along ρ̂ + α(ρ* − ρ̂)")
-        ax.semilogy(alphas, frozen_line, "--", label="same, weights frozen at θ̂")
-        ax.semilogy(alphas, resolved, "s-", markersize=3, label="F: positions re-solved")
-        ax.set_title(rel.split("/")[1], fontsize=9)
-        ax.set_xlabel("α")
-        ax.grid(True, which="both", alpha=0.3)
-    axes[0][0].set_ylabel("χ² / minimum")
-    axes[0][0].legend(fontsize=7)
-    fig.tight_layout()
-    show(fig, "theorem1_real_data")
-
-print(f"{'file':30s} {'polish α':>8s} {'χ²/min, paper + polish':>23s} {'χ²/min, default route':>22s}")
-for rel, (gr, t, opt) in measured.items():
-    fixed = paper_lago(gr, positions="resolve")
-    default = lc.lago(gr)
-    print(f"{rel:30s} {fixed.polish.alpha:8.3g} {fixed.chi2 / opt.chi2:23.4f} {default.chi2 / opt.chi2:22.4f}")
-    check(fixed.chi2 <= min(t.chi2_suboptimal, t.chi2_phase3) * (1 + 1e-12) and default.chi2 < 1.05 * opt.chi2
-          and (fixed.polish.alpha < 1 or len(fixed.polish.trials) == 2),
-          f"{rel}: the polish ends below χ²(ρ̂) and χ²(ρ*) ({len(fixed.polish.trials)} position solves); "
-          "the default route is within 5 % of the minimum")
-
-# %% [markdown]
-# ## 9. The covariances of $\rho^*$ (eq. (15)), without a dense inverse
-#
-# $P_{\rho^*} = (BP_z^{-1}B^\top)^{-1}$ is dense, but a pose's marginal covariance is only a $3\times3$ block
-# of it (order $x, y, \theta$). `Phase3.pose_covariances()` gets all of them by *selected inversion*: Takahashi's
-# recurrences run backwards over the pose-level block factorization phase 3 already computed
-# (`lago_cvx.sparse.multifrontal`), touching only the blocks the factor fills — no dense inverse, no column solves
-# (`LagoResult.pose_covariances()` also rotates them when an `anchor_pose` is given). `linalg.block_diagonal_inverse`
-# reaches the same blocks the slow, plain way — batched sparse solves against unit columns — and serves as a
-# second opinion. We compare with the dense inverse on the small graph, with single sparse solves for a few
-# poses of a real graph (both routes), and with a Monte Carlo estimate.
-
-# %%
-cov = res.phase3.pose_covariances()
-dense = np.linalg.inv(info15)
-blocks = np.array([dense[np.ix_(idx, idx)] for idx in ([2 * q, 2 * q + 1, 2 * n + q] for q in range(n))])
-e_cov = np.abs(cov[1:] - blocks).max() / np.abs(blocks).max()
-check(e_cov < 1e-9 and np.all(cov[0] == 0), f"pose_covariances = 3×3 blocks of the dense (B P_z⁻¹ Bᵀ)⁻¹ ({e_cov:.1e})")
-
-if intel is not None:
-    nn = intel.n_poses - 1
-    lu = spla.splu(sp.csc_matrix(r_intel.phase3.info))
-    chosen = np.array([1, 400, 900, nn])                        # poses; their rows in ρ = [p; θ] below
-    rows = np.stack([2 * (chosen - 1), 2 * (chosen - 1) + 1, 2 * nn + chosen - 1], axis=1)
-    selected = r_intel.phase3.pose_covariances()[chosen]             # Takahashi, every pose at once
-    batched = block_diagonal_inverse(r_intel.phase3.factor, rows)    # unit-column solves, these four only
-    worst = 0.0
-    for q, idx in enumerate(rows):
-        E = np.zeros((3 * nn, 3))
-        E[idx, [0, 1, 2]] = 1.0
-        single = lu.solve(E)[idx]
-        worst = max(worst, *(np.abs(c[q] - single).max() / np.abs(single).max() for c in (selected, batched)))
-    # two direct solvers agree to about κ·ε (κ: condition number, estimated without an inverse)
-    inverse = spla.LinearOperator(lu.shape, matvec=lu.solve, rmatvec=lambda x: lu.solve(x, trans="T"), dtype=float)
-    kappa = spla.norm(r_intel.phase3.info, 1) * spla.onenormest(inverse)
-    check(worst < kappa * np.finfo(float).eps,
-          f"INTEL: selected inversion = batched solves = single sparse solves for poses 1, 400, 900, {nn} ({worst:.1e}, below κ·ε = "
-          f"{kappa * np.finfo(float).eps:.0e} for κ ≈ {kappa:.0e})")
-
-# Monte Carlo: a 100-pose Manhattan world, fresh noise in every draw; its last pose's scatter vs its covariance
-mc_world = lc.manhattan_world(100, seed=4, sigma_xy=0.05, sigma_theta=0.02)
-gm, last_pose = mc_world.graph, mc_world.graph.n_poses - 1
-pred = paper_lago(gm).pose_covariances()[last_pose][:2, :2]
-exact = lc.between(mc_world.truth[gm.tails], mc_world.truth[gm.heads])   # the same truth and edges ...
-rng = np.random.default_rng(1)
-draws = 200
-last = []
-for k in range(draws):
-    meas = exact + rng.standard_normal(exact.shape) * [0.05, 0.05, 0.02]   # ... with fresh noise
-    gk = lc.PoseGraph(gm.n_poses, gm.tails, gm.heads, meas[:, :2], wrap_angle(meas[:, 2]), gm.information)
-    last.append(paper_lago(gk).poses[last_pose, :2])
-last = np.array(last)
-ratio = np.trace(np.cov(last.T)) / np.trace(pred)
-check(0.75 < ratio < 1.33, f"Monte Carlo ({draws} draws): trace of the position scatter / predicted = {ratio:.2f}")
-# (P_ρ* is a first-order covariance: the ratio says how good the approximation is at this noise level.)
-
-# %% [markdown]
-# Left: a 300-pose Manhattan world with the 3σ position ellipse of every fourth pose — the uncertainty grows
-# with the distance from pose 0 and shrinks where loop closures tie the trajectory. Right: the Monte Carlo
-# estimates of the last pose of a 100-pose world and the predicted 3σ ellipse around its true position. A
-# 2-D Gaussian falls inside its 3σ ellipse with probability $1 - e^{-9/2}$.
-
-# %%
-wm = lc.manhattan_world(300, seed=4, sigma_xy=0.05, sigma_theta=0.01)
-rm = paper_lago(wm.graph)
-cov_m = rm.pose_covariances()
-e_pos = rm.poses[1:, :2] - wm.truth[1:, :2]                     # truth and estimate share pose 0 = origin
-maha = np.einsum("ka,kab,kb->k", e_pos, np.linalg.inv(cov_m[1:, :2, :2]), e_pos)
-inside = np.mean(maha <= 9.0)
-print(f"Manhattan world: {inside:.1%} of the true positions inside their 3σ ellipse "
-      f"(a 2-D Gaussian: {1 - np.exp(-4.5):.1%}); the poses are correlated, so this is one draw, not a test")
-off = last - mc_world.truth[last_pose, :2]
-inside_mc = np.mean(np.einsum("ka,ab,kb->k", off, np.linalg.inv(pred), off) <= 9.0)
-check(inside_mc > 0.9, f"Monte Carlo: {inside_mc:.1%} of the draws inside the predicted 3σ ellipse")
-
-fig, axes = plt.subplots(1, 2, figsize=(12.5, 5.6), gridspec_kw={"width_ratios": [1.4, 1]})
-plot_covariances(axes[0], rm.poses, cov_m, every=4, n_sigma=3.0, color="tab:blue", alpha=0.25)
-plot_trajectory(axes[0], wm.truth, label="ground truth", color="k", linewidth=0.8, style="--")
-plot_trajectory(axes[0], rm.poses, label="LAGO estimate", color="tab:red", linewidth=1.2)
-axes[0].plot(0, 0, "k^", markersize=9, label="pose 0")
-axes[0].set_title(f"Manhattan world, {wm.graph.n_poses} poses: 3σ ellipses of phase 3")
-axes[0].legend(fontsize=8)
-axes[1].plot(last[:, 0], last[:, 1], ".", markersize=3, alpha=0.5, label=f"{draws} Monte Carlo estimates")
-plot_covariances(axes[1], mc_world.truth[last_pose:], pred[None], n_sigma=3.0, color="tab:orange", alpha=0.3)
-axes[1].plot(*mc_world.truth[last_pose, :2], "k+", markersize=12, label="true position")
-axes[1].set_aspect("equal", adjustable="datalim")
-axes[1].set_xlabel("x [m]")
-axes[1].set_title(f"last pose of a {gm.n_poses}-pose world: predicted 3σ ellipse")
-axes[1].legend(fontsize=8)
-fig.tight_layout()
-show(fig, "covariances")
 
 # %% [markdown]
 # ## Exercise 1 — The information matrix of phase 3, block by block
@@ -799,22 +554,38 @@ show(fig, "covariances")
 # $BP_z^{-1}B^\top = \begin{bmatrix} A_2 P_{\Delta g}^{-1} A_2^\top & -A_2 P_{\Delta g}^{-1} J\\ -J^\top P_{\Delta g}^{-1} A_2^\top & P_\theta^{-1} + J^\top P_{\Delta g}^{-1} J\end{bmatrix}$
 # (the matrix the paper inverts blockwise to obtain eqs. (16)–(17)), and that the Schur complement of its
 # position block is $P_{\theta^*}^{-1}$. Check both numerically on a small graph against `phase3.info`.
-# Solution: `solutions/04_phase3_ex1.py`.
 #
-# ## Exercise 2 — The guarded polish, by hand
+# **Hint.** $G$ is block upper triangular, so $G^{-1} = \begin{bmatrix} R^\top & -R^\top J\\ 0 & I_n\end{bmatrix}$;
+# form $G^{-1}B^\top$ first, and remember that $R$ is orthogonal.
+
+# %%
+# your solution here
+
+# %% [markdown]
+# ````{dropdown} Solution
+# ```{literalinclude} solutions/04a_phase3_ex1.py
+# :language: python
+# ```
+# ````
+
+# %% [markdown]
+# ## Exercise 2 — The springs of a single loop
 #
-# *Implement.* Write $F(\theta)$ (χ² with the positions re-solved by `resolve_positions`) and the guarded
-# step of section 8: keep $\theta^*$ if $F(\theta^*)\le F(\hat\theta)$, else halve
-# $\alpha$ from 1 (at most three times) until $F(\hat\theta + \alpha(\theta^* - \hat\theta)) < F(\hat\theta)$, falling back
-# to $\hat\theta$. Check that your $\alpha$ and χ² equal `paper_lago(graph, positions="resolve").polish` on CSAIL
-# (or, without the datasets, on a synthetic world). Solution: `solutions/04_phase3_ex2.py`.
+# *Derive, then check.* Take a graph that is one cycle — poses $0,\dots,N-1$ on a circle, edge $k$ from pose
+# $k$ to pose $k+1$ and the last one back to pose 0 — with noisy measurements and *unequal* information per
+# edge. Using the force balance of section 1 ($A_2\lambda_\Delta = 0$), show that every edge of the loop
+# carries the same spring force $f$, and check it on phase 3's solution. Do the springs also stretch by the
+# same amount? Why not?
 #
-# ## Exercise 3 — Over-confident translational information
-#
-# *Explore.* Section 8 blamed large, anisotropic translational information. Reproduce the failure on a
-# synthetic Manhattan world: multiply the translational information of a random 10 % of the edges by
-# $F = 1, 10^2, 10^4, 10^6$ (same measurements), once isotropically ($\Omega_{tt}\to F\Omega_{tt}$) and once
-# along $x$ only, and record $\chi^2(\rho^*)/\chi^2(\hat\rho)$ and $\chi^2(\text{re-solved})/\chi^2(\hat\rho)$ from
-# `theorem1`. From which $F$ does phase 3 move away from the minimum? Which of the two effects of section 8
-# — frozen weights or linearised residuals — is at work in each case? Does re-solving the positions repair
-# it? Solution: `solutions/04_phase3_ex3.py`.
+# **Hint.** Write the balance at pose $k+1$: exactly two edges touch it. Compute $f_k = P_{\Delta g,k}^{-1} d_k$ as
+# in section 1 from `res.phase3.x_star`, `res.phase2.delta_g` and `res.uncertainty.cov_delta_l`.
+
+# %%
+# your solution here
+
+# %% [markdown]
+# ````{dropdown} Solution
+# ```{literalinclude} solutions/04a_phase3_ex2.py
+# :language: python
+# ```
+# ````

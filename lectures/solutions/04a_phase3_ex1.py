@@ -1,4 +1,4 @@
-"""Lecture 4, Exercise 1 — the information matrix of phase 3, block by block.
+"""Lecture 4a, Exercise 1 — the information matrix of phase 3, block by block.
 
 Derivation. Eq. (11) gives P_z = G blkdiag(P_Δl, P_θ) Gᵀ with G = [[R, J], [0, I_n]], so
 P_z⁻¹ = G⁻ᵀ blkdiag(P_Δl⁻¹, P_θ⁻¹) G⁻¹ with G⁻¹ = [[Rᵀ, −RᵀJ], [0, I_n]]. With Bᵀ = [[A₂ᵀ, 0], [0, I_n]]
@@ -22,7 +22,7 @@ import lago_cvx as lc
 from lago_cvx.posegraph import rot2
 from _lecture import check, paper_lago, setup
 
-setup("04_phase3")
+setup("04a_phase3")
 
 g = lc.random_graph(20, 40, seed=3, sigma_xy=0.1, sigma_theta=0.05).graph
 res = paper_lago(g)

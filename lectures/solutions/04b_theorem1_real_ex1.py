@@ -1,4 +1,4 @@
-"""Lecture 4, Exercise 2 — the guarded polish, by hand.
+"""Lecture 4b, Exercise 1 — the guarded polish, by hand.
 
 F(θ) = χ² with the positions re-solved exactly for the orientations θ (lago_cvx.positions). Keep phase 3's
 θ* when F(θ*) ≤ F(θ̂); otherwise halve α from 1 (at most three times) until F(θ̂ + α(θ* − θ̂)) < F(θ̂), else
@@ -11,7 +11,7 @@ import lago_cvx as lc
 from lago_cvx.positions import resolve_positions
 from _lecture import check, paper_lago, real, setup
 
-setup("04_phase3")
+setup("04b_theorem1_real")
 
 graph = real("se-sync/CSAIL.g2o")
 if graph is None:

@@ -1,9 +1,9 @@
-"""Lecture 4, Exercise 3 — over-confident translational information.
+"""Lecture 4b, Exercise 2 — over-confident translational information.
 
 A synthetic Manhattan world; the translational information of a random 10 % of the edges is multiplied by
 F (the measurements stay the same), either isotropically (Ω_tt → F Ω_tt) or along x only (Ω_xx → F Ω_xx,
 anisotropic like the real files). theorem1 gives χ² at ρ̂ (eq. (14)), at phase 3's ρ* and with the
-positions re-solved for θ*; as in section 8 of the lecture we split the gap between χ²(ρ*) and the
+positions re-solved for θ*; as in section 2 of the lecture we split the gap between χ²(ρ*) and the
 quadratic model of eq. (18) into "frozen weights" (χ² / frozen-weight cost) and "linearised residuals"
 (frozen-weight cost / model).
 
@@ -22,7 +22,7 @@ import lago_cvx as lc
 from lago_cvx.theorem1 import frozen_and_model, theorem1
 from _lecture import check, setup
 
-setup("04_phase3")
+setup("04b_theorem1_real")
 
 
 FACTORS = [1.0, 1e2, 1e4, 1e6]
