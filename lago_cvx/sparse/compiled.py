@@ -68,14 +68,14 @@ CHUNK = 0.02
 
 def kernels() -> dict:
     """The compiled kernels (``lago_cvx.sparse.compiled_kernels``, which imports Numba: loaded on first use).
-    The first time in a process, when Numba has none of them on disk yet (the first run on a machine, or no
+    The first time in a process, when Numba has none of them on disk yet (its first run on a computer, or no
     writable cache), says at INFO level that they are compiled now and about how long it takes."""
     from . import compiled_kernels
 
     if not _ANNOUNCED:
         _ANNOUNCED.append(True)
         if not compiled_kernels.CACHED or not _on_disk(compiled_kernels.KERNELS):
-            log.info("compiling the sparse engine's kernels for this machine (Numba): about 10-20 s, once%s",
+            log.info("compiling the sparse engine's kernels (Numba's first run here): about 10-20 s, once%s",
                      "" if not compiled_kernels.CACHED else "; later processes load them from disk")
     return compiled_kernels.KERNELS
 
