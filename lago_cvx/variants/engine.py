@@ -34,6 +34,7 @@ from ..phases import Phase1, Phase3, _selected_diagonal
 from ..posegraph import PoseGraph
 from ..positions import Polish, Positions, polish
 from ..regularization import regularize
+from ..reports import short_repr
 from ..result import LagoResult
 from ..rounding import AMBIGUITY_MARGIN, TWO_PI
 from ..solvers import LEAST_SQUARES, ROBUST, ClarabelSettings, check_method
@@ -175,6 +176,19 @@ class VariantResult(LagoResult):
     @property
     def orientations(self) -> np.ndarray:
         return self.phase1.theta
+
+    def __repr__(self) -> str:
+        head, lines = self._describe()
+        strained = self.strained
+        shown = ", ".join(str(i) for i in strained[:5]) + (f", … ({len(strained)} in all)" if len(strained) > 5 else "")
+        lines.insert(2, f"{len(self.anchors)} anchors, {len(self.priors)} priors, loss {self.loss}; strained "
+                        f"anchors: {shown or 'none'}")
+        return short_repr(type(self).__name__, head, lines)
+
+    def _summary_rows(self) -> list:
+        return super()._summary_rows() + [("n_anchors", "anchors", len(self.anchors)),
+                                          ("n_priors", "priors", len(self.priors)), ("loss", "loss", self.loss),
+                                          ("strained", "strained anchors", [int(i) for i in self.strained])]
 
     def pose_covariances(self, *, progress=None) -> np.ndarray:
         return self.phase3.pose_covariances(progress=progress)
