@@ -64,9 +64,8 @@ def test_variant_result_repr_bounded_with_many_strained_anchors():
     assert text.startswith("<VariantResult") and f"{len(anchors)} anchors" in " ".join(text.split())
     flat = " ".join(text.split())
     assert len(res.strained) > 5 and f"({len(res.strained)} in all)" in flat  # the list is cut, its length said
-    s = res.summary()
-    assert s["n_anchors"] == len(anchors) and s["strained"] == res.strained
-    assert max(map(len, str(s).splitlines())) <= WIDTH
+    s = res.summary()  # the keys of a plain result's (a VariantResult is a LagoResult); anchors are in repr
+    assert s["n_poses"] == 400 and max(map(len, str(s).splitlines())) <= WIDTH
 
 
 def test_certificate_and_refinement_reprs(big):

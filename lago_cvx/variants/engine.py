@@ -185,11 +185,6 @@ class VariantResult(LagoResult):
                         f"anchors: {shown or 'none'}")
         return short_repr(type(self).__name__, head, lines)
 
-    def _summary_rows(self) -> list:
-        return super()._summary_rows() + [("n_anchors", "anchors", len(self.anchors)),
-                                          ("n_priors", "priors", len(self.priors)), ("loss", "loss", self.loss),
-                                          ("strained", "strained anchors", [int(i) for i in self.strained])]
-
     def pose_covariances(self, *, progress=None) -> np.ndarray:
         return self.phase3.pose_covariances(progress=progress)
 
