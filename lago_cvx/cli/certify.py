@@ -83,8 +83,10 @@ def _certify_lines(file, payload: dict) -> list[str]:
         lines += [
             "  comparison certificate of the raw LAGO estimate (--compare-lago): "
             + ("certified" if lc["certified"] else "NOT certified"),
-            f"    at LAGO's rotations with the translations re-optimised for them: f = {lc['f']:.10g} (with LAGO's own "
-            f"translations f = {p['f_lago']:.10g}, above)",
+            f"    at LAGO's rotations with the translations re-optimised for them: f = {lc['f']:.10g} "
+            + (f"(with LAGO's own translations f = {p['f_lago']:.10g}, above)"
+               if abs(lc["f"] - p["f_lago"]) > 1e-9 * max(abs(p["f_lago"]), 1e-300) else
+               "(= f at LAGO's estimate above: its translations are already the optimal ones for its rotations)"),
             f"    verdict: {_reason(lc['verdict'])}"]
     steps = [("LAGO", "lago"), ("χ² GN", "refine"), ("SE-Sync Newton", "refine_sesync"), ("certificate", "certify"),
              ("comparison certificate", "certify_lago")]
