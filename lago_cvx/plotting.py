@@ -70,8 +70,8 @@ def plot_edges(ax: Axes, graph: PoseGraph, poses, *, which: str = "loop_closures
 
     ``which``: ``"loop_closures"`` (non-consecutive ids, the seed's Figure 1), ``"odometric"`` or ``"all"``.
     ``linewidth``/``alpha`` default to ``edge_style`` of the number drawn (round caps: a segment shorter
-    than its width still shows as a dot); ``zorder`` 3 draws them above a trajectory (``plot_trajectory``'s lines are at 2), where loop closures between nearby poses would
-    otherwise be hidden under it."""
+    than its width still shows as a dot); ``zorder`` 3 draws them above a trajectory (``plot_trajectory``'s
+    lines are at 2), where loop closures between nearby poses would otherwise be hidden under it."""
     poses = np.asarray(poses, dtype=float)
     odo = graph.is_odometric
     sel = {"loop_closures": ~odo, "odometric": odo, "all": np.ones_like(odo)}[which]

@@ -39,8 +39,8 @@ def test_sweeps_identical_serially_with_two_jobs_and_on_dask(capsys):
     distributed = pytest.importorskip("distributed")
     import joblib
 
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
-            distributed.Client(cluster):
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster, distributed.Client(cluster):
         with joblib.parallel_config(backend="dask"):
             dask = _both(n_jobs=2)
     assert dask[:2] == serial[:2]

@@ -68,7 +68,7 @@ def _certify_lines(file, payload: dict) -> list[str]:
         f"    χ²-refined estimate, poses as refined                    f = {p['f_chi2_refined']:.10g}",
         f"    SE-Sync-refined estimate, translations re-optimised      f = {p['f']:.12g}  ({p['sesync_iterations']} "
         "Newton iterations, " + ("converged)" if p["sesync_converged"] else f"not converged: {p['sesync_reason']})"),
-        f"  certificate of the SE-Sync-refined estimate: "
+        "  certificate of the SE-Sync-refined estimate: "
         + ("CERTIFIED globally optimal" if p["certified"] else "NOT certified"),
         f"    λ_min(S_Q) = {p['lambda_min']:.3g}; numerical floor η = {p['eta']:.3g} (1e-12 × ‖M‖₂ "
         f"{p['norm_M']:.4g})",
@@ -156,11 +156,11 @@ def add_parser(sub) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
         description="Run LAGO on FILE, refine it (Gauss-Newton on the g2o chi2, then Newton on the SE-Sync cost f), and\n"
                     "verify global optimality with SE-Sync's Lagrangian-dual certificate (lago_cvx.certification).\n"
-                    f"{SESYNC_COST_CONVENTION}.\nA point whose cost is above one already reached is never certified; so "
-                    "the raw LAGO estimate never is,\nand its comparison certificate runs only with --compare-lago "
-                    "(it costs as much as the certificate\nitself, or more). One --anchor is a choice of frame (the "
-                    "certified estimate is moved rigidly to put\nthat pose there; the certificate is unchanged); "
-                    "anchors at several poses are refused.",
+                    f"{SESYNC_COST_CONVENTION}.\nA point whose cost is above one already reached is never "
+                    "certified; so the raw LAGO estimate never is,\nand its comparison certificate runs only with "
+                    "--compare-lago (it costs as much as the certificate\nitself, or more). One --anchor is a choice "
+                    "of frame (the certified estimate is moved rigidly to put\nthat pose there; the certificate is "
+                    "unchanged); anchors at several poses are refused.",
         epilog=f"exit status: {EXIT_OK} certified globally optimal; {EXIT_NOT_CERTIFIED} NOT certified (the report is "
                f"still printed\nand -o still written); {EXIT_BAD_INPUT} bad input (malformed file, no edges, "
                f"graph not connected,\nbad option, estimate not finite); {EXIT_RESOURCE} resource limit; "
