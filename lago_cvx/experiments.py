@@ -14,6 +14,15 @@ Rows are plain dicts (one per σ_θ and regularizer) so they print as a table (`
 
 ``integer_noise_sweep`` — the integer program of the cycle integers against the seed's rounding over
 rising rotation noise (``format_integer_sweep`` prints it; ``python benchmarks/run.py integer``).
+
+Beyond one machine. Each sweep is a list of independent trials, one per (σ_θ, seed), and each trial builds
+its world from its own seed (never from a generator shared between trials), so its numbers do not
+depend on where or in which order it runs. ``n_jobs`` hands the trials to joblib (``run_trials``):
+``n_jobs=None`` or 1 runs them here, one after another, without importing joblib; ``n_jobs=2`` or ``-1``
+runs them in worker processes (joblib's default backend, loky) — or on whatever backend is active, so
+the same call runs on a Dask cluster inside ``joblib.parallel_config(backend="dask")`` (``docs/parallel.md``).
+The rows are then aggregated here in trial order; every number except the wall-clock fields (``seconds``,
+``time``) is identical whatever the backend (``tests/test_parallel.py``).
 """
 
 from __future__ import annotations
@@ -35,7 +44,7 @@ from .solvers import IntegerSearch
 from .synthetic import circle_world, manhattan_world
 from .uncertainty import EdgeUncertainty, edge_uncertainty
 
-__all__ = ["DEFAULT_REGULARIZERS", "true_cycle_integers", "rotation_noise_sweep", "format_sweep",
+__all__ = ["DEFAULT_REGULARIZERS", "true_cycle_integers", "run_trials", "rotation_noise_sweep", "format_sweep",
            "integer_noise_sweep", "format_integer_sweep"]
 
 log = logging.getLogger(__name__)
@@ -54,54 +63,92 @@ def true_cycle_integers(graph: PoseGraph, tree, truth: np.ndarray) -> np.ndarray
     return cycle_integers(graph, tree, edge_integers(graph, np.asarray(truth, dtype=float)[:, 2]))
 
 
+def run_trials(fn: Callable, tasks: list, *, n_jobs: int | None = None, progress: Callable | None = None) -> list:
+    """``[fn(*task) for task in tasks]``, in the order of ``tasks``.
+
+    ``n_jobs`` None or 1: here, one after another (joblib not needed). Otherwise ``joblib.Parallel(n_jobs)``
+    on the active backend (loky processes by default; a Dask cluster inside
+    ``joblib.parallel_config(backend="dask")``); ``fn`` and the tasks must then pickle (module-level
+    functions, plain data). ``progress(done, total)`` is called as results arrive. Raises
+    ``MissingSolverError`` (an ImportError) naming the extra when joblib is absent."""
+    total = len(tasks)
+    if n_jobs is None or n_jobs == 1:
+        out = []
+        for task in tasks:
+            out.append(fn(*task))
+            if progress is not None:
+                progress(len(out), total)
+        return out
+    try:
+        import joblib
+    except ImportError:
+        from .errors import MissingSolverError
+
+        raise MissingSolverError(f"n_jobs={n_jobs} runs the trials through joblib, which is not installed: "
+                                 "pip install joblib, or lago-cvx[dask] for a Dask cluster") from None
+    gen = joblib.Parallel(n_jobs=n_jobs, return_as="generator")(joblib.delayed(fn)(*task) for task in tasks)
+    out = []
+    for value in gen:
+        out.append(value)
+        if progress is not None:
+            progress(len(out), total)
+    return out
+
+
+def _rotation_trial(sigma: float, seed: int, n_poses: int, regularizers: dict, tolerance: float,
+                    max_iterations: int, world: Callable, world_kwargs: dict) -> dict:
+    """One trial of ``rotation_noise_sweep`` (module docstring, steps 1–3): ``{name: (optimal,
+    correct_integers, ambiguous, χ²_GN / χ²_ref, seconds)}``. The world is built from ``seed`` alone."""
+    w = world(n_poses, seed=seed, sigma_theta=sigma, **world_kwargs)
+    g = w.graph
+    ref = refine(g, w.truth, max_iterations=max_iterations).chi2
+    out = {}
+    for name, kw in regularizers.items():
+        t = time.perf_counter()
+        res = lago(g, **kw)
+        gn = refine(g, res.poses, max_iterations=max_iterations)
+        seconds = time.perf_counter() - t
+        reg = res.regularization
+        out[name] = (int(gn.chi2 <= ref * (1.0 + tolerance)),
+                     int(np.array_equal(reg.cycle_k, true_cycle_integers(g, res.tree, w.truth))),
+                     int(reg.ambiguous.size), float(gn.chi2 / ref), seconds)
+    log.info("sweep: σ_θ = %g, seed %d done", sigma, seed)
+    return out
+
+
 def rotation_noise_sweep(sigmas: Iterable[float], *, seeds: Iterable[int] = range(8), n_poses: int = 300,
                          regularizers: dict | None = None, tolerance: float = 1e-6, max_iterations: int = 100,
                          world: Callable = manhattan_world, progress: Callable | None = None,
-                         **world_kwargs) -> list[dict]:
+                         n_jobs: int | None = None, **world_kwargs) -> list[dict]:
     """Run the sweep described in the module docstring.
 
     sigmas — rotation noise levels σ_θ (rad); seeds — world seeds (one trial each); n_poses — poses per
     world; regularizers — ``{name: lago keyword arguments}`` (default ``DEFAULT_REGULARIZERS``);
     tolerance — relative χ² tolerance of "reached the reference optimum"; world — the generator
     (called as ``world(n_poses, seed=..., sigma_theta=..., **world_kwargs)``); progress — optional
-    callback ``progress(done, total)``.
+    callback ``progress(done, total)``; n_jobs — where the trials run (``run_trials``: None or 1 here,
+    else joblib, on a Dask cluster under ``joblib.parallel_config(backend="dask")``).
 
     Returns one dict per (σ_θ, regularizer): ``sigma_theta``, ``regularizer``, ``trials``,
     ``optimal`` (trials whose GN reached χ²_ref), ``correct_integers`` (trials whose cycle integers
     equal the true ones), ``ambiguous`` (mean number of ambiguous chords/edges reported),
-    ``chi2_ratio_median`` (median of χ²_GN / χ²_ref), ``seconds``."""
+    ``chi2_ratio_median`` (median of χ²_GN / χ²_ref), ``seconds`` (wall clock, summed over trials)."""
     regularizers = dict(DEFAULT_REGULARIZERS if regularizers is None else regularizers)
-    sigmas, seeds = list(sigmas), list(seeds)
-    total, done = len(sigmas) * len(seeds), 0
+    sigmas, seeds = [float(s) for s in sigmas], [int(s) for s in seeds]
+    tasks = [(sigma, seed, n_poses, regularizers, tolerance, max_iterations, world, world_kwargs)
+             for sigma in sigmas for seed in seeds]
+    trials = iter(run_trials(_rotation_trial, tasks, n_jobs=n_jobs, progress=progress))
     rows = []
     for sigma in sigmas:
-        acc = {name: {"optimal": 0, "correct_integers": 0, "ambiguous": 0, "ratios": [], "seconds": 0.0}
-               for name in regularizers}
-        for seed in seeds:
-            w = world(n_poses, seed=seed, sigma_theta=sigma, **world_kwargs)
-            g = w.graph
-            ref = refine(g, w.truth, max_iterations=max_iterations).chi2
-            for name, kw in regularizers.items():
-                t = time.perf_counter()
-                res = lago(g, **kw)
-                gn = refine(g, res.poses, max_iterations=max_iterations)
-                a = acc[name]
-                a["seconds"] += time.perf_counter() - t
-                a["optimal"] += int(gn.chi2 <= ref * (1.0 + tolerance))
-                reg = res.regularization
-                a["correct_integers"] += int(np.array_equal(reg.cycle_k, true_cycle_integers(g, res.tree, w.truth)))
-                a["ambiguous"] += int(reg.ambiguous.size)
-                a["ratios"].append(gn.chi2 / ref)
-            done += 1
-            if progress is not None:
-                progress(done, total)
-            log.info("sweep: σ_θ = %g, seed %d done (%d/%d)", sigma, seed, done, total)
-        for name, a in acc.items():
-            rows.append({"sigma_theta": float(sigma), "regularizer": name, "trials": len(seeds),
-                         "optimal": a["optimal"], "correct_integers": a["correct_integers"],
-                         "ambiguous": a["ambiguous"] / max(len(seeds), 1),
-                         "chi2_ratio_median": float(np.median(a["ratios"])) if a["ratios"] else float("nan"),
-                         "seconds": a["seconds"]})
+        per = [next(trials) for _ in seeds]
+        for name in regularizers:
+            vals = [t[name] for t in per]
+            ratios = [v[3] for v in vals]
+            rows.append({"sigma_theta": sigma, "regularizer": name, "trials": len(seeds),
+                         "optimal": sum(v[0] for v in vals), "correct_integers": sum(v[1] for v in vals),
+                         "ambiguous": sum(v[2] for v in vals) / max(len(seeds), 1),
+                         "chi2_ratio_median": float(np.median(ratios)) if ratios else float("nan"),
+                         "seconds": sum(v[4] for v in vals)})
     return rows
 
 
@@ -132,9 +179,49 @@ def _lago_chi2(graph: PoseGraph, tree, delta_reg: np.ndarray, unc: EdgeUncertain
     return chi2(graph, ph3.poses), chi2(graph, refine(graph, ph3.poses).poses)
 
 
+_INTEGER_KEYS = ("chords", "ip_eq_round", "ip_eq_true", "round_eq_true", "chords_differ", "ip_better", "gain",
+                 "J_ip", "J_round", "J_true", "truth_above_ip", "chi2_ratio", "refined_ratio", "time", "not_optimal")
+
+
+def _integer_trial(sigma: float, seed: int, n_poses: int, world: str, tree: str, search: IntegerSearch,
+                   world_kwargs: dict, with_chi2: bool) -> dict | None:
+    """One trial of ``integer_noise_sweep``: ``{key: value}`` (keys ``_INTEGER_KEYS``; ``chi2_ratio``,
+    ``refined_ratio`` absent where IP and rounding agree), None when the world has no chords. The world
+    is built from ``seed`` alone."""
+    from .graph import spanning_tree
+
+    gen = {"manhattan": manhattan_world, "circle": circle_world}[world]
+    w = gen(n_poses, seed=int(seed), sigma_theta=float(sigma), **(world_kwargs or {}))
+    g = w.graph
+    t = spanning_tree(g, tree)
+    unc = edge_uncertainty(g)
+    data = cycle_data(g, t, unc=unc)
+    if data.n_chords == 0:
+        return None
+    res = integer_regularization(g, t, search=search, unc=unc, data=data)
+    q_true = true_cycle_integers(g, t, w.truth)
+    J_true = data.cost(q_true)
+    out = {"chords": data.n_chords, "ip_eq_round": res.n_differ == 0,
+           "ip_eq_true": bool(np.array_equal(res.k_chords, q_true)),
+           "round_eq_true": bool(np.array_equal(data.k_round, q_true)), "chords_differ": res.n_differ,
+           "ip_better": res.objective < res.rounding_objective * (1 - 1e-9),
+           "gain": res.improvement / max(res.objective, 1e-300), "J_ip": res.objective,
+           "J_round": res.rounding_objective, "J_true": J_true, "truth_above_ip": J_true > res.objective * (1 + 1e-9),
+           "time": res.solve_time, "not_optimal": res.status != "optimal"}
+    if with_chi2 and res.n_differ:
+        c_round, cr_round = _lago_chi2(g, t, data.rounding_edges * TWO_PI + g.delta, unc)
+        c_ip, cr_ip = _lago_chi2(g, t, res.delta_reg, unc)
+        out["chi2_ratio"] = c_round / c_ip
+        out["refined_ratio"] = cr_round / cr_ip
+    log.info("sweep σθ=%.3g seed=%s: l=%d, differ=%d, J_ip=%.4g, J_round=%.4g, J_true=%.4g, %.2f s",
+             sigma, seed, data.n_chords, res.n_differ, res.objective, res.rounding_objective, J_true, res.solve_time)
+    return out
+
+
 def integer_noise_sweep(*, sigmas=(0.01, 0.05, 0.1, 0.15, 0.2, 0.3), seeds=range(5), n_poses: int = 100,
                         world: str = "manhattan", tree: str = "bfs", search: IntegerSearch | None = None,
-                        world_kwargs: dict | None = None, with_chi2: bool = True) -> list[dict]:
+                        world_kwargs: dict | None = None, with_chi2: bool = True,
+                        n_jobs: int | None = None) -> list[dict]:
     """Integer program against rounding over rising rotation noise σ_θ on seeded synthetic worlds.
 
     For every σ_θ and seed: build ``manhattan_world`` / ``circle_world`` (``world_kwargs`` passed on),
@@ -147,61 +234,27 @@ def integer_noise_sweep(*, sigmas=(0.01, 0.05, 0.1, 0.15, 0.2, 0.3), seeds=range
       weighted optimum itself disagrees with the truth), ``chi2_ratio`` (mean of χ²(LAGO on rounding) /
       χ²(LAGO on IP) over the cases where the two differ, if ``with_chi2``; nan if none),
       ``refined_ratio`` (the same after Gauss–Newton refinement of each LAGO estimate: > 1 means the
-      rounding's start lands in a worse local minimum), ``time`` (mean solver seconds), ``not_optimal`` (count)."""
+      rounding's start lands in a worse local minimum), ``time`` (mean solver seconds), ``not_optimal`` (count).
+    ``n_jobs`` — where the trials run (``run_trials``)."""
     from .errors import OptionError
-    from .graph import spanning_tree
 
     search = IntegerSearch(solver="enumerate") if search is None else search
-    gen = {"manhattan": manhattan_world, "circle": circle_world}.get(world)
-    if gen is None:
+    if world not in ("manhattan", "circle"):
         raise OptionError(f"unknown world {world!r}; expected 'manhattan' or 'circle'")
+    sigmas, seeds = [float(s) for s in sigmas], [int(s) for s in seeds]
+    tasks = [(sigma, seed, n_poses, world, tree, search, world_kwargs, with_chi2) for sigma in sigmas for seed in seeds]
+    trials = iter(run_trials(_integer_trial, tasks, n_jobs=n_jobs))
     rows = []
     for sigma in sigmas:
-        acc = {k: [] for k in ("chords", "ip_eq_round", "ip_eq_true", "round_eq_true", "chords_differ",
-                               "ip_better", "gain", "J_ip", "J_round", "J_true", "truth_above_ip",
-                               "chi2_ratio", "refined_ratio", "time", "not_optimal")}
-        for seed in seeds:
-            w = gen(n_poses, seed=int(seed), sigma_theta=float(sigma), **(world_kwargs or {}))
-            g = w.graph
-            t = spanning_tree(g, tree)
-            unc = edge_uncertainty(g)
-            data = cycle_data(g, t, unc=unc)
-            if data.n_chords == 0:
-                continue
-            res = integer_regularization(g, t, search=search, unc=unc, data=data)
-            q_true = true_cycle_integers(g, t, w.truth)
-            J_true = data.cost(q_true)
-            acc["chords"].append(data.n_chords)
-            acc["ip_eq_round"].append(res.n_differ == 0)
-            acc["ip_eq_true"].append(bool(np.array_equal(res.k_chords, q_true)))
-            acc["round_eq_true"].append(bool(np.array_equal(data.k_round, q_true)))
-            acc["chords_differ"].append(res.n_differ)
-            acc["ip_better"].append(res.objective < res.rounding_objective * (1 - 1e-9))
-            acc["gain"].append(res.improvement / max(res.objective, 1e-300))
-            acc["J_ip"].append(res.objective)
-            acc["J_round"].append(res.rounding_objective)
-            acc["J_true"].append(J_true)
-            acc["truth_above_ip"].append(J_true > res.objective * (1 + 1e-9))
-            acc["time"].append(res.solve_time)
-            acc["not_optimal"].append(res.status != "optimal")
-            if with_chi2 and res.n_differ:
-                c_round, cr_round = _lago_chi2(g, t, data.rounding_edges * TWO_PI + g.delta, unc)
-                c_ip, cr_ip = _lago_chi2(g, t, res.delta_reg, unc)
-                acc["chi2_ratio"].append(c_round / c_ip)
-                acc["refined_ratio"].append(cr_round / cr_ip)
-            log.info("sweep σθ=%.3g seed=%s: l=%d, differ=%d, J_ip=%.4g, J_round=%.4g, J_true=%.4g, %.2f s",
-                     sigma, seed, data.n_chords, res.n_differ, res.objective, res.rounding_objective, J_true,
-                     res.solve_time)
+        acc = {k: [] for k in _INTEGER_KEYS}
+        for _ in seeds:
+            trial = next(trials)
+            for k, v in (trial or {}).items():
+                acc[k].append(v)
         n = len(acc["chords"])
         mean = (lambda v: float(np.mean(v)) if len(v) else float("nan"))
-        rows.append({"sigma_theta": float(sigma), "cases": n, "chords": mean(acc["chords"]),
-                     "ip_eq_round": mean(acc["ip_eq_round"]), "ip_eq_true": mean(acc["ip_eq_true"]),
-                     "round_eq_true": mean(acc["round_eq_true"]), "chords_differ": mean(acc["chords_differ"]),
-                     "ip_better": mean(acc["ip_better"]), "gain": mean(acc["gain"]),
-                     "J_ip": mean(acc["J_ip"]), "J_round": mean(acc["J_round"]), "J_true": mean(acc["J_true"]),
-                     "truth_above_ip": mean(acc["truth_above_ip"]),
-                     "chi2_ratio": mean(acc["chi2_ratio"]), "refined_ratio": mean(acc["refined_ratio"]),
-                     "time": mean(acc["time"]), "not_optimal": int(np.sum(acc["not_optimal"]))})
+        rows.append({"sigma_theta": float(sigma), "cases": n, **{k: mean(acc[k]) for k in _INTEGER_KEYS[:-1]},
+                     "not_optimal": int(np.sum(acc["not_optimal"]))})
     return rows
 
 

@@ -5,14 +5,51 @@ Nothing here calls ``plt.show()`` or writes files; scripts and the CLI decide wh
 
 from __future__ import annotations
 
+import textwrap
+
 import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.collections import LineCollection
 from matplotlib.patches import Ellipse
 
-from .posegraph import PoseGraph
+from .metrics import alignment
+from .posegraph import PoseGraph, rot2
 
-__all__ = ["plot_trajectory", "plot_edges", "plot_covariances", "plot_convergence"]
+__all__ = ["plot_trajectory", "plot_edges", "plot_covariances", "plot_convergence", "aligned", "edge_style",
+           "set_title"]
+
+
+def aligned(poses, reference) -> np.ndarray:
+    """``poses`` (n, 3) moved by the rigid motion that best fits them to ``reference`` (n, 3), so the two
+    can be drawn in one frame: with (φ, t) of ``metrics.alignment`` (least squares over all positions, no
+    scale), p ↦ R(φ)p + t and θ ↦ θ + φ. A file's initial guess and an estimate anchored at the origin
+    are then drawn where they overlap best, not in two frames."""
+    poses = np.asarray(poses, dtype=float)
+    phi, t = alignment(poses, reference)
+    out = poses.copy()
+    out[:, :2] = poses[:, :2] @ rot2(phi).T + t
+    out[:, 2] = poses[:, 2] + phi
+    return out
+
+
+def edge_style(n_edges: int) -> dict:
+    """``linewidth`` and ``alpha`` that keep ``n_edges`` segments visible on top of a trajectory without
+    hiding it: 1.5 pt for a few hundred, 1.2 pt beyond (with round caps a loop closure between two poses
+    at the same place — most of them, once the estimate is good — still shows as a dot), α from 0.9 down
+    to 0.35 for tens of thousands (α = (1000/n)^0.3 clipped to [0.35, 0.9]; overlapping faint marks add
+    up)."""
+    n = max(int(n_edges), 1)
+    linewidth = 1.5 if n <= 300 else 1.2
+    return {"linewidth": linewidth, "alpha": float(np.clip((1000.0 / n) ** 0.3, 0.35, 0.9))}
+
+
+def set_title(ax: Axes, title: str, *, fontsize: float = 10.0) -> Axes:
+    """Set ``title`` wrapped to the width of ``ax``'s figure (about 0.55 em per character), so a long one
+    takes two or three lines instead of running off the figure."""
+    width_pt = ax.figure.get_figwidth() * 72.0
+    chars = max(int(0.92 * width_pt / (0.55 * fontsize)), 20)
+    ax.set_title("\n".join(textwrap.wrap(title, chars)) or title, fontsize=fontsize)
+    return ax
 
 
 def plot_trajectory(ax: Axes, poses, *, label: str | None = None, color=None, linewidth: float = 1.0,
@@ -27,23 +64,31 @@ def plot_trajectory(ax: Axes, poses, *, label: str | None = None, color=None, li
 
 
 def plot_edges(ax: Axes, graph: PoseGraph, poses, *, which: str = "loop_closures", color="tab:red",
-               linewidth: float = 0.4, alpha: float = 0.6, label: str | None = None) -> Axes:
+               linewidth: float | None = None, alpha: float | None = None, label: str | None = None,
+               zorder: float = 3.0) -> Axes:
     """Draw edges as segments between the endpoints' positions in ``poses`` (n, 3).
 
-    ``which``: ``"loop_closures"`` (non-consecutive ids, the seed's Figure 1), ``"odometric"`` or ``"all"``."""
+    ``which``: ``"loop_closures"`` (non-consecutive ids, the seed's Figure 1), ``"odometric"`` or ``"all"``.
+    ``linewidth``/``alpha`` default to ``edge_style`` of the number drawn (round caps: a segment shorter
+    than its width still shows as a dot); ``zorder`` 3 draws them above a trajectory (``plot_trajectory``'s
+    lines are at 2), where loop closures between nearby poses would otherwise be hidden under it."""
     poses = np.asarray(poses, dtype=float)
     odo = graph.is_odometric
     sel = {"loop_closures": ~odo, "odometric": odo, "all": np.ones_like(odo)}[which]
+    style = edge_style(int(np.count_nonzero(sel)))
     seg = np.stack([poses[graph.tails[sel], :2], poses[graph.heads[sel], :2]], axis=1)
-    ax.add_collection(LineCollection(seg, colors=color, linewidths=linewidth, alpha=alpha, label=label))
+    ax.add_collection(LineCollection(seg, colors=color, label=label, zorder=zorder, capstyle="round",
+                                     linewidths=style["linewidth"] if linewidth is None else linewidth,
+                                     alpha=style["alpha"] if alpha is None else alpha))
     ax.autoscale_view()
     ax.set_aspect("equal", adjustable="datalim")
     return ax
 
 
 def plot_covariances(ax: Axes, poses, covariances, *, every: int = 1, n_sigma: float = 3.0,
-                     color="tab:blue", alpha: float = 0.3) -> Axes:
-    """Draw the ``n_sigma`` position-uncertainty ellipse of every ``every``-th pose.
+                     color="tab:blue", alpha: float = 0.3, zorder: float = 4.0) -> Axes:
+    """Draw the ``n_sigma`` position-uncertainty ellipse of every ``every``-th pose (above trajectory and
+    edges: ``zorder`` 4).
 
     ``covariances`` (n, 3, 3) (only the x–y block is used) or (n, 2, 2)."""
     poses = np.asarray(poses, dtype=float)
@@ -55,7 +100,7 @@ def plot_covariances(ax: Axes, poses, covariances, *, every: int = 1, n_sigma: f
             continue
         angle = np.degrees(np.arctan2(v[1, 1], v[0, 1]))
         ax.add_patch(Ellipse(poses[i, :2], 2 * n_sigma * np.sqrt(w[1]), 2 * n_sigma * np.sqrt(w[0]),
-                             angle=angle, facecolor=color, edgecolor=color, alpha=alpha))
+                             angle=angle, facecolor=color, edgecolor=color, alpha=alpha, zorder=zorder))
     ax.autoscale_view()
     return ax
 

@@ -70,6 +70,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
+from .reports import refine_repr, refine_summary
 from .errors import OptionError, check_choice
 from .graph import accumulate_to_root, check_connected, spanning_tree as build_tree
 from .sparse import SOLVER_BACKENDS, factorize
@@ -123,6 +124,13 @@ class RefineResult:
     def times(self) -> np.ndarray:
         """Seconds since the start at each log entry, shape (len(log),)."""
         return np.array([e["time"] for e in self.log])
+
+    def __repr__(self) -> str:
+        return refine_repr(self)
+
+    def summary(self):
+        """The numbers of the refinement as a small table (``reports.Summary``, also a dict)."""
+        return refine_summary(self)
 
 
 # ------------------------------------------------------------------------------ the problem

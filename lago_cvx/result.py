@@ -12,6 +12,7 @@ from .phases import Phase1, Phase2, Phase3
 from .posegraph import PoseGraph
 from .positions import Polish
 from .regularization import RegularizationReport
+from .reports import Summary, fmt_timings, short_repr
 from .uncertainty import EdgeUncertainty
 
 __all__ = ["LagoResult"]
@@ -85,8 +86,44 @@ class LagoResult:
         T = self._frame()
         return T @ self.phase3.pose_covariances(progress=progress) @ T.T
 
-    def summary(self) -> dict:
-        return {"n_poses": self.graph.n_poses, "n_edges": self.graph.n_edges, "method": self.method,
-                "route": self.route, "spanning_tree": self.tree.kind, **self.regularization.summary(),
-                "information": self.information, "positions": self.positions, "chi2": self.chi2,
-                "timings": dict(self.timings)}
+    def _describe(self) -> tuple[str, list[str]]:
+        """The head and lines of ``repr``: counts, χ², route, timings (never an array)."""
+        g, reg = self.graph, self.regularization
+        try:
+            chi = f"χ² = {self.chi2:.6g} (g2o, Σ eᵀΩe)"
+        except Exception:  # repr must not fail on a result built by hand
+            chi = "χ² not available"
+        head = f"{g.n_poses} poses, {g.n_edges} edges ({g.n_loop_closures} loop closures): {chi}"
+        a = self.anchor_pose
+        return head, [
+            f"route {self.route}: {self.tree.kind} spanning tree, {reg.regularization} regularization "
+            f"({reg.n_regularized} of {reg.chords.size} chords corrected by 2kπ), {self.information} information, "
+            f"positions {self.positions}; method {self.method}",
+            f"anchor pose {self.anchor} at ({a[0]:.6g}, {a[1]:.6g}, {a[2]:.6g})",
+            "time " + fmt_timings(self.timings),
+        ]
+
+    def __repr__(self) -> str:
+        """A few lines whatever the size (poses, χ², route, timings); ``summary()`` for a table."""
+        return short_repr(type(self).__name__, *self._describe())
+
+    def _summary_rows(self) -> list:
+        """(key, label, value) rows of ``summary()``."""
+        g, reg = self.graph, self.regularization
+        r = reg.summary()
+        return [("n_poses", "poses", g.n_poses), ("n_edges", "edges", g.n_edges),
+                ("chi2", "χ² (g2o, Σ eᵀΩe)", self.chi2), ("route", "route", self.route),
+                ("method", "method", self.method), ("spanning_tree", "spanning tree", self.tree.kind),
+                ("regularization", "regularization", r["regularization"]), ("n_chords", "chords", r["n_chords"]),
+                ("n_regularized", "chords corrected", r["n_regularized"]),
+                ("n_ambiguous", "ambiguous chords", r["n_ambiguous"]),
+                ("max_abs_residual", "max |cycle residual|", r["max_abs_residual"]),
+                ("information", "information", self.information), ("positions", "positions", self.positions),
+                ("anchor", "anchor pose", int(self.anchor))]
+
+    def summary(self) -> Summary:
+        """The numbers of the result as a dict (JSON-ready values: ``n_poses``, ``n_edges``, ``method``,
+        ``route``, ``spanning_tree``, the regularization report's summary, ``information``, ``positions``,
+        ``chi2``, ``anchor``, ``timings``) that prints as a small table (``print(result.summary())``)."""
+        return Summary(f"{type(self).__name__}: LAGO on {self.graph.name or 'a pose graph'}"[:78],
+                       self._summary_rows(), timings=self.timings)

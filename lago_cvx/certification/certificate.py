@@ -66,6 +66,7 @@ from ..conventions import CERTIFY_TOL
 from ..errors import GraphError, OptionError, SolverError
 from ..graph import check_connected
 from ..posegraph import PoseGraph
+from ..reports import Summary, fmt_timings, short_repr
 from .sesync import (data_matrix, grounded_index, lambda_hat, multipliers, optimal_translations, sesync_cost,
                      stacked_variable)
 
@@ -214,6 +215,30 @@ class Certificate:
     def relative_suboptimality_bound(self) -> float:
         """(f − lower_bound)/f: relative distance to the global optimum proven by the certificate."""
         return _relative(self.suboptimality_bound, self.cost)
+
+    def __repr__(self) -> str:
+        """A few lines whatever the size: verdict, f and the proven bound, the spectrum's bottom, time."""
+        n = self.poses.shape[0]
+        return short_repr("Certificate", f"{'CERTIFIED globally optimal' if self.certified else 'NOT certified'}: "
+                          f"{n} poses", [
+                              f"f = {self.cost:.10g} (SE-Sync cost at the given rotations, translations "
+                              f"re-optimised; {self.cost_input:.10g} at the poses as given)",
+                              f"proven f* ≥ {self.lower_bound:.10g}: (f − bound)/f ≤ "
+                              f"{self.relative_suboptimality_bound:.3g}, tol {self.tol:.3g}",
+                              f"λ_min(S_Q) = {self.lambda_min:.3g}, η = {self.eta:.3g}, {self.n_negative} "
+                              f"eigenvalue(s) below −η; ‖SYᵀ‖ = {self.residual:.3g}",
+                              "time " + fmt_timings(self.times)])
+
+    def summary(self) -> Summary:
+        """The certificate's numbers as a dict that prints as a small table."""
+        return Summary("Certificate (SE-Sync, Rosen et al. 2019)", [
+            ("certified", "certified", bool(self.certified)), ("n_poses", "poses", int(self.poses.shape[0])),
+            ("f", "f, translations re-optimised", self.cost), ("f_input", "f at the poses as given", self.cost_input),
+            ("lower_bound", "proven f* ≥", self.lower_bound),
+            ("relative_suboptimality_bound", "(f − bound)/f ≤", self.relative_suboptimality_bound),
+            ("tol", "tol", self.tol), ("lambda_min", "λ_min(S_Q)", self.lambda_min), ("eta", "floor η", self.eta),
+            ("n_negative", "eigenvalues < −η", int(self.n_negative)), ("residual", "‖SYᵀ‖", self.residual),
+        ], timings=self.times)
 
 
 def _relative(bound: float, cost: float) -> float:

@@ -39,6 +39,7 @@ from ..errors import OptionError
 from ..sparse import factorize
 from ..posegraph import PoseGraph
 from ..refinement import prepare, small_step
+from ..reports import Summary, short_repr
 from .sesync import edge_residuals, sesync_weights
 
 __all__ = ["SESYNC_METHODS", "SesyncRefineResult", "refine_sesync"]
@@ -69,6 +70,22 @@ class SesyncRefineResult:
     anchor: int = 0
     log: list = field(default_factory=list)
     time: float = 0.0
+
+    def __repr__(self) -> str:
+        return short_repr("SesyncRefineResult", f"{self.poses.shape[0]} poses: f {self.cost_initial:.10g} → "
+                          f"{self.cost:.10g} (SE-Sync cost)", [
+                              f"{self.iterations} iterations, {'converged' if self.converged else 'not converged'}"
+                              f"{': ' + self.reason if self.reason else ''}; ‖∇f‖∞ = {self.gradient_norm:.3g}; "
+                              f"anchor pose {self.anchor}; time {self.time:.3g} s"])
+
+    def summary(self) -> Summary:
+        """The refinement's numbers as a dict that prints as a small table."""
+        return Summary("SE-Sync refinement (Newton / Gauss–Newton on f)", [
+            ("n_poses", "poses", int(self.poses.shape[0])), ("cost_initial", "f at the start", self.cost_initial),
+            ("cost", "f at the end", self.cost), ("iterations", "iterations", self.iterations),
+            ("converged", "converged", bool(self.converged)), ("reason", "reason", self.reason),
+            ("gradient_norm", "‖∇f‖∞", self.gradient_norm), ("anchor", "anchor pose", self.anchor),
+        ], timings={"total": self.time})
 
 
 class _SesyncProblem:

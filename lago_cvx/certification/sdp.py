@@ -50,6 +50,7 @@ import scipy.sparse.linalg as spla
 from ..errors import OptionError, SolverError
 from ..graph import check_connected, prune_leaves
 from ..posegraph import PoseGraph
+from ..reports import Summary, fmt_timings, short_repr
 from ..solvers import OK_STATUSES, SDP, ClarabelSettings, solve
 from .certificate import Certificate, certify, dual_lower_bound
 from .local import refine_sesync
@@ -211,6 +212,29 @@ class SdpResult:
     certificate: "Certificate | None" = None
     attempts: list = field(default_factory=list)
     n_core: int = 0
+
+    def __repr__(self) -> str:
+        lines = [f"f_SDP = {self.value:.10g} ({self.status}, {self.iterations} iterations); proven f* ≥ "
+                 f"{self.lower_bound:.10g}; rounded f = {self.cost_rounded:.10g}, gap {self.gap:.3g}",
+                 f"rank: top eigenvalues of Z_RR {', '.join(f'{v:.3g}' for v in np.ravel(self.z_eigenvalues)[:3])}; "
+                 f"{self.n_reflected} reflected blocks"]
+        if self.certificate is not None:
+            lines.append(f"polished f = {self.cost_polished:.10g}: "
+                         + ("CERTIFIED" if self.certificate.certified else "NOT certified"))
+        lines.append("time " + fmt_timings(self.times))
+        return short_repr("SdpResult", f"{self.form} form, {self.n_poses} poses ({self.n_core} in the 2-core), "
+                          f"{self.n_edges} edges", lines)
+
+    def summary(self) -> Summary:
+        """The relaxation's numbers as a dict that prints as a small table."""
+        return Summary("SDP relaxation (SE-Sync (S9)/(S10), Clarabel)", [
+            ("n_poses", "poses", self.n_poses), ("n_core", "poses in the 2-core", self.n_core),
+            ("form", "form", self.form), ("status", "status", self.status), ("value", "f_SDP", self.value),
+            ("lower_bound", "proven f* ≥", self.lower_bound), ("cost_rounded", "f rounded", self.cost_rounded),
+            ("gap", "gap (relative)", self.gap), ("n_reflected", "reflected blocks", self.n_reflected),
+            ("cost_polished", "f polished", self.cost_polished),
+            ("certified", "polished certified", None if self.certificate is None else bool(self.certificate.certified)),
+        ], timings=self.times)
 
 
 def solve_sdp(graph: PoseGraph, *, form: str = "dual", settings: ClarabelSettings | None = None, anchor=None,

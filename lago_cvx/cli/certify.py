@@ -13,6 +13,7 @@ from .common import (
     EXIT_NOT_CERTIFIED,
     EXIT_OK,
     EXIT_RESOURCE,
+    UsageError,
     add_input_options,
     add_route_options,
     check_regularization,
@@ -47,33 +48,83 @@ def _reason(verdict: str) -> str:
     return verdict
 
 
+def _seconds(t: float) -> str:
+    return f"{t:.2f} s" if t < 10 else f"{t:.1f} s"
+
+
 def _certify_lines(file, payload: dict) -> list[str]:
-    p, lc = payload, payload["lago_certificate"]
-    return [
+    p, lc, tm = payload, payload["lago_certificate"], payload["timings"]
+    lines = [
         f"certify: LAGO ({p['spanning_tree']} spanning tree, {p['regularization']} regularization) → χ² "
         f"Gauss–Newton → SE-Sync Newton → SE-Sync certificate, on {file}",
-        f"  poses {p['n_poses']}, edges {p['n_edges']}",
-        f"  chi2 (g2o convention, sum e'Ωe): LAGO {p['chi2_lago']:.6g}, refined {p['chi2_refined']:.6g} "
-        f"({p['refine_iterations']} GN iterations{'' if p['refine_converged'] else ', not converged'})",
+        f"  poses {p['n_poses']}, edges {p['n_edges']}"
+        + (f"; frame: pose {p['anchor']} as anchored (one anchor is a choice of frame)" if p["anchor"] is not None
+           else ""),
+        f"  chi2 (g2o convention, sum e'Ωe): LAGO estimate {p['chi2_lago']:.6g}, χ²-refined estimate "
+        f"{p['chi2_refined']:.6g} ({p['refine_iterations']} GN iterations"
+        f"{'' if p['refine_converged'] else ', not converged'})",
         f"  {p['cost_convention']}:",
-        f"    LAGO estimate        f = {p['f_lago']:.10g}",
-        f"    χ²-refined           f = {p['f_chi2_refined']:.10g}",
-        f"    SE-Sync-refined      f = {p['f']:.12g}  ({p['sesync_iterations']} Newton iterations, "
-        + ("converged)" if p["sesync_converged"] else f"not converged: {p['sesync_reason']})"),
-        f"  LAGO estimate alone: {'certified' if lc['certified'] else 'NOT certified'}: {_reason(lc['verdict'])}",
-        f"  SE-Sync-refined:     {'CERTIFIED globally optimal' if p['certified'] else 'NOT certified'}",
+        f"    LAGO estimate, poses as returned                         f = {p['f_lago']:.10g}",
+        f"    χ²-refined estimate, poses as refined                    f = {p['f_chi2_refined']:.10g}",
+        f"    SE-Sync-refined estimate, translations re-optimised      f = {p['f']:.12g}  ({p['sesync_iterations']} "
+        "Newton iterations, " + ("converged)" if p["sesync_converged"] else f"not converged: {p['sesync_reason']})"),
+        "  certificate of the SE-Sync-refined estimate: "
+        + ("CERTIFIED globally optimal" if p["certified"] else "NOT certified"),
         f"    λ_min(S_Q) = {p['lambda_min']:.3g}; numerical floor η = {p['eta']:.3g} (1e-12 × ‖M‖₂ "
         f"{p['norm_M']:.4g})",
         f"    proven lower bound f* ≥ {_bound_text(p['lower_bound'], 12)}; relative suboptimality (f − bound)/f ≤ "
         f"{p['relative_suboptimality_bound']:.3g}; certified iff ≤ tol {p['tol']:.3g}",
         f"    verdict: {p['verdict']}",
     ]
+    if lc is None:
+        lines.append("  comparison certificate of the raw LAGO estimate: not run (--compare-lago runs it; it is never "
+                     "certified, its f being above the refined one)")
+    else:
+        lines += [
+            "  comparison certificate of the raw LAGO estimate (--compare-lago): "
+            + ("certified" if lc["certified"] else "NOT certified"),
+            f"    at LAGO's rotations with the translations re-optimised for them: f = {lc['f']:.10g} "
+            + (f"(with LAGO's own translations f = {p['f_lago']:.10g}, above)"
+               if abs(lc["f"] - p["f_lago"]) > 1e-9 * max(abs(p["f_lago"]), 1e-300) else
+               "(= f at LAGO's estimate above: its translations are already the optimal ones for its rotations)"),
+            f"    verdict: {_reason(lc['verdict'])}"]
+    steps = [("LAGO", "lago"), ("χ² GN", "refine"), ("SE-Sync Newton", "refine_sesync"), ("certificate", "certify"),
+             ("comparison certificate", "certify_lago")]
+    lines.append("  time: " + ", ".join(f"{name} {_seconds(tm[key])}" for name, key in steps if key in tm)
+                 + f"; total {_seconds(sum(tm.values()))}")
+    return lines
+
+
+def _certify_anchors(specs) -> dict | None:
+    """``--anchor`` values as ``{id: (x, y, θ)}`` (a bare ``ID``: ``{id: None}``, the pose at the origin)."""
+    if not specs:
+        return None
+    from .solve import parse_anchor_spec
+
+    anchors = {}
+    for spec in specs:
+        if ":" in spec:
+            pid, value = parse_anchor_spec(spec)
+        else:
+            try:
+                pid, value = int(spec), None
+            except ValueError:
+                raise UsageError(f"bad anchor {spec!r}: expected ID or ID:X,Y,THETA") from None
+        if pid in anchors:
+            raise UsageError(f"anchor {pid} given twice")
+        anchors[pid] = value
+    if len(anchors) > 1:
+        raise UsageError(f"certify takes at most one --anchor (a choice of frame), got {len(anchors)}: anchors at "
+                         "several poses constrain the problem and the certificate is about the unconstrained optimum; "
+                         "use solve --anchor to hold several poses")
+    return anchors
 
 
 def cmd_certify(args) -> int:
     from ..certification import certify_estimate
     from ..errors import GraphError
 
+    anchors = _certify_anchors(args.anchor)
     out = output_target(args)
     graph = read_input(args)
     if graph.n_edges == 0:
@@ -81,7 +132,8 @@ def cmd_certify(args) -> int:
     check_regularization(graph, args.regularization)
     payload, cert = certify_estimate(graph, route=args.route, spanning_tree=args.spanning_tree,
                                      regularization=args.regularization, integer_search=integer_search(args),
-                                     tol=args.tol, max_iterations=args.max_iterations)
+                                     tol=args.tol, max_iterations=args.max_iterations,
+                                     compare_lago=args.compare_lago, anchors=anchors)
     payload = {"file": str(args.file), **payload}
     lines = _certify_lines(args.file, payload)
     if out is not None:
@@ -104,8 +156,11 @@ def add_parser(sub) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
         description="Run LAGO on FILE, refine it (Gauss-Newton on the g2o chi2, then Newton on the SE-Sync cost f), and\n"
                     "verify global optimality with SE-Sync's Lagrangian-dual certificate (lago_cvx.certification).\n"
-                    f"{SESYNC_COST_CONVENTION}.\nThe raw LAGO estimate is certified too, for comparison; a point "
-                    "whose cost is above one already reached\nis never certified.",
+                    f"{SESYNC_COST_CONVENTION}.\nA point whose cost is above one already reached is never "
+                    "certified; so the raw LAGO estimate never is,\nand its comparison certificate runs only with "
+                    "--compare-lago (it costs as much as the certificate\nitself, or more). One --anchor is a choice "
+                    "of frame (the certified estimate is moved rigidly to put\nthat pose there; the certificate is "
+                    "unchanged); anchors at several poses are refused.",
         epilog=f"exit status: {EXIT_OK} certified globally optimal; {EXIT_NOT_CERTIFIED} NOT certified (the report is "
                f"still printed\nand -o still written); {EXIT_BAD_INPUT} bad input (malformed file, no edges, "
                f"graph not connected,\nbad option, estimate not finite); {EXIT_RESOURCE} resource limit; "
@@ -120,6 +175,12 @@ def add_parser(sub) -> None:
                         f"(0 < TOL ≤ {CERTIFY_TOL:g}, the default)")
     s.add_argument("--max-iterations", type=nonneg_int, default=50,
                    help="iterations of each refinement, chi2 and SE-Sync (default 50)")
+    s.add_argument("--compare-lago", action="store_true",
+                   help="also certify the raw LAGO estimate, for comparison (never certified; its time is reported "
+                        "apart)")
+    s.add_argument("--anchor", action="append", metavar="ID[:X,Y,THETA]",
+                   help="at most one: the pose ID (at the origin) or ID:X,Y,THETA (empty fields keep the estimate's "
+                        "own) fixes the frame of the written estimate; several poses are refused")
     s.add_argument("--overwrite-input", action="store_true", help="allow -o to name the input file")
     s.add_argument("--json", action="store_true", help="print one JSON object")
     s.set_defaults(func=cmd_certify)

@@ -40,7 +40,7 @@ def _estimate_from_file(graph, path: str, args):
 def cmd_plot(args) -> int:
     from matplotlib.figure import Figure
 
-    from ..plotting import plot_covariances, plot_edges, plot_trajectory
+    from ..plotting import aligned, plot_covariances, plot_edges, plot_trajectory, set_title
 
     out = output_target(args)
     if out == "-":
@@ -59,11 +59,13 @@ def cmd_plot(args) -> int:
         poses, label = res.poses, f"LAGO ({res.route} route)"
     fig = Figure(figsize=(args.size, args.size), layout="constrained")
     ax = fig.subplots()
-    if graph.initial is not None and not args.no_guess:
-        plot_trajectory(ax, graph.initial, color="0.7", linewidth=0.6, label="the file's initial guess")
-    plot_edges(ax, graph, poses, which="loop_closures", linewidth=0.3, alpha=0.4,
+    thin = 0.8 if graph.n_poses <= 2000 else 0.5
+    if graph.initial is not None and not args.no_guess:  # in the estimate's frame: best rigid fit to it
+        plot_trajectory(ax, aligned(graph.initial, poses), color="0.65", linewidth=thin,
+                        label="the file's initial guess (rigidly aligned to the estimate)")
+    plot_trajectory(ax, poses, color="k", linewidth=thin, label=label)
+    plot_edges(ax, graph, poses, which="loop_closures", color="tab:red",
                label=f"loop closures ({graph.n_loop_closures})")
-    plot_trajectory(ax, poses, color="k", linewidth=0.8, label=label)
     n_ellipses = 0
     if args.covariances:
         if res is None:
@@ -73,9 +75,13 @@ def cmd_plot(args) -> int:
         covs = res.pose_covariances(progress=progress_callback(args))
         plot_covariances(ax, poses, covs, every=args.every, n_sigma=args.sigma)
         n_ellipses = len(range(0, graph.n_poses, args.every))
-    ax.set_title(args.title or f"{Path(args.file).name}: {graph.n_poses} poses, {graph.n_edges} edges"
-                 + (f"; {args.sigma:g}σ ellipses of LAGO's covariance, every {args.every}" if args.covariances else ""))
-    ax.legend(loc="best", fontsize=8)
+    set_title(ax, args.title or f"{Path(args.file).name}: {graph.n_poses} poses, {graph.n_edges} edges"
+              + (f"; {args.sigma:g}σ ellipses of LAGO's covariance, every {args.every} poses" if args.covariances
+                 else ""))
+    leg = ax.legend(loc="best", fontsize=8)
+    for line in leg.get_lines():  # legend swatches readable whatever the width and alpha drawn
+        line.set_linewidth(1.5)
+        line.set_alpha(1.0)
     buf = _io.BytesIO()
     fig.savefig(buf, format=fmt, dpi=args.dpi, metadata={"png": {"Software": None}, "svg": {"Date": None},
                                                           "pdf": {"CreationDate": None}}[fmt])

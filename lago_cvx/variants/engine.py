@@ -29,14 +29,15 @@ import scipy.sparse as sp
 
 from ..errors import GraphError, OptionError, check_choice
 from ..graph import spanning_tree
-from ..sparse import block_diagonal_inverse
 from ..metrics import alignment_angle, chi2
 from ..phases import Phase1, Phase3
 from ..posegraph import PoseGraph
 from ..positions import Polish, Positions, polish
 from ..regularization import regularize
+from ..reports import short_repr
 from ..result import LagoResult
 from ..rounding import AMBIGUITY_MARGIN, TWO_PI
+from ..sparse import marginal_blocks
 from ..solvers import LEAST_SQUARES, ROBUST, ClarabelSettings, IntegerSearch, check_method
 from ..uncertainty import INFORMATION_MODES, edge_uncertainty
 from .anchors import (AnchorRegularization, anchor_regularization, choose_reference, normalize_anchors,
@@ -99,12 +100,40 @@ class VariantPhase1(Phase1):
     solution: SystemSolution = None
 
     def variances(self) -> np.ndarray:
-        """Marginal variances of θ̂ (n,), 0 at known orientations."""
-        var = np.zeros(self.theta.size)
-        if self.free.size:
-            f = self.solution.factorized()
-            var[self.free] = block_diagonal_inverse(f, np.arange(self.free.size)[:, None])[:, 0, 0]
-        return var
+        """Marginal variances of θ̂ (n,), 0 at known orientations: diag(LᵀL)⁻¹ by selected inversion
+        (``known_blocks``)."""
+        known = np.ones(self.theta.size, bool)
+        known[self.free] = False
+        if not self.free.size:
+            return np.zeros(self.theta.size)
+        return known_blocks(self.info, known, np.arange(self.theta.size)[:, None])[:, 0, 0]
+
+
+def known_blocks(info: sp.spmatrix, known: np.ndarray, coord: np.ndarray, *, progress=None) -> np.ndarray:
+    r"""Diagonal blocks of N_U⁻¹ per pose, zeros at known coordinates, by selected inversion.
+
+    ``info`` N_U = M_UᵀM_U (d_U, d_U) over the unknown coordinates (in order of ``~known``); ``known``
+    (N,) bool over all coordinates; ``coord`` (n, b) the coordinates of each pose. With Π the embedding of
+    the unknown coordinates into ℝᴺ and E_K that of the known ones,
+
+        N̄ = Π N_U Πᵀ + E_K E_Kᵀ   (N × N),     N̄⁻¹ = Π N_U⁻¹ Πᵀ + E_K E_Kᵀ,
+
+    since the two terms act on complementary coordinates. N̄ has the pose graph's pattern with b
+    coordinates per pose, so the pose-level multifrontal factor and its selected inversion (eq. (T) of
+    ``lago_cvx.sparse.multifrontal``, via ``sparse.marginal_blocks``) give its b×b diagonal blocks in
+    one pass — as the unanchored ``Phase3.pose_covariances`` — instead of one column solve per
+    coordinate. Returns (n, b, b): the blocks of N_U⁻¹, with the rows and columns of known coordinates
+    zeroed."""
+    known = np.asarray(known, bool)
+    N = known.size
+    upos = np.flatnonzero(~known)
+    kpos = np.flatnonzero(known)
+    C = sp.coo_matrix(info)
+    full = sp.csr_matrix((np.r_[C.data, np.ones(kpos.size)],
+                          (np.r_[upos[C.row], kpos], np.r_[upos[C.col], kpos])), shape=(N, N))
+    blocks = marginal_blocks(full, coord, progress=progress)
+    free = ~known[coord]  # (n, b)
+    return blocks * (free[:, :, None] & free[:, None, :])
 
 
 @dataclass(frozen=True, eq=False)
@@ -117,23 +146,15 @@ class VariantPhase3(Phase3):
     system: WeightedSystem = None
     solution: SystemSolution = None
 
-    def pose_covariances(self) -> np.ndarray:
-        """Marginal 3×3 covariance (n, 3, 3) of every pose (x, y, θ), zeros at known coordinates;
-        selected blocks of (M_UᵀM_U)⁻¹, grouped by pattern of known coordinates (≤ 8 patterns)."""
+    def pose_covariances(self, *, progress=None) -> np.ndarray:
+        """Marginal 3×3 covariance (n, 3, 3) of every pose (x, y, θ), zeros at known coordinates: the
+        diagonal pose blocks of (M_UᵀM_U)⁻¹ by selected inversion (``known_blocks``), the unanchored
+        route's method. ``progress`` an optional ``lago_cvx.progress.ProgressCallback``."""
         n = self.poses.shape[0]
-        known = self.system.known
         coord = np.stack([2 * np.arange(n), 2 * np.arange(n) + 1, 2 * n + np.arange(n)], 1)  # (n, 3)
-        upos = np.full(known.size, -1, np.int64)
-        upos[~known] = np.arange(int((~known).sum()))
-        pattern = known[coord] @ np.array([1, 2, 4])
-        out = np.zeros((n, 3, 3))
-        f = self.solution.factorized()
-        for pat in np.unique(pattern):  # loop over ≤ 8 patterns
-            poses = np.flatnonzero(pattern == pat)
-            comp = np.flatnonzero(~known[coord[poses[0]]])
-            if comp.size:
-                out[np.ix_(poses, comp, comp)] = block_diagonal_inverse(f, upos[coord[poses][:, comp]])
-        return out
+        if n == 1 or self.system.known.all():
+            return np.zeros((n, 3, 3))
+        return known_blocks(self.info, self.system.known, coord, progress=progress)
 
 
 @dataclass(eq=False)
@@ -159,8 +180,16 @@ class VariantResult(LagoResult):
     def orientations(self) -> np.ndarray:
         return self.phase1.theta
 
-    def pose_covariances(self) -> np.ndarray:
-        return self.phase3.pose_covariances()
+    def __repr__(self) -> str:
+        head, lines = self._describe()
+        strained = self.strained
+        shown = ", ".join(str(i) for i in strained[:5]) + (f", … ({len(strained)} in all)" if len(strained) > 5 else "")
+        lines.insert(2, f"{len(self.anchors)} anchors, {len(self.priors)} priors, loss {self.loss}; strained "
+                        f"anchors: {shown or 'none'}")
+        return short_repr(type(self).__name__, head, lines)
+
+    def pose_covariances(self, *, progress=None) -> np.ndarray:
+        return self.phase3.pose_covariances(progress=progress)
 
     @property
     def strained(self) -> list:
