@@ -260,6 +260,7 @@ def test_deferred_work_runs_beside_the_factorization(monkeypatch):
     estimate either way."""
     import threading
 
+    monkeypatch.setattr(ne, "OVERLAP_MIN", 0)  # (small graphs: the engine works in one thread, OVERLAP_MIN)
     g = lc.manhattan_world(300, seed=6).graph
     el = GraphElimination(g, 0)
     system = _random_system(el, 2, seed=3)
@@ -276,6 +277,12 @@ def test_deferred_work_runs_beside_the_factorization(monkeypatch):
     y = np.random.default_rng(0).standard_normal(el.d * 2)
     assert np.array_equal(alone.solve(y), beside.solve(y))
     assert 3 in el._upper_patterns
+    # below OVERLAP_MIN nothing runs beside: the tasks wait to be asked for
+    monkeypatch.setattr(ne, "OVERLAP_MIN", 10**9)
+    later = el.ahead(lambda: 7)
+    el.factor(system, engine=False)
+    assert not later.done and later.result() == 7
+    monkeypatch.setattr(ne, "OVERLAP_MIN", 0)
     # in LAGO: the same answer with the deferral switched off
     with_defer = lc.lago(g)
     monkeypatch.setattr(GraphElimination, "deferred_work", lambda self: None)

@@ -90,6 +90,13 @@ ENGINE_MIN = 1_200_000
 COMPILED_MIN = 300_000
 
 
+#: Below this many free poses the engine works in the caller's thread alone: no worker builds the
+#: elimination, and QDLDL runs no handed-over work beside its factorizations (they run when asked for).
+#: Handing work to a thread and taking the GIL back costs about as much as a small graph's whole
+#: solve (GIL switches every 5 ms): measured in benchmarks/perf.md's small-graph table.
+OVERLAP_MIN = 5_000
+
+
 class RenumberedFactor(Factor):
     """A pose-major factor (``PoseFactor`` or ``QdldlFactor``, variable i·b + c) seen in a system's own
     numbering: ``var_index`` (d, b) the system's index of (pose i, component c). ``pose_major`` the
@@ -193,7 +200,7 @@ class GraphElimination:
             return
         if factor_laplacian is None:  # QDLDL will factor the chordal relaxation first: Ω_θ beside it
             factor_laplacian = not (self._expected[:1] == [2] and 2 * d < COMPILED_MIN)
-        if _background:
+        if _background and d >= OVERLAP_MIN:
             self._building = Ahead(self._build, factor_laplacian)
             threading.Thread(target=self._building.run, daemon=True, name="lago-elimination").start()
         else:
@@ -352,8 +359,9 @@ class GraphElimination:
 
     def deferred_work(self):
         """A callable running the tasks handed over ahead (in order, each once), or None when there are
-        none; called by QDLDL's factorization (``upper_pattern.QdldlFactor``) while its C call runs."""
-        if not self._tasks:
+        none or the graph is too small to gain from it (``OVERLAP_MIN``); called by QDLDL's factorization
+        (``upper_pattern.QdldlFactor``) while its C call runs."""
+        if not self._tasks or self.d < OVERLAP_MIN:
             return None
 
         def run():
