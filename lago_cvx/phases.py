@@ -64,7 +64,7 @@ from functools import partial
 import numpy as np
 import scipy.sparse as sp
 
-from .sparse import (EdgeSystem, Factor, GraphElimination, marginal_blocks, RenumberedFactor, row_blocks,
+from .sparse import (EdgeSystem, Factor, GraphElimination, marginal_blocks, RenumberedFactor, rotate, row_blocks,
                      solve_least_squares)
 from .graph import _reduced_incidence, free_poses
 from .posegraph import PoseGraph, rot2
@@ -74,7 +74,8 @@ from .uncertainty import INFORMATION_MODES, EdgeUncertainty
 
 __all__ = [
     "Phase1", "phase1_problem", "phase1_closed_form", "phase1_from_problem",
-    "Phase2", "phase2", "phase2_blocks", "edge_whitening", "phase1_system", "phase3_edge_system", "Lazy",
+    "Phase2", "phase2", "global_relative_positions", "phase2_blocks", "edge_whitening", "phase1_system",
+    "phase3_edge_system", "Lazy",
     "Phase3", "design_matrix", "phase3_problem", "phase3_closed_form", "phase3_from_problem",
 ]
 
@@ -254,6 +255,13 @@ class Phase2:
         return np.linalg.inv((self.W.T @ self.W).toarray())
 
 
+def global_relative_positions(graph: PoseGraph, theta: np.ndarray) -> np.ndarray:
+    """Eq. (9): Δᵍ_ij = R(θ̂_i) Δˡ_ij, each edge's measured relative position rotated into the global frame
+    by its tail's orientation; ``theta`` (n,) → (m, 2). (The engine's ``rotate`` kernel: the same numbers
+    as ``einsum("kab,kb->ka", rot2(θ_i), Δˡ)``.)"""
+    return rotate(np.asarray(theta, dtype=float)[graph.tails], graph.delta_l)
+
+
 def phase2_blocks(graph: PoseGraph, theta: np.ndarray, unc: EdgeUncertainty, tail_col: np.ndarray, d: int):
     """The edge part of phase 2 (eqs. (9)–(11)) for orientations θ̂ = ``theta`` (n,) whose free entries
     are numbered by ``tail_col`` (n,) (−1 for a known orientation; d free in all):
@@ -263,7 +271,7 @@ def phase2_blocks(graph: PoseGraph, theta: np.ndarray, unc: EdgeUncertainty, tai
     (2m × (2m + d), sparse). Used by ``phase2`` and by the anchored variants."""
     m = graph.n_edges
     Ri = rot2(theta[graph.tails])  # (m, 2, 2)
-    delta_g = np.einsum("kab,kb->ka", Ri, graph.delta_l)  # eq. (9)
+    delta_g = global_relative_positions(graph, theta)  # eq. (9)
     k = np.arange(m)
     col = tail_col[graph.tails]
     has = col >= 0
@@ -310,13 +318,7 @@ def phase2(graph: PoseGraph, theta: np.ndarray, unc: EdgeUncertainty, *, anchor=
     if information == "full" and delta_reg is None:
         raise OptionError("phase2(information='full') needs delta_reg, the regularized δ of phase 1")
     theta = np.asarray(theta, dtype=float)
-    delta_g = np.empty((graph.n_edges, 2))  # eq. (9), a block of edges at a time: R(θ̂_i) Δˡ written out
-    for k in row_blocks(graph.n_edges):
-        th_i = theta[graph.tails[k]]
-        cs, sn = np.cos(th_i), np.sin(th_i)
-        lx, ly = graph.delta_l[k, 0], graph.delta_l[k, 1]
-        delta_g[k, 0] = cs * lx - sn * ly
-        delta_g[k, 1] = sn * lx + cs * ly
+    delta_g = global_relative_positions(graph, theta)  # eq. (9)
     free_of = np.full(graph.n_poses, -1, np.int64)
     free_of[free_poses(graph.n_poses, a)] = np.arange(graph.n_poses - 1)
     tails = free_of[graph.tails] if elimination is None else elimination.tails
@@ -336,7 +338,7 @@ def _phase2_sparse(graph: PoseGraph, theta: np.ndarray, unc: EdgeUncertainty, a:
     col_of[free] = np.arange(n - 1)
     _, jac, top = phase2_blocks(graph, theta, unc, col_of, n - 1)
     A2t = _reduced_incidence(graph, a).T  # (m, d)
-    delta_g = np.einsum("kab,kb->ka", rot2(theta[graph.tails]), graph.delta_l)
+    delta_g = global_relative_positions(graph, theta)  # eq. (9)
     if information == "marginal":
         z = np.concatenate([delta_g.reshape(-1), theta[free]])
         L = sp.diags(unc.sqrt_info_delta) @ A2t  # second block row: [0, P_δ^{-1/2} A2ᵀ]

@@ -20,7 +20,7 @@ import numpy as np
 from . import phases as P
 from .errors import GraphError, OptionError, check_choice
 from .graph import spanning_tree as build_tree
-from .metrics import chi2, relative_difference
+from .metrics import relative_difference
 from .posegraph import PoseGraph, compose
 from .sparse import GraphElimination
 from .positions import Polish, PositionSolver, isotropic, polish, positions_from_problem, resolve_positions

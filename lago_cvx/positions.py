@@ -30,14 +30,14 @@ from functools import partial
 import numpy as np
 import scipy.sparse as sp
 
-from .sparse import EdgeSystem, Factor, GraphElimination, row_blocks, solve_least_squares
+from .sparse import EdgeSystem, Factor, GraphElimination, rotate, solve_least_squares
 from .graph import _reduced_incidence, free_poses
 from .phases import Lazy, _normal_matrix
 from .posegraph import PoseGraph, rot2, wrap_angle
 from .solvers import ClarabelSettings, named_constant, parameter, solve
 from .uncertainty import EdgeUncertainty
 
-__all__ = ["Positions", "position_system", "position_problem", "resolve_positions", "positions_from_problem",
+__all__ = ["Positions", "position_system", "position_targets", "position_problem", "resolve_positions", "positions_from_problem",
            "PositionSolver", "isotropic", "Polish", "polish", "MAX_HALVINGS"]
 
 log = logging.getLogger(__name__)
@@ -63,19 +63,24 @@ def position_system(graph: PoseGraph, theta, unc: EdgeUncertainty, *, anchor=Non
     theta = np.asarray(theta, dtype=float)
     a = graph.anchor_index(anchor)
     m = graph.n_edges
-    Ri = rot2(theta[graph.tails])  # (m, 2, 2)
-    e = wrap_angle(theta[graph.heads] - theta[graph.tails] - graph.delta)
-    t = graph.delta_l - unc.shift * e[:, None]
-    g = np.einsum("kab,kb->ka", Ri, t)  # (m, 2)
-    p0 = np.asarray(anchor_position, dtype=float).reshape(2)
-    sign = np.where(graph.heads == a, -1.0, 0.0) + np.where(graph.tails == a, 1.0, 0.0)
-    g = g + sign[:, None] * p0  # p_j − p_i with the anchor's known position on the right-hand side
-    blocks = unc.sqrt_info_pp @ np.swapaxes(Ri, 1, 2)  # C_k R(θ_i)ᵀ
+    g = position_targets(graph, theta, unc, graph.tails == a, graph.heads == a, anchor_position)
+    blocks = unc.sqrt_info_pp @ np.swapaxes(rot2(theta[graph.tails]), 1, 2)  # C_k R(θ_i)ᵀ
     k2 = np.stack([2 * np.arange(m), 2 * np.arange(m) + 1], 1)
     W = sp.csr_matrix((blocks.reshape(-1), (np.repeat(k2, 2, axis=1).reshape(-1), np.tile(k2, (1, 2)).reshape(-1))),
                       shape=(2 * m, 2 * m))
     Bt = sp.kron(_reduced_incidence(graph, a).T, sp.identity(2), format="csr")
     return W, Bt, g.reshape(-1)
+
+
+def position_targets(graph: PoseGraph, theta: np.ndarray, unc: EdgeUncertainty, tail_known: np.ndarray,
+                     head_known: np.ndarray, anchor_position=(0.0, 0.0)) -> np.ndarray:
+    """The targets of (P), g_k = R(θ_i)(Δˡ_k − h_k e_θ,k) (m, 2) with e_θ,k = wrap(θ_j − θ_i − δ_k) and
+    h_k = Ω_pp⁻¹Ω_pθ (eq. (14) when Ω is block-diagonal: h = 0); the anchor's known position moved to the
+    right-hand side of p_j − p_i where ``tail_known`` / ``head_known`` (m,) say an end is the anchor."""
+    e = wrap_angle(theta[graph.heads] - theta[graph.tails] - graph.delta)
+    g = rotate(theta[graph.tails], graph.delta_l - unc.shift * e[:, None])
+    p0 = np.asarray(anchor_position, dtype=float).reshape(2)
+    return g + (np.asarray(tail_known, float) - np.asarray(head_known, float))[:, None] * p0
 
 
 def _poses(graph: PoseGraph, theta, a: int, p_free: np.ndarray, anchor_position) -> np.ndarray:
@@ -119,20 +124,8 @@ class PositionSolver:
             self._factor = elimination.ahead(elimination.factor, system)
 
     def _targets(self, theta: np.ndarray, p0: np.ndarray) -> np.ndarray:
-        """g_k = R(θ_i)(Δˡ_k − h_k e_θ,k) (m, 2), the anchor's p0 moved to the right-hand side; a block of
-        edges at a time (``arrays.row_blocks``)."""
-        g, el = self.graph, self.elim
-        shift = self.unc.shift
-        gk = np.empty((g.n_edges, 2))
-        for k in row_blocks(g.n_edges):
-            th_i = theta[g.tails[k]]
-            e = wrap_angle(theta[g.heads[k]] - th_i - g.delta[k])
-            t = g.delta_l[k] - shift[k] * e[:, None]
-            cs, sn = np.cos(th_i), np.sin(th_i)  # R(θ_i) t_k, written out
-            gk[k, 0] = cs * t[:, 0] - sn * t[:, 1]
-            gk[k, 1] = sn * t[:, 0] + cs * t[:, 1]
-            gk[k] += ((el.tails[k] < 0).astype(float) - (el.heads[k] < 0))[:, None] * p0
-        return gk
+        """(P)'s targets g_k (m, 2) at ``theta``, the anchor's p0 on the right-hand side."""
+        return position_targets(self.graph, theta, self.unc, self.elim.tails < 0, self.elim.heads < 0, p0)
 
     def __call__(self, theta, *, anchor_position=(0.0, 0.0)) -> "Positions":
         return self.many([theta], anchor_position=anchor_position)[0]

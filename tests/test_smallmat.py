@@ -60,3 +60,17 @@ def test_unique_sorted_is_numpys_unique():
     for a in (rng.integers(0, 50, 1000), rng.integers(0, 10**12, 5000), np.zeros(0, np.int64),
               np.array([7]), rng.integers(-5, 5, (20, 3))):
         assert np.array_equal(unique_sorted(a), np.unique(a))
+
+
+def test_rotate_is_eq_9_written_with_rotation_matrices():
+    """``sparse.rotate`` (the kernel of eq. (9), Δᵍ = R(θ̂_i)Δˡ, and of the position targets) gives the
+    numbers of the equation written with the stacked 2×2 rotations, blocks of rows included."""
+    from lago_cvx.posegraph import rot2
+    from lago_cvx.sparse import rotate
+    from lago_cvx.sparse import arrays
+
+    rng = np.random.default_rng(4)
+    for m in (0, 1, 7, arrays.BLOCK + 3):
+        ang, v = rng.uniform(-40, 40, m), rng.standard_normal((m, 2)) * 10.0 ** rng.integers(-3, 4, (m, 1))
+        ref = np.einsum("kab,kb->ka", rot2(ang), v)
+        np.testing.assert_allclose(rotate(ang, v), ref, rtol=1e-15, atol=1e-15 * np.abs(v).max(initial=0.0))

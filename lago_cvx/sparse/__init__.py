@@ -18,7 +18,8 @@ The door, in the spirit of scikit-sparse's ``cholesky(A) -> Factor``:
   selected inversion (``block_diagonal_inverse`` by column solves for small blocks of any factor);
 * small per-edge kernels the mathematics calls by name: ``row_blocks`` (per-edge arithmetic a block of
   edges at a time), ``unique_sorted``, the closed-form 2×2 / 3×3 inverses and Cholesky factors
-  (``spd_inverse``, ``spd_inverse_corner``, ``cholesky``), ``whitening_2x2``.
+  (``spd_inverse``, ``spd_inverse_corner``, ``cholesky``), ``rotate`` (R(α_k) v_k, m rotations at once),
+  ``whitening_2x2``.
 """
 
 from __future__ import annotations
@@ -29,12 +30,12 @@ from .linalg import (SOLVER_BACKENDS, Factor, augmented_least_squares, block_dia
                      refine_normal_equations, solve_least_squares, whitening_2x2)
 from .edge_system import EdgeSystem
 from .normal_equations import GraphElimination, RenumberedFactor, marginal_blocks
-from .smallmat import cholesky, spd_inverse, spd_inverse_corner
+from .smallmat import cholesky, rotate, spd_inverse, spd_inverse_corner
 from .threads import cores
 
 __all__ = [
     "EdgeSystem", "GraphElimination", "Factor", "factorize", "solve_least_squares", "refine_normal_equations",
     "augmented_least_squares", "block_diagonal_inverse", "inverse_blocks", "whitening_2x2", "SOLVER_BACKENDS",
-    "row_blocks", "unique_sorted", "cholesky", "spd_inverse", "spd_inverse_corner",
+    "row_blocks", "unique_sorted", "cholesky", "spd_inverse", "spd_inverse_corner", "rotate",
     "RenumberedFactor", "marginal_blocks", "cores",
 ]

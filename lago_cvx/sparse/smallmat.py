@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["spd_inverse", "spd_inverse_corner", "cholesky"]
+__all__ = ["spd_inverse", "spd_inverse_corner", "cholesky", "rotate"]
 
 
 def _closed_form(A, kernel, lapack) -> np.ndarray:
@@ -102,3 +102,20 @@ def _cholesky(A: np.ndarray, L: np.ndarray) -> np.ndarray:
         L[:, 2, 0], L[:, 2, 1], L[:, 2, 2] = l20, l21, l22
         ok &= l22 > 0
     return ok
+
+
+def rotate(angles: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """R(α_k) v_k for angles (m,) and vectors v (m, 2) → (m, 2): the same numbers as
+    ``np.einsum("kab,kb->ka", rot2(angles), v)``, written out a block of rows at a time (no (m, 2, 2)
+    stack of rotations; temporaries that stay in cache: ``arrays.row_blocks``)."""
+    from .arrays import row_blocks
+
+    angles = np.asarray(angles, dtype=float)
+    v = np.asarray(v, dtype=float)
+    out = np.empty((angles.shape[0], 2))
+    for k in row_blocks(angles.shape[0]):
+        cs, sn = np.cos(angles[k]), np.sin(angles[k])
+        x, y = v[k, 0], v[k, 1]
+        out[k, 0] = cs * x - sn * y
+        out[k, 1] = sn * x + cs * y
+    return out
