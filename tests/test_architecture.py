@@ -18,11 +18,12 @@ PKG = Path(lago_cvx.__file__).resolve().parent
 
 #: The layers of docs/ARCHITECTURE.md, bottom first. A module may import from its own layer or below.
 LAYERS = [
-    ["_version", "errors", "progress", "solvers", "routes", "conventions", "arrays", "smallmat", "posegraph"],
+    ["_version", "errors", "progress", "solvers", "routes", "conventions", "arrays", "smallmat", "posegraph",
+     "so3", "posegraph3d"],
     ["io", "graph", "linalg", "ldl", "amd", "upper_pattern", "block_factor", "supernodes", "multifrontal", "compiled_kernels", "compiled", "normal_equations", "metrics", "synthetic", "datasets"],
     ["uncertainty", "rounding"],
     ["regularization"],
-    ["phases", "positions"],
+    ["phases", "positions", "space"],
     ["result"],
     ["variants"],
     ["pipeline"],
