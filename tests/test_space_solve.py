@@ -207,3 +207,28 @@ def test_offdiagonal_example_is_solved_and_refined():
     ref = refine3d(g, res.t, res.R)
     assert res.chi2 < 1e-12 and ref.chi2 < 1e-12  # two poses, one edge: it is satisfied exactly
     assert np.allclose(exp_so3(np.zeros(3)), res.R[0])
+
+
+# ------------------------------------------------------------------ certificate
+def test_certificate_on_a_world_and_on_a_bad_point():
+    from lago_cvx.space.certify import certify3d, sesync_cost3d
+    w = torus_world(5, 10, seed=4)
+    g = w.graph
+    res = lago3d(g)
+    cert = certify3d(g, res.t, res.R)
+    assert cert.certified and cert.n_negative == 0, cert.verdict
+    assert cert.lower_bound <= cert.cost and cert.relative_suboptimality_bound <= cert.tol
+    assert cert.cost <= sesync_cost3d(g, res.t, res.R)  # the local solver only descends
+    assert cert.cost == pytest.approx(cert.dual_value, rel=1e-9)  # a critical point: f = Σ tr Λ_i
+    # far from any critical point (rotations scrambled, no local solver): never certified, bound still valid
+    R = exp_so3(np.random.default_rng(0).normal(size=(g.n_poses, 3)))
+    bad = certify3d(g, res.t, R, local=False)
+    assert not bad.certified and bad.lower_bound <= cert.cost * (1 + 1e-9)
+
+
+def test_certificate_on_small_grid():
+    from lago_cvx.space.certify import certify3d
+    g = read_graph(dataset_path("se-sync-3d/smallGrid3D.g2o"))
+    res = lago3d(g)
+    cert = certify3d(g, res.t, res.R)
+    assert cert.certified, cert.verdict
