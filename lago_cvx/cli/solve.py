@@ -84,6 +84,10 @@ def cmd_info(args) -> int:
     from ..regularization import regularize
 
     graph = read_input(args)
+    if graph.dim == 3:
+        from .space import info3d
+
+        return info3d(args, graph)
     k, _ = connected_components(graph)
     payload = {
         "file": str(args.file), "format": detect_format(args.file),
@@ -139,8 +143,12 @@ def cmd_solve(args) -> int:
         return compose(np.broadcast_to(res.anchor_pose, poses.shape), poses)
 
     out = output_target(args)
-    anchor, anchors = _parse_anchors(args.anchor)
     graph = read_input(args)
+    if graph.dim == 3:
+        from .space import solve3d
+
+        return solve3d(args, graph, out)
+    anchor, anchors = _parse_anchors(args.anchor)
     check_regularization(graph, args.regularization)
     kw = dict(route=args.route, spanning_tree=args.spanning_tree, anchor=anchor, regularization=args.regularization,
               information=args.information, positions=args.positions, integer_search=integer_search(args))
