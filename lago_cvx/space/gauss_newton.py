@@ -21,6 +21,7 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse as sp
 
 from ..errors import check_choice
 from ..linalg import factorize
@@ -90,7 +91,9 @@ def refine3d(graph, t, R, *, method: str = "levenberg-marquardt", anchor: int | 
              max_iterations: int = 100, tolerance: float = 1e-12, initial_lambda: float = 1e-5) -> Refined3D:
     """Refine poses (t (n, 3), R (n, 3, 3)) on χ² (module docstring). Stops when χ² decreases by less than
     ``tolerance`` relative (or the step moves no pose by more than ``tolerance``), after ``max_iterations``, or
-    when Levenberg–Marquardt's λ exceeds 1e10. ``anchor``: the pose id held fixed (default: smallest id)."""
+    when no step decreases χ² (Gauss–Newton's, or Levenberg–Marquardt's at λ up to 1e10): that step is not taken,
+    and the result counts as converged if the increase was within 1e-9 relative (rounding at a minimum).
+    ``anchor``: the pose id held fixed (default: smallest id)."""
     check_choice("method", method, REFINE_METHODS)
     a = graph.anchor_index(anchor)
     t, R = graph.check_poses(t, R)
@@ -102,19 +105,16 @@ def refine3d(graph, t, R, *, method: str = "levenberg-marquardt", anchor: int | 
     while not converged and it < max_iterations:
         it += 1
         N, g, _ = normal_equations(graph, t, R, L, a)
-        diag = N.diagonal()
+        damping = sp.diags(N.diagonal(), format="csc")
         while True:
-            Nd = N if lam == 0 else (N + lam * __import__("scipy.sparse", fromlist=["diags"]).diags(diag)).tocsc()
-            delta = -factorize(Nd).solve(g)
+            delta = -factorize(N if lam == 0 else (N + lam * damping).tocsc()).solve(g)
             t2, R2 = retract(t, R, delta, a)
             new = chi2_3d(graph, t2, R2)
-            if method == "gauss-newton" or new <= cost:
+            if new <= cost or method == "gauss-newton" or lam > 1e10:
                 break
             lam *= 10.0
-            if lam > 1e10:
-                break
-        if not new <= cost and method == "levenberg-marquardt":
-            converged = True  # no decrease at any damping: a minimum to working precision
+        if not new <= cost:  # no decrease (Gauss–Newton's step, or at any damping): a minimum to working precision
+            converged = (new - cost) <= 1e-9 * cost
             break
         small = np.abs(delta).max() <= tolerance if delta.size else True
         converged = small or (cost - new) <= tolerance * max(cost, 1e-300)
