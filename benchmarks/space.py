@@ -103,7 +103,8 @@ def render(rows, repeat) -> str:
         c = {k: v[1].chi2 for k, v in r["ours"].items()}
         d = c["default", "isotropic"]
         gi = r["gtsam_init"]
-        lines.append(f"| {r['name']} | {r['n']} | {r['m']} | {_f(c['seed', 'isotropic'])} | {_f(c['seed', 'anisotropic'])} "
+        lines.append(f"| {r['name']} | {r['n']} | {r['m']} | {_f(c['seed', 'isotropic'])} "
+                     f"| {_f(c['seed', 'anisotropic'])} "
                      f"| **{_f(d)}** | {_f(c['default', 'anisotropic'])} | {_f(gi) if gi is not None else r['note']} | "
                      f"{_f(r['min'])} ({_f(r['refined'], '.10g')} / {_f(r['gtsam_lm'], '.10g')}) | "
                      f"{_f(d / r['min'] if r['min'] > 1e-12 else float('nan'), '.4f')} | "

@@ -1,4 +1,4 @@
-"""3-D pose graphs: the SO(3)/SE(3) helpers, ``PoseGraph3D``, and g2o ``VERTEX_SE3:QUAT`` / ``EDGE_SE3:QUAT`` files
+"""3-D pose graphs: the SO(3)/SE(3) functions, ``PoseGraph3D``, and g2o ``VERTEX_SE3:QUAT`` / ``EDGE_SE3:QUAT`` files
 (reading, writing, every malformed input named with file:line, the dispatch of ``read_graph``)."""
 
 from __future__ import annotations

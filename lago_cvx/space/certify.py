@@ -135,7 +135,7 @@ def _curvature(graph, t, R, kappa, tau) -> np.ndarray:
 def refine_sesync3d(graph, t, R, *, anchor_index: int = 0, max_iterations: int = 30, tolerance: float = 1e-14):
     """A critical point of (S1) from (t, R): Newton steps (JᵀJ plus the retraction's curvature, ``_curvature``),
     falling back to the Gauss–Newton step when Newton's does not decrease f; steps are accepted only when f
-    decreases. Stops when f decreases by less than ``tolerance`` relative (or not at all), after ``max_iterations``.
+    decreases. Ends when f decreases by less than ``tolerance`` relative (or not at all), after ``max_iterations``.
     Returns (t, R, f, iterations)."""
     kappa, tau = sesync_weights3d(graph)
     sk, st = np.sqrt(kappa), np.sqrt(tau)

@@ -89,7 +89,7 @@ class Refined3D:
 
 def refine3d(graph, t, R, *, method: str = "levenberg-marquardt", anchor: int | None = None,
              max_iterations: int = 100, tolerance: float = 1e-12, initial_lambda: float = 1e-5) -> Refined3D:
-    """Refine poses (t (n, 3), R (n, 3, 3)) on χ² (module docstring). Stops when χ² decreases by less than
+    """Refine poses (t (n, 3), R (n, 3, 3)) on χ² (module docstring). Ends when χ² decreases by less than
     ``tolerance`` relative (or the step moves no pose by more than ``tolerance``), after ``max_iterations``, or
     when no step decreases χ² (Gauss–Newton's, or Levenberg–Marquardt's at λ up to 1e10): that step is not taken,
     and the result counts as converged if the increase was within 1e-9 relative (rounding at a minimum).

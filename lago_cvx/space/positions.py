@@ -11,9 +11,9 @@ With the full 6×6 information Ω = [[Ω_tt, Ω_tr], [Ω_rt, Ω_rr]],
 
 so χ² over the positions is the linear least-squares problem
 
-    min_t Σ_ij ‖L_ij (B_ij (t_j − t_i) − c_ij)‖²,   B = V(φ)⁻¹R̃ᵀR_iᵀ,  c = V(φ)⁻¹R̃ᵀt̃ − Ω_tt⁻¹Ω_tr φ,  LᵀL = Ω_tt   (P)
+    min_t Σ_ij ‖L_ij (B_ij (t_j − t_i) − c_ij)‖²                                                       (P)
 
-with the anchor's position fixed: its solution is the exact minimizer of χ² at these rotations (χ² itself, not an
+with B = V(φ)⁻¹R̃ᵀR_iᵀ, c = V(φ)⁻¹R̃ᵀt̃ − Ω_tt⁻¹Ω_tr φ and LᵀL = Ω_tt, the anchor's position fixed: its solution is the exact minimizer of χ² at these rotations (χ² itself, not an
 approximation of it — GTSAM's cost, :mod:`lago_cvx.posegraph3d`).
 """
 
@@ -40,7 +40,8 @@ def position_system(graph, R, *, anchor_index: int = 0, anchor_position=(0.0, 0.
     Bm = Vi @ Mt @ np.swapaxes(R[graph.tails], 1, 2)
     O = graph.information
     Ott, Otr = O[:, :3, :3], O[:, :3, 3:]
-    c = np.einsum("kij,kj->ki", Vi @ Mt, graph.delta_t) - np.linalg.solve(Ott, np.einsum("kij,kj->ki", Otr, phi)[..., None])[..., 0]
+    shift = np.linalg.solve(Ott, np.einsum("kij,kj->ki", Otr, phi)[..., None])[..., 0]  # Ω_tt⁻¹Ω_tr φ
+    c = np.einsum("kij,kj->ki", Vi @ Mt, graph.delta_t) - shift
     L = np.swapaxes(np.linalg.cholesky(Ott), 1, 2)
     LB = L @ Bm
     M = edge_matrix(graph.tails, graph.heads, LB, -LB, n)
