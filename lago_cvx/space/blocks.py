@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-__all__ = ["edge_matrix", "without_anchor", "free_index"]
+__all__ = ["edge_matrix", "without_anchor", "free_index", "block_diagonal"]
 
 
 def edge_matrix(tails, heads, P_head: np.ndarray, N_tail: np.ndarray, n: int) -> sp.csc_matrix:
@@ -39,3 +39,14 @@ def without_anchor(M: sp.csc_matrix, b: np.ndarray, anchor: int, d: int, x_ancho
     n = M.shape[1] // d
     cols = M[:, anchor * d:(anchor + 1) * d]
     return M[:, free_index(n, d, anchor)], b - cols @ x_anchor
+
+
+def block_diagonal(blocks: np.ndarray, offset: int = 0) -> sp.csc_matrix:
+    """The block-diagonal sparse matrix of ``blocks`` (k, b, b), preceded by ``offset`` zero rows and columns
+    (one vectorized COO construction; ``scipy.sparse.block_diag`` of a list pays per block)."""
+    k, b, _ = blocks.shape
+    base = offset + b * np.arange(k)[:, None, None]
+    rows = base + np.arange(b)[None, :, None] + np.zeros((1, 1, b), np.int64)
+    cols = base + np.arange(b)[None, None, :] + np.zeros((1, b, 1), np.int64)
+    n = offset + k * b
+    return sp.csc_matrix((blocks.ravel(), (rows.ravel(), cols.ravel())), shape=(n, n))

@@ -43,7 +43,7 @@ import scipy.sparse as sp
 from ..conventions import CERTIFY_TOL
 from ..linalg import factorize
 from ..so3 import exp_so3, hat
-from .blocks import edge_matrix, free_index
+from .blocks import block_diagonal, edge_matrix, free_index
 
 __all__ = ["NUMERICAL_TOL", "sesync_weights3d", "sesync_cost3d", "data_matrix3d", "refine_sesync3d", "Certificate3D",
            "certify3d"]
@@ -149,7 +149,7 @@ def refine_sesync3d(graph, t, R, *, anchor_index: int = 0, max_iterations: int =
         J = edge_matrix(graph.tails, graph.heads, Pj, Ni, n)[:, free]
         N = (J.T @ J).tocsc()
         g = J.T @ res.ravel()
-        curv = sp.block_diag(list(_curvature(graph, t, R, kappa, tau)), format="csc")[free][:, free]
+        curv = block_diagonal(_curvature(graph, t, R, kappa, tau))[free][:, free]
         best = None
         for H in ((N + curv).tocsc(), N):
             d = np.zeros((n, 6))
@@ -231,7 +231,7 @@ def certify3d(graph, t, R, *, tol: float = CERTIFY_TOL, anchor_index: int = 0, l
     YM = (M @ Y.T).T
     lam = np.einsum("iba,bic->iac", R, YM[:, n:].reshape(3, n, 3))  # R_iᵀ (YM)_{R_i}
     lam = 0.5 * (lam + np.swapaxes(lam, 1, 2))
-    S = (M - sp.block_diag([sp.csr_matrix((n, n))] + list(lam), format="csr")).tocsr()
+    S = (M - block_diagonal(lam, offset=n)).tocsr()
     cost = float(np.einsum("ij,ij->", Y, YM))
     dual = float(np.trace(lam, axis1=1, axis2=2).sum())
     normM = float(abs(M).sum(axis=1).max())

@@ -40,12 +40,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.sparse as sp
 
 from ..errors import check_choice
 from ..linalg import solve_least_squares
 from ..so3 import project_so3
-from .blocks import edge_matrix, free_index, without_anchor
+from .blocks import block_diagonal, edge_matrix, free_index, without_anchor
 
 __all__ = ["WEIGHTINGS", "ANISOTROPIC_FLOOR", "rotation_weights", "chordal_system", "chordal_closed_form",
            "chordal_problem", "chordal_cvxpy", "Chordal", "relaxed_cost"]
@@ -78,7 +77,7 @@ def chordal_system(graph, *, weighting: str = "isotropic", anchor_index: int = 0
     A = edge_matrix(graph.tails, graph.heads, eye, -np.swapaxes(graph.delta_R, 1, 2), n)
     A, B = without_anchor(A, np.zeros((3 * m, 3)), anchor_index, 3, np.eye(3))
     S = rotation_weights(graph, weighting)
-    W = sp.block_diag(list(S), format="csc") if m else sp.csc_matrix((0, 0))
+    W = block_diagonal(S)
     return A.tocsc(), W, np.asarray(B)
 
 
