@@ -42,11 +42,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import check_choice
-from ..linalg import solve_least_squares
 from ..so3 import project_so3
 from .blocks import block_diagonal, edge_matrix, free_index, without_anchor
 
-__all__ = ["WEIGHTINGS", "ANISOTROPIC_FLOOR", "rotation_weights", "chordal_system", "chordal_closed_form",
+__all__ = ["WEIGHTINGS", "ANISOTROPIC_FLOOR", "rotation_weights", "chordal_system", "edge_system", "chordal_closed_form",
            "chordal_problem", "chordal_cvxpy", "Chordal", "relaxed_cost"]
 
 WEIGHTINGS = ("isotropic", "anisotropic")
@@ -100,7 +99,8 @@ def relaxed_cost(A, W, B, X) -> float:
     return float(np.sum(r * r))
 
 
-def _finish(graph, A, W, B, X, anchor_index: int, accuracy: dict) -> Chordal:
+def _finish(graph, X, anchor_index: int, accuracy: dict, cost) -> Chordal:
+    """The rotations from X (3(n−1), 3) = [R_iᵀ] of the free poses; ``cost(X)`` evaluates (C)."""
     n = graph.n_poses
     relaxed = np.empty((n, 3, 3))
     relaxed[anchor_index] = np.eye(3)
@@ -109,16 +109,45 @@ def _finish(graph, A, W, B, X, anchor_index: int, accuracy: dict) -> Chordal:
     R = project_so3(relaxed)
     R[anchor_index] = np.eye(3)
     Xp = np.swapaxes(R[free], 1, 2).reshape(-1, 3)
-    return Chordal(R, relaxed, relaxed_cost(A, W, B, X), relaxed_cost(A, W, B, Xp), accuracy)
+    return Chordal(R, relaxed, cost(X), cost(Xp), accuracy)
 
 
-def chordal_closed_form(graph, *, weighting: str = "isotropic", anchor_index: int = 0) -> Chordal:
-    """(C) by one sparse factorization of (WA)ᵀ(WA) and three solves (``linalg.solve_least_squares``)."""
-    A, W, B = chordal_system(graph, weighting=weighting, anchor_index=anchor_index)
+def edge_system(graph, elimination, *, weighting: str = "isotropic"):
+    """(C) as the engine's ``normal_equations.EdgeSystem`` on ``elimination`` (a ``GraphElimination``): per edge
+    the residual A_ij x_i + B_ij x_j − c_ij with A = −S R̃ᵀ, B = S, three right-hand sides c (m, 3, 3) that carry
+    the anchor's known block R_aᵀ = I."""
+    from ..normal_equations import EdgeSystem
+
+    S = rotation_weights(graph, weighting)
+    A = -S @ np.swapaxes(graph.delta_R, 1, 2)
+    B = np.ascontiguousarray(S)
+    c = np.zeros((graph.n_edges, 3, 3))
+    ta, he = elimination.tails < 0, elimination.heads < 0
+    c[ta] -= A[ta]
+    c[he] -= B[he]
+    return EdgeSystem(elimination.tails, elimination.heads, A, B, c, elimination.d)
+
+
+def _system_cost(system):
+    def cost(X):
+        r = system.matvec(X.reshape(system.d, 3, 3)) - system.c
+        return float(np.sum(r * r))
+    return cost
+
+
+def chordal_closed_form(graph, *, weighting: str = "isotropic", anchor_index: int = 0, elimination=None) -> Chordal:
+    """(C) by one sparse factorization of its normal matrix and three solves, on the pose-level elimination shared
+    by the closed forms (``normal_equations.GraphElimination``: QDLDL in the pose graph's AMD order, the
+    multifrontal engine for large systems; corrected semi-normal equations). ``elimination``: one built already for
+    this graph and anchor."""
+    from ..normal_equations import GraphElimination
+
     if graph.n_poses == 1:
-        return _finish(graph, A, W, B, np.zeros((0, 3)), anchor_index, {"method": "trivial"})
-    X, _, _, stats = solve_least_squares(W @ A, W @ B)
-    return _finish(graph, A, W, B, X, anchor_index, stats)
+        return _finish(graph, np.zeros((0, 3)), anchor_index, {"method": "trivial"}, lambda X: 0.0)
+    el = GraphElimination(graph, anchor_index) if elimination is None else elimination
+    system = edge_system(graph, el, weighting=weighting)
+    x, _, stats = el.solve(system)
+    return _finish(graph, x.reshape(-1, 3), anchor_index, stats, _system_cost(system))
 
 
 def chordal_problem(graph, *, weighting: str = "isotropic", anchor_index: int = 0):
@@ -139,7 +168,10 @@ def chordal_cvxpy(graph, *, weighting: str = "isotropic", anchor_index: int = 0,
     from ..solvers import solve
 
     problem, X, (A, W, B) = chordal_problem(graph, weighting=weighting, anchor_index=anchor_index)
+
+    def cost(Y):
+        return relaxed_cost(A, W, B, Y)
     if graph.n_poses == 1:
-        return _finish(graph, A, W, B, np.zeros((0, 3)), anchor_index, {"method": "trivial"})
+        return _finish(graph, np.zeros((0, 3)), anchor_index, {"method": "trivial"}, lambda Y: 0.0)
     status = solve(problem, settings, what="the chordal relaxation (3-D rotations)")
-    return _finish(graph, A, W, B, np.asarray(X.value), anchor_index, {"method": "cvxpy", "status": status})
+    return _finish(graph, np.asarray(X.value), anchor_index, {"method": "cvxpy", "status": status}, cost)

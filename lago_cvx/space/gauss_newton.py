@@ -68,10 +68,17 @@ def retract(t, R, delta: np.ndarray, anchor_index: int):
     return t + np.einsum("kij,kj->ki", R, d[:, :3]), R @ exp_so3(d[:, 3:])
 
 
-def gauss_newton_step(graph, t, R, *, anchor_index: int = 0, L=None) -> np.ndarray:
-    """The Gauss–Newton step δ (6(n−1),) at (t, R): (JᵀΩJ) δ = −JᵀΩe."""
-    N, g, _ = normal_equations(graph, t, R, whitening(graph) if L is None else L, anchor_index)
-    return -factorize(N).solve(g)
+def gauss_newton_step(graph, t, R, *, anchor_index: int = 0, L=None, elimination=None) -> np.ndarray:
+    """The Gauss–Newton step δ (6(n−1),) at (t, R): min ‖L (e + J δ)‖², i.e. (JᵀΩJ) δ = −JᵀΩe, on the pose-level
+    elimination shared by the closed forms (``normal_equations.GraphElimination``; ``elimination`` one built
+    already for this graph and anchor)."""
+    from ..normal_equations import EdgeSystem, GraphElimination
+
+    L = whitening(graph) if L is None else L
+    el = GraphElimination(graph, anchor_index) if elimination is None else elimination
+    e, Ji, Jj = jacobians(graph, t, R)
+    x, _, _ = el.solve(EdgeSystem(el.tails, el.heads, L @ Ji, L @ Jj, -np.einsum("kij,kj->ki", L, e), el.d))
+    return x.ravel()
 
 
 @dataclass(frozen=True, eq=False)

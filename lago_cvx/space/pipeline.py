@@ -67,9 +67,9 @@ class Lago3DResult:
         return self.t, self.R
 
 
-def _joint(graph, t0, R0, cost0, a, solve_positions):
+def _joint(graph, t0, R0, cost0, a, solve_positions, elimination=None):
     """The guarded joint step (module docstring): (t, R, cost, alpha, trials)."""
-    delta = gauss_newton_step(graph, t0, R0, anchor_index=a).reshape(-1, 6)
+    delta = gauss_newton_step(graph, t0, R0, anchor_index=a, elimination=elimination).reshape(-1, 6)
     dphi = np.zeros((graph.n_poses, 3))
     free = np.ones(graph.n_poses, bool)
     free[a] = False
@@ -119,11 +119,15 @@ def lago3d(graph, *, route: str = "default", method: str = "closed_form", weight
     _check_connected(graph)
     start = time.perf_counter()
     timings, accuracy = {}, {}
+    el = None
     if method == "closed_form":
-        ch = chordal_closed_form(graph, weighting=weighting, anchor_index=a)
+        from ..normal_equations import GraphElimination
+
+        el = GraphElimination(graph, a)  # one pose-level elimination for every system of the route
+        ch = chordal_closed_form(graph, weighting=weighting, anchor_index=a, elimination=el)
 
         def solve_positions(R):
-            return positions_closed_form(graph, R, anchor_index=a)
+            return positions_closed_form(graph, R, anchor_index=a, elimination=el)
     else:
         ch = chordal_cvxpy(graph, weighting=weighting, anchor_index=a, settings=solver_settings)
 
@@ -139,7 +143,7 @@ def lago3d(graph, *, route: str = "default", method: str = "closed_form", weight
     cost, alpha, trials = seed, None, ()
     if route == "default" and graph.n_poses > 1 and graph.n_edges:
         t0 = time.perf_counter()
-        t, R, cost, alpha, trials = _joint(graph, t, R, seed, a, solve_positions)
+        t, R, cost, alpha, trials = _joint(graph, t, R, seed, a, solve_positions, el)
         timings["joint"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - start
     return Lago3DResult(t=t, R=R, chi2=float(cost), chi2_seed=float(seed), route=route, method=method,

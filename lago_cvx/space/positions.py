@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..linalg import solve_least_squares
 from ..posegraph3d import relative_poses
 from ..so3 import log_so3, v_inverse
 from .blocks import edge_matrix, free_index, without_anchor
@@ -29,11 +28,10 @@ from .blocks import edge_matrix, free_index, without_anchor
 __all__ = ["position_system", "positions_closed_form", "position_problem", "positions_cvxpy"]
 
 
-def position_system(graph, R, *, anchor_index: int = 0, anchor_position=(0.0, 0.0, 0.0)):
-    """(M, b) of (P) whitened, in the free positions: M (3m × 3(n−1)), b (3m,)."""
+def _whitened_edges(graph, R):
+    """(L B (m, 3, 3), L c (m, 3)) of (P) at rotations R (n, 3, 3)."""
     R = np.asarray(R, dtype=float)
-    n = graph.n_poses
-    Rij, _ = relative_poses(np.zeros((n, 3)), R, graph.tails, graph.heads)
+    Rij, _ = relative_poses(np.zeros((graph.n_poses, 3)), R, graph.tails, graph.heads)
     Mt = np.swapaxes(graph.delta_R, 1, 2)
     phi = log_so3(Mt @ Rij)
     Vi = v_inverse(phi)
@@ -43,10 +41,14 @@ def position_system(graph, R, *, anchor_index: int = 0, anchor_position=(0.0, 0.
     shift = np.linalg.solve(Ott, np.einsum("kij,kj->ki", Otr, phi)[..., None])[..., 0]  # Ω_tt⁻¹Ω_tr φ
     c = np.einsum("kij,kj->ki", Vi @ Mt, graph.delta_t) - shift
     L = np.swapaxes(np.linalg.cholesky(Ott), 1, 2)
-    LB = L @ Bm
-    M = edge_matrix(graph.tails, graph.heads, LB, -LB, n)
-    b = np.einsum("kij,kj->ki", L, c).ravel()
-    M, b = without_anchor(M, b, anchor_index, 3, np.asarray(anchor_position, dtype=float))
+    return L @ Bm, np.einsum("kij,kj->ki", L, c)
+
+
+def position_system(graph, R, *, anchor_index: int = 0, anchor_position=(0.0, 0.0, 0.0)):
+    """(M, b) of (P) whitened, in the free positions: M (3m × 3(n−1)), b (3m,)."""
+    LB, Lc = _whitened_edges(graph, R)
+    M = edge_matrix(graph.tails, graph.heads, LB, -LB, graph.n_poses)
+    M, b = without_anchor(M, Lc.ravel(), anchor_index, 3, np.asarray(anchor_position, dtype=float))
     return M.tocsc(), np.asarray(b)
 
 
@@ -57,12 +59,21 @@ def _assemble(graph, x, anchor_index, anchor_position) -> np.ndarray:
     return t
 
 
-def positions_closed_form(graph, R, *, anchor_index: int = 0, anchor_position=(0.0, 0.0, 0.0)):
-    """(t (n, 3), stats): (P) by ``linalg.solve_least_squares``."""
+def positions_closed_form(graph, R, *, anchor_index: int = 0, anchor_position=(0.0, 0.0, 0.0), elimination=None):
+    """(t (n, 3), stats): (P) on the pose-level elimination shared by the closed forms
+    (``normal_equations.GraphElimination``, as ``chordal.chordal_closed_form``); ``elimination`` one built already
+    for this graph and anchor."""
+    from ..normal_equations import EdgeSystem, GraphElimination
+
     if graph.n_poses == 1:
         return np.array([anchor_position], dtype=float), {"method": "trivial"}
-    M, b = position_system(graph, R, anchor_index=anchor_index, anchor_position=anchor_position)
-    x, _, _, stats = solve_least_squares(M, b)
+    el = GraphElimination(graph, anchor_index) if elimination is None else elimination
+    LB, Lc = _whitened_edges(graph, R)
+    p = np.asarray(anchor_position, dtype=float)
+    ta, he = el.tails < 0, el.heads < 0
+    Lc[ta] += LB[ta] @ p  # residual −LB t_i + LB t_j − Lc: the anchor's known term moves to the right
+    Lc[he] -= LB[he] @ p
+    x, _, stats = el.solve(EdgeSystem(el.tails, el.heads, -LB, np.ascontiguousarray(LB), Lc, el.d))
     return _assemble(graph, x, anchor_index, anchor_position), stats
 
 
