@@ -11,8 +11,9 @@ and the error's Jacobians are, with E = T̃⁻¹T_i⁻¹T_j and J_r⁻¹ the inv
     ∂e/∂δ_j = J_r⁻¹(e),     ∂e/∂δ_i = −J_r⁻¹(e) Ad(T_j⁻¹ T_i).
 
 Each iteration whitens the errors by Ω = LᵀL and solves the normal equations (JᵀΩJ + λ D) δ = −JᵀΩe for the free
-poses (the anchor stays put), with ``linalg.factorize`` — the engine's door. Gauss–Newton is λ = 0; Levenberg–
-Marquardt takes D = diag(JᵀΩJ) and accepts a step only if χ² decreases (λ /= 10 then; else λ *= 10 and retry).
+poses (the anchor stays put): the Gauss–Newton step (λ = 0) on the closed forms' pose-level elimination
+(``normal_equations``), Levenberg–Marquardt's damped ones (D = diag(JᵀΩJ)) through ``linalg.factorize`` when the
+Gauss–Newton step does not decrease χ² (``refine3d``).
 """
 
 from __future__ import annotations
@@ -77,8 +78,10 @@ def gauss_newton_step(graph, t, R, *, anchor_index: int = 0, L=None, elimination
     L = whitening(graph) if L is None else L
     el = GraphElimination(graph, anchor_index) if elimination is None else elimination
     e, Ji, Jj = jacobians(graph, t, R)
-    x, _, _ = el.solve(EdgeSystem(el.tails, el.heads, L @ Ji, L @ Jj, -np.einsum("kij,kj->ki", L, e), el.d))
-    return x.ravel()
+    system = EdgeSystem(el.tails, el.heads, L @ Ji, L @ Jj, -np.einsum("kij,kj->ki", L, e), el.d)
+    # One factorization and one solve of the normal equations: a step needs no refinement to rounding (near a
+    # minimum the gradient, hence the step, is tiny, and a correction relative to it would look untrustworthy).
+    return el.factor(system).solve(system.rmatvec(system.c).ravel())
 
 
 @dataclass(frozen=True, eq=False)
@@ -96,36 +99,47 @@ class Refined3D:
 
 def refine3d(graph, t, R, *, method: str = "levenberg-marquardt", anchor: int | None = None,
              max_iterations: int = 100, tolerance: float = 1e-12, initial_lambda: float = 1e-5) -> Refined3D:
-    """Refine poses (t (n, 3), R (n, 3, 3)) on χ² (module docstring). Ends when χ² decreases by less than
-    ``tolerance`` relative (or the step moves no pose by more than ``tolerance``), after ``max_iterations``, or
-    when no step decreases χ² (Gauss–Newton's, or Levenberg–Marquardt's at λ up to 1e10): that step is not taken,
-    and the result counts as converged if the increase was within 1e-9 relative (rounding at a minimum).
-    ``anchor``: the pose id held fixed (default: smallest id)."""
+    """Refine poses (t (n, 3), R (n, 3, 3)) on χ² (module docstring).
+
+    Every iteration first tries the Gauss–Newton step, solved on the pose-level elimination shared by the closed
+    forms (``gauss_newton_step``). ``"gauss-newton"`` takes it when χ² decreases; ``"levenberg-marquardt"`` then
+    falls back to damped steps (JᵀΩJ + λ diag(JᵀΩJ)) δ = −JᵀΩe through ``linalg.factorize``, λ from
+    ``initial_lambda`` up (×10 per rejected step, ÷10 after an accepted damped one) until χ² decreases. Ends when χ²
+    decreases by less than ``tolerance`` relative (or the step moves no pose by more than ``tolerance``), after
+    ``max_iterations``, or when no step decreases χ² (λ beyond 1e10): that step is not taken, and the result counts
+    as converged if the increase was within 1e-9 relative (rounding at a minimum). ``anchor``: the pose id held
+    fixed (default: smallest id)."""
+    from ..normal_equations import GraphElimination
+
     check_choice("method", method, REFINE_METHODS)
     a = graph.anchor_index(anchor)
     t, R = graph.check_poses(t, R)
     L = whitening(graph)
     cost = chi2_3d(graph, t, R)
-    lam = initial_lambda if method == "levenberg-marquardt" else 0.0
+    lam = initial_lambda
     log, converged, it = [], graph.n_poses == 1 or graph.n_edges == 0, 0
+    el = None if converged else GraphElimination(graph, a)
     start = time.perf_counter()
     while not converged and it < max_iterations:
         it += 1
-        N, g, _ = normal_equations(graph, t, R, L, a)
-        damping = sp.diags(N.diagonal(), format="csc")
-        while True:
-            delta = -factorize(N if lam == 0 else (N + lam * damping).tocsc()).solve(g)
-            t2, R2 = retract(t, R, delta, a)
-            new = chi2_3d(graph, t2, R2)
-            if new <= cost or method == "gauss-newton" or lam > 1e10:
-                break
-            lam *= 10.0
-        if not new <= cost:  # no decrease (Gauss–Newton's step, or at any damping): a minimum to working precision
+        delta = gauss_newton_step(graph, t, R, anchor_index=a, L=L, elimination=el)
+        t2, R2 = retract(t, R, delta, a)
+        new = chi2_3d(graph, t2, R2)
+        used = 0.0
+        if not new <= cost and method == "levenberg-marquardt":
+            N, g, _ = normal_equations(graph, t, R, L, a)
+            damping = sp.diags(N.diagonal(), format="csc")
+            while not new <= cost and lam <= 1e10:
+                delta = -factorize((N + lam * damping).tocsc()).solve(g)
+                t2, R2 = retract(t, R, delta, a)
+                new = chi2_3d(graph, t2, R2)
+                used = lam
+                lam = lam / 10.0 if new <= cost else lam * 10.0
+        if not new <= cost:  # no decrease at any damping: a minimum to working precision
             converged = (new - cost) <= 1e-9 * cost
             break
         small = np.abs(delta).max() <= tolerance if delta.size else True
         converged = small or (cost - new) <= tolerance * max(cost, 1e-300)
         t, R, cost = t2, R2, new
-        lam = lam / 10.0 if method == "levenberg-marquardt" else 0.0
-        log.append({"iteration": it, "chi2": cost, "lambda": lam, "time": time.perf_counter() - start})
+        log.append({"iteration": it, "chi2": cost, "lambda": used, "time": time.perf_counter() - start})
     return Refined3D(t, R, float(cost), it, bool(converged), tuple(log))
