@@ -135,6 +135,12 @@ def cmd_info(args) -> int:
 
 # ------------------------------------------------------------------------------------ solve
 def cmd_solve(args) -> int:
+    out = output_target(args)
+    graph = read_input(args)
+    if graph.dim == 3:
+        from .space import solve3d
+
+        return solve3d(args, graph, out)
     from ..metrics import chi2
     from ..pipeline import compare_methods, lago
     from ..posegraph import compose
@@ -142,12 +148,6 @@ def cmd_solve(args) -> int:
     def compose_anchor(res, poses):
         return compose(np.broadcast_to(res.anchor_pose, poses.shape), poses)
 
-    out = output_target(args)
-    graph = read_input(args)
-    if graph.dim == 3:
-        from .space import solve3d
-
-        return solve3d(args, graph, out)
     anchor, anchors = _parse_anchors(args.anchor)
     check_regularization(graph, args.regularization)
     kw = dict(route=args.route, spanning_tree=args.spanning_tree, anchor=anchor, regularization=args.regularization,
