@@ -56,3 +56,10 @@ def test_solve_gtsam_offdiagonal_example(capsys):
     p = dataset_path("gtsam/pose3example-offdiagonal.txt")
     status, res = _run(capsys, ["solve", str(p), "--refine", "--json"])
     assert status == 0 and res["chi2_refined"] < 1e-12
+
+
+def test_plot_projections(world, tmp_path, capsys):
+    fig = tmp_path / "w.svg"
+    status, res = _run(capsys, ["plot", str(world), "-o", str(fig), "--json"])
+    assert status == 0 and res["dim"] == 3 and fig.read_bytes().startswith(b"<?xml")
+    assert main(["plot", str(world), "-o", str(fig), "--covariances"]) == 2  # planar ellipses only

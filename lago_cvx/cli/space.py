@@ -151,3 +151,45 @@ def world3d(kind: str, poses: int, seed: int, sigma_xy, sigma_theta):
     if kind == "sphere3d":
         return space.sphere_world(rings, per, seed=seed, **kw)
     return space.torus_world(rings, per, seed=seed, **kw)
+
+
+def plot3d(args, graph, out: str, fmt: str) -> int:
+    """``plot`` on a 3-D graph: the estimate (ESTIMATE's vertices, else LAGO's) and the file's initial guess in
+    three projections (x–y, x–z, y–z). ``--covariances`` is planar-only."""
+    import io as _io
+    from pathlib import Path
+
+    from matplotlib.figure import Figure
+
+    from ..plotting import plot_trajectory3d
+    from .common import read_input, write_bytes
+
+    if args.covariances:
+        raise UsageError("--covariances draws planar ellipses; it does not apply to 3-D graphs")
+    if args.estimate:
+        est = read_input(args, args.estimate)
+        if getattr(est, "dim", 2) != 3 or est.initial is None or not np.array_equal(est.ids, graph.ids):
+            raise UsageError(f"{args.estimate}: needs VERTEX_SE3:QUAT lines for every pose id of the graph")
+        t, label = est.initial_t, f"estimate ({Path(args.estimate).name})"
+    else:
+        from ..space import lago3d
+
+        res = lago3d(graph, route=args.route)
+        t, label = res.t, f"LAGO ({res.route} route)"
+    fig = Figure(figsize=(args.size * 1.5, args.size / 2), layout="constrained")
+    for ax, plane in zip(fig.subplots(1, 3), ("xy", "xz", "yz")):
+        if graph.initial is not None and not args.no_guess:
+            plot_trajectory3d(ax, graph.initial_t, plane=plane, color="0.7", linewidth=0.6,
+                              label="the file's initial guess")
+        plot_trajectory3d(ax, t, plane=plane, color="k", linewidth=0.8, label=label)
+    fig.suptitle(args.title or f"{Path(args.file).name}: {graph.n_poses} poses, {graph.n_edges} edges (projections)")
+    fig.axes[0].legend(loc="best", fontsize=8)
+    buf = _io.BytesIO()
+    fig.savefig(buf, format=fmt, dpi=args.dpi, metadata={"png": {"Software": None}, "svg": {"Date": None},
+                                                          "pdf": {"CreationDate": None}}[fmt])
+    write_bytes(out, buf.getvalue())
+    payload = {"file": str(args.file), "estimate": args.estimate, "output": str(out), "format": fmt, "dim": 3,
+               "n_poses": graph.n_poses, "n_edges": graph.n_edges, "n_ellipses": 0}
+    emit(args, payload, [f"figure written to {out} ({graph.n_poses} poses, {graph.n_loop_closures} loop closures; "
+                         "x-y, x-z and y-z projections)"])
+    return EXIT_OK
