@@ -232,3 +232,18 @@ def test_certificate_on_small_grid():
     res = lago3d(g)
     cert = certify3d(g, res.t, res.R)
     assert cert.certified, cert.verdict
+
+
+def test_pose_covariances_against_dense_inverse(grid):
+    from lago_cvx.space import pose_covariances3d
+    from lago_cvx.space.gauss_newton import normal_equations, whitening
+    g = _anisotropic(grid.graph, seed=3)
+    res = lago3d(g)
+    ref = refine3d(g, res.t, res.R)
+    cov = pose_covariances3d(g, ref.t, ref.R)
+    N, _, _ = normal_equations(g, ref.t, ref.R, whitening(g), 0)
+    dense = np.linalg.inv(N.toarray())
+    want = np.stack([dense[6 * k:6 * k + 6, 6 * k:6 * k + 6] for k in range(g.n_poses - 1)])
+    assert np.abs(cov[0]).max() == 0.0
+    assert np.allclose(cov[1:], want, rtol=1e-8, atol=1e-12 * np.abs(want).max())
+    assert (np.linalg.eigvalsh(cov[1:]) > 0).all()

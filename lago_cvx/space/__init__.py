@@ -7,14 +7,16 @@
 * ``gauss_newton`` — the SE(3) error's Jacobians, Gauss–Newton / Levenberg–Marquardt with a right retraction;
 * ``pipeline`` — ``lago3d``: the seed route (chordal → positions) and the default route (then one joint
   linearized step, positions re-solved, guarded), and the result type;
-* ``certify`` — SE-Sync's optimality certificate in 3-D.
+* ``certify`` — SE-Sync's optimality certificate in 3-D;
+* ``covariance`` — the poses' first-order covariances from the factor of JᵀΩJ (selected inversion).
 """
 
 from .chordal import WEIGHTINGS, chordal_closed_form, chordal_cvxpy, chordal_problem
+from .covariance import pose_covariances3d
 from .gauss_newton import REFINE_METHODS, Refined3D, refine3d
 from .pipeline import ROUTES3D, Lago3DResult, compare_methods3d, lago3d
 from .positions import position_problem, positions_closed_form, positions_cvxpy
 
 __all__ = ["WEIGHTINGS", "chordal_closed_form", "chordal_cvxpy", "chordal_problem", "REFINE_METHODS", "Refined3D",
            "refine3d", "ROUTES3D", "Lago3DResult", "compare_methods3d", "lago3d", "position_problem",
-           "positions_closed_form", "positions_cvxpy"]
+           "positions_closed_form", "positions_cvxpy", "pose_covariances3d"]
