@@ -247,3 +247,22 @@ def test_pose_covariances_against_dense_inverse(grid):
     assert np.abs(cov[0]).max() == 0.0
     assert np.allclose(cov[1:], want, rtol=1e-8, atol=1e-12 * np.abs(want).max())
     assert (np.linalg.eigvalsh(cov[1:]) > 0).all()
+
+
+def test_fixed_poses():
+    w = sphere_world(4, 8, seed=5, sigma_t=1e-9, sigma_r=1e-9)
+    g = w.graph
+    fixed = {0: (w.t[0], w.R[0]), 17: (w.t[17], w.R[17])}
+    for route in ("seed", "default"):
+        res = lago3d(g, route=route, fixed=fixed)  # noiseless: the truth, in the known poses' frame
+        assert np.abs(res.R - w.R).max() < 1e-6 and np.abs(res.t - w.t).max() < 1e-6
+    noisy = sphere_world(4, 8, seed=5)
+    one = {0: (np.zeros(3), np.eye(3))}
+    a, b = lago3d(noisy.graph, fixed=one), lago3d(noisy.graph)  # the anchor alone: the plain route
+    assert a.chi2 == pytest.approx(b.chi2, rel=1e-9) and np.allclose(a.t, b.t, atol=1e-9)
+    two = {0: (noisy.t[0], noisy.R[0]), 17: (noisy.t[17], noisy.R[17])}
+    c = lago3d(noisy.graph, fixed=two)
+    assert np.array_equal(c.t[17], noisy.t[17]) and c.chi2 <= c.chi2_seed
+    assert c.chi2 >= refine3d(noisy.graph, a.t, a.R).chi2 * (1 - 1e-9)  # a constrained point: not below the minimum
+    with pytest.raises(OptionError, match="not a rotation"):
+        lago3d(noisy.graph, fixed={0: (np.zeros(3), 2 * np.eye(3))})

@@ -8,7 +8,8 @@
 * ``pipeline`` — ``lago3d``: the seed route (chordal → positions) and the default route (then one joint
   linearized step, positions re-solved, guarded), and the result type;
 * ``certify`` — SE-Sync's optimality certificate in 3-D;
-* ``covariance`` — the poses' first-order covariances from the factor of JᵀΩJ (selected inversion).
+* ``covariance`` — the poses' first-order covariances from the factor of JᵀΩJ (selected inversion);
+* ``fixed`` — the routes with several poses known exactly (``lago3d(graph, fixed={id: (t, R)})``).
 """
 
 from .chordal import WEIGHTINGS, chordal_closed_form, chordal_cvxpy, chordal_problem

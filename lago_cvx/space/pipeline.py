@@ -102,21 +102,35 @@ def _check_connected(graph) -> None:
 
 
 def lago3d(graph, *, route: str = "default", method: str = "closed_form", weighting: str = "isotropic",
-           anchor=None, solver_settings=None) -> Lago3DResult:
+           anchor=None, solver_settings=None, fixed=None) -> Lago3DResult:
     """LAGO on a 3-D pose graph (module docstring).
 
     Parameters (keyword-only): ``route`` ``"default"`` or ``"seed"``; ``method`` ``"closed_form"`` (sparse
     factorizations) or ``"cvxpy"`` (the chordal relaxation and the positions as cvxpy problems solved by Clarabel
     with ``solver_settings`` over ``solvers.LEAST_SQUARES``; the joint step's linear system is the closed form's in
     both); ``weighting`` of the chordal relaxation, ``"isotropic"`` (SE-Sync's κ) or ``"anisotropic"`` (the whole
-    rotational information; ``chordal``); ``anchor`` the id of the pose held at the identity (default: smallest)."""
+    rotational information; ``chordal``); ``anchor`` the id of the pose held at the identity (default: smallest);
+    ``fixed`` ``{id: (t (3,), R (3, 3))}``: poses known exactly, which then define the frame instead of the anchor
+    (``space.fixed``; closed form only)."""
     if getattr(graph, "dim", 2) != 3:
         raise OptionError("lago3d takes a 3-D pose graph (PoseGraph3D); planar graphs go to lago()")
     check_choice("route", route, ROUTES3D)
     check_method(method)
     check_choice("weighting", weighting, WEIGHTINGS)
-    a = graph.anchor_index(anchor)
     _check_connected(graph)
+    if fixed is not None:
+        from .fixed import lago3d_fixed
+
+        if method != "closed_form" or anchor is not None:
+            raise OptionError("fixed poses are solved in closed form and replace the anchor")
+        start = time.perf_counter()
+        t, R, cost, seed, alpha, trials = lago3d_fixed(graph, fixed, route=route, weighting=weighting,
+                                                       max_halvings=MAX_HALVINGS)
+        a = graph.index_of(next(iter(fixed)))
+        return Lago3DResult(t=t, R=R, chi2=float(cost), chi2_seed=float(seed), route=route, method=method,
+                            weighting=weighting, anchor=int(graph.ids[a]), anchor_index=a, alpha=alpha,
+                            trials=trials, timings={"total": time.perf_counter() - start})
+    a = graph.anchor_index(anchor)
     start = time.perf_counter()
     timings, accuracy = {}, {}
     el = None
