@@ -37,6 +37,8 @@ date):
   folder given with ``--unseen DIR``): χ² against the best Gauss–Newton minimum found.
 * ``processes`` — forked workers after a warm parent, spawned workers, two threads, joblib and Dask: every
   χ² identical to the serial run;
+* ``space``    — 3-D graphs: our initialization (both routes and weightings) against GTSAM's
+  ``InitializePose3`` and the minimum, χ² and times;
 * ``million``  — ``lago-cvx solve -o`` as a whole process on 100 000 to 1 000 000-pose worlds by both routes,
   step by step with peak memory, and phase 3 by QDLDL against the compiled engine (``COMPILED_MIN``).
 
@@ -59,7 +61,7 @@ from pathlib import Path
 import _bench
 
 SECTIONS = ("datasets", "scaling", "perf", "endtoend", "chordal", "certify", "integer", "theorem1", "route", "io",
-            "unseen", "million", "processes")
+            "unseen", "million", "processes", "space")
 #: Sections whose module has another name (``io`` would be the standard library's).
 MODULE_OF = {"io": "io_bench"}
 

@@ -12,6 +12,10 @@ Public API::
     cert = certify(graph, refine_sesync(graph, refine(graph, result.poses).poses).poses)
     cert.certified, cert.cost              # SE-Sync optimality certificate (Lagrangian dual, sparse LDLᵀ)
 
+    graph = read_graph("sphere2500.g2o")    # VERTEX_SE3:QUAT / EDGE_SE3:QUAT: a PoseGraph3D (graph.dim == 3)
+    result = lago(graph)                    # = lago3d(graph): chordal relaxation, positions, joint step
+    refine3d(graph, result.t, result.R)     # Gauss–Newton / Levenberg–Marquardt on SE(3)
+
 The names below are loaded on first use (PEP 562), so ``import lago_cvx`` is cheap, and cvxpy is
 imported only by the routes that build a cvxpy problem. The layers of the package and where each step
 of the paper lives: ``docs/ARCHITECTURE.md``.
@@ -42,6 +46,10 @@ _EXPORTS = {
     "variants": ["anchored_lago", "constrained_lago", "robust_lago"],
     "certification": ["certify", "refine_sesync", "sesync_cost", "solve_sdp", "certify_estimate"],
     "synthetic": ["manhattan_world", "circle_world", "random_graph"],
+    "posegraph3d": ["PoseGraph3D", "chi2_3d"],
+    "space": ["lago3d", "refine3d", "pose_covariances3d", "Lago3DResult"],
+    "space.certify": ["certify3d"],
+    "synthetic.space": ["sphere_world", "torus_world", "cube_grid_world"],
 }
 _WHERE = {name: module for module, names in _EXPORTS.items() for name in names}
 

@@ -78,7 +78,20 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
         returns its ``VariantResult``, a ``LagoResult``).
     Raises ``GraphError`` for a disconnected graph (naming component sizes), a broken odometric chain,
     or an unknown anchor; ``OptionError`` for a bad option.
+
+    A 3-D graph (``graph.dim == 3``, a ``PoseGraph3D``) goes to ``lago_cvx.space.lago3d`` with ``route``,
+    ``method``, ``anchor`` and ``solver_settings`` (the planar options do not apply and must be left unset).
     """
+    if getattr(graph, "dim", 2) == 3:
+        from .space import lago3d
+
+        planar = {"spanning_tree": spanning_tree, "regularization": regularization, "information": information,
+                  "positions": positions, "anchor_pose": anchor_pose, "anchors": anchors,
+                  "integer_search": integer_search}
+        given = sorted(k for k, v in planar.items() if v is not None)
+        if given:
+            raise OptionError(f"option(s) {', '.join(given)} apply to planar graphs only")
+        return lago3d(graph, route=route, method=method, anchor=anchor, solver_settings=solver_settings)
     choice, route_name = resolve_route(route, spanning_tree=spanning_tree, regularization=regularization,
                                        information=information, positions=positions)
     if anchors is not None:

@@ -15,8 +15,8 @@ from matplotlib.patches import Ellipse
 from .metrics import alignment
 from .posegraph import PoseGraph, rot2
 
-__all__ = ["plot_trajectory", "plot_edges", "plot_covariances", "plot_convergence", "aligned", "edge_style",
-           "set_title"]
+__all__ = ["plot_trajectory", "plot_edges", "plot_covariances", "plot_convergence", "plot_trajectory3d", "aligned",
+           "edge_style", "set_title"]
 
 
 def aligned(poses, reference) -> np.ndarray:
@@ -116,4 +116,20 @@ def plot_convergence(ax: Axes, values, *, label: str | None = None, reference: f
         ax.set_yscale("log")
     ax.set_xlabel("iteration")
     ax.set_ylabel("χ² (g2o convention)")
+    return ax
+
+
+_AXES3 = {"x": 0, "y": 1, "z": 2}
+
+
+def plot_trajectory3d(ax: Axes, t, *, plane: str = "xy", label: str | None = None, color=None,
+                      linewidth: float = 1.0, style: str = "-", **kwargs) -> Axes:
+    """Draw the projection on ``plane`` ("xy", "xz" or "yz") of the 3-D trajectory through the positions ``t``
+    (n, 3), in id order (equal aspect)."""
+    t = np.asarray(t, dtype=float)
+    a, b = _AXES3[plane[0]], _AXES3[plane[1]]
+    ax.plot(t[:, a], t[:, b], style, color=color, linewidth=linewidth, label=label, **kwargs)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel(f"{plane[0]} [m]")
+    ax.set_ylabel(f"{plane[1]} [m]")
     return ax

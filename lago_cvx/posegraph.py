@@ -139,6 +139,11 @@ class PoseGraph:
 
     # ----------------------------------------------------------------- sizes
     @property
+    def dim(self) -> int:
+        """2: the poses are planar (``lago_cvx.posegraph3d.PoseGraph3D.dim`` is 3)."""
+        return 2
+
+    @property
     def n_edges(self) -> int:
         """m, the number of edges (measurements)."""
         return int(self.tails.shape[0])

@@ -20,11 +20,11 @@ PKG = Path(lago_cvx.__file__).resolve().parent
 LAYERS = [
     ["_version", "errors", "progress", "solvers", "cvxpy_names", "routes", "conventions", "reports"],
     ["sparse"],
-    ["posegraph"],
+    ["posegraph", "so3", "posegraph3d"],
     ["io", "graph", "metrics", "synthetic", "datasets"],
     ["uncertainty", "rounding"],
     ["regularization"],
-    ["phases", "positions"],
+    ["phases", "positions", "space"],
     ["result"],
     ["variants"],
     ["pipeline"],
@@ -120,7 +120,8 @@ def test_engine_is_one_folder_behind_one_door():
 #: the engine's own size thresholds).
 PLUMBING = ("threading", "ctypes", "mmap", "concurrent.futures", "COMPILED_MIN", "ENGINE_MIN", "numba")
 MATHEMATICS = ("uncertainty", "rounding", "regularization", "phases", "positions", "result", "variants",
-               "pipeline", "refinement", "certification", "theorem1", "graph", "posegraph", "metrics")
+               "pipeline", "refinement", "certification", "theorem1", "graph", "posegraph", "metrics", "space",
+               "so3", "posegraph3d")
 
 
 def test_the_mathematics_holds_no_engine_plumbing():

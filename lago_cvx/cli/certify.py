@@ -129,6 +129,10 @@ def cmd_certify(args) -> int:
     graph = read_input(args)
     if graph.n_edges == 0:
         raise GraphError(f"{args.file}: the graph has {graph.n_poses} pose(s) and no edges: nothing to certify")
+    if graph.dim == 3:
+        from .space import certify3d_cmd
+
+        return certify3d_cmd(args, graph, out)
     check_regularization(graph, args.regularization)
     payload, cert = certify_estimate(graph, route=args.route, spanning_tree=args.spanning_tree,
                                      regularization=args.regularization, integer_search=integer_search(args),

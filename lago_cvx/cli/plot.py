@@ -49,6 +49,10 @@ def cmd_plot(args) -> int:
     if fmt not in FORMATS:
         raise UsageError(f"-o {out}: the file name must end in .png, .svg or .pdf")
     graph = read_input(args)
+    if graph.dim == 3:
+        from .space import plot3d
+
+        return plot3d(args, graph, out, fmt)
     res = None
     if args.estimate:
         poses, label = _estimate_from_file(graph, args.estimate, args), f"estimate ({Path(args.estimate).name})"

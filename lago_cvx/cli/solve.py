@@ -84,6 +84,10 @@ def cmd_info(args) -> int:
     from ..regularization import regularize
 
     graph = read_input(args)
+    if graph.dim == 3:
+        from .space import info3d
+
+        return info3d(args, graph)
     k, _ = connected_components(graph)
     payload = {
         "file": str(args.file), "format": detect_format(args.file),
@@ -131,6 +135,12 @@ def cmd_info(args) -> int:
 
 # ------------------------------------------------------------------------------------ solve
 def cmd_solve(args) -> int:
+    out = output_target(args)
+    graph = read_input(args)
+    if graph.dim == 3:
+        from .space import solve3d
+
+        return solve3d(args, graph, out)
     from ..metrics import chi2
     from ..pipeline import compare_methods, lago
     from ..posegraph import compose
@@ -138,9 +148,7 @@ def cmd_solve(args) -> int:
     def compose_anchor(res, poses):  # phase 3's poses in the output frame (an anchored run's are already)
         return poses if anchors else compose(np.broadcast_to(res.anchor_pose, poses.shape), poses)
 
-    out = output_target(args)
     anchor, anchors = _parse_anchors(args.anchor)
-    graph = read_input(args)
     check_regularization(graph, args.regularization)
     kw = dict(route=args.route, spanning_tree=args.spanning_tree, anchor=anchor, regularization=args.regularization,
               information=args.information, positions=args.positions, integer_search=integer_search(args))

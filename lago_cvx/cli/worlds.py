@@ -8,6 +8,7 @@ from pathlib import Path
 
 from .common import (EXIT_OK, UsageError, emit, nonneg_float, nonneg_int, output_target, positive_float,
                      positive_int)
+from .space import WORLDS3D
 
 
 def _world(kind: str, poses: int, seed: int, sigma_xy: float | None, sigma_theta: float | None, laps: float):
@@ -36,7 +37,12 @@ def cmd_generate(args) -> int:
     truth_path = output_target(truth_args, flag="--truth")
     if truth_path == out:
         raise UsageError("--truth and -o name the same file")
-    world = _world(args.world, args.poses, args.seed, args.sigma_xy, args.sigma_theta, args.laps)
+    if args.world in WORLDS3D:
+        from .space import world3d
+
+        world = world3d(args.world, args.poses, args.seed, args.sigma_xy, args.sigma_theta)
+    else:
+        world = _world(args.world, args.poses, args.seed, args.sigma_xy, args.sigma_theta, args.laps)
     write_graph(out, world.graph)  # vertices = dead-reckoning guess, as in real datasets
     write_graph(truth_path, world.graph, world.truth)  # same edges, vertices = ground truth
     g = world.graph
@@ -125,7 +131,9 @@ def _demo_figure(graph, truth, est, out_dir: Path) -> Path:
 
 def add_parsers(sub) -> None:
     s = sub.add_parser("generate", help="write a seeded synthetic world (g2o) and its ground truth")
-    s.add_argument("--world", choices=["manhattan", "circle"], default="manhattan")
+    s.add_argument("--world", choices=["manhattan", "circle", *WORLDS3D], default="manhattan",
+                   help="planar: manhattan, circle; 3-D: sphere3d, torus3d, grid3d (about --poses poses; the sigmas "
+                        "are those of translation and rotation)")
     s.add_argument("--poses", type=positive_int, default=500)
     s.add_argument("--seed", type=nonneg_int, default=0)
     s.add_argument("--sigma-xy", type=nonneg_float, default=None, help="position noise std [m]")

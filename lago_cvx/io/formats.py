@@ -42,7 +42,8 @@ and names that option (and the other way round).
 Records of other kinds are recognized only to say what they are: landmark records (``LANDMARK2``,
 ``BR``, ``VERTEX_XY``, ``EDGE_SE2_XY``, ``POINT2``, …) and 3-D records (``VERTEX_SE3:QUAT``,
 ``EDGE_SE3:QUAT``, ``VERTEX3``, ``EDGE3``, …) are a ``ParseError`` at their line with a message naming
-the kind (:data:`NON_POSE_TAGS`).
+the kind (:data:`NON_POSE_TAGS`). A file whose first record is ``VERTEX_SE3:QUAT`` or ``EDGE_SE3:QUAT`` is a
+3-D graph: ``read_graph`` hands it to ``space.py``; such a record later in a planar file is a mix, refused.
 
 TORO → g2o information conversion
 ---------------------------------
@@ -121,6 +122,9 @@ NON_POSE_TAGS = {
 }
 
 
+_SE3_QUAT = ("VERTEX_SE3:QUAT", "EDGE_SE3:QUAT")  # read by io/space.py when a file starts with them
+
+
 def non_pose_problem(tag: str) -> str | None:
     """The message for a recognized non-pose-graph tag, or None."""
     kind = NON_POSE_TAGS.get(tag)
@@ -128,8 +132,12 @@ def non_pose_problem(tag: str) -> str | None:
         return f"{tag!r} is a landmark measurement, not a pose–pose constraint: {_PLANAR}"
     if kind == "landmark position":
         return f"{tag!r} is a landmark position, not a pose: {_PLANAR}"
+    if kind == "3-D" and tag in _SE3_QUAT:
+        return (f"{tag!r} is a 3-D record in a file of planar records: a file cannot mix planar and 3-D records "
+                "(3-D files start with VERTEX_SE3:QUAT/EDGE_SE3:QUAT records)")
     if kind == "3-D":
-        return f"{tag!r} is a 3-D record: LAGO here is planar (it reads VERTEX_SE2/EDGE_SE2 or VERTEX2/EDGE2)"
+        return (f"{tag!r} is a 3-D record of a kind lago_cvx does not read (it reads 3-D graphs as "
+                "VERTEX_SE3:QUAT/EDGE_SE3:QUAT, planar ones as VERTEX_SE2/EDGE_SE2 or VERTEX2/EDGE2)")
     return None
 
 # Index maps from the six stored information entries to the symmetric 3×3 matrix (order x, y, θ).

@@ -48,6 +48,7 @@ from ..errors import ParseError
 from ..posegraph import PoseGraph, is_spd
 from .careful import decode, parse_careful, read_bytes, unknown_tag
 from .fastpath import parse_fast
+from .space import first_tag, is_3d_tag, read_graph3d
 from .formats import (EQUIV, FIX, G2O_INFO_INDEX, SPECS, TORO_INFO_INDEX, check_edge2_order, check_format,
                       toro_to_g2o)
 
@@ -211,6 +212,10 @@ def _build(path, parsed, order: str) -> PoseGraph:
 def read_graph(path, *, format: str | None = None, edge2_order: str | None = None) -> PoseGraph:
     """Read a g2o or TORO pose-graph file into a :class:`PoseGraph` (``name`` = the file's name).
 
+    A file whose first record is ``VERTEX_SE3:QUAT`` or ``EDGE_SE3:QUAT`` is a 3-D graph: it is read by
+    :func:`lago_cvx.io.space.read_graph3d` into a :class:`~lago_cvx.posegraph3d.PoseGraph3D` (``dim`` 3;
+    ``format`` and ``edge2_order`` do not apply).
+
     ``format``: None (auto-detect: the first data tag decides), ``"g2o"`` or ``"toro"``. TORO
     information matrices are converted to the g2o convention (see ``formats.py``).
 
@@ -226,6 +231,8 @@ def read_graph(path, *, format: str | None = None, edge2_order: str | None = Non
     fmt_forced = check_format(format)
     order = check_edge2_order(edge2_order)
     data = read_bytes(path)
+    if is_3d_tag(first_tag(data) or ""):  # VERTEX_SE3:QUAT / EDGE_SE3:QUAT: a 3-D graph (space.py)
+        return read_graph3d(path, data=data)
     parsed = parse_fast(data, fmt_forced)
     if parsed is None:
         parsed = parse_careful(decode(data), fmt_forced, path)
@@ -246,6 +253,8 @@ def detect_format(path) -> str:
         toks = line.split(maxsplit=1)
         if not toks or toks[0][0] == "#" or toks[0] in (FIX, EQUIV):
             continue
+        if is_3d_tag(toks[0]):
+            return "g2o"  # the 3-D g2o records (space.py)
         spec = SPECS.get(toks[0])
         if spec is None:
             raise ParseError(path, lineno, unknown_tag(toks[0], None))

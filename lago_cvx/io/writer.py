@@ -161,6 +161,16 @@ def write_graph(path, graph: PoseGraph, poses=None, *, format: str = "g2o",
     fmt = check_format(format)
     if fmt is None:
         raise OptionError("format must be 'g2o' or 'toro'")
+    if getattr(graph, "dim", 2) == 3:  # a PoseGraph3D: VERTEX_SE3:QUAT / EDGE_SE3:QUAT (space.py)
+        if fmt != "g2o":
+            raise OptionError("3-D pose graphs are written as g2o (VERTEX_SE3:QUAT/EDGE_SE3:QUAT) only")
+        from .space import records3d
+
+        blocks = [format_records(*rec) for rec in records3d(path, graph, poses)]
+        with open_output(path) as f:
+            for block in blocks:
+                f.write(block)
+        return Path(path)
     if poses is None:
         poses = graph.initial
     if poses is not None:

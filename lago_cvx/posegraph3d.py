@@ -1,0 +1,218 @@
+r"""The immutable 3-D pose graph: poses in SE(3), edges measuring one pose in the frame of another.
+
+A ``PoseGraph3D`` has ``n_poses`` poses T_i = (R_i, t_i), R_i ∈ SO(3), t_i ∈ ℝ³, and ``n_edges`` edges.
+Edge ``k`` goes from its tail ``i = tails[k]`` to its head ``j = heads[k]`` and carries
+
+* ``delta_t[k]`` — t̃_ij, the position of j in the frame of i, shape ``(3,)``;
+* ``delta_R[k]`` — R̃_ij, the orientation of j in the frame of i, shape ``(3, 3)`` (a rotation);
+* ``information[k]`` — the 6×6 information Ω_ij of the error e_ij = Log(T̃_ij⁻¹ T_i⁻¹ T_j) ∈ ℝ⁶, in the
+  order **(translation, rotation)** — the g2o files' order (``lago_cvx.so3`` for Log).
+
+The cost is χ² = Σ e_ijᵀ Ω_ij e_ij, the g2o convention (no ½): GTSAM's ``2 * graph.error(values)``, the
+number its ``BetweenFactor<Pose3>`` reports, since GTSAM's Pose3 local coordinates are this very Log.
+
+Everything is stored in NumPy arrays made read-only (as :class:`~lago_cvx.posegraph.PoseGraph`);
+``dim`` is 3, the planar graph's is 2, so code that takes either dispatches on ``graph.dim``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from .errors import GraphError, OptionError
+from .so3 import log_se3
+
+__all__ = ["PoseGraph3D", "is_spd6", "edge_errors3d", "chi2_3d", "relative_poses"]
+
+
+def _readonly(a: np.ndarray) -> np.ndarray:
+    a = np.ascontiguousarray(a)
+    a.setflags(write=False)
+    return a
+
+
+def is_spd6(info: np.ndarray, *, rtol: float = 1e-9) -> np.ndarray:
+    """Boolean (m,): each matrix of ``info`` (m, k, k) is finite, symmetric to ``rtol`` of its largest entry,
+    and positive definite (all eigenvalues of its symmetric part > 0)."""
+    info = np.asarray(info, dtype=float)
+    m = info.shape[0]
+    if m == 0:
+        return np.zeros(0, bool)
+    with np.errstate(over="ignore", invalid="ignore"):
+        finite = np.isfinite(info).all(axis=(1, 2))
+        safe = np.where(finite[:, None, None], info, 0.0)
+        scale = np.abs(safe).max(axis=(1, 2))
+        asym = np.abs(safe - np.swapaxes(safe, 1, 2)).max(axis=(1, 2))
+        sym = asym <= rtol * np.maximum(scale, 1e-300)
+        ev = np.linalg.eigvalsh(0.5 * (safe + np.swapaxes(safe, 1, 2)))
+    return finite & sym & (ev[:, 0] > 0) & np.isfinite(ev).all(axis=1)
+
+
+def _is_rotation(R: np.ndarray, tol: float = 1e-6) -> np.ndarray:
+    err = np.abs(np.swapaxes(R, -1, -2) @ R - np.eye(3)).max(axis=(-1, -2))
+    return (err < tol) & (np.linalg.det(R) > 0)
+
+
+def relative_poses(t, R, tails, heads):
+    """(R_iᵀR_j, R_iᵀ(t_j − t_i)) of every edge, shapes (m, 3, 3) and (m, 3)."""
+    Ri = R[tails]
+    Rt = np.swapaxes(Ri, 1, 2)
+    return Rt @ R[heads], np.einsum("kij,kj->ki", Rt, t[heads] - t[tails])
+
+
+def edge_errors3d(graph: "PoseGraph3D", t, R) -> np.ndarray:
+    """e_ij = Log(T̃_ij⁻¹ T_i⁻¹ T_j), shape (m, 6), translation first, for poses t (n, 3), R (n, 3, 3)."""
+    Rij, tij = relative_poses(np.asarray(t, float), np.asarray(R, float), graph.tails, graph.heads)
+    Mt = np.swapaxes(graph.delta_R, 1, 2)
+    return log_se3(Mt @ Rij, np.einsum("kij,kj->ki", Mt, tij - graph.delta_t))
+
+
+def chi2_3d(graph: "PoseGraph3D", t, R) -> float:
+    """χ² = Σ e_ijᵀ Ω_ij e_ij (no ½; GTSAM's 2·error) at poses t (n, 3), R (n, 3, 3)."""
+    e = edge_errors3d(graph, t, R)
+    return float(np.einsum("ki,kij,kj->", e, graph.information, e))
+
+
+@dataclass(frozen=True, eq=False)
+class PoseGraph3D:
+    """Immutable 3-D pose graph (module docstring). Shapes: ``tails, heads`` (m,) int64 pose indices;
+    ``delta_t`` (m, 3); ``delta_R`` (m, 3, 3) rotations; ``information`` (m, 6, 6) symmetric positive
+    definite, order (x, y, z, φx, φy, φz); ``initial_t`` (n, 3) and ``initial_R`` (n, 3, 3), both or
+    neither (the vertex lines of a file); ``ids`` (n,) int64 file identifiers (default ``arange(n)``)."""
+
+    n_poses: int
+    tails: np.ndarray
+    heads: np.ndarray
+    delta_t: np.ndarray
+    delta_R: np.ndarray
+    information: np.ndarray
+    initial_t: np.ndarray | None = None
+    initial_R: np.ndarray | None = None
+    ids: np.ndarray | None = None
+    name: str = field(default="")
+
+    dim = 3  # class attribute: the dimension of the space the poses live in
+
+    def __post_init__(self):
+        n = int(self.n_poses)
+        if n < 1:
+            raise GraphError(f"a pose graph needs at least one pose, got n_poses={n}")
+        object.__setattr__(self, "n_poses", n)
+        tails, heads = np.asarray(self.tails), np.asarray(self.heads)
+        if tails.ndim != 1 or heads.shape != tails.shape:
+            raise GraphError(f"tails and heads must be 1-D of equal length, got {tails.shape} and {heads.shape}")
+        m = tails.shape[0]
+        if m and not (np.issubdtype(tails.dtype, np.integer) and np.issubdtype(heads.dtype, np.integer)):
+            raise GraphError("tails and heads must be integer pose indices")
+        tails, heads = tails.astype(np.int64), heads.astype(np.int64)
+        dt = np.asarray(self.delta_t, dtype=float).reshape(m, 3)
+        dR = np.asarray(self.delta_R, dtype=float).reshape(m, 3, 3)
+        info = np.asarray(self.information, dtype=float).reshape(m, 6, 6)
+        if m:
+            if tails.min() < 0 or heads.min() < 0 or tails.max() >= n or heads.max() >= n:
+                raise GraphError(f"edge endpoints must lie in 0..{n - 1}")
+            loops = np.flatnonzero(tails == heads)
+            if loops.size:
+                raise GraphError(f"self-loop edge(s) at index {loops[:5].tolist()}: an edge must join two "
+                                 "different poses")
+        bad = np.flatnonzero(~(np.isfinite(dt).all(1) & np.isfinite(dR).all((1, 2))))
+        if bad.size:
+            raise GraphError(f"non-finite measurement in edge(s) {bad[:5].tolist()}")
+        bad = np.flatnonzero(~_is_rotation(dR)) if m else bad
+        if bad.size:
+            raise GraphError(f"measured rotation of edge(s) {bad[:5].tolist()} is not a rotation matrix")
+        bad = np.flatnonzero(~is_spd6(info))
+        if bad.size:
+            raise GraphError(f"information matrix of edge(s) {bad[:5].tolist()} is not symmetric positive definite")
+        it, iR = self.initial_t, self.initial_R
+        if (it is None) != (iR is None):
+            raise GraphError("initial_t and initial_R must be given together")
+        if it is not None:
+            it, iR = np.asarray(it, dtype=float), np.asarray(iR, dtype=float)
+            if it.shape != (n, 3) or iR.shape != (n, 3, 3):
+                raise GraphError(f"initial poses must have shapes ({n}, 3) and ({n}, 3, 3), got {it.shape}, "
+                                 f"{iR.shape}")
+            if not (np.isfinite(it).all() and np.isfinite(iR).all()):
+                raise GraphError("initial poses must be finite")
+            it, iR = _readonly(it), _readonly(iR)
+        ids = np.arange(n, dtype=np.int64) if self.ids is None else np.asarray(self.ids, dtype=np.int64)
+        if ids.shape != (n,):
+            raise GraphError(f"ids must have shape ({n},), got {ids.shape}")
+        if n > 1 and not (np.diff(np.sort(ids)) > 0).all():
+            raise GraphError("pose ids must be unique")
+        for name, val in [("tails", tails), ("heads", heads), ("delta_t", dt), ("delta_R", dR),
+                          ("information", info), ("ids", ids)]:
+            object.__setattr__(self, name, _readonly(val))
+        object.__setattr__(self, "initial_t", it)
+        object.__setattr__(self, "initial_R", iR)
+
+    # ----------------------------------------------------------------- sizes and ids
+    @property
+    def n_edges(self) -> int:
+        return int(self.tails.shape[0])
+
+    @property
+    def initial(self):
+        """The file's guess as a pair (t (n, 3), R (n, 3, 3)), or None."""
+        return None if self.initial_t is None else (self.initial_t, self.initial_R)
+
+    @property
+    def is_odometric(self) -> np.ndarray:
+        """Boolean (m,): edge joins poses with consecutive ids."""
+        return np.abs(self.ids[self.tails] - self.ids[self.heads]) == 1
+
+    @property
+    def n_odometric(self) -> int:
+        return int(self.is_odometric.sum())
+
+    @property
+    def n_loop_closures(self) -> int:
+        return self.n_edges - self.n_odometric
+
+    def index_of(self, pose_id: int) -> int:
+        hit = np.flatnonzero(self.ids == int(pose_id))
+        if hit.size == 0:
+            raise GraphError(f"no pose with id {pose_id} (ids range {self.ids.min()}..{self.ids.max()})")
+        return int(hit[0])
+
+    def anchor_index(self, anchor=None) -> int:
+        """Index of the anchor pose given by its **id** (None: the smallest id), as in the planar graph."""
+        return int(np.argmin(self.ids)) if anchor is None else self.index_of(anchor)
+
+    def check_poses(self, t, R):
+        """(t, R) as new float arrays of shapes (n, 3), (n, 3, 3); ``OptionError`` otherwise."""
+        t, R = np.array(t, dtype=float), np.array(R, dtype=float)
+        if t.shape != (self.n_poses, 3) or R.shape != (self.n_poses, 3, 3):
+            raise OptionError(f"poses must have shapes ({self.n_poses}, 3) and ({self.n_poses}, 3, 3), got "
+                              f"{t.shape} and {R.shape}")
+        if not (np.isfinite(t).all() and np.isfinite(R).all()):
+            raise OptionError("poses must be finite")
+        return t, R
+
+    def with_initial(self, t, R) -> "PoseGraph3D":
+        return replace(self, initial_t=t, initial_R=R)
+
+    def subgraph_edges(self, mask) -> "PoseGraph3D":
+        sel = np.zeros(self.n_edges, bool)
+        sel[mask] = True
+        return replace(self, tails=self.tails[sel], heads=self.heads[sel], delta_t=self.delta_t[sel],
+                       delta_R=self.delta_R[sel], information=self.information[sel])
+
+    def __repr__(self) -> str:
+        nm = f" {self.name!r}" if self.name else ""
+        return (f"<PoseGraph3D{nm}: {self.n_poses} poses, {self.n_edges} edges "
+                f"({self.n_odometric} odometric, {self.n_loop_closures} loop closures)"
+                f"{', with initial guess' if self.initial_t is not None else ''}>")
+
+    def equals(self, other: "PoseGraph3D", *, rtol: float = 0.0, atol: float = 0.0) -> bool:
+        """Same poses, ids, edges and (within tolerance) measurements, information and initial guess."""
+        if (getattr(other, "dim", 2) != 3 or self.n_poses != other.n_poses or self.n_edges != other.n_edges
+                or not np.array_equal(self.ids, other.ids) or not np.array_equal(self.tails, other.tails)
+                or not np.array_equal(self.heads, other.heads) or (self.initial is None) != (other.initial is None)):
+            return False
+        pairs = [(self.delta_t, other.delta_t), (self.delta_R, other.delta_R), (self.information, other.information)]
+        if self.initial is not None:
+            pairs += [(self.initial_t, other.initial_t), (self.initial_R, other.initial_R)]
+        return all(np.allclose(a, b, rtol=rtol, atol=atol) for a, b in pairs)

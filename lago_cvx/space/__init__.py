@@ -1,0 +1,23 @@
+"""LAGO's idea in space: 3-D pose graphs (:class:`~lago_cvx.posegraph3d.PoseGraph3D`).
+
+* ``chordal`` — the rotations by the chordal relaxation (Carlone et al., ICRA 2015), as a cvxpy problem and as one
+  sparse factorization with three right-hand sides, projected onto SO(3); SE-Sync's isotropic weights or the whole
+  rotational information;
+* ``positions`` — the positions at fixed rotations, exactly (the full 6×6 information), cvxpy and closed form;
+* ``gauss_newton`` — the SE(3) error's Jacobians, Gauss–Newton / Levenberg–Marquardt with a right retraction;
+* ``pipeline`` — ``lago3d``: the seed route (chordal → positions) and the default route (then one joint
+  linearized step, positions re-solved, guarded), and the result type;
+* ``certify`` — SE-Sync's optimality certificate in 3-D;
+* ``covariance`` — the poses' first-order covariances from the factor of JᵀΩJ (selected inversion);
+* ``fixed`` — the routes with several poses known exactly (``lago3d(graph, fixed={id: (t, R)})``).
+"""
+
+from .chordal import WEIGHTINGS, chordal_closed_form, chordal_cvxpy, chordal_problem
+from .covariance import pose_covariances3d
+from .gauss_newton import REFINE_METHODS, Refined3D, refine3d
+from .pipeline import ROUTES3D, Lago3DResult, compare_methods3d, lago3d
+from .positions import position_problem, positions_closed_form, positions_cvxpy
+
+__all__ = ["WEIGHTINGS", "chordal_closed_form", "chordal_cvxpy", "chordal_problem", "REFINE_METHODS", "Refined3D",
+           "refine3d", "ROUTES3D", "Lago3DResult", "compare_methods3d", "lago3d", "position_problem",
+           "positions_closed_form", "positions_cvxpy", "pose_covariances3d"]

@@ -1,0 +1,99 @@
+r"""The positions at fixed rotations, exactly: the 3-D counterpart of ``lago_cvx.positions``.
+
+At fixed rotations R_i the error of edge ij, e = (e_v, φ) = Log(T̃_ij⁻¹ T_i⁻¹ T_j), has a fixed rotational part
+φ_ij = Log(R̃_ijᵀ R_iᵀ R_j) and a translational part **affine** in the positions:
+
+    e_v = V(φ_ij)⁻¹ R̃_ijᵀ (R_iᵀ (t_j − t_i) − t̃_ij)                       (lago_cvx.so3: Log of SE(3))
+
+With the full 6×6 information Ω = [[Ω_tt, Ω_tr], [Ω_rt, Ω_rr]],
+
+    eᵀΩe = (e_v + Ω_tt⁻¹Ω_tr φ)ᵀ Ω_tt (e_v + Ω_tt⁻¹Ω_tr φ) + φᵀ(Ω_rr − Ω_rtΩ_tt⁻¹Ω_tr)φ,
+
+so χ² over the positions is the linear least-squares problem
+
+    min_t Σ_ij ‖L_ij (B_ij (t_j − t_i) − c_ij)‖²                                                       (P)
+
+with B = V(φ)⁻¹R̃ᵀR_iᵀ, c = V(φ)⁻¹R̃ᵀt̃ − Ω_tt⁻¹Ω_tr φ and LᵀL = Ω_tt, the anchor's position fixed: its solution is the exact minimizer of χ² at these rotations (χ² itself, not an
+approximation of it — GTSAM's cost, :mod:`lago_cvx.posegraph3d`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..posegraph3d import relative_poses
+from ..so3 import log_so3, v_inverse
+from .blocks import edge_matrix, free_index, without_anchor
+
+__all__ = ["position_system", "positions_closed_form", "position_problem", "positions_cvxpy"]
+
+
+def _whitened_edges(graph, R):
+    """(L B (m, 3, 3), L c (m, 3)) of (P) at rotations R (n, 3, 3)."""
+    R = np.asarray(R, dtype=float)
+    Rij, _ = relative_poses(np.zeros((graph.n_poses, 3)), R, graph.tails, graph.heads)
+    Mt = np.swapaxes(graph.delta_R, 1, 2)
+    phi = log_so3(Mt @ Rij)
+    Vi = v_inverse(phi)
+    Bm = Vi @ Mt @ np.swapaxes(R[graph.tails], 1, 2)
+    O = graph.information
+    Ott, Otr = O[:, :3, :3], O[:, :3, 3:]
+    shift = np.linalg.solve(Ott, np.einsum("kij,kj->ki", Otr, phi)[..., None])[..., 0]  # Ω_tt⁻¹Ω_tr φ
+    c = np.einsum("kij,kj->ki", Vi @ Mt, graph.delta_t) - shift
+    L = np.swapaxes(np.linalg.cholesky(Ott), 1, 2)
+    return L @ Bm, np.einsum("kij,kj->ki", L, c)
+
+
+def position_system(graph, R, *, anchor_index: int = 0, anchor_position=(0.0, 0.0, 0.0)):
+    """(M, b) of (P) whitened, in the free positions: M (3m × 3(n−1)), b (3m,)."""
+    LB, Lc = _whitened_edges(graph, R)
+    M = edge_matrix(graph.tails, graph.heads, LB, -LB, graph.n_poses)
+    M, b = without_anchor(M, Lc.ravel(), anchor_index, 3, np.asarray(anchor_position, dtype=float))
+    return M.tocsc(), np.asarray(b)
+
+
+def _assemble(graph, x, anchor_index, anchor_position) -> np.ndarray:
+    t = np.empty((graph.n_poses, 3))
+    t[anchor_index] = anchor_position
+    t[free_index(graph.n_poses, 3, anchor_index)[::3] // 3] = x.reshape(-1, 3)
+    return t
+
+
+def positions_closed_form(graph, R, *, anchor_index: int = 0, anchor_position=(0.0, 0.0, 0.0), elimination=None):
+    """(t (n, 3), stats): (P) on the pose-level elimination shared by the closed forms
+    (``normal_equations.GraphElimination``, as ``chordal.chordal_closed_form``); ``elimination`` one built already
+    for this graph and anchor."""
+    from ..sparse import EdgeSystem, GraphElimination
+
+    if graph.n_poses == 1:
+        return np.array([anchor_position], dtype=float), {"method": "trivial"}
+    el = GraphElimination(graph, anchor_index) if elimination is None else elimination
+    LB, Lc = _whitened_edges(graph, R)
+    p = np.asarray(anchor_position, dtype=float)
+    ta, he = el.tails < 0, el.heads < 0
+    Lc[ta] += LB[ta] @ p  # residual −LB t_i + LB t_j − Lc: the anchor's known term moves to the right
+    Lc[he] -= LB[he] @ p
+    x, _, stats = el.solve(EdgeSystem(el.tails, el.heads, -LB, np.ascontiguousarray(LB), Lc, el.d))
+    return _assemble(graph, x, anchor_index, anchor_position), stats
+
+
+def position_problem(graph, R, *, anchor_index: int = 0, anchor_position=(0.0, 0.0, 0.0)):
+    """(P) as a cvxpy problem, ``minimize quad_over_lin(M @ t + -b, 1.0)``, and its variable t."""
+    import cvxpy as cp
+
+    from ..solvers import named_constant
+
+    M, b = position_system(graph, R, anchor_index=anchor_index, anchor_position=anchor_position)
+    t = cp.Variable(M.shape[1], name="t")
+    return cp.Problem(cp.Minimize(cp.sum_squares(named_constant(M, "M") @ t - named_constant(b, "b")))), t
+
+
+def positions_cvxpy(graph, R, *, anchor_index: int = 0, anchor_position=(0.0, 0.0, 0.0), settings=None):
+    """(t (n, 3), stats): (P) solved by Clarabel (``solvers.solve``)."""
+    from ..solvers import solve
+
+    if graph.n_poses == 1:
+        return np.array([anchor_position], dtype=float), {"method": "trivial"}
+    problem, t = position_problem(graph, R, anchor_index=anchor_index, anchor_position=anchor_position)
+    status = solve(problem, settings, what="the 3-D positions")
+    return _assemble(graph, np.asarray(t.value), anchor_index, anchor_position), {"method": "cvxpy", "status": status}

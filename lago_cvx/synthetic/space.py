@@ -1,0 +1,141 @@
+r"""Seeded 3-D worlds with ground truth, shaped like the 3-D benchmark graphs: a sphere (sphere2500), a cube
+grid (smallGrid3D) and a torus (torus3D).
+
+Every generator builds a path of true poses T_i = (R_i, t_i), odometry edges i → i+1 and loop closures between
+poses that are neighbours in the world but not along the path, then measures each edge as a sensor would:
+
+    T̃_ij = T_i⁻¹ T_j Exp(n_ij),   n_ij ~ N(0, Σ),   Σ = diag(σ_t² I₃, σ_r² I₃),   Ω_ij = Σ⁻¹
+
+(tangent order (translation, rotation), :mod:`lago_cvx.posegraph3d`). Then e_ij = Log(T̃_ij⁻¹T_i⁻¹T_j) = −n_ij at
+the truth exactly, so χ²(truth) is a χ² variable with 6m degrees of freedom. ``graph.initial`` is the dead reckoning
+(the odometry composed from the true first pose). All randomness comes from ``np.random.default_rng(seed)``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import OptionError
+from ..posegraph3d import PoseGraph3D
+from ..so3 import exp_so3, v_inverse
+
+__all__ = ["SyntheticWorld3D", "sphere_world", "cube_grid_world", "torus_world"]
+
+
+@dataclass(frozen=True, eq=False)
+class SyntheticWorld3D:
+    """A 3-D pose graph with its truth: ``graph``, ``t`` (n, 3), ``R`` (n, 3, 3), ``params`` (the arguments)."""
+
+    graph: PoseGraph3D
+    t: np.ndarray
+    R: np.ndarray
+    params: dict
+
+    @property
+    def truth(self):
+        return self.t, self.R
+
+
+def _frames(t: np.ndarray, up: np.ndarray) -> np.ndarray:
+    """Rotations whose x axis is the path's direction and whose z axis is as close to ``up`` (n, 3) as allows."""
+    d = np.diff(t, axis=0)
+    d = np.vstack([d, d[-1:]])
+    x = d / np.linalg.norm(d, axis=1, keepdims=True)
+    z = up - np.einsum("ij,ij->i", up, x)[:, None] * x
+    z /= np.linalg.norm(z, axis=1, keepdims=True)
+    return np.stack([x, np.cross(z, x), z], axis=2)
+
+
+def _exp_se3(xi: np.ndarray):
+    """(R, t) = Exp(ξ) for ξ (k, 6) = (ρ, φ): R = Exp(φ), t = V(φ) ρ."""
+    return exp_so3(xi[:, 3:]), np.linalg.solve(v_inverse(xi[:, 3:]), xi[:, :3, None])[..., 0]
+
+
+def _world(name, t, R, lc_tails, lc_heads, *, sigma_t, sigma_r, seed, params) -> SyntheticWorld3D:
+    n = t.shape[0]
+    rng = np.random.default_rng(seed)
+    tails = np.concatenate([np.arange(n - 1), lc_tails]).astype(np.int64)
+    heads = np.concatenate([np.arange(1, n), lc_heads]).astype(np.int64)
+    m = tails.size
+    Ri = R[tails]
+    Rt = np.swapaxes(Ri, 1, 2)
+    Rij, tij = Rt @ R[heads], np.einsum("kij,kj->ki", Rt, t[heads] - t[tails])
+    noise = rng.standard_normal((m, 6)) * np.r_[np.full(3, sigma_t), np.full(3, sigma_r)]
+    En, et = _exp_se3(noise)
+    dR, dt = Rij @ En, tij + np.einsum("kij,kj->ki", Rij, et)
+    info = np.broadcast_to(np.diag(np.r_[np.full(3, sigma_t ** -2), np.full(3, sigma_r ** -2)]), (m, 6, 6))
+    it, iR = np.empty((n, 3)), np.empty((n, 3, 3))
+    it[0], iR[0] = t[0], R[0]
+    for k in range(n - 1):  # dead reckoning along the odometry
+        iR[k + 1] = iR[k] @ dR[k]
+        it[k + 1] = it[k] + iR[k] @ dt[k]
+    g = PoseGraph3D(n, tails, heads, dt, dR, info, initial_t=it, initial_R=iR, name=name)
+    return SyntheticWorld3D(g, t, R, {"generator": name, "seed": seed, "sigma_t": sigma_t, "sigma_r": sigma_r,
+                                      **params})
+
+
+def sphere_world(n_rings: int = 10, per_ring: int = 20, *, radius: float = 10.0, seed: int = 0,
+                 sigma_t: float = 0.05, sigma_r: float = 0.01) -> SyntheticWorld3D:
+    """Poses on a sphere, ring after ring (as in sphere2500): each ring's poses are joined by odometry, and each pose
+    to the pose of the ring above at the same longitude by a loop closure. n = n_rings · per_ring."""
+    if n_rings < 2 or per_ring < 3:
+        raise OptionError("sphere_world needs n_rings >= 2 and per_ring >= 3")
+    k = np.arange(n_rings * per_ring)
+    ring, j = np.divmod(k, per_ring)
+    polar = np.pi * (ring + 0.5 + j / per_ring) / (n_rings + 1)  # a slow spiral from pole to pole
+    lon = 2 * np.pi * j / per_ring
+    t = radius * np.column_stack([np.sin(polar) * np.cos(lon), np.sin(polar) * np.sin(lon), np.cos(polar)])
+    R = _frames(t, t / radius)
+    lc = k[per_ring:]
+    return _world("sphere_world", t, R, lc - per_ring, lc, sigma_t=sigma_t, sigma_r=sigma_r, seed=seed,
+                  params={"n_rings": n_rings, "per_ring": per_ring, "radius": radius})
+
+
+def torus_world(n_loops: int = 10, per_loop: int = 20, *, major: float = 10.0, minor: float = 3.0, seed: int = 0,
+                sigma_t: float = 0.05, sigma_r: float = 0.01) -> SyntheticWorld3D:
+    """Poses on a torus, one small loop (around the tube) after another; each pose is joined to the pose at the
+    same place of the previous loop. n = n_loops · per_loop."""
+    if n_loops < 2 or per_loop < 3:
+        raise OptionError("torus_world needs n_loops >= 2 and per_loop >= 3")
+    k = np.arange(n_loops * per_loop)
+    loop, j = np.divmod(k, per_loop)
+    u = 2 * np.pi * (loop + j / per_loop) / n_loops
+    v = 2 * np.pi * j / per_loop
+    t = np.column_stack([(major + minor * np.cos(v)) * np.cos(u), (major + minor * np.cos(v)) * np.sin(u),
+                         minor * np.sin(v)])
+    centre = np.column_stack([major * np.cos(u), major * np.sin(u), np.zeros_like(u)])
+    R = _frames(t, t - centre)
+    lc = k[per_loop:]
+    return _world("torus_world", t, R, lc - per_loop, lc, sigma_t=sigma_t, sigma_r=sigma_r, seed=seed,
+                  params={"n_loops": n_loops, "per_loop": per_loop, "major": major, "minor": minor})
+
+
+def cube_grid_world(side: int = 5, *, spacing: float = 1.0, seed: int = 0, sigma_t: float = 0.05,
+                    sigma_r: float = 0.01) -> SyntheticWorld3D:
+    """A side³ lattice visited in a snake order (as smallGrid3D), each pose with a random orientation; every pair
+    of lattice neighbours not consecutive along the path is a loop closure."""
+    if side < 2:
+        raise OptionError("cube_grid_world needs side >= 2")
+    cells = []
+    for z in range(side):
+        ys = range(side) if z % 2 == 0 else range(side - 1, -1, -1)
+        for yi, y in enumerate(ys):
+            xs = range(side) if (yi + z * side) % 2 == 0 else range(side - 1, -1, -1)
+            cells += [(x, y, z) for x in xs]
+    cells = np.array(cells)
+    t = spacing * cells.astype(float)
+    R = exp_so3(np.random.default_rng([seed, 1]).normal(size=(len(cells), 3)))
+    index = {tuple(c): i for i, c in enumerate(cells)}
+    lt, lh = [], []
+    for i, c in enumerate(cells):
+        for axis in range(3):
+            nb = c.copy()
+            nb[axis] += 1
+            j = index.get(tuple(nb))
+            if j is not None and abs(i - j) != 1:
+                lt.append(min(i, j))
+                lh.append(max(i, j))
+    return _world("cube_grid_world", t, R, np.array(lt, np.int64), np.array(lh, np.int64), sigma_t=sigma_t,
+                  sigma_r=sigma_r, seed=seed, params={"side": side, "spacing": spacing})

@@ -1,0 +1,65 @@
+"""The command line on 3-D graphs: ``info``, ``solve`` (``--check``, ``--refine``, ``--anchor``, ``-o``), ``certify``
+and the 3-D worlds of ``generate``, with the planar commands' JSON keys."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from conftest import dataset_path
+from lago_cvx.cli import main
+from lago_cvx.io import read_graph
+from lago_cvx.posegraph3d import chi2_3d
+
+
+def _run(capsys, argv):
+    status = main(argv)
+    return status, json.loads(capsys.readouterr().out)
+
+
+@pytest.fixture()
+def world(tmp_path, capsys):
+    out = tmp_path / "w.g2o"
+    assert main(["generate", "--world", "grid3d", "--poses", "64", "--seed", "3", "-o", str(out)]) == 0
+    capsys.readouterr()
+    return out
+
+
+def test_generate_and_info(world, capsys):
+    g = read_graph(world)
+    assert g.dim == 3 and g.n_poses == 64 and read_graph(str(world).replace(".g2o", ".truth.g2o")).dim == 3
+    status, info = _run(capsys, ["info", str(world), "--json"])
+    assert status == 0 and info["dim"] == 3 and info["n_poses"] == 64 and info["n_components"] == 1
+    assert {"n_edges", "n_loop_closures", "cyclomatic_number", "has_initial_guess"} <= set(info)
+
+
+def test_solve_check_refine_output(world, tmp_path, capsys):
+    out = tmp_path / "out.g2o"
+    status, res = _run(capsys, ["solve", str(world), "--check", "--refine", "-o", str(out), "--json"])
+    assert status == 0 and res["dim"] == 3 and max(res["max_rel_diff"].values()) < 1e-6
+    assert res["chi2_refined"] <= res["chi2"] <= res["chi2_seed"]
+    g = read_graph(out)
+    assert chi2_3d(g, *g.initial) == pytest.approx(res["chi2_refined"], rel=1e-9)  # the refined poses were written
+    status, seed = _run(capsys, ["solve", str(world), "--route", "seed", "--anchor", "5", "--json"])
+    assert seed["route"] == "seed" and seed["chi2"] == pytest.approx(res["chi2_seed"], rel=1e-6)
+    assert main(["solve", str(world), "--anchor", "5:1,2,3"]) == 2  # a pose value is planar-only
+
+
+def test_certify_exit_status(world, capsys):
+    status, cert = _run(capsys, ["certify", str(world), "--json"])
+    assert status == 0 and cert["certified"] and cert["exit_status"] == 0
+    assert cert["lower_bound"] <= cert["f"] <= cert["f_lago"]
+
+
+def test_solve_gtsam_offdiagonal_example(capsys):
+    p = dataset_path("gtsam/pose3example-offdiagonal.txt")
+    status, res = _run(capsys, ["solve", str(p), "--refine", "--json"])
+    assert status == 0 and res["chi2_refined"] < 1e-12
+
+
+def test_plot_projections(world, tmp_path, capsys):
+    fig = tmp_path / "w.svg"
+    status, res = _run(capsys, ["plot", str(world), "-o", str(fig), "--json"])
+    assert status == 0 and res["dim"] == 3 and fig.read_bytes().startswith(b"<?xml")
+    assert main(["plot", str(world), "-o", str(fig), "--covariances"]) == 2  # planar ellipses only
