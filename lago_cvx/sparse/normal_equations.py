@@ -415,13 +415,16 @@ class GraphElimination:
                 and np.array_equal(system.tails, self.tails) and np.array_equal(system.heads, self.heads)
                 and np.allclose(Bk * Bk, self._weights, rtol=1e-12, atol=0.0))
 
-    def factor(self, system: EdgeSystem, *, progress=None, engine: bool | str | None = None) -> Factor:
+    def factor(self, system: EdgeSystem, *, progress=None, engine: bool | str | None = None,
+               solving: bool = False) -> Factor:
         """Factor the normal matrix (N) of ``system``. ``engine`` None (the default) picks: the weighted
         Laplacian's factorization when (N) is it (class docstring); else by size the compiled multifrontal
         engine (a ``CompiledPoseFactor``, ``lago_cvx.sparse.compiled``) from ``COMPILED_MIN`` unknowns when
         Numba can be imported, the NumPy multifrontal engine (a ``PoseFactor``) from ``ENGINE_MIN``, QDLDL (a
         ``QdldlFactor``) below; ``"compiled"``, True (the NumPy engine) or False (QDLDL) force one. Raises
-        ``multifrontal.NotPositiveDefinite`` (or QDLDL's error) if N is not numerically SPD."""
+        ``multifrontal.NotPositiveDefinite`` (or QDLDL's error) if N is not numerically SPD. The systems
+        announced after this one are prepared once it is factored (``solving``: once ``solve`` is done
+        with it, so that their preparation does not compete with its solves)."""
         self._ready()
         b = system.b
         if engine is None and self._is_laplacian(system) and self._factor_laplacian() is not None:
@@ -455,14 +458,15 @@ class GraphElimination:
             bf = lay.factor(asm, blocks, progress=progress)
             return PoseFactor(bf, self.slots(b))
         finally:
-            self._prepare_next(b)
+            if not solving:
+                self._prepare_next(b)
 
     def _prepare_next(self, b: int) -> None:
-        """After the first announced system of b×b blocks is factored: the ones announced after it."""
-        if b in self._expected:
-            rest = self._expected[self._expected.index(b) + 1:]
-            self._expected = rest
-            for nb in rest:
+        """After the next announced system (b×b blocks) is done with: the ones announced after it. A system
+        that was not announced next (phase 1's Laplacian between them) changes nothing."""
+        if self._expected and self._expected[0] == b:
+            self._expected = self._expected[1:]
+            for nb in self._expected:
                 self.prepare(nb)
 
     def prepare(self, b: int) -> None:
@@ -490,6 +494,11 @@ class GraphElimination:
         threading.Thread(target=job.run, daemon=True, name="lago-prepare").start()
         self._preparing[b] = job
 
+    def cost(self, system: EdgeSystem, x: np.ndarray) -> float:
+        """‖M x − c‖² of ``system`` at x (d, b[, r]) (by the compiled products for large systems)."""
+        r = edge_operator(system).matvec(x) - system.c
+        return float(np.sum(r * r))
+
     def solve(self, system: EdgeSystem, *, factor: Factor | None = None, stage: str = "solve",
               progress=None):
         """Minimise (E): returns ``(x (d, b), factor, stats)`` with ``stats`` as
@@ -515,7 +524,7 @@ class GraphElimination:
                 op, first = None, None
                 if factor is None:
                     job = self.ahead(operator_and_first)
-                    factor = self.factor(system, engine=None if attempt == 0 else False,
+                    factor = self.factor(system, engine=None if attempt == 0 else False, solving=True,
                                          progress=None if tracker is None else
                                          (lambda i, n: tracker.update(0.9 * i / n)))
                     if job.done:
@@ -545,6 +554,7 @@ class GraphElimination:
             factor = None
         if tracker is not None:
             tracker.finish()
+        self._prepare_next(b)
         return x.reshape((d, b) + system.c.shape[2:]), factor, stats
 
 
