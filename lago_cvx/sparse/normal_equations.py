@@ -91,9 +91,11 @@ COMPILED_MIN = 300_000
 
 #: Below this many free poses the engine works in the caller's thread alone: no worker builds the
 #: elimination, and QDLDL runs no handed-over work beside its factorizations (they run when asked for).
-#: Handing work to a thread and taking the GIL back costs about as much as a small graph's whole
-#: solve (GIL switches every 5 ms): measured in benchmarks/perf.md's small-graph table.
-OVERLAP_MIN = 5_000
+#: Handing work to a thread and taking the GIL back cost more than they save on small graphs. The LAGO
+#: step alternating both ways in one process (median of 11): MIT (808 poses) 9.5 ms alone against 13.4
+#: with the overlap, input_INTEL (1 228) 13.3 against 17.9, manhattan (3 500) 41.9 against 47.0,
+#: input_M3500 (3 500) 33.1–37.4 against 31.9–33.0; city10000 gains from it.
+OVERLAP_MIN = 2_500
 
 
 class RenumberedFactor(Factor):
