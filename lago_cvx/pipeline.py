@@ -83,15 +83,9 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
     ``method``, ``anchor`` and ``solver_settings`` (the planar options do not apply and must be left unset).
     """
     if getattr(graph, "dim", 2) == 3:
-        from .space import lago3d
-
-        planar = {"spanning_tree": spanning_tree, "regularization": regularization, "information": information,
-                  "positions": positions, "anchor_pose": anchor_pose, "anchors": anchors,
-                  "integer_search": integer_search}
-        given = sorted(k for k, v in planar.items() if v is not None)
-        if given:
-            raise OptionError(f"option(s) {', '.join(given)} apply to planar graphs only")
-        return lago3d(graph, route=route, method=method, anchor=anchor, solver_settings=solver_settings)
+        return _in_space(graph, route=route, method=method, anchor=anchor, solver_settings=solver_settings,
+                         spanning_tree=spanning_tree, regularization=regularization, information=information,
+                         positions=positions, anchor_pose=anchor_pose, anchors=anchors, integer_search=integer_search)
     choice, route_name = resolve_route(route, spanning_tree=spanning_tree, regularization=regularization,
                                        information=information, positions=positions)
     if anchors is not None:
@@ -142,14 +136,27 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
                       solver) if resolve else None
     poses = compose(np.broadcast_to(anchor_pose, ph3.poses.shape), ph3.poses if pol is None else pol.poses)
     timings = clock.done()
-    log.info("LAGO (%s route, %s, %s tree, %s regularization, %s information, %s positions): %d poses, %d edges, "
-             "%d cycles regularized, %.3f s", route_name, method, tree.kind, reg.regularization,
-             choice["information"], choice["positions"], graph.n_poses, graph.n_edges, reg.n_regularized,
-             timings["total"])
+    _log_run(graph, route_name, method, tree, reg, choice, timings["total"])
     return LagoResult(graph=graph, poses=poses, anchor=aid, anchor_index=a, anchor_pose=anchor_pose, method=method,
                       tree=tree, regularization=reg, uncertainty=unc, phase1=ph1, phase2=ph2, phase3=ph3,
                       timings=timings, problems=problems, route=route_name, information=choice["information"],
                       positions=choice["positions"], polish=pol)
+
+
+def _log_run(graph, route_name, method, tree, reg, choice, seconds) -> None:
+    log.info("LAGO (%s route, %s, %s tree, %s regularization, %s information, %s positions): %d poses, %d edges, "
+             "%d cycles regularized, %.3f s", route_name, method, tree.kind, reg.regularization,
+             choice["information"], choice["positions"], graph.n_poses, graph.n_edges, reg.n_regularized, seconds)
+
+
+def _in_space(graph, *, route, method, anchor, solver_settings, **planar):
+    """A 3-D graph to ``lago_cvx.space.lago3d``; the planar-only options must be left unset."""
+    from .space import lago3d
+
+    given = sorted(k for k, v in planar.items() if v is not None)
+    if given:
+        raise OptionError(f"option(s) {', '.join(given)} apply to planar graphs only")
+    return lago3d(graph, route=route, method=method, anchor=anchor, solver_settings=solver_settings)
 
 
 def _check_options(graph: PoseGraph, method: str, choice: dict) -> None:

@@ -196,3 +196,12 @@ def test_closed_form_route_never_imports_cvxpy(code):
 def test_cvxpy_route_imports_it():
     assert "cvxpy" in _loaded_after("import lago_cvx as lc; lc.lago(lc.manhattan_world(50, seed=0).graph, "
                                     "method='cvxpy')")
+
+
+def test_the_pipeline_reads_as_section_iv():
+    """``lago()``'s body — tree, regularization, phases 1–3, positions, each a call — stays at most 60 lines
+    after its docstring: scheduling and prefetching belong to the engine."""
+    tree = ast.parse((PKG / "pipeline.py").read_text())
+    lago = next(n for n in tree.body if isinstance(n, ast.FunctionDef) and n.name == "lago")
+    body = lago.end_lineno - lago.body[0].end_lineno
+    assert body <= 60, f"lago()'s body is {body} lines"
