@@ -99,7 +99,7 @@ check(np.median(err_lago) < 0.5 * np.median(err_drift),
 # \qquad R_0 = I,\tag{C}$$
 # with $S_{ij}$ a weight (section 3): a sum of squares of linear functions of $9(n-1)$ unknowns, i.e. a convex,
 # linear least-squares problem with no branch, no tree and no integer — every measurement enters at once, as
-# in the planar chordal relaxation of lecture 8, but here it is the *only* linear route to the rotations.
+# in the planar chordal relaxation of lecture 8, but here it replaces phase 1 altogether.
 
 # %%
 rng = np.random.default_rng(0)
