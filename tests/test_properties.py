@@ -197,13 +197,21 @@ def test_reversal_noisy_orientations_unchanged_and_positions_change_at_second_or
 @given(case=graph_and_mask(noisy=True, **_SMALL))
 @example(case=(dict(n_poses=3, n_edges=3, seed=482, information="diagonal", spanning="tree",
                     sigma_xy=1e-3, sigma_theta=1e-4), np.ones(3, bool)))
+@example(case=(dict(n_poses=6, n_edges=7, seed=206925, information="full", spanning="tree", sigma_xy=1e-4,
+                    sigma_theta=0.001953125), np.array([False, False, True, False, False, False, False])))
 def test_reversal_noisy_chi2_within_a_few_percent(case):
+    """Reversing edges changes LAGO's χ² by a few percent, or by less than the χ² statistic's own spread.
+    Both estimates are first-order optimal, but their second-order terms differ, most where σ_θ|Δ| ≫ σ_xy
+    and few cycles constrain the graph: the second example (6 poses, 7 edges, 6 degrees of freedom, σ_θ|Δ| ≈
+    20 σ_xy) gives χ² 5.002 and 5.503 against a minimum of 5.0017 — 10 % apart, yet 0.5 against a standard
+    deviation √(2·6) ≈ 3.5 of χ² itself."""
     args, mask = case
     w = random_graph(**args)
     g = w.graph
     c = chi2(g, lago(g, anchor_pose=w.truth[0]).poses)
     c_rev = chi2(g, lago(g.reversed_edges(mask), anchor_pose=w.truth[0]).poses)
-    assert abs(c_rev - c) <= 0.05 * max(c, c_rev) + 1e-9
+    dof = max(3 * g.n_edges - 3 * (g.n_poses - 1), 1)
+    assert abs(c_rev - c) <= 0.05 * max(c, c_rev) + 0.25 * np.sqrt(2 * dof)
 
 
 # ============================================================ 4. measured angles are mod 2π
