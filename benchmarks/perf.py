@@ -1,7 +1,8 @@
 """Section ``perf`` of ``python benchmarks/run.py``: the LAGO step against GTSAM's ``lago.initialize``,
 step by step, in one process, and the marginal covariances.
 
-For se-sync/city10000.g2o and carlone/input_M3500_g2o.g2o: ``--repeat`` interleaved runs (ours default
+For se-sync/city10000.g2o, carlone/input_M3500_g2o.g2o and the ≈1 000-pose graphs MIT, CSAIL and
+input_INTEL (where a fixed cost would show): ``--repeat`` interleaved runs (ours default
 route, ours seed route, GTSAM) and their medians — interleaving keeps the ratio meaningful on a machine
 whose speed drifts. Then ``res.pose_covariances()`` (selected inversion on phase 3's factor, eq. (T) of
 ``lago_cvx.sparse.multifrontal``) on city10000 and on a 100 000-pose Manhattan world. Last, phase 3's solve
@@ -24,7 +25,8 @@ from lago_cvx.sparse import compiled
 from lago_cvx.sparse.normal_equations import COMPILED_MIN, ENGINE_MIN, GraphElimination
 from lago_cvx.peers import gtsam_factor_graph, gtsam_lago, have_gtsam
 
-FILES = ("se-sync/city10000.g2o", "carlone/input_M3500_g2o.g2o")
+FILES = ("se-sync/city10000.g2o", "carlone/input_M3500_g2o.g2o", "se-sync/MIT.g2o", "se-sync/CSAIL.g2o",
+         "carlone/input_INTEL_g2o.g2o")
 STEPS = ("tree", "regularization", "phase1", "phase2", "phase3", "positions", "total")
 COV_WORLD = 100_000
 ENGINE_WORLDS = (30_000, 100_000, 300_000, 1_000_000)
