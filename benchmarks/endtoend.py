@@ -21,7 +21,7 @@ from pathlib import Path
 
 import _bench
 
-FILES = ("se-sync/city10000.g2o", "carlone/input_M3500_g2o.g2o")
+FILES = ("se-sync/city10000.g2o", "carlone/input_M3500_g2o.g2o", "se-sync/MIT.g2o", "se-sync/intel.g2o")
 GTSAM_SCRIPT = _bench.HERE.parent.parent / "shared" / "bench" / "gtsam_lago.py"
 
 
