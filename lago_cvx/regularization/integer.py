@@ -173,8 +173,8 @@ class CycleData:
 
     ``chords`` (l,) chord edge indices; ``C`` sparse (l, m) cycle basis; ``r`` (l,) r = Cδ;
     ``S`` (l, l) C P_δ Cᵀ; ``L`` (l, l) lower Cholesky factor of S; ``W`` (l, l) = L⁻¹ (whitening);
-    ``k_round`` (l,) the seed's rounding k_c = −round(r_c/2π) as cycle integers (as ``regularize_tree``);
-    ``rounding_edges`` (m,) the rounding's per-edge k."""
+    ``rounding_edges`` (m,) the seed's rounding k_c = −round(r_c/2π) per edge (as ``regularize_tree``; 0 on
+    the tree edges), ``k_round`` (l,) the same at the chords as cycle integers."""
 
     tree: SpanningTree
     chords: np.ndarray
@@ -183,11 +183,16 @@ class CycleData:
     S: np.ndarray
     L: np.ndarray
     W: np.ndarray
-    k_round: np.ndarray
     rounding_edges: np.ndarray
 
     @property
+    def k_round(self) -> np.ndarray:
+        """(l,) the rounding's cycle integers: ``rounding_edges`` at the chords (a new array at each read)."""
+        return self.rounding_edges[self.chords]
+
+    @property
     def n_chords(self) -> int:
+        """l, the number of chords (independent cycles)."""
         return int(self.chords.size)
 
     def cost(self, q) -> np.ndarray | float:
@@ -213,8 +218,7 @@ def cycle_data(graph: PoseGraph, tree: SpanningTree, *, unc: EdgeUncertainty | N
     W = sla.solve_triangular(L, np.eye(c.size), lower=True) if c.size else S
     k_edges = np.zeros(graph.n_edges, np.int64)  # the seed's rounding (regularize_tree), without its warnings
     k_edges[c] = round_residual(r)
-    return CycleData(tree=tree, chords=c, C=C, r=r, S=S, L=L, W=W, k_round=k_edges[c].copy(),
-                     rounding_edges=k_edges)
+    return CycleData(tree=tree, chords=c, C=C, r=r, S=S, L=L, W=W, rounding_edges=k_edges)
 
 
 def exact_box(data: CycleData, *, max_shift: int | None = None, exact: bool = True
