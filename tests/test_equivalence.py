@@ -79,6 +79,18 @@ def _walk_reference(n, p_turn, half, rng):
     return np.array(xs), np.array(ys), np.cumsum(ts)
 
 
+@pytest.mark.parametrize("state, expected", [
+    ((0, 0, 0, 1, False, 2), (1, 0, 0, 0)),     # inside: straight on
+    ((0, 0, 0, -1, True, 2), (0, -1, 3, -1)),   # inside: the preferred turn (right)
+    ((2, 0, 0, 1, False, 2), (2, 1, 1, 1)),     # at the +x edge: straight leaves, side s (left) first
+    ((2, 2, 0, 1, False, 2), (2, 1, 3, -1)),    # corner: straight and left leave, right
+    ((2, 2, 0, 1, True, 2), (2, 1, 3, -1)),     # corner, turning left preferred: left leaves, right
+    ((-1, 0, 2, 1, True, 1), (-1, -1, 3, 1)),   # at the −x edge heading −x: left (−y)
+])
+def test_grid_step_takes_the_first_move_that_stays_inside(state, expected):
+    assert _grid_step(*state) == expected
+
+
 @pytest.mark.parametrize("n, p_turn, half, seed", [(2, 0.3, 2, 0), (50, 1.0, 1, 1), (3000, 0.3, 27, 2),
                                                    (3000, 0.0, 1, 3), (20000, 0.9, 3, 4), (20000, 0.3, 70, 5)])
 def test_walk_matches_step_by_step_loop(n, p_turn, half, seed):
