@@ -169,20 +169,23 @@ def _require_solver(solver: str) -> str:
 # --------------------------------------------------------------------------- cycle quantities
 @dataclass(frozen=True, eq=False)
 class CycleData:
-    """Everything eq. (3) needs, for one graph and tree (small graphs: S is dense l × l).
+    """Everything eq. (3) needs, for one graph and tree (small graphs: S is dense l × l)."""
 
-    ``chords`` (l,) chord edge indices; ``C`` sparse (l, m) cycle basis; ``r`` (l,) r = Cδ;
-    ``S`` (l, l) C P_δ Cᵀ; ``L`` (l, l) lower Cholesky factor of S; ``W`` (l, l) = L⁻¹ (whitening);
-    ``rounding_edges`` (m,) the seed's rounding k_c = −round(r_c/2π) per edge (as ``regularize_tree``; 0 on
-    the tree edges), ``k_round`` (l,) the same at the chords as cycle integers."""
-
+    #: The spanning tree.
     tree: SpanningTree
+    #: (l,) the chords' edge indices.
     chords: np.ndarray
+    #: (l, m) the cycle basis, sparse.
     C: sp.csr_matrix
+    #: (l,) r = Cδ.
     r: np.ndarray
+    #: (l, l) S = C P_δ Cᵀ.
     S: np.ndarray
+    #: (l, l) the lower Cholesky factor of S.
     L: np.ndarray
+    #: (l, l) W = L⁻¹ (whitening).
     W: np.ndarray
+    #: (m,) the seed's rounding k_c = −round(r_c/2π) per edge (as ``regularize_tree``; 0 on the tree edges).
     rounding_edges: np.ndarray
 
     @property
