@@ -120,16 +120,19 @@ class Lazy:
 # ------------------------------------------------------------------------------ phase 1
 @dataclass(frozen=True, eq=False)
 class Phase1:
-    """Phase-1 result. ``theta`` (n,) with the anchor at 0; ``theta_free`` (d,);
-    ``info`` (d, d) sparse Ω_θ = A2 P_δ⁻¹ A2ᵀ (built on first access); ``anchor_index`` the anchor's index;
-    ``factor`` the factorization of ``info`` and ``stats`` the solver's refinement statistics (closed form
-    only)."""
+    """Phase-1 result: the orientations of eq. (13) and their information."""
 
+    #: θ̂ (n,), the anchor at 0.
     theta: np.ndarray
+    #: θ̂ of the free poses (d,), the anchor's entry deleted.
     theta_free: np.ndarray
+    #: Ω_θ = A2 P_δ⁻¹ A2ᵀ, sparse (d, d) (built on first access).
     info: sp.csr_matrix = Lazy()
+    #: The anchor's index.
     anchor_index: int = 0
+    #: The factorization of ``info`` (closed form only).
     factor: Factor | None = None
+    #: The solver's refinement statistics (closed form only).
     stats: dict | None = None
 
     def variances(self) -> np.ndarray:
@@ -414,15 +417,19 @@ def phase3_edge_system(graph: PoseGraph, theta: np.ndarray, unc: EdgeUncertainty
 # ------------------------------------------------------------------------------ phase 3
 @dataclass(frozen=True, eq=False)
 class Phase3:
-    """Phase-3 result. ``x_star`` (3d,) = [p (interleaved); θ]; ``poses`` (n, 3) with the anchor at the
-    origin; ``info`` sparse (3d, 3d) Ω* = B W ᵀW Bᵀ (= B P_z⁻¹ Bᵀ of eq. (15)); ``anchor_index``; ``factor``
-    the factorization of ``info`` and ``stats`` the solver's refinement statistics (closed form only)."""
+    """Phase-3 result: the poses of eq. (12) and their information (eq. (15))."""
 
+    #: x* (3d,) = [p (interleaved); θ] of the free poses.
     x_star: np.ndarray
+    #: The poses (n, 3), the anchor at the origin.
     poses: np.ndarray
+    #: Ω* = B WᵀW Bᵀ (= B P_z⁻¹ Bᵀ of eq. (15)), sparse (3d, 3d) (built on first access).
     info: sp.csr_matrix = Lazy()
+    #: The anchor's index.
     anchor_index: int = 0
+    #: The factorization of ``info`` (closed form only).
     factor: Factor | None = None
+    #: The solver's refinement statistics (closed form only).
     stats: dict | None = None
 
     def pose_covariances(self, *, progress=None) -> np.ndarray:

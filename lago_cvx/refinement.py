@@ -96,28 +96,32 @@ MAX_LAMBDA = 1e16
 
 @dataclass(eq=False)
 class RefineResult:
-    """Outcome of ``refine``.
+    """Outcome of ``refine``."""
 
-    ``poses`` (n, 3) refined estimate (θ unwrapped); ``chi2`` its χ² (g2o convention, no ½) and
-    ``chi2_initial`` that of the starting poses; ``iterations`` the number of accepted steps;
-    ``converged`` True when a convergence test (not ``max_iterations``, not a failed line search)
-    stopped the solver; ``reason`` says which; ``log`` one dict per iteration (entry 0 = the start)
-    with keys ``iteration`` (accepted steps so far), ``chi2`` (current χ², after the iteration),
-    ``step_norm`` (‖dx‖∞ of the step tried), ``time`` (seconds since the start) and, for LM,
-    ``lambda`` (damping used) and ``accepted``; for GN ``halvings`` (line-search halvings);
-    ``method``; ``anchor`` the id of the reference pose (the one fixed pose without ``anchors``);
-    ``held`` (n, 3) bool, the coordinates held fixed; ``backend`` the sparse solver used."""
-
+    #: The refined estimate (n, 3) (θ unwrapped).
     poses: np.ndarray
+    #: Its χ² (g2o convention, no ½).
     chi2: float
+    #: The χ² of the starting poses.
     chi2_initial: float
+    #: The number of accepted steps.
     iterations: int
+    #: True when a convergence test (not ``max_iterations``, not a failed line search) stopped the solver.
     converged: bool
+    #: One dict per iteration (entry 0 = the start) with keys ``iteration`` (accepted steps so far), ``chi2``
+    #: (current χ², after the iteration), ``step_norm`` (‖dx‖∞ of the step tried), ``time`` (seconds since
+    #: the start) and, for LM, ``lambda`` (damping used) and ``accepted``; for GN ``halvings`` (line-search
+    #: halvings).
     log: list = field(default_factory=list)
+    #: What stopped the solver.
     reason: str = ""
+    #: The method, one of ``REFINE_METHODS``.
     method: str = ""
+    #: The id of the reference pose (the one fixed pose without ``anchors``).
     anchor: int = 0
+    #: The sparse solver used.
     backend: str = ""
+    #: (n, 3) bool, the coordinates held fixed.
     held: np.ndarray | None = None
 
     @property

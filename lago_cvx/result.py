@@ -22,41 +22,50 @@ __all__ = ["LagoResult"]
 class LagoResult:
     """Everything LAGO computed.
 
-    ``poses`` (n, 3) final estimate (x, y, θ) in the frame given by ``anchor_pose`` (θ unwrapped along
-    the tree; wrap for display); ``anchor`` the id of the pose held fixed and ``anchor_index`` its index;
-    ``method`` "closed_form" or "cvxpy"; ``tree``; ``regularization`` (the 2kπ report; its
-    ``regularization`` field says "tree", "chordal" or "integer"); ``uncertainty`` (per-edge marginal P_Δ,
-    P_δ); ``phase1``, ``phase2``, ``phase3`` (see ``lago_cvx.phases``; plain LAGO computes them in the
-    anchor's own frame, anchor at the origin); ``timings`` seconds per step (keys ``tree``,
-    ``regularization``, ``phase1``, ``phase2``, ``phase3``, ``positions``, ``total``); ``problems`` the cvxpy
-    problems (method "cvxpy" only: "phase1", "phase3", "positions", and "chordal" / "integer" with those
-    regularizations); ``route`` the name of the route (``lago_cvx.pipeline.ROUTES``) or "custom";
-    ``information`` "full" or "marginal" (how phases 2–3 used each edge's 3×3 information);
-    ``positions`` "phase3" (the poses are phase 3's) or "resolve" (positions re-solved exactly for the
-    orientations, ``polish``: a ``lago_cvx.positions.Polish``).
-
     Covariances (``pose_covariances``) are phase 3's, eq. (15), also after the polish: its positions
     differ from phase 3's by second-order terms, so to first order they share phase 3's covariance. (The
     polish's own information, ``polish.positions.info``, holds the orientations fixed and would understate
     the position uncertainty.)"""
 
+    #: The pose graph solved.
     graph: PoseGraph
+    #: The final estimate (n, 3) (x, y, θ) in the frame given by ``anchor_pose`` (θ unwrapped along the
+    #: tree; wrap for display).
     poses: np.ndarray
+    #: The id of the pose held fixed.
     anchor: int
+    #: Its index.
     anchor_index: int
+    #: (3,) the anchor's pose (x, y, θ) in the output frame.
     anchor_pose: np.ndarray
+    #: "closed_form" or "cvxpy".
     method: str
+    #: The spanning tree.
     tree: SpanningTree
+    #: The 2kπ report (its ``regularization`` field says "tree", "chordal" or "integer").
     regularization: RegularizationReport
+    #: The per-edge uncertainties (marginal P_Δ, P_δ).
     uncertainty: EdgeUncertainty
+    #: Phase 1 (see ``lago_cvx.phases``; plain LAGO computes the phases in the anchor's own frame, anchor at
+    #: the origin).
     phase1: Phase1
+    #: Phase 2.
     phase2: Phase2
+    #: Phase 3.
     phase3: Phase3
+    #: Seconds per step (keys ``tree``, ``regularization``, ``phase1``, ``phase2``, ``phase3``, ``positions``,
+    #: ``total``).
     timings: dict
+    #: The cvxpy problems (method "cvxpy" only: "phase1", "phase3", "positions", and "chordal" / "integer"
+    #: with those regularizations).
     problems: dict = field(default_factory=dict)
+    #: The name of the route (``lago_cvx.pipeline.ROUTES``) or "custom".
     route: str = "custom"
+    #: "full" or "marginal": how phases 2–3 used each edge's 3×3 information.
     information: str = "marginal"
+    #: "phase3" (the poses are phase 3's) or "resolve" (positions re-solved exactly for the orientations).
     positions: str = "phase3"
+    #: With ``positions="resolve"``, the polish: a ``lago_cvx.positions.Polish``.
     polish: Polish | None = None
 
     def _frame(self) -> np.ndarray:

@@ -36,6 +36,12 @@ __all__ = ["EdgeUncertainty", "edge_uncertainty", "INFORMATION_MODES"]
 # first-order optimal for any Ω) or "marginal" (the paper's blkdiag(P_Δ, P_δ), eqs. (9)–(15)).
 
 
+def _item(pair: str, k: int, doc: str) -> property:
+    """Read-only property ``doc``: item ``k`` of the cached tuple attribute ``pair`` (arrays computed
+    together, read apart)."""
+    return property(lambda self: getattr(self, pair)[k], doc=doc)
+
+
 class EdgeUncertainty:
     """Per-edge uncertainties (module docstring) of the information stack ``information`` (m, 3, 3) (read
     through its symmetric part). Shapes for m edges:
@@ -76,15 +82,8 @@ class EdgeUncertainty:
 
         return tuple(self._per_edge(fn, (2, 2), (2, 2)))
 
-    @property
-    def cov_delta_l(self) -> np.ndarray:
-        """P_Δ = Σ[0:2, 0:2] (m, 2, 2)."""
-        return self._marginal[0]
-
-    @property
-    def sqrt_info_delta_l(self) -> np.ndarray:
-        """(m, 2, 2) upper-triangular U with UᵀU = P_Δ⁻¹."""
-        return self._marginal[1]
+    cov_delta_l = _item("_marginal", 0, "P_Δ = Σ[0:2, 0:2] (m, 2, 2).")
+    sqrt_info_delta_l = _item("_marginal", 1, "(m, 2, 2) upper-triangular U with UᵀU = P_Δ⁻¹.")
 
     @cached_property
     def sqrt_info_delta(self) -> np.ndarray:
@@ -104,15 +103,8 @@ class EdgeUncertainty:
 
         return tuple(self._per_edge(fn, (2, 2), (2,)))
 
-    @property
-    def sqrt_info_pp(self) -> np.ndarray:
-        """(m, 2, 2) upper-triangular U with UᵀU = Ω_pp."""
-        return self._conditional[0]
-
-    @property
-    def shift(self) -> np.ndarray:
-        """h = Ω_pp⁻¹Ω_pθ (m, 2)."""
-        return self._conditional[1]
+    sqrt_info_pp = _item("_conditional", 0, "(m, 2, 2) upper-triangular U with UᵀU = Ω_pp.")
+    shift = _item("_conditional", 1, "h = Ω_pp⁻¹Ω_pθ (m, 2).")
 
     @property
     def info_delta(self) -> np.ndarray:

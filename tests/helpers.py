@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from lago_cvx.graph import cycle_basis, spanning_tree
 from lago_cvx.posegraph import PoseGraph, between, wrap_angle
+from lago_cvx.synthetic import circle_world
 
 
 def pose_error(a, b) -> float:
@@ -24,6 +26,14 @@ def graph_from_truth(truth, tails, heads, info=None) -> PoseGraph:
     if info is None:
         info = np.broadcast_to(np.diag([100.0, 100.0, 400.0]), (tails.size, 3, 3))
     return PoseGraph(truth.shape[0], tails, heads, meas[:, :2], meas[:, 2], info)
+
+
+def winding_world(n: int, laps: int, seed: int, kind: str):
+    """A noiseless multi-lap ``circle_world`` (its δ wrap around ±π), the spanning tree of ``kind`` and the
+    cycle basis C on it: returns (world, graph, tree, C)."""
+    w = circle_world(n, laps=laps, seed=seed, sigma_xy=0.0, sigma_theta=0.0)
+    t = spanning_tree(w.graph, kind)
+    return w, w.graph, t, cycle_basis(w.graph, t)
 
 
 def corrupt_tokens(rnd, base_lines, nasty):

@@ -13,7 +13,7 @@ from scipy.spatial import cKDTree
 
 from lago_cvx.io.writer import format_records
 from lago_cvx.posegraph import is_spd
-from lago_cvx.synthetic.worlds import _manhattan_walk, _same_cell_pairs
+from lago_cvx.synthetic.worlds import _grid_step, _manhattan_walk, _same_cell_pairs
 
 
 def _is_spd_reference(info, rtol=1e-9):
@@ -66,23 +66,29 @@ def test_is_spd_matches_lapack_determinant():
 
 
 def _walk_reference(n, p_turn, half, rng):
+    """The step-by-step loop: every step by the library's one-step rule ``_grid_step``."""
     u = rng.random(n - 1).tolist()
     side = np.where(rng.random(n - 1) < 0.5, 1, -1).tolist()
-    dxs, dys = (1, 0, -1, 0), (0, 1, 0, -1)
     x = y = d = 0
     xs, ys, ts = [0], [0], [0]
     for k in range(n - 1):
-        s = side[k]
-        for t in ((s, -s, 0, 2 * s) if u[k] < p_turn else (0, s, -s, 2 * s)):
-            dd = (d + t) & 3
-            nx, ny = x + dxs[dd], y + dys[dd]
-            if -half <= nx <= half and -half <= ny <= half:
-                break
-        x, y, d = nx, ny, dd
+        x, y, d, t = _grid_step(x, y, d, side[k], u[k] < p_turn, half)
         xs.append(x)
         ys.append(y)
         ts.append(t)
     return np.array(xs), np.array(ys), np.cumsum(ts)
+
+
+@pytest.mark.parametrize("state, expected", [
+    ((0, 0, 0, 1, False, 2), (1, 0, 0, 0)),     # inside: straight on
+    ((0, 0, 0, -1, True, 2), (0, -1, 3, -1)),   # inside: the preferred turn (right)
+    ((2, 0, 0, 1, False, 2), (2, 1, 1, 1)),     # at the +x edge: straight leaves, side s (left) first
+    ((2, 2, 0, 1, False, 2), (2, 1, 3, -1)),    # corner: straight and left leave, right
+    ((2, 2, 0, 1, True, 2), (2, 1, 3, -1)),     # corner, turning left preferred: left leaves, right
+    ((-1, 0, 2, 1, True, 1), (-1, -1, 3, 1)),   # at the −x edge heading −x: left (−y)
+])
+def test_grid_step_takes_the_first_move_that_stays_inside(state, expected):
+    assert _grid_step(*state) == expected
 
 
 @pytest.mark.parametrize("n, p_turn, half, seed", [(2, 0.3, 2, 0), (50, 1.0, 1, 1), (3000, 0.3, 27, 2),

@@ -12,7 +12,7 @@ from lago_cvx.errors import GraphError
 from lago_cvx.posegraph import PoseGraph
 from lago_cvx.synthetic import circle_world, manhattan_world, random_graph
 
-from helpers import graph_from_truth
+from helpers import graph_from_truth, winding_world
 
 
 @pytest.fixture(scope="module")
@@ -127,10 +127,7 @@ def test_user_given_tree_and_rejections(world):
 
 @pytest.mark.parametrize("kind", ["bfs", "odometry", "mst"])
 def test_cycle_basis_corollaries(kind):
-    w = circle_world(60, laps=3, seed=4, sigma_xy=0.0, sigma_theta=0.0)
-    g = w.graph
-    t = spanning_tree(g, kind)
-    C = cycle_basis(g, t)
+    w, g, t, C = winding_world(60, 3, 4, kind)
     l = g.n_edges - g.n_poses + 1
     assert cyclomatic_number(g) == l == C.shape[0]  # Corollary 1
     Cd = C.toarray()

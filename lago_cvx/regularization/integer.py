@@ -169,25 +169,33 @@ def _require_solver(solver: str) -> str:
 # --------------------------------------------------------------------------- cycle quantities
 @dataclass(frozen=True, eq=False)
 class CycleData:
-    """Everything eq. (3) needs, for one graph and tree (small graphs: S is dense l × l).
+    """Everything eq. (3) needs, for one graph and tree (small graphs: S is dense l × l)."""
 
-    ``chords`` (l,) chord edge indices; ``C`` sparse (l, m) cycle basis; ``r`` (l,) r = Cδ;
-    ``S`` (l, l) C P_δ Cᵀ; ``L`` (l, l) lower Cholesky factor of S; ``W`` (l, l) = L⁻¹ (whitening);
-    ``k_round`` (l,) the seed's rounding k_c = −round(r_c/2π) as cycle integers (as ``regularize_tree``);
-    ``rounding_edges`` (m,) the rounding's per-edge k."""
-
+    #: The spanning tree.
     tree: SpanningTree
+    #: (l,) the chords' edge indices.
     chords: np.ndarray
+    #: (l, m) the cycle basis, sparse.
     C: sp.csr_matrix
+    #: (l,) r = Cδ.
     r: np.ndarray
+    #: (l, l) S = C P_δ Cᵀ.
     S: np.ndarray
+    #: (l, l) the lower Cholesky factor of S.
     L: np.ndarray
+    #: (l, l) W = L⁻¹ (whitening).
     W: np.ndarray
-    k_round: np.ndarray
+    #: (m,) the seed's rounding k_c = −round(r_c/2π) per edge (as ``regularize_tree``; 0 on the tree edges).
     rounding_edges: np.ndarray
 
     @property
+    def k_round(self) -> np.ndarray:
+        """(l,) the rounding's cycle integers: ``rounding_edges`` at the chords (a new array at each read)."""
+        return self.rounding_edges[self.chords]
+
+    @property
     def n_chords(self) -> int:
+        """l, the number of chords (independent cycles)."""
         return int(self.chords.size)
 
     def cost(self, q) -> np.ndarray | float:
@@ -213,8 +221,7 @@ def cycle_data(graph: PoseGraph, tree: SpanningTree, *, unc: EdgeUncertainty | N
     W = sla.solve_triangular(L, np.eye(c.size), lower=True) if c.size else S
     k_edges = np.zeros(graph.n_edges, np.int64)  # the seed's rounding (regularize_tree), without its warnings
     k_edges[c] = round_residual(r)
-    return CycleData(tree=tree, chords=c, C=C, r=r, S=S, L=L, W=W, k_round=k_edges[c].copy(),
-                     rounding_edges=k_edges)
+    return CycleData(tree=tree, chords=c, C=C, r=r, S=S, L=L, W=W, rounding_edges=k_edges)
 
 
 def exact_box(data: CycleData, *, max_shift: int | None = None, exact: bool = True

@@ -21,6 +21,18 @@ _DX = (1, 0, -1, 0)
 _DY = (0, 1, 0, -1)
 
 
+def _grid_step(x: int, y: int, d: int, s: int, turning: bool, half: int) -> tuple[int, int, int, int]:
+    """One step of the grid walk from cell (x, y) heading d (quarter turns): the first move that stays in
+    ``[−half, half]²`` of the preferred turn (``s`` = ±1 if ``turning``, else straight), the other turns
+    (side ``s`` first, then straight), a U-turn. Returns the new cell, heading and the turn taken."""
+    for turn in ((s, -s, 0, 2 * s) if turning else (0, s, -s, 2 * s)):
+        dd = (d + turn) & 3
+        nx, ny = x + _DX[dd], y + _DY[dd]
+        if -half <= nx <= half and -half <= ny <= half:
+            break
+    return nx, ny, dd, turn
+
+
 def _manhattan_walk(n: int, p_turn: float, half: int, rng: np.random.Generator):
     """Grid random walk: integer positions (n,), (n,) and cumulative turns (n,) in quarter turns.
 
@@ -53,13 +65,8 @@ def _manhattan_walk(n: int, p_turn: float, half: int, rng: np.random.Generator):
         if j == t.size:
             block = min(2 * block, 1 << 16)
             continue
-        s = int(side[k])  # step k would leave the square: try the other moves in order
-        for turn in ((s, -s, 0, 2 * s) if u[k] < p_turn else (0, s, -s, 2 * s)):
-            dd = (d + turn) & 3
-            nx, ny = x + _DX[dd], y + _DY[dd]
-            if -half <= nx <= half and -half <= ny <= half:
-                break
-        x, y, d = nx, ny, dd
+        # step k would leave the square: take it step by step
+        x, y, d, turn = _grid_step(x, y, d, int(side[k]), bool(u[k] < p_turn), half)
         k += 1
         xs[k], ys[k], ts[k] = x, y, turn
         block = 256

@@ -120,17 +120,22 @@ def normalize_priors(graph: PoseGraph, priors) -> list[Prior]:
 
 @dataclass(frozen=True, eq=False)
 class PriorArrays:
-    """Vectorized priors: ``index`` (q,), ``mean`` (q, 3) with θ rounded to the tree,
-    ``sigma_theta`` (q,) marginal std of θ, ``C`` (q, 2, 2) with CᵀC = Λ_pp, ``h`` (q, 2) = Λ_pp⁻¹Λ_pθ."""
+    """Vectorized priors, q of them (Λ a prior's 3×3 information)."""
 
+    #: (q,) the poses' indices.
     index: np.ndarray
+    #: (q, 3) the means, θ rounded to the tree.
     mean: np.ndarray
+    #: (q,) the marginal standard deviation of θ.
     sigma_theta: np.ndarray
+    #: (q, 2, 2) C with CᵀC = Λ_pp.
     C: np.ndarray
+    #: (q, 2) h = Λ_pp⁻¹Λ_pθ.
     h: np.ndarray
 
     @property
     def q(self) -> int:
+        """The number of priors."""
         return int(self.index.size)
 
 
