@@ -28,13 +28,20 @@ def hat(w) -> np.ndarray:
     return np.stack([np.stack([z, -c, y], -1), np.stack([c, z, -x], -1), np.stack([-y, x, z], -1)], -2)
 
 
-def exp_so3(w) -> np.ndarray:
-    """Exp(φ) by Rodrigues' formula, shape (..., 3, 3) for φ (..., 3); Taylor terms below θ = 1e-4."""
+def _angle(w, small_below: float):
+    """θ² = ‖φ‖², the mask θ < ``small_below`` where Taylor terms replace the closed forms, and θ with 1 put
+    where the mask holds (so the closed forms never divide by zero); φ as a float array (..., 3), the others
+    shape (...)."""
     w = np.asarray(w, dtype=float)
     th2 = np.einsum("...i,...i->...", w, w)
     th = np.sqrt(th2)
-    small = th < 1e-4
-    safe = np.where(small, 1.0, th)
+    small = th < small_below
+    return w, th2, small, np.where(small, 1.0, th)
+
+
+def exp_so3(w) -> np.ndarray:
+    """Exp(φ) by Rodrigues' formula, shape (..., 3, 3) for φ (..., 3); Taylor terms below θ = 1e-4."""
+    w, th2, small, safe = _angle(w, 1e-4)
     a = np.where(small, 1.0 - th2 / 6.0, np.sin(safe) / safe)
     b = np.where(small, 0.5 - th2 / 24.0, (1.0 - np.cos(safe)) / (safe * safe))
     K = hat(w)
@@ -113,11 +120,7 @@ def project_so3(M) -> np.ndarray:
 
 def v_inverse(w) -> np.ndarray:
     """V(φ)⁻¹ = I − ½[φ]× + (1/θ²)(1 − (θ/2)cot(θ/2)) [φ]×², shape (..., 3, 3) (Taylor below θ = 1e-3)."""
-    w = np.asarray(w, dtype=float)
-    th2 = np.einsum("...i,...i->...", w, w)
-    th = np.sqrt(th2)
-    small = th < 1e-3
-    safe = np.where(small, 1.0, th)
+    w, th2, small, safe = _angle(w, 1e-3)
     c = np.where(small, 1.0 / 12.0 + th2 / 720.0,
                  (1.0 - 0.5 * safe / np.tan(0.5 * safe)) / (safe * safe))
     K = hat(w)
