@@ -243,7 +243,24 @@ def check_finite(chi2_value: float, poses, *, what: str = "estimate") -> None:
                              "double precision); nothing was written")
 
 
+def sigma_keywords(sigma_xy, sigma_theta, *, names: tuple[str, str] = ("sigma_xy", "sigma_theta")) -> dict:
+    """The noise keywords of a synthetic world that ``generate`` was given (``--sigma-xy``, ``--sigma-theta``;
+    None keeps the world's default), under the world's own ``names`` (translation, rotation)."""
+    return {name: value for name, value in zip(names, (sigma_xy, sigma_theta)) if value is not None}
+
+
 # ---------------------------------------------------------------------------------- printing
+def graph_lines(graph, components: int, cyclomatic_number: int) -> list[str]:
+    """``info``'s human lines on the graph's size, planar and 3-D alike: poses, edges, odometric edges, loop
+    closures, connected components and the cyclomatic number l = m − n + components."""
+    return [f"poses             {graph.n_poses}" + ("" if graph.initial is not None else "  (no initial guess)"),
+            f"edges             {graph.n_edges}",
+            f"odometric edges   {graph.n_odometric}  (consecutive ids)",
+            f"loop closures     {graph.n_loop_closures}",
+            f"components        {components}",
+            f"cyclomatic number {cyclomatic_number}  (l = m - n + components)"]
+
+
 def strict_json(obj):
     """Non-finite floats become null: the output must be strict JSON (RFC 8259 has no NaN/Infinity)."""
     if isinstance(obj, dict):

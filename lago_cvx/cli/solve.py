@@ -17,6 +17,7 @@ from .common import (
     check_finite,
     check_regularization,
     emit,
+    graph_lines,
     integer_search,
     method_arg,
     nonneg_int,
@@ -119,12 +120,7 @@ def cmd_info(args) -> int:
         payload["note"] = note
     lines = [
         f"file              {args.file} ({payload['format']})",
-        f"poses             {graph.n_poses}" + ("" if graph.initial is not None else "  (no initial guess)"),
-        f"edges             {graph.n_edges}",
-        f"odometric edges   {graph.n_odometric}  (consecutive ids)",
-        f"loop closures     {graph.n_loop_closures}",
-        f"components        {k}",
-        f"cyclomatic number {payload['cyclomatic_number']}  (l = m - n + components)",
+        *graph_lines(graph, k, payload["cyclomatic_number"]),
         f"regularized ({payload['regularization']}, {payload['spanning_tree']} tree) "
         + (f"{payload['n_regularized']} cycles need a 2kπ correction" if payload["n_regularized"] is not None
            else f"n/a: {note}"),

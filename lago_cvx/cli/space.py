@@ -7,7 +7,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..conventions import CHI2_CONVENTION
-from .common import EXIT_NOT_CERTIFIED, EXIT_OK, UsageError, check_finite, emit, write_estimate
+from .common import (EXIT_NOT_CERTIFIED, EXIT_OK, UsageError, check_finite, emit, graph_lines, sigma_keywords,
+                     write_estimate)
 
 WORLDS3D = ("sphere3d", "torus3d", "grid3d")
 
@@ -30,12 +31,7 @@ def info3d(args, graph) -> int:
                "n_regularized": None, "n_ambiguous": None,
                "note": "3-D graph: rotations by the chordal relaxation, no 2kπ regularization"}
     lines = [f"file              {args.file} (g2o, 3-D: VERTEX_SE3:QUAT/EDGE_SE3:QUAT)",
-             f"poses             {graph.n_poses}" + ("" if graph.initial is not None else "  (no initial guess)"),
-             f"edges             {graph.n_edges}",
-             f"odometric edges   {graph.n_odometric}  (consecutive ids)",
-             f"loop closures     {graph.n_loop_closures}",
-             f"components        {k}",
-             f"cyclomatic number {payload['cyclomatic_number']}  (l = m - n + components)",
+             *graph_lines(graph, k, payload["cyclomatic_number"]),
              "regularization    none needed in 3-D (rotation matrices do not wrap)"]
     emit(args, payload, lines)
     return EXIT_OK
@@ -139,11 +135,7 @@ def world3d(kind: str, poses: int, seed: int, sigma_xy, sigma_theta):
     """A 3-D world of about ``poses`` poses (``lago_cvx.synthetic.space``); the sigmas as translation and rotation."""
     from ..synthetic import space
 
-    kw = {}
-    if sigma_xy is not None:
-        kw["sigma_t"] = sigma_xy
-    if sigma_theta is not None:
-        kw["sigma_r"] = sigma_theta
+    kw = sigma_keywords(sigma_xy, sigma_theta, names=("sigma_t", "sigma_r"))
     if kind == "grid3d":
         return space.cube_grid_world(max(2, round(poses ** (1 / 3))), seed=seed, **kw)
     rings = max(2, round((poses / 2) ** 0.5))

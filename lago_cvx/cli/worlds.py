@@ -7,18 +7,14 @@ import os
 from pathlib import Path
 
 from .common import (EXIT_OK, UsageError, emit, nonneg_float, nonneg_int, output_target, positive_float,
-                     positive_int)
+                     positive_int, sigma_keywords)
 from .space import WORLDS3D
 
 
 def _world(kind: str, poses: int, seed: int, sigma_xy: float | None, sigma_theta: float | None, laps: float):
     from .. import synthetic
 
-    kw = {}
-    if sigma_xy is not None:
-        kw["sigma_xy"] = sigma_xy
-    if sigma_theta is not None:
-        kw["sigma_theta"] = sigma_theta
+    kw = sigma_keywords(sigma_xy, sigma_theta)
     if kind == "manhattan":
         return synthetic.manhattan_world(poses, seed=seed, **kw)
     return synthetic.circle_world(poses, seed=seed, laps=laps, **kw)
