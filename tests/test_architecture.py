@@ -18,7 +18,7 @@ PKG = Path(lago_cvx.__file__).resolve().parent
 
 #: The layers of docs/ARCHITECTURE.md, bottom first. A module may import from its own layer or below.
 LAYERS = [
-    ["_version", "errors", "progress", "solvers", "cvxpy_names", "routes", "conventions", "reports"],
+    ["_version", "errors", "progress", "solvers", "cvxpy_names", "routes", "conventions", "optimality", "reports"],
     ["sparse"],
     ["posegraph", "so3", "posegraph3d"],
     ["io", "graph", "metrics", "synthetic", "datasets"],

@@ -65,6 +65,7 @@ import scipy.sparse.linalg as spla
 from ..conventions import CERTIFY_TOL
 from ..errors import GraphError, OptionError, SolverError
 from ..graph import check_connected
+from ..optimality import ProvenBound, relative_suboptimality
 from ..posegraph import PoseGraph
 from ..reports import Summary, fmt_timings, short_repr
 from .sesync import (data_matrix, grounded_index, lambda_hat, multipliers, optimal_translations, sesync_cost,
@@ -169,7 +170,7 @@ def _bottom_eigenvalues(ldl: _ShiftedLDL, sel: np.ndarray, *, lower: float, uppe
 
 
 @dataclass(eq=False)
-class Certificate:
+class Certificate(ProvenBound):
     """Outcome of ``certify`` (see the module docstring, section 3).
 
     ``certified`` — True iff the proven relative suboptimality ``relative_suboptimality_bound`` =
@@ -211,11 +212,6 @@ class Certificate:
     tol: float = CERTIFY_TOL
     times: dict = field(default_factory=dict)
 
-    @property
-    def relative_suboptimality_bound(self) -> float:
-        """(f − lower_bound)/f: relative distance to the global optimum proven by the certificate."""
-        return _relative(self.suboptimality_bound, self.cost)
-
     def __repr__(self) -> str:
         """A few lines whatever the size: verdict, f and the proven bound, the spectrum's bottom, time."""
         n = self.poses.shape[0]
@@ -239,13 +235,6 @@ class Certificate:
             ("tol", "tol", self.tol), ("lambda_min", "λ_min(S_Q)", self.lambda_min), ("eta", "floor η", self.eta),
             ("n_negative", "eigenvalues < −η", int(self.n_negative)), ("residual", "‖SYᵀ‖", self.residual),
         ], timings=self.times)
-
-
-def _relative(bound: float, cost: float) -> float:
-    """bound / f, with f ≥ 0 (a zero cost gives +inf unless the bound is 0 too)."""
-    if cost > 0:
-        return bound / cost
-    return 0.0 if bound <= 0 else float("inf")
 
 
 
@@ -339,7 +328,7 @@ def certify(graph: PoseGraph, poses, *, tol: float = CERTIFY_TOL, optimize_trans
     sub_bound = cost - lower_bound
     sub_est = 2 * n * max(0.0, -lambda_min)
     residual_rel = residual / max(norm_M * np.sqrt(2 * n), np.finfo(float).tiny)
-    rel = _relative(sub_bound, cost)
+    rel = relative_suboptimality(cost, lower_bound)
     above_known = known_cost is not None and cost > known_cost * (1 + 1e-9) + np.finfo(float).tiny
     certified = bool(rel <= tol and not above_known)
     kind = ("not a critical point" if residual_rel > np.sqrt(NUMERICAL_TOL) else "approximately a critical point")

@@ -41,6 +41,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..conventions import CERTIFY_TOL
+from ..optimality import ProvenBound, relative_suboptimality
 from ..sparse import factorize
 from ..so3 import exp_so3, hat
 from .blocks import block_diagonal, edge_matrix, free_index
@@ -172,7 +173,7 @@ def refine_sesync3d(graph, t, R, *, anchor_index: int = 0, max_iterations: int =
 
 
 @dataclass(frozen=True, eq=False)
-class Certificate3D:
+class Certificate3D(ProvenBound):
     """Outcome of ``certify3d`` (module docstring): ``certified``, ``verdict``; ``cost`` f at the point certified
     (``t``, ``R``), ``dual_value`` Σ tr Λ_i, ``lower_bound`` a proven lower bound on f*, ``shift`` the μ (≥ η) it
     used, ``eta`` the floor, ``n_negative`` negative pivots of S_g + ηÎ_R, ``lambda_min`` the smallest eigenvalue of
@@ -193,12 +194,6 @@ class Certificate3D:
     R: np.ndarray
     tol: float = CERTIFY_TOL
     times: dict = field(default_factory=dict)
-
-    @property
-    def relative_suboptimality_bound(self) -> float:
-        if self.cost > 0:
-            return (self.cost - self.lower_bound) / self.cost
-        return 0.0 if self.cost - self.lower_bound <= 0 else float("inf")
 
 
 def _negative_pivots(A: sp.csc_matrix) -> int | None:
@@ -257,7 +252,7 @@ def certify3d(graph, t, R, *, tol: float = CERTIFY_TOL, anchor_index: int = 0, l
     except Exception:  # informational only
         lmin = float("nan")
     times["eigenvalue"] = time.perf_counter() - t0
-    bound = (cost - lower) / cost if cost > 0 else (0.0 if cost - lower <= 0 else float("inf"))
+    bound = relative_suboptimality(cost, lower)
     certified = neg == 0 and bound <= tol
     if neg is None:
         verdict = "not certified: the inertia of S could not be counted (singular or pivoted factorization)"
