@@ -25,6 +25,7 @@ import numpy as np
 
 from .sparse import row_blocks, spd_inverse
 from .errors import GraphError, OptionError
+from .posegraph_base import PoseGraphBase, pose_ids, readonly
 
 __all__ = ["PoseGraph", "wrap_angle", "rot2", "compose", "between", "is_spd"]
 
@@ -62,14 +63,8 @@ def between(a, b):
     return np.stack([c * dx + s * dy, -s * dx + c * dy, b[..., 2] - a[..., 2]], -1)
 
 
-def _readonly(a: np.ndarray) -> np.ndarray:
-    a = np.ascontiguousarray(a)
-    a.setflags(write=False)
-    return a
-
-
-@dataclass(frozen=True, eq=False)
-class PoseGraph:
+@dataclass(frozen=True, eq=False, repr=False)
+class PoseGraph(PoseGraphBase):
     """Immutable planar pose graph. See the module docstring for the conventions.
 
     Shapes: ``tails, heads`` (m,) int64 pose indices; ``delta_l`` (m, 2); ``delta`` (m,);
@@ -77,9 +72,6 @@ class PoseGraph:
     ``ids`` (n,) int64 file identifiers (default ``arange(n)``).
     """
 
-    n_poses: int
-    tails: np.ndarray
-    heads: np.ndarray
     delta_l: np.ndarray
     delta: np.ndarray
     information: np.ndarray
@@ -87,29 +79,10 @@ class PoseGraph:
     ids: np.ndarray | None = None
     name: str = field(default="")
 
+    MEASUREMENTS = (("delta_l", (2,)), ("delta", ()), ("information", (3, 3)))  # class attribute (PoseGraphBase)
+
     def __post_init__(self):
-        n = int(self.n_poses)
-        if n < 1:
-            raise GraphError(f"a pose graph needs at least one pose, got n_poses={n}")
-        object.__setattr__(self, "n_poses", n)
-        tails = np.asarray(self.tails)
-        heads = np.asarray(self.heads)
-        if tails.ndim != 1 or heads.shape != tails.shape:
-            raise GraphError(f"tails and heads must be 1-D of equal length, got {tails.shape} and {heads.shape}")
-        m = tails.shape[0]
-        if m and not (np.issubdtype(tails.dtype, np.integer) and np.issubdtype(heads.dtype, np.integer)):
-            raise GraphError("tails and heads must be integer pose indices")
-        tails = tails.astype(np.int64)
-        heads = heads.astype(np.int64)
-        delta_l = np.asarray(self.delta_l, dtype=float).reshape(m, 2)
-        delta = np.asarray(self.delta, dtype=float).reshape(m)
-        info = np.asarray(self.information, dtype=float).reshape(m, 3, 3)
-        if m:
-            if tails.min() < 0 or heads.min() < 0 or tails.max() >= n or heads.max() >= n:
-                raise GraphError(f"edge endpoints must lie in 0..{n - 1}")
-            loops = np.flatnonzero(tails == heads)
-            if loops.size:
-                raise GraphError(f"self-loop edge(s) at index {loops[:5].tolist()}: an edge must join two different poses")
+        n, tails, heads, (delta_l, delta, info) = self._checked_edges()
         if not (np.isfinite(delta_l).all() and np.isfinite(delta).all() and np.isfinite(info).all()):
             bad = ~(np.isfinite(delta_l).all(1) & np.isfinite(delta) & np.isfinite(info).all((1, 2)))
             raise GraphError(f"non-finite measurement or information in edge(s) {np.flatnonzero(bad)[:5].tolist()}")
@@ -124,17 +97,9 @@ class PoseGraph:
                 raise GraphError(f"initial poses must have shape ({n}, 3), got {initial.shape}")
             if not np.isfinite(initial).all():
                 raise GraphError("initial poses must be finite")
-            initial = _readonly(initial)
-        ids = np.arange(n, dtype=np.int64) if self.ids is None else np.asarray(self.ids, dtype=np.int64)
-        if ids.shape != (n,):
-            raise GraphError(f"ids must have shape ({n},), got {ids.shape}")
-        if n > 1 and not (ids[1:] > ids[:-1]).all():  # sorted and distinct: no sort needed
-            s = np.sort(ids)
-            if not (s[1:] > s[:-1]).all():
-                raise GraphError("pose ids must be unique")
-        for name, val in [("tails", tails), ("heads", heads), ("delta_l", delta_l), ("delta", delta),
-                          ("information", info), ("ids", ids)]:
-            object.__setattr__(self, name, _readonly(val))
+            initial = readonly(initial)
+        ids = pose_ids(n, self.ids)
+        self._store_readonly(tails=tails, heads=heads, delta_l=delta_l, delta=delta, information=info, ids=ids)
         object.__setattr__(self, "initial", initial)
 
     # ----------------------------------------------------------------- sizes
@@ -144,41 +109,9 @@ class PoseGraph:
         return 2
 
     @property
-    def n_edges(self) -> int:
-        """m, the number of edges (measurements)."""
-        return int(self.tails.shape[0])
-
-    @property
     def measurements(self) -> np.ndarray:
         """All measurements as an (m, 3) array ``[Δˡ_x, Δˡ_y, δ]``."""
         return np.column_stack([self.delta_l, self.delta])
-
-    @property
-    def is_odometric(self) -> np.ndarray:
-        """Boolean (m,): edge joins poses with consecutive ids (|id_i − id_j| = 1)."""
-        return np.abs(self.ids[self.tails] - self.ids[self.heads]) == 1
-
-    @property
-    def n_odometric(self) -> int:
-        return int(self.is_odometric.sum())
-
-    @property
-    def n_loop_closures(self) -> int:
-        return self.n_edges - self.n_odometric
-
-    def index_of(self, pose_id: int) -> int:
-        """Index (0 … n−1) of the pose with file identifier ``pose_id``."""
-        hit = np.flatnonzero(self.ids == int(pose_id))
-        if hit.size == 0:
-            raise GraphError(f"no pose with id {pose_id} (ids range {self.ids.min()}..{self.ids.max()})")
-        return int(hit[0])
-
-    def anchor_index(self, anchor=None) -> int:
-        """Index of the anchor pose. Everywhere in lago_cvx an anchor is given as a pose **id** (as in
-        the file); ``None`` means the smallest id. Raises ``GraphError`` for an id the graph lacks."""
-        if anchor is None:
-            return int(np.argmin(self.ids))
-        return self.index_of(anchor)
 
     def check_poses(self, poses) -> np.ndarray:
         """``poses`` as a new float array of shape (n, 3); ``OptionError`` (a ValueError) if the shape is
@@ -233,19 +166,6 @@ class PoseGraph:
         info_rev = np.swapaxes(T, 1, 2) @ self.information @ T
         info = np.where(sel[:, None, None], 0.5 * (info_rev + np.swapaxes(info_rev, 1, 2)), self.information)
         return replace(self, tails=tails, heads=heads, delta_l=meas[:, :2], delta=meas[:, 2], information=info)
-
-    def subgraph_edges(self, mask) -> "PoseGraph":
-        """A copy keeping only the edges selected by ``mask`` (poses unchanged)."""
-        sel = np.zeros(self.n_edges, bool)
-        sel[mask] = True
-        return replace(self, tails=self.tails[sel], heads=self.heads[sel], delta_l=self.delta_l[sel],
-                       delta=self.delta[sel], information=self.information[sel])
-
-    def __repr__(self) -> str:
-        nm = f" {self.name!r}" if self.name else ""
-        return (f"<PoseGraph{nm}: {self.n_poses} poses, {self.n_edges} edges "
-                f"({self.n_odometric} odometric, {self.n_loop_closures} loop closures)"
-                f"{', with initial guess' if self.initial is not None else ''}>")
 
     def equals(self, other: "PoseGraph", *, rtol: float = 0.0, atol: float = 0.0) -> bool:
         """Same poses, ids, edges and (within tolerance) measurements, information and initial guess."""

@@ -22,15 +22,10 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .errors import GraphError, OptionError
+from .posegraph_base import PoseGraphBase, pose_ids, readonly
 from .so3 import log_se3
 
 __all__ = ["PoseGraph3D", "is_spd6", "edge_errors3d", "chi2_3d", "relative_poses"]
-
-
-def _readonly(a: np.ndarray) -> np.ndarray:
-    a = np.ascontiguousarray(a)
-    a.setflags(write=False)
-    return a
 
 
 def is_spd6(info: np.ndarray, *, rtol: float = 1e-9) -> np.ndarray:
@@ -75,16 +70,13 @@ def chi2_3d(graph: "PoseGraph3D", t, R) -> float:
     return float(np.einsum("ki,kij,kj->", e, graph.information, e))
 
 
-@dataclass(frozen=True, eq=False)
-class PoseGraph3D:
+@dataclass(frozen=True, eq=False, repr=False)
+class PoseGraph3D(PoseGraphBase):
     """Immutable 3-D pose graph (module docstring). Shapes: ``tails, heads`` (m,) int64 pose indices;
     ``delta_t`` (m, 3); ``delta_R`` (m, 3, 3) rotations; ``information`` (m, 6, 6) symmetric positive
     definite, order (x, y, z, φx, φy, φz); ``initial_t`` (n, 3) and ``initial_R`` (n, 3, 3), both or
     neither (the vertex lines of a file); ``ids`` (n,) int64 file identifiers (default ``arange(n)``)."""
 
-    n_poses: int
-    tails: np.ndarray
-    heads: np.ndarray
     delta_t: np.ndarray
     delta_R: np.ndarray
     information: np.ndarray
@@ -94,29 +86,11 @@ class PoseGraph3D:
     name: str = field(default="")
 
     dim = 3  # class attribute: the dimension of the space the poses live in
+    MEASUREMENTS = (("delta_t", (3,)), ("delta_R", (3, 3)), ("information", (6, 6)))  # class attribute (PoseGraphBase)
 
     def __post_init__(self):
-        n = int(self.n_poses)
-        if n < 1:
-            raise GraphError(f"a pose graph needs at least one pose, got n_poses={n}")
-        object.__setattr__(self, "n_poses", n)
-        tails, heads = np.asarray(self.tails), np.asarray(self.heads)
-        if tails.ndim != 1 or heads.shape != tails.shape:
-            raise GraphError(f"tails and heads must be 1-D of equal length, got {tails.shape} and {heads.shape}")
+        n, tails, heads, (dt, dR, info) = self._checked_edges()
         m = tails.shape[0]
-        if m and not (np.issubdtype(tails.dtype, np.integer) and np.issubdtype(heads.dtype, np.integer)):
-            raise GraphError("tails and heads must be integer pose indices")
-        tails, heads = tails.astype(np.int64), heads.astype(np.int64)
-        dt = np.asarray(self.delta_t, dtype=float).reshape(m, 3)
-        dR = np.asarray(self.delta_R, dtype=float).reshape(m, 3, 3)
-        info = np.asarray(self.information, dtype=float).reshape(m, 6, 6)
-        if m:
-            if tails.min() < 0 or heads.min() < 0 or tails.max() >= n or heads.max() >= n:
-                raise GraphError(f"edge endpoints must lie in 0..{n - 1}")
-            loops = np.flatnonzero(tails == heads)
-            if loops.size:
-                raise GraphError(f"self-loop edge(s) at index {loops[:5].tolist()}: an edge must join two "
-                                 "different poses")
         bad = np.flatnonzero(~(np.isfinite(dt).all(1) & np.isfinite(dR).all((1, 2))))
         if bad.size:
             raise GraphError(f"non-finite measurement in edge(s) {bad[:5].tolist()}")
@@ -136,50 +110,17 @@ class PoseGraph3D:
                                  f"{iR.shape}")
             if not (np.isfinite(it).all() and np.isfinite(iR).all()):
                 raise GraphError("initial poses must be finite")
-            it, iR = _readonly(it), _readonly(iR)
-        ids = np.arange(n, dtype=np.int64) if self.ids is None else np.asarray(self.ids, dtype=np.int64)
-        if ids.shape != (n,):
-            raise GraphError(f"ids must have shape ({n},), got {ids.shape}")
-        if n > 1 and not (np.diff(np.sort(ids)) > 0).all():
-            raise GraphError("pose ids must be unique")
-        for name, val in [("tails", tails), ("heads", heads), ("delta_t", dt), ("delta_R", dR),
-                          ("information", info), ("ids", ids)]:
-            object.__setattr__(self, name, _readonly(val))
+            it, iR = readonly(it), readonly(iR)
+        ids = pose_ids(n, self.ids)
+        self._store_readonly(tails=tails, heads=heads, delta_t=dt, delta_R=dR, information=info, ids=ids)
         object.__setattr__(self, "initial_t", it)
         object.__setattr__(self, "initial_R", iR)
 
     # ----------------------------------------------------------------- sizes and ids
     @property
-    def n_edges(self) -> int:
-        return int(self.tails.shape[0])
-
-    @property
     def initial(self):
         """The file's guess as a pair (t (n, 3), R (n, 3, 3)), or None."""
         return None if self.initial_t is None else (self.initial_t, self.initial_R)
-
-    @property
-    def is_odometric(self) -> np.ndarray:
-        """Boolean (m,): edge joins poses with consecutive ids."""
-        return np.abs(self.ids[self.tails] - self.ids[self.heads]) == 1
-
-    @property
-    def n_odometric(self) -> int:
-        return int(self.is_odometric.sum())
-
-    @property
-    def n_loop_closures(self) -> int:
-        return self.n_edges - self.n_odometric
-
-    def index_of(self, pose_id: int) -> int:
-        hit = np.flatnonzero(self.ids == int(pose_id))
-        if hit.size == 0:
-            raise GraphError(f"no pose with id {pose_id} (ids range {self.ids.min()}..{self.ids.max()})")
-        return int(hit[0])
-
-    def anchor_index(self, anchor=None) -> int:
-        """Index of the anchor pose given by its **id** (None: the smallest id), as in the planar graph."""
-        return int(np.argmin(self.ids)) if anchor is None else self.index_of(anchor)
 
     def check_poses(self, t, R):
         """(t, R) as new float arrays of shapes (n, 3), (n, 3, 3); ``OptionError`` otherwise."""
@@ -193,18 +134,6 @@ class PoseGraph3D:
 
     def with_initial(self, t, R) -> "PoseGraph3D":
         return replace(self, initial_t=t, initial_R=R)
-
-    def subgraph_edges(self, mask) -> "PoseGraph3D":
-        sel = np.zeros(self.n_edges, bool)
-        sel[mask] = True
-        return replace(self, tails=self.tails[sel], heads=self.heads[sel], delta_t=self.delta_t[sel],
-                       delta_R=self.delta_R[sel], information=self.information[sel])
-
-    def __repr__(self) -> str:
-        nm = f" {self.name!r}" if self.name else ""
-        return (f"<PoseGraph3D{nm}: {self.n_poses} poses, {self.n_edges} edges "
-                f"({self.n_odometric} odometric, {self.n_loop_closures} loop closures)"
-                f"{', with initial guess' if self.initial_t is not None else ''}>")
 
     def equals(self, other: "PoseGraph3D", *, rtol: float = 0.0, atol: float = 0.0) -> bool:
         """Same poses, ids, edges and (within tolerance) measurements, information and initial guess."""

@@ -20,7 +20,7 @@ PKG = Path(lago_cvx.__file__).resolve().parent
 LAYERS = [
     ["_version", "errors", "progress", "solvers", "cvxpy_names", "routes", "conventions", "optimality", "reports"],
     ["sparse"],
-    ["posegraph", "so3", "posegraph3d"],
+    ["posegraph_base", "posegraph", "so3", "posegraph3d"],
     ["io", "graph", "metrics", "synthetic", "datasets"],
     ["uncertainty", "rounding"],
     ["regularization"],
