@@ -190,21 +190,11 @@ class Certificate(ProvenBound):
     ``suboptimality_estimate`` = 2n·max(0, −λ_min) (to Lanczos accuracy, SE-Sync's number).
     ``times`` seconds per step."""
 
-    certified: bool
-    verdict: str
-    cost: float
     cost_input: float
-    dual_value: float
-    lambda_min: float
     eigenvalues: np.ndarray
     lambda_min_full: float
-    eta: float
     norm_M: float
-    n_negative: int
     residual: float
-    residual_rel: float
-    lower_bound: float
-    shift: float
     suboptimality_bound: float
     suboptimality_estimate: float
     poses: np.ndarray

@@ -172,7 +172,7 @@ def refine_sesync3d(graph, t, R, *, anchor_index: int = 0, max_iterations: int =
     return t, R, cost, it
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(eq=False)
 class Certificate3D(ProvenBound):
     """Outcome of ``certify3d`` (module docstring): ``certified``, ``verdict``; ``cost`` f at the point certified
     (``t``, ``R``), ``dual_value`` Σ tr Λ_i, ``lower_bound`` a proven lower bound on f*, ``shift`` the μ (≥ η) it
@@ -180,16 +180,6 @@ class Certificate3D(ProvenBound):
     S_g by shift-invert Lanczos (informational; NaN if it failed), ``residual_rel`` ‖S Yᵀ‖_F / (‖M‖_∞ √(3n)),
     ``times`` seconds per step."""
 
-    certified: bool
-    verdict: str
-    cost: float
-    dual_value: float
-    lower_bound: float
-    shift: float
-    eta: float
-    n_negative: int
-    lambda_min: float
-    residual_rel: float
     t: np.ndarray
     R: np.ndarray
     tol: float = CERTIFY_TOL
