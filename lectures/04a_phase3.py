@@ -173,11 +173,11 @@ e_spring = np.abs(force - np.einsum("kab,kb->ka", P_dg_inv, d)).max() / np.abs(f
 net = lc.incidence_matrix(g) @ force                                   # net force on every pose, anchor included
 J = res.phase2.jac.toarray()
 e_torque = np.abs(J.T @ force.ravel() - res.phase1.info @ (rho.value[2 * n:] - res.phase1.theta_free)).max()
+
+# %% tags=["remove-input"]
 check(e_spring < 1e-6, f"λ_Δ/2 = P_Δg⁻¹ d_k: spring forces (rel. {e_spring:.1e}; largest |f| {np.abs(force).max():.2f})")
 check(np.abs(net).max() < 1e-6 * np.abs(force).max(),
       f"forces balance at every pose, and the anchor feels none (max net {np.abs(net).max():.1e})")
-
-# %% tags=["remove-input"]
 check(e_lam < 1e-6, f"λ = −2 P_z⁻¹ (z − Bᵀρ*) (rel. {e_lam:.1e})")
 check(np.abs(lam_th).max() < 1e-6 * np.abs(lam).max() and e_torque < 1e-6 * np.abs(J.T @ force.ravel()).max(),
       f"λ_θ = 0: torques balanced by P_θ⁻¹(θ* − θ̂) (max deviation {e_torque:.1e})")
@@ -319,9 +319,9 @@ theta_13 = np.linalg.solve(P_theta_inv, A @ (res.regularization.delta_reg / res.
 theta_tilde = P_th_star @ J.T @ Pdg_inv @ (A2.T @ P_phat @ A2 @ Pdg_inv - np.eye(2 * m)) @ RDl
 theta_star = res.phase3.x_star[2 * n:]
 e16 = relative_difference(theta_13 + theta_tilde, theta_star)
-check(e16 < 1e-9, f"eq. (16): θ̂ + θ̃ = phase 3's θ* ({e16:.1e}); max|θ̃| = {np.abs(theta_tilde).max():.3f} rad")
 
 # %% tags=["remove-input"]
+check(e16 < 1e-9, f"eq. (16): θ̂ + θ̃ = phase 3's θ* ({e16:.1e}); max|θ̃| = {np.abs(theta_tilde).max():.3f} rad")
 check(relative_difference(theta_13, res.phase1.theta_free) < 1e-9, "the first summand of eq. (16) is θ̂ (eq. (13))")
 check(relative_difference(t1.theta_correction, theta_tilde) < 1e-9, "θ̃ = theorem1(...).theta_correction")
 check(np.allclose(P_th_star, np.linalg.inv(info15)[2 * n:, 2 * n:], rtol=1e-8, atol=0),
@@ -488,7 +488,7 @@ manh = lc.manhattan_world(2000, seed=1, sigma_xy=0.05, sigma_theta=0.02).graph
 cases = [("Manhattan world, 2000 poses", manh)]
 if intel is not None:
     cases.append(("INTEL_P_toro (real)", intel))
-runs = {}
+runs, sizes = {}, {}
 for label, gr in cases:
     t0 = time.perf_counter()
     r = paper_lago(gr, spanning_tree="odometry")
@@ -504,7 +504,12 @@ for label, gr in cases:
           f"nnz {r.phase3.info.nnz};  one Gauss–Newton step {H.shape}, nnz {H.nnz}\n"
           f"  LAGO {1e3 * t_lago:.0f} ms in all;  Gauss–Newton from dead reckoning: {gn_dr.iterations} steps, "
           f"{1e3 * gn_dr.log[-1]['time']:.0f} ms;  from LAGO: {gn_lago.iterations} steps")
-    check(r.phase1.info.shape == (nn, nn) and r.phase3.info.shape == H.shape == (3 * nn, 3 * nn),
+    sizes[label] = (nn, H.shape)
+
+# %% tags=["remove-input"]
+for label, (r, gn_dr, gn_lago) in runs.items():
+    nn, H_shape = sizes[label]
+    check(r.phase1.info.shape == (nn, nn) and r.phase3.info.shape == H_shape == (3 * nn, 3 * nn),
           "phase 1 has size n; phase 3 and one Gauss–Newton step have size 3n")
     check(gn_lago.iterations < gn_dr.iterations and relative_difference(gn_lago.chi2, gn_dr.chi2) < 1e-6,
           f"Gauss–Newton needs N = {gn_dr.iterations} steps from dead reckoning, {gn_lago.iterations} from LAGO, "
