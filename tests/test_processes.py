@@ -121,3 +121,24 @@ def test_a_forked_child_never_writes_its_parents_factor_memory():
 
 def _scribble(buf):
     buf[:] = -7.0
+
+
+@pytest.mark.parametrize("how", ["pickle", "deepcopy"])
+def test_certificates_and_3d_results_survive_copies(how):
+    """The certificate of the SE-Sync-refined estimate and a 3-D result travel too (data, no engine state)."""
+    from lago_cvx.certification import certify_estimate
+    from lago_cvx.synthetic.space import sphere_world
+
+    copier = (lambda r: pickle.loads(pickle.dumps(r))) if how == "pickle" else copy.deepcopy
+    g = _graph(60, 7)
+    report, cert = certify_estimate(g)
+    twin = copier(cert)
+    assert type(twin) is type(cert) and twin.certified == cert.certified
+    assert twin.cost == cert.cost and twin.lower_bound == cert.lower_bound
+    np.testing.assert_array_equal(twin.poses, cert.poses)
+    assert copier(report) == report
+    w = sphere_world(4, 8, seed=2)
+    res3 = lc.lago(w.graph)
+    twin3 = copier(res3)
+    np.testing.assert_array_equal(twin3.t, res3.t)
+    assert twin3.chi2 == res3.chi2
