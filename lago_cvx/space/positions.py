@@ -23,7 +23,7 @@ import numpy as np
 
 from ..posegraph3d import relative_poses
 from ..so3 import log_so3, v_inverse
-from .blocks import edge_matrix, free_index, without_anchor
+from .blocks import edge_matrix, free_index, solve, without_anchor
 
 __all__ = ["position_system", "positions_closed_form", "position_problem", "positions_cvxpy"]
 
@@ -73,7 +73,7 @@ def positions_closed_form(graph, R, *, anchor_index: int = 0, anchor_position=(0
     ta, he = el.tails < 0, el.heads < 0
     Lc[ta] += LB[ta] @ p  # residual −LB t_i + LB t_j − Lc: the anchor's known term moves to the right
     Lc[he] -= LB[he] @ p
-    x, _, stats = el.solve(EdgeSystem(el.tails, el.heads, -LB, np.ascontiguousarray(LB), Lc, el.d))
+    x, _, stats = solve(el, EdgeSystem(el.tails, el.heads, -LB, np.ascontiguousarray(LB), Lc, el.d))
     return _assemble(graph, x, anchor_index, anchor_position), stats
 
 
