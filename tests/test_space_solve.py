@@ -266,3 +266,29 @@ def test_fixed_poses():
     assert c.chi2 >= refine3d(noisy.graph, a.t, a.R).chi2 * (1 - 1e-9)  # a constrained point: not below the minimum
     with pytest.raises(OptionError, match="not a rotation"):
         lago3d(noisy.graph, fixed={0: (np.zeros(3), 2 * np.eye(3))})
+
+
+@pytest.mark.parametrize("route", ["seed", "default"])
+def test_compiled_factorizations_agree_with_the_engines_choice(monkeypatch, route):
+    """Every system of the route on the compiled engine (``blocks.COMPILED_MIN_3D`` lowered to 0) against the
+    engine's own choice (QDLDL at this size): the same estimate to rounding, and the compiled engine used."""
+    from lago_cvx.space import blocks
+
+    w = torus_world(6, 12, seed=2)
+    ref = lago3d(w.graph, route=route)
+    calls = []
+    real = blocks._compiled
+
+    def counted(el, system):
+        f = real(el, system)
+        calls.append(f is not None)
+        return f
+
+    monkeypatch.setattr(blocks, "COMPILED_MIN_3D", 0)
+    monkeypatch.setattr(blocks, "_compiled", counted)
+    got = lago3d(w.graph, route=route)
+    assert calls and all(calls)  # chordal, positions (and the joint step and its positions) compiled
+    assert len(calls) == (2 if route == "seed" else 4)
+    assert got.chi2 == pytest.approx(ref.chi2, rel=1e-10)
+    assert got.chi2_seed == pytest.approx(ref.chi2_seed, rel=1e-10)
+    assert _rel(ref.R, got.R) < 1e-8 and _rel(ref.t, got.t) < 1e-8

@@ -43,7 +43,7 @@ import numpy as np
 
 from ..errors import check_choice
 from ..so3 import project_so3
-from .blocks import block_diagonal, edge_matrix, free_index, without_anchor
+from .blocks import block_diagonal, edge_matrix, free_index, solve, without_anchor
 
 __all__ = ["WEIGHTINGS", "ANISOTROPIC_FLOOR", "rotation_weights", "chordal_system", "edge_system", "chordal_closed_form",
            "chordal_problem", "chordal_cvxpy", "Chordal", "relaxed_cost"]
@@ -137,8 +137,8 @@ def _system_cost(system):
 
 def chordal_closed_form(graph, *, weighting: str = "isotropic", anchor_index: int = 0, elimination=None) -> Chordal:
     """(C) by one sparse factorization of its normal matrix and three solves, on the pose-level elimination shared
-    by the closed forms (``normal_equations.GraphElimination``: QDLDL in the pose graph's AMD order, the
-    multifrontal engine for large systems; corrected semi-normal equations). ``elimination``: one built already for
+    by the closed forms (``normal_equations.GraphElimination``: QDLDL in the pose graph's AMD order, the compiled
+    multifrontal engine from ``blocks.COMPILED_MIN_3D`` unknowns; corrected semi-normal equations). ``elimination``: one built already for
     this graph and anchor."""
     from ..sparse import GraphElimination
 
@@ -146,7 +146,7 @@ def chordal_closed_form(graph, *, weighting: str = "isotropic", anchor_index: in
         return _finish(graph, np.zeros((0, 3)), anchor_index, {"method": "trivial"}, lambda X: 0.0)
     el = GraphElimination(graph, anchor_index) if elimination is None else elimination
     system = edge_system(graph, el, weighting=weighting)
-    x, _, stats = el.solve(system)
+    x, _, stats = solve(el, system)
     return _finish(graph, x.reshape(-1, 3), anchor_index, stats, _system_cost(system))
 
 

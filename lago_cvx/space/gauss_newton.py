@@ -12,7 +12,7 @@ and the error's Jacobians are, with E = T̃⁻¹T_i⁻¹T_j and J_r⁻¹ the inv
 
 Each iteration whitens the errors by Ω = LᵀL and solves the normal equations (JᵀΩJ + λ D) δ = −JᵀΩe for the free
 poses (the anchor stays put): the Gauss–Newton step (λ = 0) on the closed forms' pose-level elimination
-(``normal_equations``), Levenberg–Marquardt's damped ones (D = diag(JᵀΩJ)) through ``linalg.factorize`` when the
+(``normal_equations``; ``blocks.factor``), Levenberg–Marquardt's damped ones (D = diag(JᵀΩJ)) through ``linalg.factorize`` when the
 Gauss–Newton step does not decrease χ² (``refine3d``).
 """
 
@@ -28,7 +28,7 @@ from ..errors import check_choice
 from ..sparse import factorize
 from ..posegraph3d import chi2_3d, edge_errors3d
 from ..so3 import adjoint, exp_so3, right_jacobian_inverse
-from .blocks import edge_matrix, free_index
+from .blocks import edge_matrix, factor, free_index
 
 __all__ = ["REFINE_METHODS", "jacobians", "normal_equations", "retract", "gauss_newton_step", "Refined3D",
            "refine3d"]
@@ -81,7 +81,7 @@ def gauss_newton_step(graph, t, R, *, anchor_index: int = 0, L=None, elimination
     system = EdgeSystem(el.tails, el.heads, L @ Ji, L @ Jj, -np.einsum("kij,kj->ki", L, e), el.d)
     # One factorization and one solve of the normal equations: a step needs no refinement to rounding (near a
     # minimum the gradient, hence the step, is tiny, and a correction relative to it would look untrustworthy).
-    return el.factor(system).solve(system.rmatvec(system.c).ravel())
+    return factor(el, system).solve(system.rmatvec(system.c).ravel())
 
 
 @dataclass(frozen=True, eq=False)

@@ -19,13 +19,30 @@ approximation of it — GTSAM's cost, :mod:`lago_cvx.posegraph3d`).
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 
 from ..posegraph3d import relative_poses
 from ..so3 import log_so3, v_inverse
-from .blocks import edge_matrix, free_index, without_anchor
+from .blocks import edge_matrix, free_index, solve, without_anchor
 
 __all__ = ["position_system", "positions_closed_form", "position_problem", "positions_cvxpy"]
+
+
+_CONSTANTS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+
+def _edge_constants(graph):
+    """(L (m, 3, 3) with LᵀL = Ω_tt, upper triangular; Ω_tt⁻¹Ω_tr (m, 3, 3)): what (P) takes from the information
+    at any rotations, computed once per graph (a graph is immutable; the route solves (P) at least twice)."""
+    found = _CONSTANTS.get(graph)
+    if found is None:
+        O = graph.information
+        Ott = O[:, :3, :3]
+        found = (np.swapaxes(np.linalg.cholesky(Ott), 1, 2), np.linalg.solve(Ott, O[:, :3, 3:]))
+        _CONSTANTS[graph] = found
+    return found
 
 
 def _whitened_edges(graph, R):
@@ -35,12 +52,10 @@ def _whitened_edges(graph, R):
     Mt = np.swapaxes(graph.delta_R, 1, 2)
     phi = log_so3(Mt @ Rij)
     Vi = v_inverse(phi)
-    Bm = Vi @ Mt @ np.swapaxes(R[graph.tails], 1, 2)
-    O = graph.information
-    Ott, Otr = O[:, :3, :3], O[:, :3, 3:]
-    shift = np.linalg.solve(Ott, np.einsum("kij,kj->ki", Otr, phi)[..., None])[..., 0]  # Ω_tt⁻¹Ω_tr φ
-    c = np.einsum("kij,kj->ki", Vi @ Mt, graph.delta_t) - shift
-    L = np.swapaxes(np.linalg.cholesky(Ott), 1, 2)
+    ViMt = Vi @ Mt
+    Bm = ViMt @ np.swapaxes(R[graph.tails], 1, 2)
+    L, K = _edge_constants(graph)
+    c = np.einsum("kij,kj->ki", ViMt, graph.delta_t) - np.einsum("kij,kj->ki", K, phi)  # − Ω_tt⁻¹Ω_tr φ
     return L @ Bm, np.einsum("kij,kj->ki", L, c)
 
 
@@ -73,7 +88,7 @@ def positions_closed_form(graph, R, *, anchor_index: int = 0, anchor_position=(0
     ta, he = el.tails < 0, el.heads < 0
     Lc[ta] += LB[ta] @ p  # residual −LB t_i + LB t_j − Lc: the anchor's known term moves to the right
     Lc[he] -= LB[he] @ p
-    x, _, stats = el.solve(EdgeSystem(el.tails, el.heads, -LB, np.ascontiguousarray(LB), Lc, el.d))
+    x, _, stats = solve(el, EdgeSystem(el.tails, el.heads, -LB, np.ascontiguousarray(LB), Lc, el.d))
     return _assemble(graph, x, anchor_index, anchor_position), stats
 
 
