@@ -118,7 +118,8 @@ def test_engine_is_one_folder_behind_one_door():
 
 #: Words of an engine's plumbing that the mathematics never needs (threads, C pointers, memory mapping,
 #: the engine's own size thresholds).
-PLUMBING = ("threading", "ctypes", "mmap", "concurrent.futures", "COMPILED_MIN", "ENGINE_MIN", "numba")
+PLUMBING = ("threading", "ctypes", "mmap", "concurrent.futures", "COMPILED_MIN", "ENGINE_MIN", "numba", "threadpoolctl",
+            "WIDE_COMPILED_MIN")
 MATHEMATICS = ("uncertainty", "rounding", "regularization", "phases", "positions", "result", "variants",
                "pipeline", "refinement", "certification", "theorem1", "graph", "posegraph", "metrics", "space",
                "so3", "posegraph3d")

@@ -32,10 +32,11 @@ from .edge_system import EdgeSystem
 from .normal_equations import GraphElimination, RenumberedFactor, marginal_blocks
 from .smallmat import cholesky, rotate, spd_inverse, spd_inverse_corner
 from .threads import cores
+from .wide import factor_wide, solve_wide
 
 __all__ = [
     "EdgeSystem", "GraphElimination", "Factor", "factorize", "solve_least_squares", "refine_normal_equations",
     "augmented_least_squares", "block_diagonal_inverse", "inverse_blocks", "whitening_2x2", "SOLVER_BACKENDS",
     "row_blocks", "unique_sorted", "cholesky", "spd_inverse", "spd_inverse_corner", "rotate",
-    "RenumberedFactor", "marginal_blocks", "cores",
+    "RenumberedFactor", "marginal_blocks", "cores", "factor_wide", "solve_wide",
 ]

@@ -1,0 +1,78 @@
+"""Systems that fill more per pose than the planar ones (3-D: the chordal relaxation and the positions with
+b = 3 on mesh-like graphs, the joint step with b = 6): the compiled multifrontal engine sooner, one BLAS thread.
+
+``factor_wide(elimination, system)`` and ``solve_wide(elimination, system)`` are ``GraphElimination.factor`` and
+``.solve`` with this policy; the compiled engine's failure (no Numba, a kernel that cannot compile, a matrix not
+positive definite) falls back to the engine's own choice, logged.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+
+__all__ = ["WIDE_COMPILED_MIN", "factor_wide", "solve_wide"]
+
+log = logging.getLogger(__name__)
+
+#: The 3-D systems (b = 3: the chordal relaxation, the positions; b = 6: the joint step) with at least this many
+#: unknowns d·b are factored by the engine's compiled multifrontal engine (``GraphElimination.factor(engine=
+#: "compiled")``), smaller ones as the engine chooses (QDLDL there). The engine's own threshold is set by the planar
+#: systems (300 000 unknowns, b ≤ 3, little fill per unknown); a 3-D graph fills more per pose and the 6×6 blocks
+#: multiply it by 36, where dense fronts pay far sooner. Measured in process (one BLAS thread, median of 7, QDLDL /
+#: compiled, the whole elimination built per call): the joint step's b = 6 factorization on torus3D (30 000
+#: unknowns) 0.74 / 0.11 s, sphere2500 (15 000) 0.175 / 0.066 s; the b = 3 systems 0.063 / 0.055 and 0.026 / 0.010
+#: s. But the first compiled factorization of a process imports Numba and loads the kernels, about 1 s: a whole
+#: ``lago-cvx solve parking-garage.g2o`` (b = 6: 9 960 unknowns, 10 ms gained in process) took 1.45-1.58 s with it
+#: against 0.75-0.91 s without. Hence the threshold above parking-garage's joint step.
+WIDE_COMPILED_MIN = 12_000
+
+
+#: The compiled factorizations of the 3-D systems run with one BLAS thread. The engine gives its largest fronts every
+#: BLAS thread; OpenBLAS's threads wait for each other by spinning, and with the other core busy (another process)
+#: the waits dominate. lago3d's default route in process, alternating, median of 5, with a loaded second core:
+#: sphere2500 0.85-0.97 s with the threads against 0.26-0.29 s with one (QDLDL, before: 0.38-0.45 s), torus3D
+#: 3.3-4.5 s against 0.37-0.60 s (QDLDL: 1.22-1.62 s).
+_ONE_BLAS_THREAD = []
+
+
+def _one_blas_thread():
+    """A context manager holding every loaded BLAS to one thread (``threadpoolctl``), or a no-op without it."""
+    if not _ONE_BLAS_THREAD:
+        try:
+            import scipy.linalg  # noqa: F401  (SciPy's own OpenBLAS loaded, so that it is found)
+            from threadpoolctl import ThreadpoolController
+
+            _ONE_BLAS_THREAD.append(ThreadpoolController())
+        except Exception as exc:  # a dependency; without it only speed is lost
+            log.debug("BLAS threads left as they are (%s)", exc)
+            _ONE_BLAS_THREAD.append(None)
+    controller = _ONE_BLAS_THREAD[0]
+    if controller is None:
+        return contextlib.nullcontext()
+    return controller.limit(limits=1, user_api="blas")
+
+
+def _compiled(elimination, system):
+    """The compiled factorization (one BLAS thread), or None (logged) when it cannot be had."""
+    try:
+        with _one_blas_thread():
+            return elimination.factor(system, engine="compiled")
+    except Exception as exc:  # no Numba, a kernel that cannot compile, NotPositiveDefinite: the engine's way
+        log.info("compiled factorization not used (%s): the engine's choice", exc)
+        return None
+
+
+def factor_wide(elimination, system):
+    """The factor of ``system``'s normal matrix (an ``EdgeSystem`` on ``elimination``, a ``GraphElimination``):
+    compiled from :data:`WIDE_COMPILED_MIN` unknowns, else (or if the compiled engine cannot run, or finds the matrix
+    not positive definite) as the engine chooses."""
+    f = _compiled(elimination, system) if system.d * system.b >= WIDE_COMPILED_MIN else None
+    return elimination.factor(system) if f is None else f
+
+
+def solve_wide(elimination, system):
+    """``elimination.solve(system)`` (x, factor, stats) on :func:`factor_wide`'s factorization: the corrected
+    semi-normal equations, the engine's fallbacks (the augmented system) included."""
+    f = _compiled(elimination, system) if system.d * system.b >= WIDE_COMPILED_MIN else None
+    return elimination.solve(system) if f is None else elimination.solve(system, factor=f)
