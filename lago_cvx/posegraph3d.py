@@ -28,21 +28,49 @@ from .so3 import log_se3
 __all__ = ["PoseGraph3D", "is_spd6", "edge_errors3d", "chi2_3d", "relative_poses"]
 
 
+def ldl_pivots(S: np.ndarray) -> np.ndarray:
+    """The pivots d (m, k) of S_e = L_e D_e L_eᵀ (unit lower L_e, no pivoting) of every symmetric S_e of ``S``
+    (m, k, k), its lower triangle read. S_e is positive definite iff every pivot is > 0 (after a zero or negative
+    pivot the later ones are meaningless, possibly NaN: they are then not > 0 either)."""
+    m, k, _ = S.shape
+    return _pivots(np.asarray(S, dtype=float).reshape(m, k * k).T.copy(), k)       # a copy: worked on in place
+
+
+def _pivots(F: np.ndarray, k: int) -> np.ndarray:
+    """:func:`ldl_pivots` on F (k·k, m): entry (r, c) of every matrix as the contiguous row r·k + c; k vectorized
+    elimination steps on the lower triangle, in place."""
+    d = np.empty((F.shape[1], k))
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        for j in range(k):
+            d[:, j] = F[j * k + j]
+            for r in range(j + 1, k):
+                lrj = F[r * k + j] / d[:, j]                                # L_e[r, j]
+                for c in range(j + 1, r + 1):
+                    F[r * k + c] -= lrj * F[c * k + j]
+    return d
+
+
 def is_spd6(info: np.ndarray, *, rtol: float = 1e-9) -> np.ndarray:
     """Boolean (m,): each matrix of ``info`` (m, k, k) is finite, symmetric to ``rtol`` of its largest entry,
-    and positive definite (all eigenvalues of its symmetric part > 0)."""
+    and positive definite (every LDLᵀ pivot > 0, :func:`ldl_pivots`)."""
     info = np.asarray(info, dtype=float)
-    m = info.shape[0]
+    m, k = info.shape[0], info.shape[-1]
     if m == 0:
         return np.zeros(0, bool)
+    F = info.reshape(m, k * k).T.copy()                         # (k·k, m), one row per entry; a copy
     with np.errstate(over="ignore", invalid="ignore"):
-        finite = np.isfinite(info).all(axis=(1, 2))
-        safe = np.where(finite[:, None, None], info, 0.0)
-        scale = np.abs(safe).max(axis=(1, 2))
-        asym = np.abs(safe - np.swapaxes(safe, 1, 2)).max(axis=(1, 2))
+        finite = np.isfinite(F).all(axis=0)
+        F[:, ~finite] = 0.0
+        scale = np.abs(F).max(axis=0)
+        upper = [(r, c) for r in range(k) for c in range(r + 1, k)]
+        asym = np.zeros(m)
+        for r, c in upper:
+            np.maximum(asym, np.abs(F[r * k + c] - F[c * k + r]), out=asym)
         sym = asym <= rtol * np.maximum(scale, 1e-300)
-        ev = np.linalg.eigvalsh(0.5 * (safe + np.swapaxes(safe, 1, 2)))
-    return finite & sym & (ev[:, 0] > 0) & np.isfinite(ev).all(axis=1)
+        for r, c in upper:                                        # the symmetric part's lower triangle
+            F[c * k + r] = 0.5 * (F[c * k + r] + F[r * k + c])
+        pivots = _pivots(F, k)
+    return finite & sym & (pivots > 0).all(axis=1)
 
 
 def _is_rotation(R: np.ndarray, tol: float = 1e-6) -> np.ndarray:

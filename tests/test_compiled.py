@@ -290,3 +290,20 @@ def test_large_systems_get_the_compiled_operator(monkeypatch):
     assert isinstance(ne.edge_operator(system), ne.EdgeOperator)
     monkeypatch.setattr(ne, "COMPILED_MIN", 0)
     assert isinstance(ne.edge_operator(system), C.CompiledEdgeOperator)
+
+
+def test_the_first_compilation_is_announced_only_without_any_cached_kernel(tmp_path):
+    """``_on_disk``: an earlier process compiled kernels when any index file exists (the planar matrix-product kernels
+    may never have been needed); none at all means Numba's first run here, which is announced."""
+    from types import SimpleNamespace
+
+    from lago_cvx.sparse.compiled import _on_disk
+
+    def kernel(name, exists):
+        path = tmp_path / f"{name}.nbi"
+        if exists:
+            path.write_text("")
+        return SimpleNamespace(_cache=SimpleNamespace(_cache_file=SimpleNamespace(_index_path=str(path))))
+
+    assert _on_disk({"a": kernel("a", True), "b": kernel("b", False)})
+    assert not _on_disk({"c": kernel("c", False), "d": kernel("d", False)})

@@ -203,3 +203,59 @@ def test_gtsam_toy_example_reads_as_3d():
         pytest.skip("gtsam's Data/toyExample.g2o not installed")
     g = read_graph(Path(spec.origin).parent / "Data" / "toyExample.g2o")
     assert g.dim == 3 and g.n_poses > 1
+
+
+# ------------------------------------------------------------------ the vectorized reader
+def _careful(monkeypatch, path):
+    """The graph read line by line (the vectorized path switched off)."""
+    import lago_cvx.io.space as space
+
+    with monkeypatch.context() as m:
+        m.setattr(space, "parse_fast", lambda *a, **k: None)
+        return space.read_graph3d(path)
+
+
+@pytest.mark.parametrize("variant", ["plain", "crlf+comments+fix", "edges only"])
+def test_vectorized_reader_equals_the_careful_one(tmp_path, monkeypatch, variant):
+    """3-D files are read by the planar files' vectorized path (``fastpath.parse_fast`` with the 3-D record types);
+    whatever it returns is bit for bit what the line-by-line reader gives, and it does read ordinary files."""
+    import lago_cvx.io.space as space
+    from lago_cvx.synthetic import space as space3d
+
+    p = write_graph(tmp_path / "w.g2o", space3d.sphere_world(10, 20, seed=5).graph)
+    lines = p.read_text().splitlines()
+    if variant == "crlf+comments+fix":
+        lines = ["# a comment", "FIX 0"] + [ln + ("   # note" if k % 7 == 0 else "") for k, ln in enumerate(lines)]
+        p.write_bytes("\r\n".join(lines).encode() + b"\r\n")
+    elif variant == "edges only":
+        p.write_text("\n".join(ln for ln in lines if ln.startswith("EDGE")) + "\n")
+    fast_calls = []
+    real_fast = space.parse_fast
+    monkeypatch.setattr(space, "parse_fast", lambda *a, **k: fast_calls.append(real_fast(*a, **k)) or fast_calls[-1])
+    fast = space.read_graph3d(p)
+    assert fast_calls and fast_calls[0] is not None, "the vectorized path gave up on an ordinary file"
+    slow = _careful(monkeypatch, p)
+    for name in ("tails", "heads", "delta_t", "delta_R", "information", "ids"):
+        a, b = getattr(fast, name), getattr(slow, name)
+        assert a.dtype == b.dtype and np.array_equal(a, b), name
+    assert (fast.initial is None) == (slow.initial is None) == (variant == "edges only")
+
+
+def test_positive_definiteness_test_agrees_with_eigenvalues():
+    from lago_cvx.posegraph3d import is_spd6, ldl_pivots
+
+    rng = np.random.default_rng(7)
+    B = rng.normal(size=(3000, 6, 6))
+    S = B @ np.swapaxes(B, 1, 2) - rng.uniform(0, 0.3, size=(3000, 1, 1)) * np.eye(6)  # some indefinite
+    S[0, 2, 3] += 1e-3                                                             # not symmetric
+    S[1, 4, 4] = np.nan
+    S[2] = 0.0
+    expected = np.linalg.eigvalsh(np.nan_to_num(S))[:, 0] > 0
+    expected[:3] = False
+    before = S.copy()
+    got = is_spd6(S)
+    assert np.array_equal(got, expected) and 0.1 < got.mean() < 0.9
+    assert np.array_equal(S, before, equal_nan=True), "is_spd6 changed its argument"
+    assert is_spd6(S[3:4])[0] == expected[3] and np.array_equal(S, before, equal_nan=True)
+    d = ldl_pivots(S[3:50])
+    assert np.allclose(d.prod(axis=1), np.linalg.det(S[3:50]), rtol=1e-9)

@@ -12,7 +12,8 @@ cache), each by a fixed number of NumPy passes — never a Python step per line 
    follows one; a ``.`` sits between digits; an ``e``/``E`` follows a digit and precedes a digit or a
    sign; within a token at most one ``.``, at most one exponent, no ``.`` after it — i.e. every token
    is ``-?D+(.D+)?([eE][+-]?D+)?``; ids have no ``.`` and no exponent.
-3. the token count of every data line (4 numbers after a vertex tag, 11 after an edge tag).
+3. the token count of every data line (planar: 4 numbers after a vertex tag, 11 after an edge tag; 3-D
+   records, passed in by ``space.py``: 8 and 30).
 4. each token put on a line of its own, for the bulk conversion.
 
 All numbers are then converted at once: by SciPy's Matrix Market reader (``scipy.io.mmread``, the
@@ -135,9 +136,9 @@ class _Chunks:
     its kind (0 vertex, 1 edge) and line number. Chunks are independent until merged in file order, so
     up to :data:`WORKERS` threads run them (NumPy releases the GIL in its loops)."""
 
-    def __init__(self, data: bytes, fmt: str, start: int, out: np.ndarray):
+    def __init__(self, data: bytes, specs: tuple, start: int, out: np.ndarray):
         self.data, self.start, self.out = data, start, out
-        vspec, espec = FORMAT_SPECS[fmt]
+        vspec, espec = specs
         self.tags = (_Tag(vspec.tag, 0, vspec.n_tokens - 1), _Tag(espec.tag, 1, espec.n_tokens - 1))
         self.arity = np.array([t.n_numbers for t in self.tags], np.int64)
         self.fix, self.equiv = Notes(), Notes()
@@ -345,13 +346,15 @@ def _rows(values: np.ndarray, kinds: np.ndarray, arity: np.ndarray, kind: int) -
     return values[sel[:, None] + np.arange(width)]
 
 
-def parse_fast(data: bytes, fmt_forced: str | None) -> Parsed | None:
+def parse_fast(data: bytes, fmt_forced: str | None, *, specs: tuple | None = None) -> Parsed | None:
     """The parsed data lines of an ordinary file, or None when anything looks unusual (then the careful
-    parser must read it)."""
+    parser must read it). ``specs``: the (vertex, edge) record types to read instead of the planar
+    format's (``space.py`` passes the 3-D ones; a tag has at most 16 bytes)."""
     start = 3 if data.startswith(BOM) else 0
     fmt = fmt_forced or _first_format(data, start)
     if fmt is None:
         return None
+    specs = specs or FORMAT_SPECS[fmt]
     flags = getattr(mmap, "MAP_PRIVATE", 0) | getattr(mmap, "MAP_ANONYMOUS", 0) | getattr(mmap, "MAP_POPULATE", 0)
     size = _HEADER + len(data) + 1
     out_map = mmap.mmap(-1, size, flags=flags) if flags else mmap.mmap(-1, size)
@@ -360,7 +363,7 @@ def parse_fast(data: bytes, fmt_forced: str | None) -> Parsed | None:
         body = out[_HEADER:_HEADER + len(data)]
         body[:start] = 32
         out[-1] = 10
-        chunks = _Chunks(data, fmt, start, body)
+        chunks = _Chunks(data, specs, start, body)
         try:
             chunks.run()
         except _GiveUp:

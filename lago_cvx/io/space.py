@@ -35,6 +35,7 @@ from ..errors import OptionError, ParseError
 from ..posegraph3d import PoseGraph3D, is_spd6
 from ..so3 import quat_to_rot, rot_to_quat
 from .careful import Notes, _convert, _Records, decode, ignored_line, read_bytes, unknown_tag, without_comment
+from .fastpath import parse_fast
 from .formats import EQUIV, FIX, NON_POSE_TAGS, SPECS, Spec
 
 __all__ = ["VERTEX3", "EDGE3", "TAGS3", "QUATERNION_TOLERANCE", "is_3d_tag", "first_tag", "read_graph3d",
@@ -179,17 +180,22 @@ def read_graph3d(path, *, data: bytes | None = None) -> PoseGraph3D:
     """Read a g2o file of ``VERTEX_SE3:QUAT`` / ``EDGE_SE3:QUAT`` records into a :class:`PoseGraph3D`
     (``name`` = the file's name). ``data``: the file's bytes when read already. Every problem raises
     :class:`ParseError` with ``path:line:`` (module docstring)."""
-    text = decode(read_bytes(path) if data is None else data)
-    verts, edges, problem, fix = _scan(text)
-    vid, vval, verr = _convert(verts, VERTEX3)
-    eid, evals, eerr = _convert(edges, EDGE3)
-    found = [p for p in (problem, verr, eerr) if p is not None]
-    if found:
-        raise ParseError(path, *min(found, key=lambda p: p[0]))
-    vlines, elines = np.asarray(verts.lines, np.int64), np.asarray(edges.lines, np.int64)
+    data = read_bytes(path) if data is None else data
+    parsed = parse_fast(data, "g2o", specs=(VERTEX3, EDGE3))  # ordinary files: vectorized (fastpath.py)
+    if parsed is not None:
+        vid, vval, vlines, eid, evals, elines, fix = (parsed.vid, parsed.vval, parsed.vlines, parsed.eid,
+                                                      parsed.evals, parsed.elines, parsed.fix)
+    else:  # anything unusual: line by line, naming the first problem
+        verts, edges, problem, fix = _scan(decode(data))
+        vid, vval, verr = _convert(verts, VERTEX3)
+        eid, evals, eerr = _convert(edges, EDGE3)
+        found = [p for p in (problem, verr, eerr) if p is not None]
+        if found:
+            raise ParseError(path, *min(found, key=lambda p: p[0]))
+        vlines, elines = np.asarray(verts.lines, np.int64), np.asarray(edges.lines, np.int64)
+        vid = vid[:, 0]
     if vid.size == 0 and eid.shape[0] == 0:
         raise ParseError(path, None, "file contains no vertices and no edges")
-    vid = vid[:, 0]
     bad_norms: list = []
     vR = _rotations(vval[:, 3:7], vlines, path, bad_norms) if vid.size else None
     eR = _rotations(evals[:, 3:7], elines, path, bad_norms)

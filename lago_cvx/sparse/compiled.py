@@ -84,11 +84,13 @@ _ANNOUNCED: list = []
 
 
 def _on_disk(kernels: dict) -> bool:
-    """True when Numba's on-disk cache holds an index for every kernel (compiled in an earlier process)."""
+    """True when Numba's on-disk cache holds an index for any kernel: an earlier process compiled the ones it used
+    (a kernel that no factorization has needed yet, such as those of the planar systems' matrix products, may be
+    missing; it compiles in about a second when first needed)."""
     import os
 
     try:
-        return all(os.path.exists(k._cache._cache_file._index_path) for k in kernels.values() if hasattr(k, "_cache"))
+        return any(os.path.exists(k._cache._cache_file._index_path) for k in kernels.values() if hasattr(k, "_cache"))
     except AttributeError:  # another Numba: nothing said
         return True
 

@@ -41,6 +41,7 @@ from .block_factor import inverse_blocks
 from .multifrontal import COMPILED_RELAX, BlockFactor, EliminationPlan, plan_from_pattern, plan_from_qdldl
 from ..progress import Progress
 from .upper_pattern import BlockUpperPattern, PoseLaplacian, PoseUpperPattern, QdldlFactor, matrix_blocks
+from .wide import WIDE_COMPILED_MIN
 
 __all__ = ["plan_from_pattern", "matrix_blocks", "EdgeSystem", "EdgeOperator", "GraphElimination", "PoseFactor", "BlockUpperPattern", "PoseUpperPattern", "QdldlFactor", "RenumberedFactor", "CompiledPoseFactor", "ENGINE_MIN", "COMPILED_MIN"]
 
@@ -87,7 +88,6 @@ ENGINE_MIN = 1_200_000
 #: against 1.50 + 0.16; with ``multifrontal.COMPILED_RELAX``; before it, 0.48 against 0.81 + 0.30, 2.31
 #: against 1.68 + 0.32, 8.5 against 3.8 + 0.24). Kept where the gain is clear of the noise.
 COMPILED_MIN = 300_000
-
 
 #: Below this many free poses the engine works in the caller's thread alone: no worker builds the
 #: elimination, and QDLDL runs no handed-over work beside its factorizations (they run when asked for).
@@ -168,10 +168,12 @@ class GraphElimination:
     factored, in order (the chordal relaxation's 2, phase 3's 3, the positions' 1 or 2): what each will
     need is prepared ahead — patterns beside another factorization, the compiled engine's layout and
     memory in a worker (``prepare``). ``ahead(task)`` hands over other work needed later (an
-    ``Ahead``); the engine runs it beside the next QDLDL factorization, else it runs when first asked for."""
+    ``Ahead``); the engine runs it beside the next QDLDL factorization, else it runs when first asked for.
+    ``wide``: the block sizes of the systems that ``factor_wide`` will factor (3-D; ``wide_compiled``)."""
 
     def __init__(self, graph, anchor_index: int, *, weights: np.ndarray | None = None,
-                 factor_laplacian: bool | None = True, expect: tuple = (), _background: bool = False):
+                 factor_laplacian: bool | None = True, expect: tuple = (), wide: tuple = (),
+                 _background: bool = False):
         n = graph.n_poses
         self.n = n
         self.d = d = n - 1
@@ -182,6 +184,7 @@ class GraphElimination:
         self.heads = self.free_of[graph.heads]
         self._weights = None if weights is None else np.asarray(weights, dtype=float)
         self._expected = [int(b) for b in expect]
+        self._wide = tuple(int(b) for b in wide)
         self._assemblers = {}
         self._preparing: dict = {}
         self._laplacian, self._lap_pending, self._lap_lock = None, None, threading.Lock()
@@ -312,10 +315,15 @@ class GraphElimination:
         return self._plan
 
     @property
+    def wide_compiled(self) -> bool:
+        """The ``wide`` systems reach ``WIDE_COMPILED_MIN`` unknowns: the compiled engine factors them all."""
+        return bool(self._wide) and self.d * max(self._wide) >= WIDE_COMPILED_MIN
+
+    @property
     def relaxation(self):
-        """The plan's amalgamation: ``multifrontal.COMPILED_RELAX`` when phase 3 (3d unknowns) will be
-        factored by the compiled engine, else None (the NumPy engine's default)."""
-        if self.d * 3 >= COMPILED_MIN and compiled.available():
+        """The plan's amalgamation: ``multifrontal.COMPILED_RELAX`` when phase 3 (3d unknowns) or the announced
+        wide systems will be factored by the compiled engine, else None (the NumPy engine's default)."""
+        if (self.d * 3 >= COMPILED_MIN or self.wide_compiled) and compiled.available():
             return COMPILED_RELAX
         return None
 

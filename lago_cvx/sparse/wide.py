@@ -3,7 +3,10 @@ b = 3 on mesh-like graphs, the joint step with b = 6): the compiled multifrontal
 
 ``factor_wide(elimination, system)`` and ``solve_wide(elimination, system)`` are ``GraphElimination.factor`` and
 ``.solve`` with this policy; the compiled engine's failure (no Numba, a kernel that cannot compile, a matrix not
-positive definite) falls back to the engine's own choice, logged.
+positive definite) falls back to the engine's own choice, logged. A ``GraphElimination`` built with ``wide=(3, 6)``
+(the block sizes of the wide systems it will factor) decides once for all of them: when the largest reaches
+:data:`WIDE_COMPILED_MIN` unknowns, the b = 3 systems are compiled too (Numba is loaded for the b = 6 one anyway), on
+a plan with the compiled engine's amalgamation.
 """
 
 from __future__ import annotations
@@ -63,16 +66,21 @@ def _compiled(elimination, system):
         return None
 
 
+def _use_compiled(elimination, system) -> bool:
+    """From :data:`WIDE_COMPILED_MIN` unknowns, this system's or the largest announced one's (module docstring)."""
+    return system.d * system.b >= WIDE_COMPILED_MIN or getattr(elimination, "wide_compiled", False)
+
+
 def factor_wide(elimination, system):
     """The factor of ``system``'s normal matrix (an ``EdgeSystem`` on ``elimination``, a ``GraphElimination``):
-    compiled from :data:`WIDE_COMPILED_MIN` unknowns, else (or if the compiled engine cannot run, or finds the matrix
-    not positive definite) as the engine chooses."""
-    f = _compiled(elimination, system) if system.d * system.b >= WIDE_COMPILED_MIN else None
+    compiled from :data:`WIDE_COMPILED_MIN` unknowns (module docstring), else (or if the compiled engine cannot run,
+    or finds the matrix not positive definite) as the engine chooses."""
+    f = _compiled(elimination, system) if _use_compiled(elimination, system) else None
     return elimination.factor(system) if f is None else f
 
 
 def solve_wide(elimination, system):
     """``elimination.solve(system)`` (x, factor, stats) on :func:`factor_wide`'s factorization: the corrected
     semi-normal equations, the engine's fallbacks (the augmented system) included."""
-    f = _compiled(elimination, system) if system.d * system.b >= WIDE_COMPILED_MIN else None
+    f = _compiled(elimination, system) if _use_compiled(elimination, system) else None
     return elimination.solve(system) if f is None else elimination.solve(system, factor=f)
