@@ -6,6 +6,7 @@
   temporary folder so the tracked ones stay as they are);
 * each lecture has two or three exercises, each with a hint, a stub cell to fill in, and one solution script
   that runs and verifies and that the site shows in a collapsed dropdown;
+* lectures 01–06 carry one running example and INTEL; a world of a section's own says why;
 * no ``matplotlib.use`` and no internal wording in the course's prose;
 * lectures/CONCORDANCE.md covers every item of the paper (../shared/SEED.md beside the project) and
   every row points at a real section, importable package names and existing tests;
@@ -235,6 +236,34 @@ def test_checks_are_hidden_in_the_site(src):
             calls += n
             hidden += n if "remove-input" in cell.metadata.get("tags", []) else 0
     assert hidden == calls, f"{src.stem}: only {hidden} of {calls} checks in remove-input cells"
+
+
+#: The lectures that carry the course's running example (issue 32): the same small world, and INTEL for real data.
+RUNNING_LECTURES = ("01", "02", "03", "04a", "04b", "05", "06")
+#: A call that draws a world of its own.
+OWN_WORLD = re.compile(r"\b(random_graph|manhattan_world|circle_world|section_v_world|grid_world|sphere_world)\(")
+#: The comment that must stand on such a line, or on the line before it, saying why.
+OWN_WORLD_REASON = re.compile(r"#\s*own world:\s*\S.{8,}")
+
+
+@pytest.mark.parametrize("src", [s for s in SOURCES if s.name.split("_")[0] in RUNNING_LECTURES],
+                         ids=lambda s: s.stem)
+def test_running_example_carries_through(src):
+    """Lectures 01–06 work on one running example (``_lecture.running_example()``, beside the intuition figure
+    that draws it) and on INTEL; a section that needs a world of its own says why in an ``# own world: …``
+    comment on the line that draws it or the line before."""
+    code = [source for cell_type, source in _cells(src.stem) if cell_type == "code"]
+    uses = sum("running_example()" in cell for cell in code)
+    assert uses >= 3, f"{src.stem}: the running example is used in {uses} code cells (at least 3)"
+    assert any("INTEL_P_toro" in cell for cell in code), f"{src.stem}: INTEL (carlone/INTEL_P_toro.graph) is not used"
+    unexplained = []
+    for cell in code:
+        lines = cell.splitlines()
+        for k, line in enumerate(lines):
+            if OWN_WORLD.search(line.split("#")[0]) and not (
+                    OWN_WORLD_REASON.search(line) or (k > 0 and OWN_WORLD_REASON.search(lines[k - 1]))):
+                unexplained.append(line.strip())
+    assert not unexplained, f"{src.stem}: worlds of their own without '# own world: <why>': {unexplained}"
 
 
 def _lecture_helpers():
