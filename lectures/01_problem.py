@@ -499,10 +499,10 @@ check(minima.size >= 3, f"{minima.size} local minima along one line")
 
 # %% [markdown]
 # **Local solvers land where they start.** Gauss–Newton linearizes the cost at the current guess and
-# converges to a *local* minimum near it. On the running example its headings are measured too well for
-# that: from dead reckoning and from LAGO it reaches one minimum. With twice the heading noise (0.1 rad) on
-# a larger Manhattan world we start it from dead reckoning (the odometry composed along the path, `odometry_guess`) and from LAGO's estimate
-# (the subject of lectures 2–6): the two runs stop in two different minima, and the cost between them
+# converges to a *local* minimum near it. On the running example the headings are measured too well for
+# a trap: from dead reckoning (the odometry composed along the path, `odometry_guess`) and from LAGO's
+# estimate (the subject of lectures 2–6) it reaches one minimum. With twice the heading noise (0.1 rad),
+# on a larger Manhattan world, the two runs stop in two different minima, and the cost between them
 # rises above the chord — a second proof of non-convexity. On a real graph (MIT) the same happens.
 
 # %%
