@@ -228,9 +228,9 @@ if INTEL is not None:
 #   = (A P_\delta^{-1} A^\top)^{-1} A P_\delta^{-1} \delta_{\rm reg}, \qquad
 #   P_\theta = (A P_\delta^{-1} A^\top)^{-1}. \tag{13}$$
 #
-# We write the left-hand form in cvxpy, for the running example, with *named* objects: the variable `θ`, the data `Aᵀ` and
-# `δ_reg`, and a **parameter** `w_δ` holding the weights $P_\delta^{-1/2}$, so that the printed problem
-# reads like the equation (cvxpy prints `sum_squares(x)` as `quad_over_lin(x, 1.0)`, i.e.
+# We write the left-hand form in cvxpy, for the running example, with *named* objects: the variable `θ`,
+# the data `Aᵀ` and `δ_reg`, and a **parameter** `w_δ` holding the weights $P_\delta^{-1/2}$, so that the
+# printed problem reads like the equation (cvxpy prints `sum_squares(x)` as `quad_over_lin(x, 1.0)`, i.e.
 # $\sum x^2 / 1$). Clarabel solves it; the package's `phase1_closed_form` computes the right-hand form
 # with a sparse factorization.
 #
