@@ -45,7 +45,7 @@ from scipy.stats import chi2 as chi2_law
 from scipy.stats import multivariate_normal
 
 import lago_cvx as lc
-from _lecture import S, check, intuition_figure, real, setup, show
+from _lecture import S, check, intuition_figure, real, running_example, setup, show
 from lago_cvx import plotting
 from lago_cvx.datasets import REFERENCE_CHI2
 from lago_cvx.errors import GraphError
@@ -149,12 +149,15 @@ check(abs(np.linalg.norm(rel[:2]) - np.linalg.norm(p_j[:2] - p_i[:2])) < 1e-12,
 # The full SLAM problem is $\min f$. The angular part of each residual is defined modulo $2\pi$; the
 # package wraps it to $[-\pi, \pi)$. **`lago_cvx.chi2` is $f$ exactly — no factor ½** (the convention of
 # g2o; GTSAM's `error()` is $f/2$). We check $-2\ln\mathcal L = f + \sum \ln\det(2\pi P_{ij})$ against
-# `scipy.stats.multivariate_normal` on a synthetic world with full $3\times3$ covariances, and that adding
-# $2\pi k$ to a measured angle does not change $f$.
+# `scipy.stats.multivariate_normal` on the running example, its measurements redrawn with full $3\times3$
+# covariances (random correlations between $x$, $y$ and $\theta$), and that adding $2\pi k$ to a measured
+# angle does not change $f$.
 
 # %%
-world = lc.manhattan_world(200, seed=0, information="full", sigma_xy=0.05, sigma_theta=0.02)
-g = world.graph
+world = running_example()
+edges = world.graph
+meas, info = add_noise(world.truth, edges.tails, edges.heads, sigma_xy=0.1, sigma_theta=0.05, rng=rng, information="full")
+g = lc.PoseGraph(edges.n_poses, edges.tails, edges.heads, meas[:, :2], meas[:, 2], info, name="running example, full P_ij")
 m = g.n_edges
 print(g)
 e = lc.edge_errors(g, world.truth)
@@ -173,8 +176,8 @@ check(abs(lc.chi2(shifted, world.truth) - f_truth) < 1e-9 * f_truth, "f is uncha
 # **Which convention? Let the data decide.** At the true poses the residuals are the noise itself, so
 # $f(\text{truth})$ is a sum of $3m$ squared standard normals: a χ² variable with $3m$ degrees of
 # freedom, mean $3m$ and standard deviation $\sqrt{6m}$. A cost with a factor ½ would have mean $3m/2$
-# instead: it would sit $(3m/2)/\sqrt{6m} = \sqrt{3m/8}$ standard deviations below $3m$. For the world
-# above that is about 10σ — the cell computes it. We redraw the noise 400 times on the same
+# instead: it would sit $(3m/2)/\sqrt{6m} = \sqrt{3m/8}$ standard deviations below $3m$. For the running
+# example ($m = 85$) that is about 5.6σ — the cell computes it. We redraw the noise 400 times on the same
 # graph (fixed truth and edges, fresh noise and covariances) and compare the histogram of $f(\text{truth})$
 # with the χ² law.
 
@@ -187,7 +190,7 @@ print(f"m = {m}: 3m = {3 * m}, √(6m) = {np.sqrt(6 * m):.1f}; f(truth) = {f_tru
 
 draws = []
 for _ in range(400):
-    meas, info = add_noise(world.truth, g.tails, g.heads, sigma_xy=0.05, sigma_theta=0.02, rng=rng, information="full")
+    meas, info = add_noise(world.truth, g.tails, g.heads, sigma_xy=0.1, sigma_theta=0.05, rng=rng, information="full")
     draws.append(lc.chi2(lc.PoseGraph(g.n_poses, g.tails, g.heads, meas[:, :2], meas[:, 2], info), world.truth))
 draws = np.array(draws)
 mean_z = (draws.mean() - 3 * m) / (np.sqrt(6 * m) / np.sqrt(draws.size))
@@ -210,8 +213,8 @@ show(fig, "chi2_law")
 
 # %% tags=["remove-input"]
 check(abs(z_f) < 3, f"f(truth) is within 3σ of 3m ({z_f:+.2f}σ): the package's χ² has no factor ½")
-check(abs(abs(z_half) - 10) < 1.5 and abs(z_half + sigmas_half) < 3,
-      f"a factor-½ convention would miss by about 10σ ({z_half:+.2f}σ; −√(3m/8) = {-sigmas_half:.2f}σ)")
+check(z_half < -4 and abs(z_half + sigmas_half) < 1.5,
+      f"a factor-½ convention would miss by about √(3m/8) σ ({z_half:+.2f}σ; −√(3m/8) = {-sigmas_half:.2f}σ)")
 
 # %% [markdown]
 # ## 3. The split residual, eq. (4), and block-diagonal noise, eq. (5)
@@ -235,12 +238,12 @@ check(abs(abs(z_half) - 10) < 1.5 and abs(z_half + sigmas_half) < 3,
 #
 # The position residual is now in the *global* frame: $R_i^\top(p_j - p_i) - \Delta^l_{ij}$ times $R_i$ is
 # $(p_j - p_i) - R_i\Delta^l_{ij}$, and its covariance rotates with it, to $R_i P_{\Delta^l,ij} R_i^\top$.
-# We evaluate eq. (4) and eq. (5) with explicit dense matrices on a small graph with block-diagonal
-# information and compare with `lago_cvx.chi2`, near the truth (where no angular residual wraps).
+# We evaluate eq. (4) and eq. (5) with explicit dense matrices ($2m \times 2m = 170 \times 170$) on the
+# running example (block-diagonal information) and compare with `lago_cvx.chi2`, near the truth.
 
 # %%
-small_world = lc.random_graph(12, 20, seed=3, sigma_xy=0.05, sigma_theta=0.03)
-gs, truth_s = small_world.graph, small_world.truth
+world = running_example()
+gs, truth_s = world.graph, world.truth
 x = truth_s + 0.05 * rng.standard_normal(truth_s.shape)          # some configuration near the truth
 A_full = lc.incidence_matrix(gs).toarray()
 A2_full = np.kron(A_full, np.eye(2))
@@ -416,7 +419,8 @@ check(np.abs(superposition).max() > 0.1, f"but not in θ: superposition fails by
 # Connectivity is what every later step needs: a disconnected graph leaves the relative placement of its
 # components undetermined. We check the lemma's proof on real graphs (the odometric edges alone — edges
 # between consecutive ids — join all $n + 1$ poses: one component) and show what breaks when its
-# hypothesis fails: two robots that never observed each other give two components, and LAGO refuses them.
+# hypothesis fails: two robots that never observed each other — two copies of the running example — give
+# two components, and LAGO refuses them.
 
 # %%
 lemma1 = {}
@@ -434,8 +438,7 @@ for rel, holds in lemma1.items():
     check(holds, f"Lemma 1 on {rel}: the odometric path alone connects all poses")
 
 # %%
-
-two_robots = lc.circle_world(20, seed=0).graph
+two_robots = running_example().graph
 offset = two_robots.n_poses
 union = lc.PoseGraph(2 * offset, np.concatenate([two_robots.tails, two_robots.tails + offset]),
                      np.concatenate([two_robots.heads, two_robots.heads + offset]),
@@ -496,13 +499,17 @@ check(minima.size >= 3, f"{minima.size} local minima along one line")
 
 # %% [markdown]
 # **Local solvers land where they start.** Gauss–Newton linearizes the cost at the current guess and
-# converges to a *local* minimum near it. On a synthetic Manhattan world with noisy headings we start it
-# from dead reckoning (the odometry composed along the path, `odometry_guess`) and from LAGO's estimate
-# (the subject of lectures 2–6): the two runs stop in two different minima, and the cost between them
+# converges to a *local* minimum near it. On the running example the headings are measured too well for
+# a trap: from dead reckoning (the odometry composed along the path, `odometry_guess`) and from LAGO's
+# estimate (the subject of lectures 2–6) it reaches one minimum. With twice the heading noise (0.1 rad),
+# on a larger Manhattan world, the two runs stop in two different minima, and the cost between them
 # rises above the chord — a second proof of non-convexity. On a real graph (MIT) the same happens.
 
 # %%
-mw = lc.manhattan_world(200, seed=0, sigma_theta=0.1, sigma_xy=0.05)
+ex = running_example().graph
+one_minimum = [refine(ex, start, max_iterations=200) for start in (odometry_guess(ex), lc.lago(ex).poses)]
+print("running example, Gauss–Newton from dead reckoning and from LAGO: cost", [f"{r.chi2:.4f}" for r in one_minimum])
+mw = lc.manhattan_world(200, seed=0, sigma_theta=0.1, sigma_xy=0.05)  # own world: heading noise that traps Gauss–Newton
 gm = mw.graph
 from_dr = refine(gm, odometry_guess(gm), max_iterations=200)
 from_lago = refine(gm, lc.lago(gm).poses, max_iterations=200)
@@ -539,6 +546,7 @@ show(fig, "local_minima")
 if mit is not None:
     check(mit_dr.chi2 > 5 * mit_lago.chi2 and abs(mit_lago.chi2 - REFERENCE_CHI2["se-sync/MIT.g2o"]) < 1e-3 * mit_lago.chi2,
           "MIT: dead reckoning leads Gauss–Newton to a far worse minimum, LAGO to the reference one")
+check(abs(one_minimum[0].chi2 - one_minimum[1].chi2) < 1e-6 * one_minimum[1].chi2, "running example: one minimum from both starts")
 check(from_dr.converged and from_lago.converged, "both runs converged")
 check(from_dr.chi2 > 10 * from_lago.chi2, f"from dead reckoning: a minimum {from_dr.chi2 / from_lago.chi2:.0f}× worse")
 check(abs(from_lago.chi2 - from_truth.chi2) < 1e-6 * from_truth.chi2, "from LAGO: the same minimum as from the truth")

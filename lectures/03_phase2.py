@@ -41,7 +41,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 import lago_cvx as lc
-from _lecture import S, check, intuition_figure, paper_lago, real, setup, show
+from _lecture import S, check, intuition_figure, paper_lago, real, running_example, setup, show
 from lago_cvx import phases, plotting
 from lago_cvx.graph import spanning_tree
 from lago_cvx.posegraph import between, rot2, wrap_angle
@@ -65,18 +65,19 @@ show(intuition_figure("03"), "intuition")
 #
 # $z$ has $2m + n$ entries: for every edge $(i, j)$, $\Delta^g_{ij} = R(\hat\theta_i)\Delta^l_{ij}$, an
 # estimate of $p_j - p_i$. Keeping $\hat\theta$ inside $z$ is the trick that preserves the correlation
-# between the rotated positions and the orientations. We run the paper's phases 1–2 on a small graph
-# with full information matrices and rebuild $z$ from eq. (9) by hand.
+# between the rotated positions and the orientations. We run the paper's phases 1–2 on the running
+# example and rebuild $z$ from eq. (9) by hand.
 
 # %%
-small = lc.random_graph(25, 45, seed=1, information="full", sigma_xy=0.1, sigma_theta=0.05).graph
-res = paper_lago(small)
+world = running_example()
+g = world.graph
+res = paper_lago(g)
 ph2 = res.phase2
 theta_hat = res.phase1.theta                                        # n + 1 entries, θ̂₀ = 0
-m, n = small.n_edges, small.n_poses - 1
-R = sla.block_diag(*rot2(theta_hat[small.tails]))
-z_eq9 = np.concatenate([R @ small.delta_l.ravel(), theta_hat[1:]])
-print(small, f"→ z has 2m + n = {ph2.z.size} entries")
+m, n = g.n_edges, g.n_poses - 1
+R = sla.block_diag(*rot2(theta_hat[g.tails]))
+z_eq9 = np.concatenate([R @ g.delta_l.ravel(), theta_hat[1:]])
+print(g, f"→ z has 2m + n = {ph2.z.size} entries")
 
 # %% tags=["remove-input"]
 check(ph2.information == "marginal" and np.abs(ph2.z - z_eq9).max() < 1e-12,
@@ -104,10 +105,10 @@ for col in range(n):
     plus, minus = theta_hat.copy(), theta_hat.copy()
     plus[col + 1] += step
     minus[col + 1] -= step
-    J_fd[:, col] = (phases.phase2(small, plus, res.uncertainty, information="marginal").delta_g
-                    - phases.phase2(small, minus, res.uncertainty, information="marginal").delta_g).ravel() / (2 * step)
+    J_fd[:, col] = (phases.phase2(g, plus, res.uncertainty, information="marginal").delta_g
+                    - phases.phase2(g, minus, res.uncertainty, information="marginal").delta_g).ravel() / (2 * step)
 J_blocks = np.zeros((2 * m, n))
-for k, i in enumerate(small.tails):
+for k, i in enumerate(g.tails):
     if i != 0:
         J_blocks[2 * k:2 * k + 2, i - 1] = S @ ph2.delta_g[k]
 
@@ -147,7 +148,7 @@ def dense_pz(graph, result):
     P_theta = np.linalg.inv(result.phase1.info.toarray())
     return Hg @ sla.block_diag(*unc.cov_delta_l, P_theta) @ Hg.T, Hg, P_theta
 
-Pz, _, P_theta = dense_pz(small, res)
+Pz, _, P_theta = dense_pz(g, res)
 P_dl = sla.block_diag(*res.uncertainty.cov_delta_l)
 explicit = np.block([[R @ P_dl @ R.T + J @ P_theta @ J.T, J @ P_theta], [P_theta @ J.T, P_theta]])
 fill = np.mean(np.abs(Pz) > 1e-12 * np.abs(Pz).max())
@@ -219,19 +220,23 @@ for anchor, holds in predicted.items():
 check(pattern[0][1] == 1 and pattern[corridor][1] == 2, "entrywise positive with the first pose as reference, not with the cut vertex")
 
 # %% [markdown]
-# The same on random graphs (the zero pattern of $P_\theta$ is predicted exactly by the components of
-# the graph minus the reference), and on a real graph: in MIT, with the reference at the cut vertex
-# nearest to the middle of the run, the entries of $P_\theta$ between the two sides vanish (the cell
-# prints how many).
+# The same on the running example, which has no cut vertex among the references tried — $P_\theta$ is
+# entrywise positive whichever of them is the reference — and on sparse random graphs, whose many cut
+# vertices give zero patterns that the components of the graph minus the reference predict exactly. On
+# a real graph, MIT, with the reference at the cut vertex nearest to the middle of the run, the entries of
+# $P_\theta$ between the two sides vanish (the cell prints how many).
 
 # %%
-random_patterns = []
+graphs_4 = {"running example": running_example().graph}
 for index in range(3):
-    rg = lc.random_graph(30, 34, seed=index).graph
+    # own world: 34 edges on 30 poses leave many cut vertices, hence zero blocks in P_θ
+    graphs_4[f"random graph {index}"] = lc.random_graph(30, 34, seed=index).graph
+random_patterns = []
+for label, rg in graphs_4.items():
     for anchor in (0, 7, 15):
         P_t, a = p_theta(rg, anchor)
         side, parts = same_side(rg, a)
-        random_patterns.append((index, anchor, parts, np.array_equal(P_t > 1e-12 * P_t.max(), side)))
+        random_patterns.append((label, anchor, parts, np.array_equal(P_t > 1e-12 * P_t.max(), side), P_t.min() > 0))
 mit = real("se-sync/MIT.g2o")
 if mit is not None:
     by_distance = sorted(range(1, mit.n_poses - 1), key=lambda i: abs(i - mit.n_poses // 2))
@@ -260,8 +265,11 @@ for ax, anchor in zip(axs[1:], (0, corridor)):
 show(fig, "ptheta_positivity")
 
 # %% tags=["remove-input"]
-for index, anchor, parts, holds in random_patterns:
-    check(holds, f"random graph {index}, reference {anchor}: {parts} component(s) without it, zero pattern predicted")
+for label, anchor, parts, holds, positive in random_patterns:
+    check(holds, f"{label}, reference {anchor}: {parts} component(s) without it, zero pattern predicted")
+    if label == "running example":
+        check(parts == 1 and positive, f"the running example minus pose {anchor} is connected: P_θ is entrywise positive")
+check(any(parts > 1 for _, _, parts, _, _ in random_patterns), "some references of the random graphs are cut vertices")
 if mit is not None:
     check(mit_predicted, "MIT: the zero pattern of P_θ is the predicted one")
 
@@ -286,7 +294,8 @@ if mit is not None:
 # $R^\top J$ has the blocks $R(\hat\theta_i)^\top S R(\hat\theta_i)\Delta^l_{ij} = S\Delta^l_{ij}$ — it
 # does not even depend on $\hat\theta$. Per edge $W$ has at most 8 non-zeros, while $P_z$ has
 # $(2m + n)^2$ entries. `Phase2.W` is this $W$; we check it against the dense construction, check
-# $W^\top W P_z = I$, and count non-zeros on a Manhattan world.
+# $W^\top W P_z = I$, and count non-zeros on the running example — and on INTEL, where $P_z$ is never
+# formed.
 
 # %%
 def w_facts(graph, result):
@@ -300,12 +309,18 @@ def w_facts(graph, result):
     inverse = np.abs(W.T @ W @ Pz_g - np.eye(2 * mm + nn)).max()
     return Pz_g, np.abs(W - W_ref).max(), np.abs(W_ref).max(), inverse, result.phase2.W.nnz, 8 * mm
 
-facts_w = {"random graph": w_facts(small, res)}
-mw = lc.manhattan_world(60, seed=2, sigma_theta=0.05).graph
+mw = running_example().graph
 res_m = paper_lago(mw)
-facts_w["Manhattan world"] = w_facts(mw, res_m)
-Pz_m = facts_w["Manhattan world"][0]
+facts_w = {"running example": w_facts(mw, res_m)}
+Pz_m = facts_w["running example"][0]
 WtW_m = (res_m.phase2.W.T @ res_m.phase2.W).tocsr()
+
+intel = real("carlone/INTEL_P_toro.graph")
+if intel is not None:
+    W_i = paper_lago(intel).phase2.W
+    size_i, WtW_i = 2 * intel.n_edges + intel.n_poses - 1, W_i.T @ W_i
+    print(f"INTEL (m = {intel.n_edges}, n = {intel.n_poses - 1}): P_z would have {size_i**2:,} entries; "
+          f"W has {W_i.nnz:,} non-zeros (8m = {8 * intel.n_edges:,}); WᵀW is {WtW_i.nnz / size_i**2:.3%} non-zero")
 
 fig, axs = plt.subplots(1, 3, figsize=(15, 5))
 nonzero = np.abs(Pz_m) > 1e-12 * np.abs(Pz_m).max()
@@ -318,7 +333,7 @@ axs[2].set_title(f"$W$ ({res_m.phase2.W.shape[0]}×{res_m.phase2.W.shape[1]}): {
 for ax in axs:
     ax.set_xlabel("entry of z = [Δᵍ (2m); θ̂ (n)]")
     ax.set_ylabel("row")
-fig.suptitle(f"Phase 2 on a Manhattan world (m = {mw.n_edges}, n = {mw.n_poses - 1}): dense covariance, sparse inverse", y=1.02)
+fig.suptitle(f"Phase 2 on the running example (m = {mw.n_edges}, n = {mw.n_poses - 1}): dense covariance, sparse inverse", y=1.02)
 show(fig, "spy")
 
 # %% tags=["remove-input"]
@@ -327,6 +342,8 @@ for label, (Pz_g, w_error, w_scale, inverse, nnz, bound) in facts_w.items():
     check(inverse < 1e-8, f"{label}: WᵀW P_z = I (max deviation {inverse:.0e})")
     check(nnz <= bound, f"{label}: nnz(W) = {nnz} ≤ 8m = {bound}; P_z has {Pz_g.size} entries")
 check(WtW_m.nnz < 0.1 * Pz_m.size, "the information P_z⁻¹ = WᵀW is sparse")
+if intel is not None:
+    check(W_i.nnz <= 8 * intel.n_edges and WtW_i.nnz < 1e-3 * size_i**2, "INTEL: nnz(W) ≤ 8m, and WᵀW is sparser than 0.1 %")
 
 # %% [markdown]
 # ## 6. Monte Carlo: the first-order covariance, and where first order stops being exact
@@ -348,6 +365,7 @@ check(WtW_m.nnz < 0.1 * Pz_m.size, "the information P_z⁻¹ = WᵀW is sparse")
 # *non-linearity* $\|\hat S_z - \hat S_{\rm lin}\|$ shrinks when $\sigma$ does.
 
 # %%
+# own world: 7 poses up to ~20 m apart — long lever arms, and a z small enough for 1000 draws
 base = lc.random_graph(7, 11, seed=6, spread=10.0, sigma_xy=0.0, sigma_theta=0.0)
 tails, heads, truth = base.graph.tails, base.graph.heads, base.truth
 true_rel = between(truth[tails], truth[heads])
