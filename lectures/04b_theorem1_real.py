@@ -48,11 +48,11 @@ from lago_cvx.plotting import plot_covariances, plot_trajectory
 from lago_cvx.posegraph import wrap_angle
 from lago_cvx.positions import resolve_positions
 from lago_cvx.theorem1 import frozen_and_model, theorem1
-from _lecture import FULL, check, intuition_figure, paper_lago, real, setup, show
+from _lecture import FULL, check, intuition_figure, paper_lago, real, running_example, setup, show
 
 setup("04b_theorem1_real")
 
-world = lc.random_graph(25, 45, seed=0, sigma_xy=0.1, sigma_theta=0.05)   # lecture 4a's small world
+world = running_example()                                 # the graph of lecture 4a, sections 1–5
 g = world.graph
 res = paper_lago(g)
 n = g.n_poses - 1
@@ -324,6 +324,7 @@ seeds = range(6 if FULL else 3)
 excess = np.zeros((len(seeds), noise_scales.size, 2))
 for a, seed in enumerate(seeds):
     for b, s in enumerate(noise_scales):
+        # own world: full 3×3 information (the running example's is diagonal), the noise scaled down
         wf = lc.random_graph(30, 70, seed=seed, information="full", sigma_xy=0.05 * s, sigma_theta=0.02 * s)
         best = lc.refine(wf.graph, wf.truth, tolerance=1e-14, max_iterations=100).chi2
         excess[a, b] = [lc.lago(wf.graph, information=i, positions="phase3").chi2 / best - 1
@@ -358,8 +359,8 @@ check(1.8 < slope < 2.2, f"information='full': excess ∝ σ^{slope:.2f} — fir
 # $P_{\rho^*} = (BP_z^{-1}B^\top)^{-1}$ is dense, but a pose's marginal covariance is only a $3\times3$ block
 # of it (order $x, y, \theta$). `LagoResult.pose_covariances()` returns all of them without forming the
 # dense inverse: it reuses the sparse factorization of $BP_z^{-1}B^\top$ that phase 3 computed. We compare
-# it with the dense inverse on the small graph, with plain sparse solves for a few poses of INTEL, and
-# with a Monte Carlo estimate.
+# it with the dense inverse on the running example, with plain sparse solves for a few poses of INTEL, and
+# with a Monte Carlo estimate on the running example.
 
 # %%
 cov = res.phase3.pose_covariances()
@@ -387,16 +388,17 @@ if intel is not None:
     inverse = spla.LinearOperator(lu.shape, matvec=lu.solve, rmatvec=lambda x: lu.solve(x, trans="T"), dtype=float)
     kappa = spla.norm(r_intel.phase3.info, 1) * spla.onenormest(inverse)
 
-# Monte Carlo: a 100-pose Manhattan world, fresh noise in every draw; its last pose's scatter vs its covariance
-mc_world = lc.manhattan_world(100, seed=4, sigma_xy=0.05, sigma_theta=0.02)
+# Monte Carlo: the running example with fresh noise in every draw; its last pose's scatter vs its covariance
+mc_world = running_example()
 gm, last_pose = mc_world.graph, mc_world.graph.n_poses - 1
+sigma = 1.0 / np.sqrt(gm.information[:, [0, 1, 2], [0, 1, 2]])          # the noise its information states
 pred = paper_lago(gm).pose_covariances()[last_pose][:2, :2]
 exact = lc.between(mc_world.truth[gm.tails], mc_world.truth[gm.heads])   # the same truth and edges ...
 rng = np.random.default_rng(1)
 draws = 200
 last = []
 for k in range(draws):
-    meas = exact + rng.standard_normal(exact.shape) * [0.05, 0.05, 0.02]   # ... with fresh noise
+    meas = exact + rng.standard_normal(exact.shape) * sigma                # ... with fresh noise
     gk = lc.PoseGraph(gm.n_poses, gm.tails, gm.heads, meas[:, :2], wrap_angle(meas[:, 2]), gm.information)
     last.append(paper_lago(gk).poses[last_pose, :2])
 last = np.array(last)
@@ -411,29 +413,29 @@ if intel is not None:
 check(0.75 < ratio < 1.33, f"Monte Carlo ({draws} draws): trace of the position scatter / predicted = {ratio:.2f}")
 
 # %% [markdown]
-# Left: a 300-pose Manhattan world with the 3σ position ellipse of every fourth pose — the uncertainty grows
+# Left: the running example with the 3σ position ellipse of every other pose — the uncertainty grows
 # with the distance from pose 0 and shrinks where loop closures tie the trajectory. Right: the Monte Carlo
-# estimates of the last pose of a 100-pose world and the predicted 3σ ellipse around its true position. A
+# estimates of its last pose and the predicted 3σ ellipse around its true position. A
 # 2-D Gaussian falls inside its 3σ ellipse with probability $1 - e^{-9/2}$.
 
 # %%
-wm = lc.manhattan_world(300, seed=4, sigma_xy=0.05, sigma_theta=0.01)
+wm = running_example()
 rm = paper_lago(wm.graph)
 cov_m = rm.pose_covariances()
 e_pos = rm.poses[1:, :2] - wm.truth[1:, :2]                     # truth and estimate share pose 0 = origin
 maha = np.einsum("ka,kab,kb->k", e_pos, np.linalg.inv(cov_m[1:, :2, :2]), e_pos)
 inside = np.mean(maha <= 9.0)
-print(f"Manhattan world: {inside:.1%} of the true positions inside their 3σ ellipse "
+print(f"running example: {inside:.1%} of the true positions inside their 3σ ellipse "
       f"(a 2-D Gaussian: {1 - np.exp(-4.5):.1%}); the poses are correlated, so this is one draw, not a test")
 off = last - mc_world.truth[last_pose, :2]
 inside_mc = np.mean(np.einsum("ka,ab,kb->k", off, np.linalg.inv(pred), off) <= 9.0)
 
 fig, axes = plt.subplots(1, 2, figsize=(12.5, 5.6), gridspec_kw={"width_ratios": [1.4, 1]})
-plot_covariances(axes[0], rm.poses, cov_m, every=4, n_sigma=3.0, color="tab:blue", alpha=0.25)
+plot_covariances(axes[0], rm.poses, cov_m, every=2, n_sigma=3.0, color="tab:blue", alpha=0.25)
 plot_trajectory(axes[0], wm.truth, label="ground truth", color="k", linewidth=0.8, style="--")
 plot_trajectory(axes[0], rm.poses, label="LAGO estimate", color="tab:red", linewidth=1.2)
 axes[0].plot(0, 0, "k^", markersize=9, label="pose 0")
-axes[0].set_title(f"Manhattan world, {wm.graph.n_poses} poses: 3σ ellipses of phase 3")
+axes[0].set_title(f"The running example, {wm.graph.n_poses} poses: 3σ ellipses of phase 3")
 axes[0].legend(fontsize=8)
 axes[1].plot(last[:, 0], last[:, 1], ".", markersize=3, alpha=0.5, label=f"{draws} Monte Carlo estimates")
 plot_covariances(axes[1], mc_world.truth[last_pose:], pred[None], n_sigma=3.0, color="tab:orange", alpha=0.3)
@@ -441,7 +443,7 @@ axes[1].plot(*mc_world.truth[last_pose, :2], "k+", markersize=12, label="true po
 axes[1].set_aspect("equal", adjustable="datalim")
 axes[1].set(xlabel="x [m]", ylabel="y [m]")
 axes[0].set(xlabel="x [m]", ylabel="y [m]")
-axes[1].set_title(f"last pose of a {gm.n_poses}-pose world: predicted 3σ ellipse")
+axes[1].set_title("its last pose: predicted 3σ ellipse")
 axes[1].legend(fontsize=8)
 fig.tight_layout()
 show(fig, "covariances")

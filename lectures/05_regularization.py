@@ -37,7 +37,7 @@ from lago_cvx.plotting import plot_edges, plot_trajectory
 from lago_cvx.regularization import regularize
 from lago_cvx.rounding import AMBIGUITY_MARGIN
 from lago_cvx.uncertainty import edge_uncertainty
-from _lecture import FULL, check, intuition_figure, paper_lago, real, setup, show, solve_qp
+from _lecture import FULL, check, intuition_figure, paper_lago, real, running_example, setup, show, solve_qp
 
 setup("05_regularization")
 TWO_PI = 2 * np.pi
@@ -60,7 +60,7 @@ show(intuition_figure("05"), "intuition")
 # regularized $\delta_{\rm reg}$, changing only `δ.value`.
 
 # %%
-circle = lc.circle_world(8, laps=1, seed=0, sigma_xy=0.0, sigma_theta=0.0)
+circle = lc.circle_world(8, laps=1, seed=0, sigma_xy=0.0, sigma_theta=0.0)   # own world: the paper's one-loop example
 gc = circle.graph
 odo = gc.is_odometric
 print(f"{gc!r}\nodometric δ: {np.round(gc.delta[odo], 4)}\nloop closure {gc.tails[~odo][0]}→{gc.heads[~odo][0]}: "
@@ -99,7 +99,7 @@ check(np.allclose(lam, -2 * w.value ** 2 * e.value, atol=1e-9) and np.abs(At.val
 # headings; with it, the estimate is exact.
 
 # %%
-w4 = lc.circle_world(120, laps=4, seed=0, sigma_xy=0.0, sigma_theta=0.0)
+w4 = lc.circle_world(120, laps=4, seed=0, sigma_xy=0.0, sigma_theta=0.0)   # own world: noiseless, four laps
 g4 = w4.graph
 unc4 = edge_uncertainty(g4)
 raw1 = P.phase1_closed_form(g4, g4.delta, unc4)                       # phase 1 on the raw, wrapped δ
@@ -234,15 +234,14 @@ check(C8.shape[0] == lc.cyclomatic_number(eight) == eight.n_edges - (eight.n_pos
 check(np.array_equal(C8.T @ coef, eight_cycle), f"Theorem 2: the figure-eight cycle = Σ (its chord entries {coef}) × circuits")
 
 # %% [markdown]
-# The same on larger graphs and every kind of tree, including a real one: the rows are circuits,
-# independent, as many as $m - n$, and any cycle — here random integer combinations of the circuits of
-# *another* tree — has its own chord entries as coordinates.
+# The same on larger graphs and every kind of tree — the running example, a random graph without odometry
+# and INTEL: the rows are circuits, independent, as many as $m - n$, and any cycle — here random integer
+# combinations of the circuits of *another* tree — has its own chord entries as coordinates.
 
 # %%
 intel = real("carlone/INTEL_P_toro.graph")
-CASES = [("random 40 poses / 75 edges", lc.random_graph(40, 75, seed=3).graph, ("bfs", "mst")),
-         ("circle 60 poses, 3 laps", lc.circle_world(60, laps=3, seed=4).graph, ("bfs", "odometry", "mst")),
-         ("Manhattan 300 poses", lc.manhattan_world(300, seed=1).graph, ("bfs", "odometry", "mst"))]
+CASES = [("running example", running_example().graph, ("bfs", "odometry", "mst")),
+         ("random 40 poses / 75 edges", lc.random_graph(40, 75, seed=3).graph, ("bfs", "mst"))]  # own world: no odometry
 if intel is not None:
     CASES.append(("INTEL_P_toro (real)", intel, ("bfs", "odometry")))
 rng, spanning = np.random.default_rng(0), []
@@ -322,8 +321,7 @@ for name, gr, kinds in CASES:
 # does exactly this, computing $C\delta$ through tree path sums without forming $C$.
 
 # %%
-wn = lc.circle_world(120, laps=4, seed=1, sigma_xy=0.0, sigma_theta=0.0)
-gn = wn.graph
+gn = g4                                                            # the noiseless 4-lap circle of section 1
 tree = lc.spanning_tree(gn, "odometry")
 C = lc.cycle_basis(gn, tree)
 q = C @ gn.delta / TWO_PI
@@ -351,11 +349,10 @@ check(np.allclose(reg.delta_reg, gn.delta + v, atol=1e-9) and np.all(reg.k[tree.
 # only, eq. (23)), phase 1 the noise (all edges). The multipliers $\nu$ of the $l$ constraints are one per fundamental circuit — the
 # "tension" of each loop, $\nu = 2(CP_\delta C^\top)^{-1}C\delta$. For correctly regularized measurements the
 # weighted size of $v^\star$ is the phase-1 residual, a $\chi^2$ with $l$ degrees of freedom: about $l$. We solve it
-# with $C\delta$ a parameter, first for the regularized and then for the raw measurements of a noisy winding world.
+# with $C\delta$ a parameter, first for the regularized and then for the raw measurements of the running example.
 
 # %%
-noisy = lc.circle_world(120, laps=4, seed=2, sigma_xy=0.05, sigma_theta=0.02)
-gq = noisy.graph
+gq = running_example().graph                                       # noisy, its headings wind over two turns
 tq = lc.spanning_tree(gq, "odometry")
 Cq = lc.cycle_basis(gq, tq).toarray()
 uq = edge_uncertainty(gq)
@@ -381,14 +378,15 @@ diffs = lc.reduced_incidence(gq).T @ ph1.theta_free
 e_ph1 = np.abs(regq.delta_reg + v_reg - diffs).max()
 nu_formula = 2 * np.linalg.solve(Cq @ np.diag(uq.var_delta) @ Cq.T, Cq @ regq.delta_reg)
 fig, axes = plt.subplots(1, 2, figsize=(12, 3.8))
-axes[0].hist(Cq @ gq.delta / TWO_PI, bins=60, color="tab:red")
+axes[0].hist(Cq @ gq.delta / TWO_PI, bins=30, color="tab:red")
 axes[0].set_title("C δ / 2π on the raw measurements: near integers")
-axes[1].hist(Cq @ regq.delta_reg / TWO_PI, bins=60, color="tab:blue")
+axes[1].hist(Cq @ regq.delta_reg / TWO_PI, bins=30, color="tab:blue")
 axes[1].set_title("C δ_reg / 2π after the rounding of eq. (23): near 0")
 for ax in axes:
     ax.set_xlabel("circuit sum / 2π")
     ax.set_ylabel("fundamental circuits")
-fig.suptitle(f"noisy circle world, 4 laps, {Cq.shape[0]} fundamental circuits of the odometric tree")
+    ax.yaxis.get_major_locator().set_params(integer=True)
+fig.suptitle(f"the running example: {Cq.shape[0]} fundamental circuits of the odometric tree")
 fig.tight_layout()
 show(fig, "circuit_sums")
 
@@ -421,7 +419,7 @@ reg4 = regularize(g4, lc.spanning_tree(g4, "odometry"))             # the 4-lap 
 turns = np.rint((w4.truth[g4.heads, 2] - w4.truth[g4.tails, 2] - g4.delta) / TWO_PI).astype(int)
 
 # %% tags=["remove-input"]
-for name, gr in [("circle 120 poses, 4 laps", g4), ("Manhattan 300 poses", CASES[2][1])] + \
+for name, gr in [("circle 120 poses, 4 laps", g4), ("running example", running_example().graph)] + \
         ([("INTEL_P_toro (real)", intel)] if intel is not None else []):
     t_odo = lc.spanning_tree(gr, "odometry")
     check(np.array_equal(np.sort(t_odo.tree_edges), np.flatnonzero(gr.is_odometric))
@@ -459,7 +457,7 @@ for sig in SIGMAS:
     counts = {kind: 0 for kind in wrong}
     amb = {kind: 0 for kind in TREES}
     for seed in SEEDS:
-        wm = lc.manhattan_world(1000, seed=seed, sigma_theta=sig)
+        wm = lc.manhattan_world(1000, seed=seed, sigma_theta=sig)         # own world: noise swept over many worlds
         gm = wm.graph
         t_true = wm.truth[gm.heads, 2] - wm.truth[gm.tails, 2]
         wrap = np.rint((gm.delta - t_true) / TWO_PI)
