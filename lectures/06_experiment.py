@@ -5,8 +5,7 @@
 # two tables (Table I, Table II) and three figures (Fig. 1–3). This lecture re-runs that experiment with
 # `lago_cvx` on `carlone/INTEL_P_toro.graph`, the Intel graph in TORO format; runs Table II's two
 # covariance scenarios on a world with known truth; and then asks the question the abstract answers — is
-# the linear estimate accurate enough that refinement is often unnecessary? — on every benchmark graph at
-# hand.
+# the linear estimate accurate enough that refinement is often unnecessary? — on every graph at hand.
 #
 # **The idea in one paragraph.** A robot drives around an office floor; odometry corrected by scan matching
 # gives a trajectory that is right locally and drifts globally, and loop closures say where it came back to
@@ -476,13 +475,15 @@ for (label, errs), table in zip(curves.items(), (table_a, table_b)):
 # ## 7. The abstract's claim on every real graph
 #
 # The abstract says that "the experimental analysis demonstrates that such refinement is often unnecessary,
-# since the linear estimate is already accurate". Without ground truth, accuracy is the cost the estimate
-# leaves: χ² of eq. (3) at LAGO's estimate over the minimum, found by Gauss–Newton from the default route and
-# checked against the lowest χ² known for each file (`lago_cvx.datasets.REFERENCE_CHI2`). The first row is
-# the running example, for comparison. Two columns diagnose a failure of the paper's procedure: the ambiguous
-# chords of its regularization (cycle residuals within 0.5 rad of ±π, where the $2k\pi$ rounding may be
-# wrong) and χ² at Theorem 1's sub-optimal estimate $\hat\rho = [\hat p; \hat\theta]$. Last, for the paper's
-# other use — LAGO as an iterative solver's initial guess — Gauss–Newton's iterations from LAGO and from odometry.
+# since the linear estimate is already accurate" (abstract: refinement often unnecessary). Without ground
+# truth, accuracy is the cost the estimate leaves: χ² of eq. (3) at LAGO's estimate over the minimum, found
+# by Gauss–Newton from the default route and checked against the lowest χ² known for each file
+# (`lago_cvx.datasets.REFERENCE_CHI2`). The first row is the running example, for comparison. Two columns
+# diagnose a failure of the paper's procedure: the ambiguous chords of its regularization (cycle residuals
+# within 0.5 rad of ±π, where the $2k\pi$ rounding may be wrong) and χ² at Theorem 1's sub-optimal estimate
+# $\hat\rho = [\hat p; \hat\theta]$ (the positions of eq. (14) for phase 1's orientations). Last, for the
+# paper's other use — LAGO as an iterative solver's initial guess — Gauss–Newton's iterations from LAGO and
+# from odometry.
 
 # %%
 FILES = [f for f in DATASET_FILES if f in REFERENCE_CHI2]
