@@ -75,10 +75,11 @@ show(intuition_figure("02"), "intuition")
 #
 # Two checks. On a *noiseless* robot that drives three times around a circle, the raw $\delta$ violate
 # eq. (8) by multiples of $2\pi$; regularized along the odometric path (the paper's choice) they satisfy
-# it exactly, and the solution is the true (unwrapped) heading. On the running example (noisy, headings
-# over more than two turns) the residual $\delta_{\rm reg} - A^\top\theta^{\rm true}$ of the regularized
-# model is exactly the measurement noise: no stray $2\pi$ left — in its own measurements and in 20 fresh
-# noise draws on its poses and edges, whose standardized residuals together are standard normal.
+# it exactly, and the solution is the true (unwrapped) heading. On the running example (noisy, true
+# headings up to $2.5\pi$, beyond a full turn, so that some raw $\delta$ miss $A^\top\theta^{\rm true}$ by
+# $2\pi$) the residual $\delta_{\rm reg} - A^\top\theta^{\rm true}$ of the regularized model is exactly the
+# measurement noise: no stray $2\pi$ left — in its own measurements and in 20 fresh noise draws on its
+# poses and edges, whose standardized residuals together are standard normal.
 
 # %%
 def regularized(graph, tree="odometry"):
@@ -123,6 +124,9 @@ print(f"{len(graphs)} noise draws, {standardized.size} standardized residuals: m
       f"std {standardized.std():.3f}")
 
 # %% tags=["remove-input"]
+raw1 = g1.delta - A1.T @ theta_true1
+check(theta_true1.max() > 2 * np.pi and np.abs(raw1).max() > np.pi,
+      f"running example: true headings beyond a full turn; {np.sum(np.abs(raw1) > np.pi)} raw δ miss Aᵀθ_true by 2π")
 check(exact < 1e-9, "δ_reg − Aᵀθ_true is exactly the wrapped measurement noise, in every draw")
 check(abs(standardized.mean()) < 4 / np.sqrt(standardized.size) and abs(standardized.std() - 1) < 0.1,
       "and it is standard normal after scaling by P_δ^(−1/2)")

@@ -221,8 +221,9 @@ check(pattern[0][1] == 1 and pattern[corridor][1] == 2, "entrywise positive with
 
 # %% [markdown]
 # The same on the running example, which has no cut vertex among the references tried — $P_\theta$ is
-# entrywise positive whichever of them is the reference — and on sparse random graphs, whose many cut
-# vertices give zero patterns that the components of the graph minus the reference predict exactly. On
+# entrywise positive whichever of them is the reference — and on sparse random graphs (34 edges on 30
+# poses), where some of the references tried are cut vertices (the checks print the components) and the
+# components of the graph minus the reference predict the zero pattern exactly. On
 # a real graph, MIT, with the reference at the cut vertex nearest to the middle of the run, the entries of
 # $P_\theta$ between the two sides vanish (the cell prints how many).
 
@@ -269,7 +270,9 @@ for label, anchor, parts, holds, positive in random_patterns:
     check(holds, f"{label}, reference {anchor}: {parts} component(s) without it, zero pattern predicted")
     if label == "running example":
         check(parts == 1 and positive, f"the running example minus pose {anchor} is connected: P_θ is entrywise positive")
-check(any(parts > 1 for _, _, parts, _, _ in random_patterns), "some references of the random graphs are cut vertices")
+tried = [parts for label, _, parts, _, _ in random_patterns if label != "running example"]
+check(sum(p > 1 for p in tried) > 0, f"{sum(p > 1 for p in tried)} of the {len(tried)} references tried on the random "
+      "graphs are cut vertices")
 if mit is not None:
     check(mit_predicted, "MIT: the zero pattern of P_θ is the predicted one")
 

@@ -352,7 +352,7 @@ check(np.allclose(reg.delta_reg, gn.delta + v, atol=1e-9) and np.all(reg.k[tree.
 # with $C\delta$ a parameter, first for the regularized and then for the raw measurements of the running example.
 
 # %%
-gq = running_example().graph                                       # noisy, its headings wind over two turns
+gq = running_example().graph                                       # noisy, true headings up to 2.5π (lecture 2)
 tq = lc.spanning_tree(gq, "odometry")
 Cq = lc.cycle_basis(gq, tq).toarray()
 uq = edge_uncertainty(gq)

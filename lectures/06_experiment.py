@@ -612,7 +612,7 @@ if INTEL is not None:
 # Absolute trajectory errors need the estimate rigidly aligned to the truth first (the estimate lives in the
 # frame of its reference pose). Show that $\varepsilon_t$ and $\varepsilon_\theta$ of section 5 do not: for
 # any rigid motion $T$ of the plane, $(T\oplus\hat p_i)^{-1}\oplus(T\oplus\hat p_j) = \hat p_i^{-1}\oplus
-# \hat p_j$. Check it numerically on a LAGO estimate of the world of section 5 with a random $T$, and show
+# \hat p_j$. Check it numerically on a LAGO estimate of a synthetic Manhattan world with a random $T$, and show
 # that the ATE (`lc.ate(..., align=False)`) does change.
 #
 # **Hint.** Apply $T$ with `lc.compose(np.broadcast_to(T, poses.shape), poses)`; `relation_errors` of
