@@ -184,8 +184,8 @@ def section_v_world(n_poses=500, *, seed=1, noise="proportional", sigma_xy=0.02,
 
 
 def running_example():
-    """The course's running example: a 60-pose Manhattan world with 26 loop closures whose headings wind
-    over more than two turns (``lc.manhattan_world(60, seed=1, sigma_xy=0.1, sigma_theta=0.05)``); the real
+    """The course's running example: a 60-pose Manhattan world with 26 loop closures whose true headings reach
+    2.5π, beyond a full turn (``lc.manhattan_world(60, seed=1, sigma_xy=0.1, sigma_theta=0.05)``); the real
     graph that goes with it is INTEL (``carlone/INTEL_P_toro.graph``)."""
     return lc.manhattan_world(60, seed=1, sigma_xy=0.1, sigma_theta=0.05)
 
