@@ -351,3 +351,28 @@ def test_edge_operator_is_the_sparse_matrix(q, b, extra):
         assert mv.shape == (m, q) + extra and rv.shape == (d, b) + extra
         assert np.allclose(mv.reshape(m * q, k), M @ x.reshape(d * b, k), rtol=1e-13, atol=1e-13)
         assert np.allclose(rv.reshape(d * b, k), M.T @ r.reshape(m * q, k), rtol=1e-13, atol=1e-13)
+
+
+def test_postorder_by_loops_equals_scipys_depth_first_order(monkeypatch):
+    """``multifrontal._postorder``: the loops for small forests give exactly the order of the reversed depth-first
+    preorder of ``scipy.sparse.csgraph`` (the elimination order, hence every result, is unchanged)."""
+    from lago_cvx.sparse import multifrontal
+
+    rng = np.random.default_rng(3)
+    forests = [np.array([-1]), np.array([-1, -1, -1]), np.array([1, 2, -1]), np.array([2, 2, -1, -1])]
+    for n in (5, 40, 300, 2000):
+        parent = np.full(n, -1, np.int64)
+        for i in range(n - 1):
+            if rng.random() < 0.9:
+                parent[i] = rng.integers(i + 1, min(n, i + 1 + rng.integers(1, 30)))
+        forests.append(parent)
+    for parent in forests:
+        by_loops = multifrontal._postorder(parent)
+        with monkeypatch.context() as m:
+            m.setattr(multifrontal, "POSTORDER_LOOPS_MAX", -1)
+            by_scipy = multifrontal._postorder(parent)
+        assert by_loops.dtype == by_scipy.dtype and np.array_equal(by_loops, by_scipy), parent[:20]
+        place = np.empty(parent.size, np.int64)
+        place[by_loops] = np.arange(parent.size)
+        has = parent >= 0
+        assert (place[has] < place[parent[has]]).all()  # children before parents

@@ -14,12 +14,9 @@ WORLDS3D = ("sphere3d", "torus3d", "grid3d")
 
 
 def _components(graph) -> int:
-    import scipy.sparse as sp
-    from scipy.sparse.csgraph import connected_components
+    from ..graph import connected_components
 
-    n = graph.n_poses
-    A = sp.coo_matrix((np.ones(graph.n_edges), (graph.tails, graph.heads)), shape=(n, n))
-    return int(connected_components(A, directed=False)[0])
+    return connected_components(graph)[0]
 
 
 def info3d(args, graph) -> int:

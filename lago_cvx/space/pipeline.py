@@ -20,7 +20,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import GraphError, OptionError, check_choice
+from ..errors import OptionError, check_choice
+from ..graph import check_connected
 from ..posegraph3d import chi2_3d
 from ..solvers import check_method
 from ..so3 import exp_so3
@@ -88,17 +89,9 @@ def _joint(graph, t0, R0, cost0, a, solve_positions, elimination=None):
 
 
 def _check_connected(graph) -> None:
-    """``GraphError`` naming the component sizes when the graph is not connected (the systems would be singular)."""
-    import scipy.sparse as sp
-    from scipy.sparse.csgraph import connected_components
-
-    n = graph.n_poses
-    A = sp.coo_matrix((np.ones(graph.n_edges), (graph.tails, graph.heads)), shape=(n, n))
-    k, labels = connected_components(A, directed=False)
-    if k > 1:
-        sizes = sorted(np.bincount(labels).tolist(), reverse=True)
-        raise GraphError(f"the graph is not connected: {k} components of sizes {sizes[:5]}"
-                         f"{' ...' if k > 5 else ''}; LAGO needs one")
+    """``GraphError`` naming the components when the graph is not connected (the systems would be singular):
+    ``lago_cvx.graph.check_connected`` on the edges' ends (it imports no SciPy graph module)."""
+    check_connected(graph)
 
 
 def lago3d(graph, *, route: str = "default", method: str = "closed_form", weighting: str = "isotropic",
