@@ -13,6 +13,8 @@ The door, in the spirit of scikit-sparse's ``cholesky(A) -> Factor``:
   shared by every system solved on it: ``.factor(system) -> Factor``, ``.solve(system) -> (x, factor, stats)``;
   ``GraphElimination.start(…, expect=…)`` builds it in a worker while the caller goes on, and
   ``.ahead(task)`` hands over work needed later (overlap and prefetching live here, not in the caller);
+* ``factor_wide(elimination, system)`` / ``solve_wide`` — the same for the 3-D systems, which fill more per pose:
+  the compiled engine sooner, decided once per elimination built with ``wide=(3, 6)`` (its block sizes);
 * ``factorize(N) -> Factor`` and ``solve_least_squares(M, b)`` for a sparse matrix of any other pattern;
 * ``Factor`` — ``solve(rhs)``; ``marginal_blocks(N, var_index, factor=…)`` the diagonal blocks of N⁻¹ by
   selected inversion (``block_diagonal_inverse`` by column solves for small blocks of any factor);
