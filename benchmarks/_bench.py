@@ -61,6 +61,22 @@ def run_child(argv: list, *, env: dict | None = None, cwd=None) -> tuple[float, 
         return wall, usage.ru_maxrss / 1024, out.read().decode()
 
 
+def alternating(first: list, second: list, pairs: int) -> tuple[list, list]:
+    """Two commands run as child processes in turn (first, second, first, …) after one warm-up each (file cache,
+    bytecode), so that a drift of the machine's speed hits both: ([(wall s, peak MiB)] × pairs, the same)."""
+    run_child(first), run_child(second)
+    a, b = [], []
+    for _ in range(pairs):
+        a.append(run_child(first)[:2])
+        b.append(run_child(second)[:2])
+    return a, b
+
+
+def have_gtsam() -> bool:
+    """True when this Python can import ``gtsam`` (asked of a child process: nothing is imported here)."""
+    return subprocess.run([sys.executable, "-c", "import gtsam"], capture_output=True).returncode == 0
+
+
 # ------------------------------------------------------------------------------------- the machine
 def machine() -> str:
     """'CPU model, N cores, architecture, memory, Python x.y.z, numpy a.b.c' of the machine running the

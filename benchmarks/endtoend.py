@@ -14,7 +14,6 @@ import importlib.util
 import os
 import resource
 import statistics
-import subprocess
 import sys
 import tempfile
 from pathlib import Path
@@ -25,21 +24,11 @@ FILES = ("se-sync/city10000.g2o", "carlone/input_M3500_g2o.g2o", "se-sync/MIT.g2
 GTSAM_SCRIPT = _bench.HERE.parent.parent / "shared" / "bench" / "gtsam_lago.py"
 
 
-def _run(argv: list) -> tuple[float, float]:
-    """(wall seconds, peak resident MiB) of one child process (``_bench.run_child``)."""
-    wall, peak, _ = _bench.run_child(argv)
-    return wall, peak
-
-
-def _have_gtsam() -> bool:
-    return subprocess.run([sys.executable, "-c", "import gtsam"], capture_output=True).returncode == 0
-
-
 def run(args) -> str:
     skipped = _bench.datasets_skipped()
     if skipped:
         return skipped
-    if not GTSAM_SCRIPT.is_file() or not _have_gtsam():
+    if not GTSAM_SCRIPT.is_file() or not _bench.have_gtsam():
         return f"skipped: GTSAM's side needs {GTSAM_SCRIPT} and the `gtsam` extra"
     pairs = max(9, args.repeat)
     rows = []
@@ -51,11 +40,7 @@ def run(args) -> str:
                 continue
             ours = [sys.executable, "-m", "lago_cvx", "solve", str(path), "-o", str(ours_out)]
             gtsam = [sys.executable, str(GTSAM_SCRIPT), str(path), str(gt_out)]
-            _run(ours), _run(gtsam)  # warm-up: file cache, bytecode
-            a, b = [], []
-            for _ in range(pairs):
-                a.append(_run(ours))
-                b.append(_run(gtsam))
+            a, b = _bench.alternating(ours, gtsam, pairs)
             wa, wb = [w for w, _ in a], [w for w, _ in b]
             ratios = sorted(x / y for x, y in zip(wa, wb))
             rows.append([rel, f"{statistics.median(wa):.3f}", f"{statistics.median(wb):.3f}",

@@ -14,7 +14,6 @@
 from __future__ import annotations
 
 import statistics
-import subprocess
 import sys
 import tempfile
 from pathlib import Path
@@ -39,16 +38,8 @@ def _wall(argv: list) -> float:
     return _bench.run_child(argv)[0]
 
 
-def _have_gtsam() -> bool:
-    return subprocess.run([sys.executable, "-c", "import gtsam"], capture_output=True).returncode == 0
-
-
 def _pairs(ours: list, theirs: list, pairs: int) -> list:
-    _wall(ours), _wall(theirs)  # warm-up: file cache, the kernels' disk cache
-    a, b = [], []
-    for _ in range(pairs):
-        a.append(_wall(ours))
-        b.append(_wall(theirs))
+    a, b = ([w for w, _ in side] for side in _bench.alternating(ours, theirs, pairs))
     ratios = sorted(x / y for x, y in zip(a, b))
     ma, mb = statistics.median(a), statistics.median(b)
     return [f"{ma:.3f}", f"{mb:.3f}", f"{ma / mb:.2f}", f"{ratios[0]:.2f}–{ratios[-1]:.2f}"]
@@ -58,7 +49,7 @@ def run(args) -> str:
     skipped = _bench.datasets_skipped()
     if skipped:
         return skipped
-    if not GTSAM_SCRIPT.is_file() or not _have_gtsam():
+    if not GTSAM_SCRIPT.is_file() or not _bench.have_gtsam():
         return f"skipped: GTSAM's side needs {GTSAM_SCRIPT} and the `gtsam` extra"
     pairs = 3 if args.quick else max(9, args.repeat)
     py = sys.executable

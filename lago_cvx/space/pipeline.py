@@ -88,12 +88,6 @@ def _joint(graph, t0, R0, cost0, a, solve_positions, elimination=None):
     return t0, R0, cost0, 0.0, tuple(trials)
 
 
-def _check_connected(graph) -> None:
-    """``GraphError`` naming the components when the graph is not connected (the systems would be singular):
-    ``lago_cvx.graph.check_connected`` on the edges' ends (it imports no SciPy graph module)."""
-    check_connected(graph)
-
-
 def lago3d(graph, *, route: str = "default", method: str = "closed_form", weighting: str = "isotropic",
            anchor=None, solver_settings=None, fixed=None) -> Lago3DResult:
     """LAGO on a 3-D pose graph (module docstring).
@@ -110,7 +104,7 @@ def lago3d(graph, *, route: str = "default", method: str = "closed_form", weight
     check_choice("route", route, ROUTES3D)
     check_method(method)
     check_choice("weighting", weighting, WEIGHTINGS)
-    _check_connected(graph)
+    check_connected(graph)  # Proposition 1's condition; the systems would be singular
     if fixed is not None:
         from .fixed import lago3d_fixed
 
