@@ -23,9 +23,9 @@ import numpy as np
 
 from .errors import GraphError, OptionError
 from .posegraph_base import PoseGraphBase, pose_ids, readonly
-from .so3 import log_se3
+from .so3 import apply, entries, log_rotations, product, transposed, v_inverse_apply
 
-__all__ = ["PoseGraph3D", "is_spd6", "edge_errors3d", "chi2_3d", "relative_poses"]
+__all__ = ["PoseGraph3D", "is_spd6", "edge_rotations", "edge_errors3d", "chi2_3d", "relative_poses"]
 
 
 def ldl_pivots(S: np.ndarray) -> np.ndarray:
@@ -85,11 +85,25 @@ def relative_poses(t, R, tails, heads):
     return Rt @ R[heads], np.einsum("kij,kj->ki", Rt, t[heads] - t[tails])
 
 
+def edge_rotations(graph: "PoseGraph3D", R):
+    """(Gᵀ, E) of every edge as ``so3.entries``: G = R_i R̃_ij and E = R̃_ijᵀ R_iᵀ R_j = Gᵀ R_j, the rotation of the
+    edge's error T̃_ij⁻¹ T_i⁻¹ T_j, for rotations R (n, 3, 3)."""
+    rows = np.ascontiguousarray(np.asarray(R, dtype=float).reshape(-1, 9).T)
+    GT = transposed(product(entries(rows, graph.tails), entries(graph.delta_R)))
+    return GT, product(GT, entries(rows, graph.heads))
+
+
 def edge_errors3d(graph: "PoseGraph3D", t, R) -> np.ndarray:
-    """e_ij = Log(T̃_ij⁻¹ T_i⁻¹ T_j), shape (m, 6), translation first, for poses t (n, 3), R (n, 3, 3)."""
-    Rij, tij = relative_poses(np.asarray(t, float), np.asarray(R, float), graph.tails, graph.heads)
-    Mt = np.swapaxes(graph.delta_R, 1, 2)
-    return log_se3(Mt @ Rij, np.einsum("kij,kj->ki", Mt, tij - graph.delta_t))
+    """e_ij = Log(T̃_ij⁻¹ T_i⁻¹ T_j), shape (m, 6), translation first, for poses t (n, 3), R (n, 3, 3):
+    T̃⁻¹T_i⁻¹T_j = (E, Gᵀ(t_j − t_i) − R̃ᵀt̃) with G, E of ``edge_rotations``; Log by ``so3.log_se3``'s formulas,
+    entry by entry over the edges."""
+    t = np.asarray(t, dtype=float)
+    GT, E = edge_rotations(graph, R)
+    d = np.ascontiguousarray((t[graph.heads] - t[graph.tails]).T)
+    u = [a - b for a, b in zip(apply(GT, d), apply(transposed(entries(graph.delta_R)),
+                                                   np.ascontiguousarray(graph.delta_t.T)))]
+    phi = log_rotations(E)
+    return np.ascontiguousarray(np.array(v_inverse_apply(phi, u) + phi).T)
 
 
 def chi2_3d(graph: "PoseGraph3D", t, R) -> float:

@@ -17,7 +17,8 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["hat", "exp_so3", "log_so3", "quat_to_rot", "rot_to_quat", "project_so3", "v_inverse", "log_se3",
-           "adjoint", "right_jacobian_inverse"]
+           "adjoint", "right_jacobian_inverse", "entries", "matrices", "product", "transposed", "apply", "cross",
+           "log_rotations", "v_inverse_entries", "v_inverse_apply"]
 
 
 def hat(w) -> np.ndarray:
@@ -52,35 +53,26 @@ def rot_to_quat(R) -> np.ndarray:
     """Unit quaternions (qx, qy, qz, qw) with qw ≥ 0 of rotation matrices (..., 3, 3) (Shepperd's method:
     the largest of the four squared components is computed first, so it is accurate for every angle)."""
     R = np.asarray(R, dtype=float)
-    shape = R.shape[:-2]
-    R = R.reshape(-1, 3, 3)
-    tr = R[:, 0, 0] + R[:, 1, 1] + R[:, 2, 2]
-    cand = np.stack([tr, R[:, 0, 0], R[:, 1, 1], R[:, 2, 2]], -1)
-    k = np.argmax(cand, axis=-1)
-    q = np.empty((R.shape[0], 4))
-    for case in range(4):
-        s = np.flatnonzero(k == case)
-        if not s.size:
-            continue
-        r = R[s]
-        if case == 0:
-            w = 0.5 * np.sqrt(np.maximum(1.0 + tr[s], 0.0))
-            f = 0.25 / w
-            q[s] = np.stack([(r[:, 2, 1] - r[:, 1, 2]) * f, (r[:, 0, 2] - r[:, 2, 0]) * f,
-                             (r[:, 1, 0] - r[:, 0, 1]) * f, w], -1)
-        else:
-            i = case - 1
-            j, m = (i + 1) % 3, (i + 2) % 3
-            v = 0.5 * np.sqrt(np.maximum(1.0 + r[:, i, i] - r[:, j, j] - r[:, m, m], 0.0))
-            f = 0.25 / v
-            out = np.empty((s.size, 4))
-            out[:, i] = v
-            out[:, j] = (r[:, j, i] + r[:, i, j]) * f
-            out[:, m] = (r[:, m, i] + r[:, i, m]) * f
-            out[:, 3] = (r[:, m, j] - r[:, j, m]) * f
-            q[s] = out
-    q *= np.where(q[:, 3:4] < 0, -1.0, 1.0)
-    return q.reshape(shape + (4,))
+    return np.ascontiguousarray(_quaternions(entries(R)).T).reshape(R.shape[:-2] + (4,))
+
+
+def _quaternions(E) -> np.ndarray:
+    """(4, N): ``rot_to_quat`` of rotations given as ``entries``. Each of Shepperd's four formulas, then per
+    rotation the one whose pivot (1 + tr R, or 1 + 2R_ii − tr R) is largest."""
+    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = E
+    tr = r00 + r11 + r22
+    k = np.argmax(np.stack([tr, r00, r11, r22]), axis=0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        w = 0.5 * np.sqrt(np.maximum(1.0 + tr, 0.0))
+        x = 0.5 * np.sqrt(np.maximum(1.0 + r00 - r11 - r22, 0.0))
+        y = 0.5 * np.sqrt(np.maximum(1.0 + r11 - r22 - r00, 0.0))
+        z = 0.5 * np.sqrt(np.maximum(1.0 + r22 - r00 - r11, 0.0))
+        fw, fx, fy, fz = 0.25 / w, 0.25 / x, 0.25 / y, 0.25 / z
+        q = np.choose(k, [np.array([(r21 - r12) * fw, (r02 - r20) * fw, (r10 - r01) * fw, w]),
+                          np.array([x, (r10 + r01) * fx, (r20 + r02) * fx, (r21 - r12) * fx]),
+                          np.array([(r01 + r10) * fy, y, (r21 + r12) * fy, (r02 - r20) * fy]),
+                          np.array([(r02 + r20) * fz, (r12 + r21) * fz, z, (r10 - r01) * fz])])
+    return q * np.where(q[3] < 0, -1.0, 1.0)
 
 
 def quat_to_rot(q) -> np.ndarray:
@@ -97,20 +89,69 @@ def quat_to_rot(q) -> np.ndarray:
 def log_so3(R) -> np.ndarray:
     """Log(R), shape (..., 3), the rotation vector of angle in [0, π]; through the quaternion
     (φ = 2 atan2(‖q_v‖, q_w) q_v/‖q_v‖), accurate near 0 and near π alike."""
-    q = rot_to_quat(R)
-    v, w = q[..., :3], q[..., 3]
-    n = np.linalg.norm(v, axis=-1)
+    R = np.asarray(R, dtype=float)
+    return np.ascontiguousarray(np.array(log_rotations(entries(R))).T).reshape(R.shape[:-2] + (3,))
+
+
+def log_rotations(E) -> list:
+    """``log_so3`` of rotations given as ``entries``: φ as three (N,) arrays."""
+    q = _quaternions(E)
+    n = np.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2])
     small = n < 1e-8
     safe = np.where(small, 1.0, n)
-    scale = np.where(small, 2.0 / np.maximum(w, 1e-300), 2.0 * np.arctan2(n, w) / safe)
-    return v * scale[..., None]
+    scale = np.where(small, 2.0 / np.maximum(q[3], 1e-300), 2.0 * np.arctan2(n, q[3]) / safe)
+    return [q[0] * scale, q[1] * scale, q[2] * scale]
 
 
 def project_so3(M) -> np.ndarray:
-    """The nearest rotation in Frobenius norm to each M (..., 3, 3): U diag(1, 1, det(UVᵀ)) Vᵀ from
-    M = U S Vᵀ. The sign fix keeps det = +1 (a reflection is never returned); it costs the smallest
-    singular value's direction when det M < 0."""
-    U, _, Vt = np.linalg.svd(np.asarray(M, dtype=float))
+    """The nearest rotation in Frobenius norm to each M (..., 3, 3): U diag(1, 1, det(UVᵀ)) Vᵀ from the SVD
+    M = U S Vᵀ. The sign fix keeps det = +1 (a reflection is never returned); it costs the smallest singular
+    value's direction when det M < 0.
+
+    Where det M > 0 that matrix is M's orthogonal polar factor, and it is computed as such: by Newton's iteration
+    X ← ½(γX + (γX)⁻ᵀ), X₀ = M, with Frobenius-norm scaling γ = (‖X⁻¹‖_F/‖X‖_F)^½ while far from convergence
+    (Higham, *Functions of Matrices*, §8.6), on the nine entries of all matrices at once (X⁻ᵀ = cof(X)/det X), until
+    no matrix moves by more than :data:`POLAR_TOLERANCE` (the iteration converges quadratically, so the last step
+    leaves an error of its square). The SVD takes every other matrix (det M ≤ 0, not finite, or not converged in
+    :data:`POLAR_ITERATIONS`), and is the reference the tests hold the iteration to. Same matrix, about 8× faster
+    than a LAPACK SVD per matrix on sphere2500's 2 500 rotations."""
+    M = np.asarray(M, dtype=float)
+    shape = M.shape
+    M = M.reshape(-1, 3, 3)
+    X = entries(M)
+    todo = np.isfinite(M).all(axis=(1, 2)) & (_det(X, _cofactors(X)) > 0)
+    X = [[x[todo] for x in row] for row in X]
+    scale = True
+    with np.errstate(all="ignore"):
+        for _ in range(POLAR_ITERATIONS):
+            C = _cofactors(X)
+            det = _det(X, C)
+            g = np.sqrt(np.sqrt(_frobenius2(C)) / np.abs(det) / np.sqrt(_frobenius2(X))) if scale else 1.0
+            new = [[0.5 * (g * x + c / (g * det)) for x, c in zip(xr, cr)] for xr, cr in zip(X, C)]
+            moved = np.sqrt(_frobenius2([[a - b for a, b in zip(nr, xr)] for nr, xr in zip(new, X)]))
+            X = new
+            scale = moved.max(initial=0.0) > 1e-2
+            if moved.max(initial=0.0) <= POLAR_TOLERANCE:
+                break
+    out = np.empty_like(M)
+    done = np.flatnonzero(todo)[moved <= POLAR_TOLERANCE]
+    out[done] = matrices(X)[moved <= POLAR_TOLERANCE]
+    rest = np.ones(len(M), bool)
+    rest[done] = False
+    if rest.any():
+        out[rest] = _project_svd(M[rest])
+    return out.reshape(shape)
+
+
+#: ``project_so3``'s Newton iteration stops once no matrix moves by more than this (Frobenius norm) …
+POLAR_TOLERANCE = 1e-8
+#: … or after this many steps (the matrices not converged then go to the SVD).
+POLAR_ITERATIONS = 50
+
+
+def _project_svd(M) -> np.ndarray:
+    """``project_so3`` by the SVD, M (N, 3, 3)."""
+    U, _, Vt = np.linalg.svd(M)
     d = np.sign(np.linalg.det(U @ Vt))
     d = np.where(d == 0, 1.0, d)
     U = U.copy()
@@ -118,20 +159,98 @@ def project_so3(M) -> np.ndarray:
     return U @ Vt
 
 
+def entries(M, index=None) -> list:
+    """The entries of 3×3 matrices M (N, 3, 3) (or of M[index]) as rows of contiguous (N,) arrays,
+    [[M_00, M_01, M_02], …]: arithmetic on them (``product``, ``apply``, formulas entry by entry) runs over all N
+    matrices at once, where NumPy's loops over (N, 3, 3) stacks pay their overhead per last axis of length 3 (a
+    stack of 5 000 products: 0.6 ms by ``@``, 0.1 ms by entries). ``M`` may also be given as its (9, N) rows
+    ``M.reshape(-1, 9).T`` (contiguous)."""
+    M = np.asarray(M, dtype=float)
+    E = M if M.ndim == 2 and M.shape[0] == 9 else np.ascontiguousarray(M.reshape(-1, 9).T)
+    if index is not None:
+        E = E[:, index]
+    return [[E[3 * i + j] for j in range(3)] for i in range(3)]
+
+
+def matrices(E) -> np.ndarray:
+    """(N, 3, 3) from ``entries`` (a scalar entry is broadcast)."""
+    n = max(np.size(x) for row in E for x in row)
+    return np.moveaxis(np.array([[np.broadcast_to(x, (n,)) for x in row] for row in E]), -1, 0)
+
+
+def product(A, B) -> list:
+    """A B of matrices given as ``entries``."""
+    return [[A[i][0] * B[0][j] + A[i][1] * B[1][j] + A[i][2] * B[2][j] for j in range(3)] for i in range(3)]
+
+
+def transposed(A) -> list:
+    """Aᵀ of matrices given as ``entries``."""
+    return [[A[j][i] for j in range(3)] for i in range(3)]
+
+
+def apply(A, v) -> list:
+    """A v of matrices given as ``entries`` and vectors as three (N,) arrays."""
+    return [A[i][0] * v[0] + A[i][1] * v[1] + A[i][2] * v[2] for i in range(3)]
+
+
+def cross(a, b) -> list:
+    """a × b of vectors given as three (N,) arrays."""
+    return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+
+
+def _cofactors(X) -> list:
+    """cof(X) = det(X) X⁻ᵀ: its rows are the cross products of X's rows (1 × 2, 2 × 0, 0 × 1)."""
+    return [cross(X[1], X[2]), cross(X[2], X[0]), cross(X[0], X[1])]
+
+
+def _det(X, C):
+    """det X from its first row and its cofactors."""
+    return X[0][0] * C[0][0] + X[0][1] * C[0][1] + X[0][2] * C[0][2]
+
+
+def _frobenius2(X):
+    """‖X‖²_F of entry-wise matrices."""
+    return sum(x * x for row in X for x in row)
+
+
 def v_inverse(w) -> np.ndarray:
     """V(φ)⁻¹ = I − ½[φ]× + (1/θ²)(1 − (θ/2)cot(θ/2)) [φ]×², shape (..., 3, 3) (Taylor below θ = 1e-3)."""
-    w, th2, small, safe = _angle(w, 1e-3)
-    c = np.where(small, 1.0 / 12.0 + th2 / 720.0,
-                 (1.0 - 0.5 * safe / np.tan(0.5 * safe)) / (safe * safe))
-    K = hat(w)
-    return np.eye(3) - 0.5 * K + c[..., None, None] * (K @ K)
+    w = np.asarray(w, dtype=float)
+    phi = list(np.ascontiguousarray(w.reshape(-1, 3).T))
+    return matrices(v_inverse_entries(phi)).reshape(w.shape[:-1] + (3, 3))
+
+
+def _v_coefficient(phi):
+    """(1/θ²)(1 − (θ/2)cot(θ/2)) of ``v_inverse`` for φ as three (N,) arrays."""
+    th2 = phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2]
+    small = th2 < 1e-6
+    safe = np.where(small, 1.0, np.sqrt(th2))
+    return np.where(small, 1.0 / 12.0 + th2 / 720.0, (1.0 - 0.5 * safe / np.tan(0.5 * safe)) / (safe * safe)), th2
+
+
+def v_inverse_entries(phi) -> list:
+    """``v_inverse`` as ``entries``, with [φ]×² = φφᵀ − θ²I."""
+    c, th2 = _v_coefficient(phi)
+    K = _hat_entries(phi)
+    return [[(1.0 if i == j else 0.0) - 0.5 * K[i][j] + c * (phi[i] * phi[j] - (th2 if i == j else 0.0))
+             for j in range(3)] for i in range(3)]
+
+
+def v_inverse_apply(phi, t) -> list:
+    """V(φ)⁻¹ t = t − ½ φ × t + c φ × (φ × t) for φ, t given as three (N,) arrays each."""
+    c, _ = _v_coefficient(phi)
+    u = cross(phi, t)
+    uu = cross(phi, u)
+    return [t[i] - 0.5 * u[i] + c * uu[i] for i in range(3)]
 
 
 def log_se3(R, t) -> np.ndarray:
     """Log(T) of T = (R, t) as (..., 6) = (V(φ)⁻¹ t, φ), translation first."""
-    phi = log_so3(R)
-    v = np.einsum("...ij,...j->...i", v_inverse(phi), np.asarray(t, dtype=float))
-    return np.concatenate([v, phi], -1)
+    R = np.asarray(R, dtype=float)
+    t = np.asarray(t, dtype=float)
+    phi = log_rotations(entries(R))
+    v = v_inverse_apply(phi, list(np.ascontiguousarray(t.reshape(-1, 3).T)))
+    return np.ascontiguousarray(np.array(v + phi).T).reshape(R.shape[:-2] + (6,))
 
 
 def adjoint(R, t) -> np.ndarray:
@@ -157,10 +276,21 @@ def right_jacobian_inverse(xi) -> np.ndarray:
     J_r⁻¹(ξ) = [[J⁻¹, −J⁻¹ Q J⁻¹], [0, J⁻¹]], J⁻¹ = J_r⁻¹(φ) of SO(3) = I + ½[φ]× + c₁[φ]×², and
     Q = Q_l(−ρ, −φ) = ½P + a(ΦP + PΦ + ΦPΦ) + b(Φ²P + PΦ² − 3ΦPΦ) + c(ΦPΦ² + Φ²PΦ) with P = [−ρ]×,
     Φ = [−φ]×, a = (θ − sinθ)/θ³, b = (θ² + 2cosθ − 2)/(2θ⁴), c = (2θ − 3sinθ + θcosθ)/(2θ⁵); their Taylor
-    series below θ = 0.1, where the closed forms cancel."""
+    series below θ = 0.1, where the closed forms cancel.
+
+    With f = −φ, p = −ρ, s = f·p, g = f × p and [a]×[b]× = b aᵀ − (a·b) I, the products of skew matrices in Q are
+    outer products: ΦP = p fᵀ − sI, PΦ = f pᵀ − sI, ΦPΦ = −sΦ, Φ²P + PΦ² = f gᵀ − g fᵀ − 2θ²P,
+    ΦPΦ² + Φ²PΦ = −2sΦ² and Φ² = f fᵀ − θ²I, so
+
+        Q = (½ − 2bθ²) P + (3b − a) s Φ + a (p fᵀ + f pᵀ − 2sI) + b (f gᵀ − g fᵀ) − 2cs Φ²,
+
+    evaluated entry by entry over all ξ at once (``entries``)."""
     xi = np.asarray(xi, dtype=float)
-    phi = xi[..., 3:]
-    th = np.linalg.norm(phi, axis=-1)
+    shape = xi.shape[:-1]
+    x = np.ascontiguousarray(xi.reshape(-1, 6).T)
+    f, p = -x[3:], -x[:3]
+    th2 = f[0] * f[0] + f[1] * f[1] + f[2] * f[2]
+    th = np.sqrt(th2)
     small = th < 0.1
     c1 = _series_or(th, small, lambda t2: 1 / 12 + t2 / 720 + t2 * t2 / 30240,
                     lambda t: 1 / (t * t) - (1 + np.cos(t)) / (2 * t * np.sin(t)))
@@ -169,15 +299,22 @@ def right_jacobian_inverse(xi) -> np.ndarray:
                    lambda t: (t * t + 2 * np.cos(t) - 2) / (2 * t ** 4))
     c = _series_or(th, small, lambda t2: 1 / 120 - t2 / 2520 + t2 * t2 / 120960,
                    lambda t: (2 * t - 3 * np.sin(t) + t * np.cos(t)) / (2 * t ** 5))
-    F, P = hat(-phi), hat(-xi[..., :3])
-    e = (...,) + (None, None)
-    FP, PF = F @ P, P @ F
-    FPF = FP @ F
-    F2 = F @ F
-    Q = 0.5 * P + a[e] * (FP + PF + FPF) + b[e] * (F @ FP + PF @ F - 3 * FPF) + c[e] * (FPF @ F + F @ FPF)
-    Jinv = np.eye(3) - 0.5 * F + c1[e] * F2   # J_r⁻¹(φ) = I + ½[φ]× + c₁[φ]×², [φ]× = −F
-    out = np.zeros(xi.shape[:-1] + (6, 6))
-    out[..., :3, :3] = Jinv
-    out[..., 3:, 3:] = Jinv
-    out[..., :3, 3:] = -Jinv @ Q @ Jinv
-    return out
+    s = f[0] * p[0] + f[1] * p[1] + f[2] * p[2]
+    g = cross(f, p)
+    Phi, P = _hat_entries(f), _hat_entries(p)
+    Phi2 = [[f[i] * f[j] - (th2 if i == j else 0.0) for j in range(3)] for i in range(3)]
+    alpha, beta, two_as, two_cs = 0.5 - 2 * b * th2, (3 * b - a) * s, 2 * a * s, 2 * c * s
+    Q = [[alpha * P[i][j] + beta * Phi[i][j] + a * (p[i] * f[j] + f[i] * p[j]) + b * (f[i] * g[j] - g[i] * f[j])
+          - two_cs * Phi2[i][j] - (two_as if i == j else 0.0) for j in range(3)] for i in range(3)]
+    Jinv = [[(1.0 if i == j else 0.0) - 0.5 * Phi[i][j] + c1 * Phi2[i][j] for j in range(3)] for i in range(3)]
+    J = matrices(Jinv)
+    out = np.zeros((J.shape[0], 6, 6))
+    out[:, :3, :3] = J
+    out[:, 3:, 3:] = J
+    out[:, :3, 3:] = -matrices(product(product(Jinv, Q), Jinv))
+    return out.reshape(shape + (6, 6))
+
+
+def _hat_entries(w) -> list:
+    """[w]× as entries (``entries``) of w given as three (N,) arrays."""
+    return [[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]]

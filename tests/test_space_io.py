@@ -56,6 +56,73 @@ def test_projection_onto_so3():
         assert (np.linalg.norm(others - M[k], axis=(1, 2)) >= np.linalg.norm(P[k] - M[k]) - 1e-12).all()
 
 
+def _svd_projection(M):
+    """The projection as the issue states it, by LAPACK's SVD: U diag(1, 1, det(UVᵀ)) Vᵀ."""
+    U, _, Vt = np.linalg.svd(M)
+    U[..., :, 2] *= np.where(np.linalg.det(U @ Vt) < 0, -1.0, 1.0)[..., None]
+    return U @ Vt
+
+
+@pytest.mark.parametrize("family", ["near", "gaussian", "ill-conditioned", "rank two", "scaled", "reflected"])
+def test_projection_is_the_svd_projection(family):
+    """``project_so3`` computes the polar factor by Newton's iteration where det M > 0, the SVD elsewhere: both give
+    the SVD's matrix to rounding, on every kind of input, never a reflection."""
+    rng = np.random.default_rng(3)
+    R = exp_so3(rng.normal(size=(400, 3)))
+    M = {"near": R + 0.05 * rng.normal(size=R.shape), "gaussian": rng.normal(size=R.shape),
+         "ill-conditioned": R @ np.diag([1.0, 1e-3, 1e-12]) @ exp_so3(rng.normal(size=(400, 3))),
+         "rank two": R @ np.diag([2.0, 1.0, 0.0]), "scaled": 1e6 * R, "reflected": -R}[family]
+    P = project_so3(M)
+    assert np.abs(P - _svd_projection(M)).max() < 1e-12
+    assert np.abs(np.swapaxes(P, 1, 2) @ P - np.eye(3)).max() < 1e-14 * 10
+    assert (np.linalg.det(P) > 0).all()
+    assert project_so3(M[0]).shape == (3, 3) and project_so3(M[:6].reshape(2, 3, 3, 3)).shape == (2, 3, 3, 3)
+
+
+def test_entries_arithmetic_is_numpys():
+    """``so3.entries`` and the products on them give NumPy's (N, 3, 3) results."""
+    from lago_cvx.so3 import apply, cross, entries, matrices, product, transposed
+
+    rng = np.random.default_rng(4)
+    A, B, v = rng.normal(size=(50, 3, 3)), rng.normal(size=(50, 3, 3)), rng.normal(size=(50, 3))
+    EA, EB = entries(A), entries(B)
+    assert np.abs(matrices(product(EA, EB)) - A @ B).max() < 1e-14
+    assert np.array_equal(matrices(transposed(EA)), np.swapaxes(A, 1, 2))
+    assert np.abs(np.array(apply(EA, list(v.T))).T - np.einsum("kij,kj->ki", A, v)).max() < 1e-14
+    assert np.abs(np.array(cross(list(v.T), list(v[::-1].T))).T - np.cross(v, v[::-1])).max() < 1e-14
+    idx = np.array([3, 0, 3])
+    assert np.array_equal(matrices(entries(A, idx)), A[idx])
+    assert np.array_equal(matrices(entries(np.ascontiguousarray(A.reshape(-1, 9).T))), A)
+
+
+def test_right_jacobian_inverse_is_barfoots_formula():
+    """The entry-wise evaluation (outer products for the products of skew matrices) against Barfoot's formula with
+    the 3×3 products taken as written, on both sides of the Taylor switch at θ = 0.1 and up to θ near π."""
+    from lago_cvx.so3 import hat
+
+    rng = np.random.default_rng(5)
+    xi = rng.normal(size=(300, 6))
+    xi[:, 3:] *= (np.geomspace(1e-9, 3.1, 300) / np.linalg.norm(xi[:, 3:], axis=1))[:, None]
+    th = np.linalg.norm(xi[:, 3:], axis=1)
+    co = np.stack([(th - np.sin(th)) / th ** 3, (th * th + 2 * np.cos(th) - 2) / (2 * th ** 4),
+                   (2 * th - 3 * np.sin(th) + th * np.cos(th)) / (2 * th ** 5),
+                   1 / th ** 2 - (1 + np.cos(th)) / (2 * th * np.sin(th))])
+    big = th > 0.1  # where the closed forms are exact enough to be the reference
+    a, b, c, c1 = (x[big][:, None, None] for x in co)
+    F, P = hat(-xi[big, 3:]), hat(-xi[big, :3])
+    Q = 0.5 * P + a * (F @ P + P @ F + F @ P @ F) + b * (F @ F @ P + P @ F @ F - 3 * F @ P @ F) \
+        + c * (F @ P @ F @ F + F @ F @ P @ F)
+    Jinv = np.eye(3) - 0.5 * F + c1 * (F @ F)
+    got = right_jacobian_inverse(xi)
+    assert np.abs(got[big, :3, :3] - Jinv).max() < 1e-13 and np.abs(got[big, 3:, 3:] - Jinv).max() < 1e-13
+    assert np.abs(got[big, :3, 3:] + Jinv @ Q @ Jinv).max() < 1e-12 * np.abs(xi).max()
+    assert np.array_equal(got[:, 3:, :3], np.zeros((300, 3, 3)))
+    # the Taylor side meets the closed form: continuity across θ = 0.1
+    x0 = np.array([0.3, -0.2, 0.5, 0.0, 0.0, 0.1])
+    lo, hi = right_jacobian_inverse(x0 * (1 - 1e-9)), right_jacobian_inverse(x0 * (1 + 1e-9))
+    assert np.abs(lo - hi).max() < 1e-8
+
+
 def test_right_jacobian_inverse_against_finite_differences():
     rng = np.random.default_rng(2)
     xi = np.concatenate([rng.normal(size=3), 0.5 * rng.normal(size=3)])

@@ -10,12 +10,14 @@ its ``factor_wide`` / ``solve_wide``, for systems that fill more per pose than t
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 import scipy.sparse as sp
 
 from ..sparse import factor_wide, solve_wide
 
-__all__ = ["edge_matrix", "without_anchor", "free_index", "block_diagonal", "factor", "solve"]
+__all__ = ["edge_matrix", "without_anchor", "free_index", "block_diagonal", "factor", "solve", "per_graph"]
 
 
 def edge_matrix(tails, heads, P_head: np.ndarray, N_tail: np.ndarray, n: int) -> sp.csc_matrix:
@@ -64,3 +66,19 @@ def factor(elimination, system):
 def solve(elimination, system):
     """``(x, factor, stats)`` of ``system`` on ``elimination``: ``sparse.solve_wide``."""
     return solve_wide(elimination, system)
+
+
+_PER_GRAPH: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+
+def per_graph(graph, name: str, compute):
+    """``compute(graph)``, computed once per graph and ``name`` and kept while the graph lives (a graph is immutable):
+    what the closed forms take from the information at any poses, such as its square roots. Arrays come back
+    read-only."""
+    found = _PER_GRAPH.setdefault(graph, {})
+    if name not in found:
+        value = compute(graph)
+        for a in value if isinstance(value, tuple) else (value,):
+            a.setflags(write=False)
+        found[name] = value
+    return found[name]

@@ -43,6 +43,7 @@ import numpy as np
 
 from ..errors import check_choice
 from ..so3 import project_so3
+from ..sparse import spd_inverse
 from .blocks import block_diagonal, edge_matrix, free_index, solve, without_anchor
 
 __all__ = ["WEIGHTINGS", "ANISOTROPIC_FLOOR", "rotation_weights", "chordal_system", "edge_system", "chordal_closed_form",
@@ -58,7 +59,7 @@ def rotation_weights(graph, weighting: str = "isotropic") -> np.ndarray:
     check_choice("weighting", weighting, WEIGHTINGS)
     Orr = graph.information[:, 3:, 3:]
     if weighting == "isotropic":
-        kappa = 3.0 / (2.0 * np.trace(np.linalg.inv(Orr), axis1=1, axis2=2))
+        kappa = 3.0 / (2.0 * np.trace(spd_inverse(Orr), axis1=1, axis2=2))
         return np.sqrt(kappa)[:, None, None] * np.eye(3)
     half = 0.5 * np.trace(Orr, axis1=1, axis2=2)
     lam, U = np.linalg.eigh(half[:, None, None] * np.eye(3) - Orr)

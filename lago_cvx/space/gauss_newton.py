@@ -28,7 +28,7 @@ from ..errors import check_choice
 from ..sparse import factorize
 from ..posegraph3d import chi2_3d, edge_errors3d
 from ..so3 import adjoint, exp_so3, right_jacobian_inverse
-from .blocks import edge_matrix, factor, free_index
+from .blocks import edge_matrix, factor, free_index, per_graph
 
 __all__ = ["REFINE_METHODS", "jacobians", "normal_equations", "retract", "gauss_newton_step", "Refined3D",
            "refine3d"]
@@ -48,8 +48,8 @@ def jacobians(graph, t, R):
 
 
 def whitening(graph) -> np.ndarray:
-    """L (m, 6, 6) with LᵀL = Ω (upper triangular)."""
-    return np.swapaxes(np.linalg.cholesky(graph.information), 1, 2)
+    """L (m, 6, 6) with LᵀL = Ω (upper triangular), computed once per graph (``blocks.per_graph``), read-only."""
+    return per_graph(graph, "whitening", lambda g: np.swapaxes(np.linalg.cholesky(g.information), 1, 2))
 
 
 def normal_equations(graph, t, R, L, anchor_index: int):

@@ -19,44 +19,39 @@ approximation of it — GTSAM's cost, :mod:`lago_cvx.posegraph3d`).
 
 from __future__ import annotations
 
-import weakref
-
 import numpy as np
 
-from ..posegraph3d import relative_poses
-from ..so3 import log_so3, v_inverse
-from .blocks import edge_matrix, free_index, solve, without_anchor
+from ..posegraph3d import edge_rotations
+from ..so3 import apply, entries, log_rotations, matrices, product, transposed, v_inverse_entries
+from .blocks import edge_matrix, free_index, per_graph, solve, without_anchor
 
 __all__ = ["position_system", "positions_closed_form", "position_problem", "positions_cvxpy"]
 
 
-_CONSTANTS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
-
-
 def _edge_constants(graph):
-    """(L (m, 3, 3) with LᵀL = Ω_tt, upper triangular; Ω_tt⁻¹Ω_tr (m, 3, 3)): what (P) takes from the information
-    at any rotations, computed once per graph (a graph is immutable; the route solves (P) at least twice)."""
-    found = _CONSTANTS.get(graph)
-    if found is None:
+    """(L with LᵀL = Ω_tt, upper triangular; Ω_tt⁻¹Ω_tr), each as its (9, m) rows (``so3.entries``): what (P) takes
+    from the information at any rotations, computed once per graph (``blocks.per_graph``; the route solves (P) at
+    least twice)."""
+    def compute(graph):
         O = graph.information
         Ott = O[:, :3, :3]
-        found = (np.swapaxes(np.linalg.cholesky(Ott), 1, 2), np.linalg.solve(Ott, O[:, :3, 3:]))
-        _CONSTANTS[graph] = found
-    return found
+        L, K = np.swapaxes(np.linalg.cholesky(Ott), 1, 2), np.linalg.solve(Ott, O[:, :3, 3:])
+        return np.ascontiguousarray(L.reshape(-1, 9).T), np.ascontiguousarray(K.reshape(-1, 9).T)
+
+    return per_graph(graph, "positions", compute)
 
 
 def _whitened_edges(graph, R):
-    """(L B (m, 3, 3), L c (m, 3)) of (P) at rotations R (n, 3, 3)."""
-    R = np.asarray(R, dtype=float)
-    Rij, _ = relative_poses(np.zeros((graph.n_poses, 3)), R, graph.tails, graph.heads)
-    Mt = np.swapaxes(graph.delta_R, 1, 2)
-    phi = log_so3(Mt @ Rij)
-    Vi = v_inverse(phi)
-    ViMt = Vi @ Mt
-    Bm = ViMt @ np.swapaxes(R[graph.tails], 1, 2)
-    L, K = _edge_constants(graph)
-    c = np.einsum("kij,kj->ki", ViMt, graph.delta_t) - np.einsum("kij,kj->ki", K, phi)  # − Ω_tt⁻¹Ω_tr φ
-    return L @ Bm, np.einsum("kij,kj->ki", L, c)
+    """(L B (m, 3, 3), L c (m, 3)) of (P) at rotations R (n, 3, 3), entry by entry over the edges
+    (``so3.entries``): with G = R_i R̃, E = Gᵀ R_j (``posegraph3d.edge_rotations``) and φ = Log E, B = V(φ)⁻¹ Gᵀ and
+    c = V(φ)⁻¹ R̃ᵀ t̃ − Ω_tt⁻¹Ω_tr φ."""
+    GT, E = edge_rotations(graph, R)
+    phi = log_rotations(E)
+    Vi = v_inverse_entries(phi)
+    L, K = (entries(rows) for rows in _edge_constants(graph))
+    Mt_t = apply(transposed(entries(graph.delta_R)), np.ascontiguousarray(graph.delta_t.T))
+    c = [a - b for a, b in zip(apply(Vi, Mt_t), apply(K, phi))]
+    return matrices(product(L, product(Vi, GT))), np.ascontiguousarray(np.array(apply(L, c)).T)
 
 
 def position_system(graph, R, *, anchor_index: int = 0, anchor_position=(0.0, 0.0, 0.0)):
