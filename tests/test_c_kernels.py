@@ -257,6 +257,19 @@ def test_the_c_kernels_load_no_numba():
     assert out.stdout.split() == ["False", "CompiledPoseFactor", "False"]
 
 
+def test_without_the_c_library_the_kernels_are_numbas():
+    """A process where the C kernels cannot be imported (as after an install without a compiler): ``kernels()`` is
+    Numba's, the engine available; asking for C then says it is not built; an unknown choice is refused."""
+    code = ("import sys\nsys.modules['lago_cvx.sparse.c_kernels'] = None\nfrom lago_cvx.sparse import compiled\n"
+            "print(compiled.available(), compiled.kernels()['run'].__module__)\ncompiled.use_kernels('c')\n"
+            "try:\n    compiled.kernels()\nexcept ImportError as exc:\n    print('refused:', exc)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.splitlines() == ["True lago_cvx.sparse.compiled_kernels",
+                                "refused: the sparse engine's C kernels are not built (lago_cvx/sparse/_ckernels.c)"]
+    with pytest.raises(ValueError, match="'c', 'numba' or None"):
+        C.use_kernels("fortran")
+
+
 def test_threads_factoring_at_once_give_the_sequential_results(monkeypatch):
     """Two threads each factoring and solving its own system six times with the C kernels (at once, the GIL
     released in the C calls) give exactly the arrays of each system factored in a thread alone. (The reference

@@ -31,9 +31,10 @@ thread, the children's updates copied across from the workers' stacks (``Compile
 **Kernels.** The compiled functions are C first (``c_kernels``: ``_ckernels.c``, built at install as an optional
 extension and loaded by ctypes), Numba as the fallback when it was not built (``compiled_kernels``; no compiler at
 install): the same functions with the same arithmetic in the same order, so both give the same bits. The reason is
-each process's start: in a fresh process Numba costs about 0.55 s before its first kernel runs (its import and
-the loading of its cached kernels; ``kernels()`` measured 0.52-0.62 s), the C library a few milliseconds; that
-start dominated short 3-D runs such as sphere2500's. ``IMPLEMENTATION`` / ``use_kernels`` choose one (tests).
+each process's start. Measured in fresh processes (SciPy loaded): ``kernels()`` 4 ms with C against 0.16-0.17 s
+with Numba (its import), then Numba loads each cached kernel at its first call: a first factorization and solve
+of 900 unknowns 13-14 ms against 0.42-0.44 s, ``space.lago3d`` on sphere2500 0.24-0.26 s against 0.69-0.78 s
+(0.15-0.17 s either way when called again). ``IMPLEMENTATION`` / ``use_kernels`` choose one (tests).
 Nothing is loaded until a factorization runs (``available()`` tells whether one can): import lago_cvx, the CLI's
 start-up and every system below ``normal_equations.COMPILED_MIN`` unknowns load neither. Numba's kernels are
 cached on disk (``cache=True``, in ``__pycache__`` beside this file or Numba's user cache), so only its first run
@@ -51,8 +52,8 @@ from .linalg import Factor, blas_threads
 from .multifrontal import NotPositiveDefinite
 from .threads import cores
 
-__all__ = ["available", "use_kernels", "kernels", "CompiledLayout", "CompiledAssembler", "CompiledFactor", "CompiledPoseFactor",
-           "CompiledEdgeOperator"]
+__all__ = ["available", "use_kernels", "kernels", "CompiledLayout", "CompiledAssembler", "CompiledFactor",
+           "CompiledPoseFactor", "CompiledEdgeOperator"]
 
 log = logging.getLogger(__name__)
 
