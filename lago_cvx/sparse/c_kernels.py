@@ -33,13 +33,11 @@ def _library() -> ctypes.CDLL:
 
 
 _LIB = _library()
-_I, _D, _P = ctypes.c_int64, ctypes.c_double, ctypes.c_void_p
-_CODES = {"i": _I, "d": _D, "p": _P, "-": None}
+_CODES = {"i": ctypes.c_int64, "d": ctypes.c_double, "p": ctypes.c_void_p, "-": None}
 
 
 def _c(name: str, sig: str):
-    """The C function ``ck_<name>``; ``sig`` its result then its arguments, one letter each (i int64, d double,
-    p pointer, - no result)."""
+    """The C function ``ck_<name>`` with its result and argument types (``SIGNATURES``)."""
     try:
         fn = getattr(_LIB, "ck_" + name)
     except AttributeError as exc:
