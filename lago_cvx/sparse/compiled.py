@@ -8,8 +8,8 @@ update rows R_f, each front's rows ⊂ its parent's), same equations (MF):
 
 but each front is handled where NumPy's engine pays a Python call (or several) per front or per group:
 the whole loop over the fronts (postorder, children's updates on a stack, popped by their parent) is a
-compiled function (C, or Numba: **Kernels** below). A front's dense kernel is a right-looking loop for small fronts and LAPACK's
-``potrf`` with BLAS's ``trsm``/``syrk`` for large ones (SciPy's own LAPACK/BLAS through
+compiled function (C, or Numba: **Kernels** below). A front's dense kernel is a right-looking loop for small
+fronts and LAPACK's ``potrf`` with BLAS's ``trsm``/``syrk`` for large ones (SciPy's own LAPACK/BLAS through
 ``scipy.linalg.cython_lapack``/``cython_blas``, so the BLAS NumPy and SciPy load is the one used).
 At a million poses the NumPy engine spends most of phase 3 in Python's cost per small front (85 000 of
 them); here that cost is a few hundred nanoseconds.
