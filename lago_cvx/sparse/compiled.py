@@ -1,4 +1,4 @@
-r"""The multifrontal block Cholesky of ``lago_cvx.sparse.multifrontal``, front by front in compiled code (Numba).
+r"""The multifrontal block Cholesky of ``lago_cvx.sparse.multifrontal``, front by front in compiled code (C, or Numba).
 
 Same symbolic analysis (the pose-level ``EliminationPlan``: AMD order, fronts with pivot poses P_f and
 update rows R_f, each front's rows ⊂ its parent's), same equations (MF):
@@ -8,8 +8,8 @@ update rows R_f, each front's rows ⊂ its parent's), same equations (MF):
 
 but each front is handled where NumPy's engine pays a Python call (or several) per front or per group:
 the whole loop over the fronts (postorder, children's updates on a stack, popped by their parent) is a
-Numba-compiled function. A front's dense kernel is a right-looking loop for small fronts and LAPACK's
-``potrf`` with BLAS's ``trsm``/``syrk`` for large ones (SciPy's own LAPACK/BLAS through
+compiled function (C, or Numba: **Kernels** below). A front's dense kernel is a right-looking loop for small
+fronts and LAPACK's ``potrf`` with BLAS's ``trsm``/``syrk`` for large ones (SciPy's own LAPACK/BLAS through
 ``scipy.linalg.cython_lapack``/``cython_blas``, so the BLAS NumPy and SciPy load is the one used).
 At a million poses the NumPy engine spends most of phase 3 in Python's cost per small front (85 000 of
 them); here that cost is a few hundred nanoseconds.
@@ -28,12 +28,18 @@ none holds more than 1/16 of the work, dealt to one worker thread per core (``th
 buffer and stack, one BLAS thread), and the fronts above them are factored afterwards in the calling
 thread, the children's updates copied across from the workers' stacks (``CompiledLayout.schedule``).
 
-Numba is imported only when a factorization runs (``available()`` tells whether it can be): import
-lago_cvx, the CLI's start-up and every system below ``normal_equations.COMPILED_MIN`` unknowns never
-load it. Compiled functions are cached on disk (``cache=True``, in ``__pycache__`` beside this file or
-Numba's user cache), so only the first run on a machine compiles (about 10 s). LAPACK/BLAS are called by
-address (``_pointer_call``): the addresses are arguments looked up in each process, which keeps the
-compiled code cacheable.
+**Kernels.** The compiled functions are C first (``c_kernels``: ``_ckernels.c``, built at install as an optional
+extension and loaded by ctypes), Numba as the fallback when it was not built (``compiled_kernels``; no compiler at
+install): the same functions with the same arithmetic in the same order, so both give the same bits. The reason is
+each process's start. Measured in fresh processes (SciPy loaded): ``kernels()`` 4 ms with C against 0.16-0.17 s
+with Numba (its import), then Numba loads each cached kernel at its first call: a first factorization and solve
+of 900 unknowns 13-14 ms against 0.42-0.44 s, ``space.lago3d`` on sphere2500 0.24-0.26 s against 0.69-0.78 s
+(0.15-0.17 s either way when called again). ``IMPLEMENTATION`` / ``use_kernels`` choose one (tests).
+Nothing is loaded until a factorization runs (``available()`` tells whether one can): import lago_cvx, the CLI's
+start-up and every system below ``normal_equations.COMPILED_MIN`` unknowns load neither. Numba's kernels are
+cached on disk (``cache=True``, in ``__pycache__`` beside this file or Numba's user cache), so only its first run
+on a machine compiles (about 10 s). LAPACK/BLAS are called by address (``fn``): the addresses are arguments
+looked up in each process, which keeps Numba's compiled code cacheable.
 """
 
 from __future__ import annotations
@@ -46,8 +52,8 @@ from .linalg import Factor, blas_threads
 from .multifrontal import NotPositiveDefinite
 from .threads import cores
 
-__all__ = ["available", "CompiledLayout", "CompiledAssembler", "CompiledFactor", "CompiledPoseFactor",
-           "CompiledEdgeOperator"]
+__all__ = ["available", "use_kernels", "kernels", "CompiledLayout", "CompiledAssembler", "CompiledFactor",
+           "CompiledPoseFactor", "CompiledEdgeOperator"]
 
 log = logging.getLogger(__name__)
 
@@ -66,10 +72,38 @@ PARALLEL_WORK = 5e8
 CHUNK = 0.02
 
 
+#: Which kernels ``kernels()`` gives: None, the C ones when their library was built, else Numba's; "c" or
+#: "numba" that one (the tests compare them). Set by ``use_kernels``.
+IMPLEMENTATION: str | None = None
+
+
+def use_kernels(which: str | None) -> None:
+    """Choose the kernels of every compiled factorization, solve and product from now on: "c" (``c_kernels``),
+    "numba" (``compiled_kernels``) or None (C when built, else Numba; the default)."""
+    global IMPLEMENTATION
+    if which not in (None, "c", "numba"):
+        raise ValueError(f"use_kernels: 'c', 'numba' or None, not {which!r}")
+    IMPLEMENTATION = which
+
+
 def kernels() -> dict:
-    """The compiled kernels (``lago_cvx.sparse.compiled_kernels``, which imports Numba: loaded on first use).
-    The first time in a process, when Numba has none of them on disk yet (its first run on a computer, or no
-    writable cache), says at INFO level that they are compiled now and about how long it takes."""
+    """The compiled kernels by name (``compiled_kernels.KERNELS``'s keys): C (``c_kernels``) when its library was
+    built, else Numba's (``compiled_kernels``, loaded on first use), or the one ``IMPLEMENTATION`` names.
+    The first time Numba's are used in a process, when Numba has none of them on disk yet (its first run on a
+    computer, or no writable cache), says at INFO level that they are compiled now and about how long it takes."""
+    if IMPLEMENTATION != "numba":
+        if not _C_KERNELS:
+            try:
+                from . import c_kernels
+
+                _C_KERNELS.append(c_kernels.KERNELS)
+            except ImportError as exc:  # not built: Numba's
+                log.debug("C kernels unavailable (%s)", exc)
+                _C_KERNELS.append(None)
+        if _C_KERNELS[0] is not None:
+            return _C_KERNELS[0]
+        if IMPLEMENTATION == "c":
+            raise ImportError("the sparse engine's C kernels are not built (lago_cvx/sparse/_ckernels.c)")
     from . import compiled_kernels
 
     if not _ANNOUNCED:
@@ -80,6 +114,7 @@ def kernels() -> dict:
     return compiled_kernels.KERNELS
 
 
+_C_KERNELS: list = []  # [c_kernels.KERNELS] or [None] once tried
 _ANNOUNCED: list = []
 
 
@@ -96,10 +131,10 @@ def _on_disk(kernels: dict) -> bool:
 
 
 def available() -> bool:
-    """True when Numba can be imported (the compiled engine can run)."""
+    """True when the compiled engine can run: its C kernels load, or else Numba's."""
     try:
         kernels()
-    except Exception as exc:  # ImportError, or a Numba that cannot compile here
+    except Exception as exc:  # ImportError (neither), or a Numba that cannot compile here
         log.debug("compiled engine unavailable (%s)", exc)
         return False
     return True

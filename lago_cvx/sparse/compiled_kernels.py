@@ -4,8 +4,12 @@ extend-add of a front, its dense partial Cholesky (a right-looking loop, or LAPA
 and the bookkeeping of the update stacks (their simulated peak, the subtrees of the front tree, copying
 an update between stacks). Storage and equations: ``lago_cvx.sparse.compiled``'s docstring.
 
-This module imports Numba: ``lago_cvx.sparse.compiled.kernels()`` imports it on first use only. The kernels
-are module-level functions (not closures), so Numba's on-disk cache finds them again in a new process.
+These are the fallback: ``lago_cvx.sparse.compiled.kernels()`` gives the same functions in C (``c_kernels``, the
+same arithmetic in the same order, so the same bits) when their library was built at install, and this module
+only when it was not (or when ``compiled.use_kernels("numba")`` asks for it). The reason is each process's start:
+Numba's import and the loading of these kernels from its cache cost about half a second before the first one
+runs, the C library a few milliseconds. This module imports Numba: ``kernels()`` imports it on first use only.
+The kernels are module-level functions (not closures), so Numba's on-disk cache finds them again in a new process.
 """
 
 from __future__ import annotations

@@ -144,23 +144,27 @@ def _postorder(parent: np.ndarray) -> np.ndarray:
     return pre[:0:-1].astype(np.int64)  # drop the virtual root (first in preorder), reverse
 
 
-#: From this many poses the symbolic analysis's two sequential loops run compiled (``supernodes``
-#: through ``compiled_kernels``, when Numba can be imported): 1.4 s of Python at a million poses.
+#: From this many poses the symbolic analysis's two sequential loops run compiled (``supernodes`` in C through
+#: ``c_kernels``, else through Numba's ``compiled_kernels``): 1.4 s of Python at a million poses.
 COMPILED_LOOPS = 200_000
 
 
 def _loops(d: int):
-    """``supernodes.relax`` and ``supernodes.heights``: compiled for d ≥ ``COMPILED_LOOPS`` when Numba
-    can be imported, else as Python (Numba's import is not worth it below)."""
+    """``supernodes.relax`` and ``supernodes.heights``: compiled for d ≥ ``COMPILED_LOOPS`` — C when its library
+    was built, else Numba when it can be imported (integer loops: the same plan either way) — else as Python
+    (loading compiled code is not worth it below)."""
     from . import supernodes
 
     if d >= COMPILED_LOOPS:
         try:
-            from .compiled_kernels import KERNELS
-
-            return KERNELS["relax"], KERNELS["heights"]
-        except Exception as exc:  # no Numba: the same loops in Python
-            log.debug("symbolic analysis in Python (%s)", exc)
+            from .c_kernels import KERNELS
+        except ImportError:
+            try:
+                from .compiled_kernels import KERNELS
+            except Exception as exc:  # no Numba: the same loops in Python
+                log.debug("symbolic analysis in Python (%s)", exc)
+                return supernodes.relax, supernodes.heights
+        return KERNELS["relax"], KERNELS["heights"]
     return supernodes.relax, supernodes.heights
 
 

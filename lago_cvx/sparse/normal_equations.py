@@ -18,8 +18,8 @@ symbolic analysis of one graph and anchor (``lago_cvx.sparse.multifrontal``), co
 system LAGO solves on that graph. Below ``ENGINE_MIN`` unknowns N is factored by QDLDL in that same
 pose-level order, expanded to b components per pose (``BlockUpperPattern``: the upper triangle's CSC
 pattern and a scatter map, built once per b; ``lago_cvx.sparse.ldl``), above it by the multifrontal engine —
-compiled by Numba (``lago_cvx.sparse.compiled``) from ``COMPILED_MIN`` unknowns when Numba can be imported, the
-NumPy engine (``lago_cvx.sparse.multifrontal``) otherwise.
+compiled (``lago_cvx.sparse.compiled``: C kernels, Numba's when they are not built) from ``COMPILED_MIN``
+unknowns when it can run, the NumPy engine (``lago_cvx.sparse.multifrontal``) otherwise.
 Either way (E) is solved by the corrected semi-normal equations
 (``lago_cvx.sparse.linalg.refine_normal_equations``), falling back to the augmented system as
 ``lago_cvx.sparse.linalg.solve_least_squares`` does.
@@ -81,7 +81,7 @@ class PoseFactor(Factor):
 ENGINE_MIN = 1_200_000
 
 #: Systems with at least this many unknowns are factored by the compiled engine (``lago_cvx.sparse.compiled``)
-#: when Numba can be imported (it then takes the place of the NumPy engine above ``ENGINE_MIN`` too).
+#: when it can run (C kernels or Numba; it then takes the place of the NumPy engine above ``ENGINE_MIN`` too).
 #: Phase 3 alone, a fresh process each (benchmarks/million.md): QDLDL against compiled + Numba's import
 #: 0.280 against 0.235 + 0.160 s at 90 000 unknowns, 1.10 against 0.64 + 0.16 s at 300 000, 5.61 against
 #: 1.62 + 0.17 s at 900 000 (another run: 0.375 against 0.216 + 0.160, 1.06 against 0.57 + 0.16, 4.41
@@ -125,7 +125,7 @@ class RenumberedFactor(Factor):
 
 def edge_operator(system: EdgeSystem):
     """M and Mᵀ of ``system`` with their set-up done once (for the refinement's repeated products): a
-    ``compiled.CompiledEdgeOperator`` from ``COMPILED_MIN`` unknowns when Numba can be imported (the same
+    ``compiled.CompiledEdgeOperator`` from ``COMPILED_MIN`` unknowns when the compiled engine can run (the same
     sums in the same order), else an ``EdgeOperator``."""
     if system.d * system.b >= COMPILED_MIN and compiled.available():
         return compiled.CompiledEdgeOperator(system)
@@ -430,7 +430,7 @@ class GraphElimination:
         """Factor the normal matrix (N) of ``system``. ``engine`` None (the default) picks: the weighted
         Laplacian's factorization when (N) is it (class docstring); else by size the compiled multifrontal
         engine (a ``CompiledPoseFactor``, ``lago_cvx.sparse.compiled``) from ``COMPILED_MIN`` unknowns when
-        Numba can be imported, the NumPy multifrontal engine (a ``PoseFactor``) from ``ENGINE_MIN``, QDLDL (a
+        it can run, the NumPy multifrontal engine (a ``PoseFactor``) from ``ENGINE_MIN``, QDLDL (a
         ``QdldlFactor``) below; ``"compiled"``, True (the NumPy engine) or False (QDLDL) force one. Raises
         ``multifrontal.NotPositiveDefinite`` (or QDLDL's error) if N is not numerically SPD. The systems
         announced after this one are prepared once it is factored (``solving``: once ``solve`` is done
