@@ -257,6 +257,27 @@ def test_the_c_kernels_load_no_numba():
     assert out.stdout.split() == ["False", "CompiledPoseFactor", "False"]
 
 
+def test_a_3d_solve_runs_on_the_c_kernels_without_numba(tmp_path):
+    """``lago-cvx solve`` on a 3-D world: with the C kernels every 3-D system goes to the compiled engine
+    (``wide.compiled_from()`` is 0) and the process never imports Numba; forced onto Numba's kernels (and, as they
+    would not be below ``WIDE_COMPILED_MIN``, onto the compiled engine), the same process writes the same file."""
+    world = str(tmp_path / "w.g2o")
+    code = ("import sys\nfrom lago_cvx.cli import main\nfrom lago_cvx.sparse import compiled, wide\n"
+            "compiled.use_kernels(sys.argv[1] or None)\n"
+            "if sys.argv[1]:\n    wide.compiled_from = lambda: 0\n"
+            "assert main(['solve', sys.argv[2], '-o', sys.argv[3]]) == 0\n"
+            "print(wide.compiled_from(), 'numba' in sys.modules)")
+    lc.cli.main(["generate", "--world", "sphere3d", "--poses", "300", "--seed", "2", "-o", world])
+    outs = []
+    for which in ("", "numba"):
+        out = str(tmp_path / f"out{which}.g2o")
+        run = subprocess.run([sys.executable, "-c", code, which, world, out], capture_output=True, text=True,
+                             check=True)
+        outs.append((run.stdout.splitlines()[-1], Path(out).read_bytes()))
+    assert outs[0][0] == "0 False" and outs[1][0] == "0 True"
+    assert outs[0][1] == outs[1][1]
+
+
 def test_without_the_c_library_the_kernels_are_numbas():
     """A process where the C kernels cannot be imported (as after an install without a compiler): ``kernels()`` is
     Numba's, the engine available; asking for C then says it is not built; an unknown choice is refused."""

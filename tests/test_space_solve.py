@@ -270,11 +270,13 @@ def test_fixed_poses():
 
 @pytest.mark.parametrize("route", ["seed", "default"])
 def test_compiled_factorizations_agree_with_the_engines_choice(monkeypatch, route):
-    """Every system of the route on the compiled engine (``sparse.wide.WIDE_COMPILED_MIN`` lowered to 0) against the
-    engine's own choice (QDLDL at this size): the same estimate to rounding, and the compiled engine used."""
+    """Every system of the route on the compiled engine (``sparse.wide.compiled_from`` lowered to 0) against QDLDL
+    (the engine's choice at this size when the compiled engine is kept for larger systems): the same estimate to
+    rounding, and the compiled engine used."""
     from lago_cvx.sparse import wide as blocks
 
     w = torus_world(6, 12, seed=2)
+    monkeypatch.setattr(blocks, "compiled_from", lambda: 10 ** 9)
     ref = lago3d(w.graph, route=route)
     calls = []
     real = blocks._compiled
@@ -284,7 +286,7 @@ def test_compiled_factorizations_agree_with_the_engines_choice(monkeypatch, rout
         calls.append(f is not None)
         return f
 
-    monkeypatch.setattr(blocks, "WIDE_COMPILED_MIN", 0)
+    monkeypatch.setattr(blocks, "compiled_from", lambda: 0)
     monkeypatch.setattr(blocks, "_compiled", counted)
     got = lago3d(w.graph, route=route)
     assert calls and all(calls)  # chordal, positions (and the joint step and its positions) compiled

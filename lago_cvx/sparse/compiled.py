@@ -91,19 +91,10 @@ def kernels() -> dict:
     built, else Numba's (``compiled_kernels``, loaded on first use), or the one ``IMPLEMENTATION`` names.
     The first time Numba's are used in a process, when Numba has none of them on disk yet (its first run on a
     computer, or no writable cache), says at INFO level that they are compiled now and about how long it takes."""
-    if IMPLEMENTATION != "numba":
-        if not _C_KERNELS:
-            try:
-                from . import c_kernels
-
-                _C_KERNELS.append(c_kernels.KERNELS)
-            except ImportError as exc:  # not built: Numba's
-                log.debug("C kernels unavailable (%s)", exc)
-                _C_KERNELS.append(None)
-        if _C_KERNELS[0] is not None:
-            return _C_KERNELS[0]
-        if IMPLEMENTATION == "c":
-            raise ImportError("the sparse engine's C kernels are not built (lago_cvx/sparse/_ckernels.c)")
+    if native():
+        return _C_KERNELS[0]
+    if IMPLEMENTATION == "c":
+        raise ImportError("the sparse engine's C kernels are not built (lago_cvx/sparse/_ckernels.c)")
     from . import compiled_kernels
 
     if not _ANNOUNCED:
@@ -112,6 +103,22 @@ def kernels() -> dict:
             log.info("compiling the sparse engine's kernels (Numba's first run here): about 10-20 s, once%s",
                      "" if not compiled_kernels.CACHED else "; later processes load them from disk")
     return compiled_kernels.KERNELS
+
+
+def native() -> bool:
+    """True when ``kernels()`` gives the C kernels: their library was built and ``IMPLEMENTATION`` does not ask for
+    Numba's. Loads the C library (milliseconds), never Numba."""
+    if IMPLEMENTATION == "numba":
+        return False
+    if not _C_KERNELS:
+        try:
+            from . import c_kernels
+
+            _C_KERNELS.append(c_kernels.KERNELS)
+        except ImportError as exc:  # not built: Numba's
+            log.debug("C kernels unavailable (%s)", exc)
+            _C_KERNELS.append(None)
+    return _C_KERNELS[0] is not None
 
 
 _C_KERNELS: list = []  # [c_kernels.KERNELS] or [None] once tried

@@ -144,28 +144,30 @@ def _postorder(parent: np.ndarray) -> np.ndarray:
     return pre[:0:-1].astype(np.int64)  # drop the virtual root (first in preorder), reverse
 
 
-#: From this many poses the symbolic analysis's two sequential loops run compiled (``supernodes`` in C through
-#: ``c_kernels``, else through Numba's ``compiled_kernels``): 1.4 s of Python at a million poses.
+#: From this many poses the symbolic analysis's two sequential loops run through Numba's ``compiled_kernels`` when
+#: the C kernels are not built (1.4 s of Python at a million poses; Numba's start, about 0.5 s, is not worth it
+#: below). The C kernels (``c_kernels``) run them at every size: loading them costs milliseconds, and ``relax`` takes
+#: 4.5 ms of Python on sphere2500's 2 500 poses.
 COMPILED_LOOPS = 200_000
 
 
 def _loops(d: int):
-    """``supernodes.relax`` and ``supernodes.heights``: compiled for d ≥ ``COMPILED_LOOPS`` — C when its library
-    was built, else Numba when it can be imported (integer loops: the same plan either way) — else as Python
-    (loading compiled code is not worth it below)."""
+    """``supernodes.relax`` and ``supernodes.heights``: in C when its library was built, else through Numba for
+    d ≥ ``COMPILED_LOOPS`` when it can be imported, else as Python (integer loops and the same floating-point
+    operations: the same plan every way, tested)."""
     from . import supernodes
 
-    if d >= COMPILED_LOOPS:
+    try:
+        from .c_kernels import KERNELS
+    except ImportError:
+        if d < COMPILED_LOOPS:
+            return supernodes.relax, supernodes.heights
         try:
-            from .c_kernels import KERNELS
-        except ImportError:
-            try:
-                from .compiled_kernels import KERNELS
-            except Exception as exc:  # no Numba: the same loops in Python
-                log.debug("symbolic analysis in Python (%s)", exc)
-                return supernodes.relax, supernodes.heights
-        return KERNELS["relax"], KERNELS["heights"]
-    return supernodes.relax, supernodes.heights
+            from .compiled_kernels import KERNELS
+        except Exception as exc:  # no Numba: the same loops in Python
+            log.debug("symbolic analysis in Python (%s)", exc)
+            return supernodes.relax, supernodes.heights
+    return KERNELS["relax"], KERNELS["heights"]
 
 
 @dataclass(eq=False)

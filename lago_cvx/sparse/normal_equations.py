@@ -41,7 +41,7 @@ from .block_factor import inverse_blocks
 from .multifrontal import COMPILED_RELAX, BlockFactor, EliminationPlan, plan_from_pattern, plan_from_qdldl
 from ..progress import Progress
 from .upper_pattern import BlockUpperPattern, PoseLaplacian, PoseUpperPattern, QdldlFactor, matrix_blocks
-from .wide import WIDE_COMPILED_MIN
+from . import wide as wide_policy
 
 __all__ = ["plan_from_pattern", "matrix_blocks", "EdgeSystem", "EdgeOperator", "GraphElimination", "PoseFactor", "BlockUpperPattern", "PoseUpperPattern", "QdldlFactor", "RenumberedFactor", "CompiledPoseFactor", "ENGINE_MIN", "COMPILED_MIN"]
 
@@ -316,8 +316,8 @@ class GraphElimination:
 
     @property
     def wide_compiled(self) -> bool:
-        """The ``wide`` systems reach ``WIDE_COMPILED_MIN`` unknowns: the compiled engine factors them all."""
-        return bool(self._wide) and self.d * max(self._wide) >= WIDE_COMPILED_MIN
+        """The ``wide`` systems reach ``wide.compiled_from()`` unknowns: the compiled engine factors them all."""
+        return bool(self._wide) and self.d * max(self._wide) >= wide_policy.compiled_from()
 
     @property
     def relaxation(self):

@@ -2,11 +2,12 @@
 b = 3 on mesh-like graphs, the joint step with b = 6): the compiled multifrontal engine sooner, one BLAS thread.
 
 ``factor_wide(elimination, system)`` and ``solve_wide(elimination, system)`` are ``GraphElimination.factor`` and
-``.solve`` with this policy; the compiled engine's failure (no Numba, a kernel that cannot compile, a matrix not
-positive definite) falls back to the engine's own choice, logged. A ``GraphElimination`` built with ``wide=(3, 6)``
-(the block sizes of the wide systems it will factor) decides once for all of them: when the largest reaches
-:data:`WIDE_COMPILED_MIN` unknowns, the b = 3 systems are compiled too (Numba is loaded for the b = 6 one anyway), on
-a plan with the compiled engine's amalgamation.
+``.solve`` with this policy: every such system on the compiled engine when its C kernels are built, from
+:data:`WIDE_COMPILED_MIN` unknowns with Numba's (``compiled_from``). The compiled engine's failure (no kernels, a
+kernel that cannot compile, a matrix not positive definite) falls back to the engine's own choice, logged. A
+``GraphElimination`` built with ``wide=(3, 6)`` (the block sizes of the wide systems it will factor) decides once for
+all of them: when the largest reaches ``compiled_from()`` unknowns, the b = 3 systems are compiled too (the kernels
+are loaded for the b = 6 one anyway), on a plan with the compiled engine's amalgamation.
 """
 
 from __future__ import annotations
@@ -14,21 +15,32 @@ from __future__ import annotations
 import contextlib
 import logging
 
-__all__ = ["WIDE_COMPILED_MIN", "factor_wide", "solve_wide"]
+__all__ = ["WIDE_COMPILED_MIN", "compiled_from", "factor_wide", "solve_wide"]
 
 log = logging.getLogger(__name__)
 
-#: The 3-D systems (b = 3: the chordal relaxation, the positions; b = 6: the joint step) with at least this many
-#: unknowns d·b are factored by the engine's compiled multifrontal engine (``GraphElimination.factor(engine=
-#: "compiled")``), smaller ones as the engine chooses (QDLDL there). The engine's own threshold is set by the planar
-#: systems (300 000 unknowns, b ≤ 3, little fill per unknown); a 3-D graph fills more per pose and the 6×6 blocks
-#: multiply it by 36, where dense fronts pay far sooner. Measured in process (one BLAS thread, median of 7, QDLDL /
-#: compiled, the whole elimination built per call): the joint step's b = 6 factorization on torus3D (30 000
-#: unknowns) 0.74 / 0.11 s, sphere2500 (15 000) 0.175 / 0.066 s; the b = 3 systems 0.063 / 0.055 and 0.026 / 0.010
-#: s. But the first compiled factorization of a process imports Numba and loads the kernels, about 1 s: a whole
-#: ``lago-cvx solve parking-garage.g2o`` (b = 6: 9 960 unknowns, 10 ms gained in process) took 1.45-1.58 s with it
-#: against 0.75-0.91 s without. Hence the threshold above parking-garage's joint step.
+#: With Numba's kernels (the C library not built), the 3-D systems (b = 3: the chordal relaxation, the positions;
+#: b = 6: the joint step) with at least this many unknowns d·b are factored by the engine's compiled multifrontal
+#: engine (``GraphElimination.factor(engine="compiled")``), smaller ones as the engine chooses (QDLDL there). The
+#: engine's own threshold is set by the planar systems (300 000 unknowns, b ≤ 3, little fill per unknown); a 3-D
+#: graph fills more per pose and the 6×6 blocks multiply it by 36, where dense fronts pay far sooner. Measured in
+#: process (one BLAS thread, median of 7, QDLDL / compiled, the whole elimination built per call): the joint step's
+#: b = 6 factorization on torus3D (30 000 unknowns) 0.74 / 0.11 s, sphere2500 (15 000) 0.175 / 0.066 s; the b = 3
+#: systems 0.063 / 0.055 and 0.026 / 0.010 s. But Numba's first compiled factorization in a process imports Numba
+#: and loads the kernels, about 0.5-1 s: a whole ``lago-cvx solve parking-garage.g2o`` (b = 6: 9 960 unknowns,
+#: 10 ms gained in process) took 1.45-1.58 s with it against 0.75-0.91 s without. Hence the threshold above
+#: parking-garage's joint step.
 WIDE_COMPILED_MIN = 12_000
+
+
+def compiled_from() -> int:
+    """The least unknowns d·b of a 3-D system that the compiled engine factors: 0 with the C kernels
+    (``compiled.native()``; they load in milliseconds, and the compiled route was as fast or faster at every size
+    measured: lago3d in process, median of 15, QDLDL / compiled, parking-garage 84.5 / 77.4 ms, smallGrid3D 14.4 /
+    14.0 ms, tinyGrid3D 8.1 / 7.4 ms), :data:`WIDE_COMPILED_MIN` with Numba's."""
+    from . import compiled
+
+    return 0 if compiled.native() else WIDE_COMPILED_MIN
 
 
 #: The compiled factorizations of the 3-D systems run with one BLAS thread. The engine gives its largest fronts every
@@ -67,13 +79,13 @@ def _compiled(elimination, system):
 
 
 def _use_compiled(elimination, system) -> bool:
-    """From :data:`WIDE_COMPILED_MIN` unknowns, this system's or the largest announced one's (module docstring)."""
-    return system.d * system.b >= WIDE_COMPILED_MIN or getattr(elimination, "wide_compiled", False)
+    """From ``compiled_from()`` unknowns, this system's or the largest announced one's (module docstring)."""
+    return system.d * system.b >= compiled_from() or getattr(elimination, "wide_compiled", False)
 
 
 def factor_wide(elimination, system):
     """The factor of ``system``'s normal matrix (an ``EdgeSystem`` on ``elimination``, a ``GraphElimination``):
-    compiled from :data:`WIDE_COMPILED_MIN` unknowns (module docstring), else (or if the compiled engine cannot run,
+    compiled from ``compiled_from()`` unknowns (module docstring), else (or if the compiled engine cannot run,
     or finds the matrix not positive definite) as the engine chooses."""
     f = _compiled(elimination, system) if _use_compiled(elimination, system) else None
     return elimination.factor(system) if f is None else f
