@@ -5,8 +5,9 @@
    run alternately after one warm-up each; medians of ``--repeat`` pairs (at least 9) and the spread of the
    pairwise ratios.
 2. What every such process pays before it reads a byte: the interpreter with each side's imports (NumPy and
-   SciPy's sparse modules for ours, ``gtsam`` for GTSAM's), and the compiled engine's start (importing Numba and
-   loading its cached kernels), each a fresh process, median of the same number of runs.
+   SciPy's sparse modules for ours, ``gtsam`` for GTSAM's), and the compiled engine's start (loading its C kernels;
+   or importing Numba and loading its cached kernels, the fallback), each a fresh process, median of the same number
+   of runs.
 3. A ``lago-cvx generate --world sphere3d --poses 100000`` world: read + initialization + write as one process by
    both routes, wall time and peak memory (``os.wait4``), median of three.
 """
@@ -23,13 +24,16 @@ import _bench
 FILES = ("se-sync-3d/sphere2500.g2o", "se-sync-3d/torus3D.g2o", "se-sync-3d/parking-garage.g2o")
 GTSAM_SCRIPT = _bench.HERE.parent.parent / "shared" / "bench" / "gtsam_init3d.py"
 BIG_POSES = 100_000
+_START = "import numpy as np, lago_cvx.cli.main, lago_cvx.io, lago_cvx.space; from lago_cvx.sparse import compiled; "
+_CALL = "z = np.zeros(1, np.int64); compiled.kernels()['pose_local'](z, z, np.array([0, 1]), np.zeros(2, np.int64), z)"
 STARTS = {
     "Python alone": "pass",
     "ours: NumPy + SciPy's sparse modules": "import numpy, scipy.sparse, scipy.sparse.linalg, scipy.linalg",
     "ours: the whole CLI imported": "import lago_cvx.cli.main, lago_cvx.io, lago_cvx.space",
-    "ours: + the compiled engine's start (Numba, one cached kernel loaded)":
-        "import numpy as np, lago_cvx.cli.main, lago_cvx.io, lago_cvx.space; from lago_cvx.sparse import compiled; "
-        "z = np.zeros(1, np.int64); compiled.kernels()['pose_local'](z, z, np.array([0, 1]), np.zeros(2, np.int64), z)",
+    "ours: + the compiled engine's start, its C kernels (and SciPy's LAPACK, whose addresses they call)":
+        _START + "compiled.use_kernels('c'); " + _CALL,
+    "ours: + the compiled engine's start by Numba's kernels instead (installs without a C compiler)":
+        _START + "compiled.use_kernels('numba'); " + _CALL,
     "GTSAM: import gtsam": "import gtsam",
 }
 
@@ -88,9 +92,9 @@ def run(args) -> str:
         "beside both routes (it pins the first pose by a prior and runs readG2o, InitializePose3, writeG2o).", "",
         _bench.table(["file", "route", "ours", "GTSAM", "ours / GTSAM", "pairwise ratios"], rows), "",
         "## What a process pays before it reads its file [s]", "",
-        f"Fresh processes, median of {pairs}. The compiled engine factors the 3-D systems from "
-        "`sparse.wide.WIDE_COMPILED_MIN` unknowns (the default route on sphere2500 and torus3D, not on "
-        "parking-garage); its start is paid once per process.", "",
+        f"Fresh processes, median of {pairs}. With its C kernels the compiled engine factors every 3-D system "
+        "(`sparse.wide.compiled_from()`); with Numba's, from `sparse.wide.WIDE_COMPILED_MIN` unknowns. Its start is "
+        "paid once per process.", "",
         _bench.table(["what", "wall"], starts), "",
         f"## A {BIG_POSES:,}-pose 3-D world: read + initialization + write".replace(",", " "), "",
         f"`lago-cvx generate --world sphere3d --poses {BIG_POSES}` (the sphere of rings nearest that size), then "

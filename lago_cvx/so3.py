@@ -110,11 +110,11 @@ def project_so3(M) -> np.ndarray:
 
     Where det M > 0 that matrix is M's orthogonal polar factor, and it is computed as such: by Newton's iteration
     X ← ½(γX + (γX)⁻ᵀ), X₀ = M, with Frobenius-norm scaling γ = (‖X⁻¹‖_F/‖X‖_F)^½ while far from convergence
-    (Higham, *Functions of Matrices*, 2008, chapter 8), on the nine entries of all matrices at once (X⁻ᵀ = cof(X)/det X), until
-    no matrix moves by more than :data:`POLAR_TOLERANCE` (the iteration converges quadratically, so the last step
-    leaves an error of its square). The SVD takes every other matrix (det M ≤ 0, not finite, or not converged in
-    :data:`POLAR_ITERATIONS`), and is the reference the tests hold the iteration to. Same matrix, about 8× faster
-    than a LAPACK SVD per matrix on sphere2500's 2 500 rotations."""
+    (Higham, *Functions of Matrices*, 2008, chapter 8), on the nine entries of all matrices at once
+    (X⁻ᵀ = cof(X)/det X), until no matrix moves by more than :data:`POLAR_TOLERANCE` (the iteration converges
+    quadratically, so the last step leaves an error of its square). The SVD takes every other matrix (det M ≤ 0,
+    not finite, or not converged in :data:`POLAR_ITERATIONS`), and is the reference the tests hold the iteration
+    to. The same matrices to rounding, 1.6 ms against 9.5 ms by LAPACK's SVD per matrix for 2 500 of them."""
     M = np.asarray(M, dtype=float)
     shape = M.shape
     M = M.reshape(-1, 3, 3)
