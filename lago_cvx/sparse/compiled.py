@@ -33,8 +33,8 @@ extension and loaded by ctypes), Numba as the fallback when it was not built (``
 install): the same functions with the same arithmetic in the same order, so both give the same bits. The reason is
 each process's start. Measured in fresh processes (SciPy loaded): ``kernels()`` 4 ms with C against 0.16-0.17 s
 with Numba (its import), then Numba loads each cached kernel at its first call: a first factorization and solve
-of 900 unknowns 13-14 ms against 0.42-0.44 s, ``space.lago3d`` on sphere2500 0.24-0.26 s against 0.69-0.78 s
-(0.15-0.17 s either way when called again). ``IMPLEMENTATION`` / ``use_kernels`` choose one (tests).
+of 900 unknowns 13-14 ms against 0.42-0.44 s, ``space.lago3d`` on sphere2500 (every system compiled) 0.18 s
+against 0.63-0.68 s (0.12-0.13 s either way when called again). ``IMPLEMENTATION`` / ``use_kernels`` choose one (tests).
 Nothing is loaded until a factorization runs (``available()`` tells whether one can): import lago_cvx, the CLI's
 start-up and every system below ``normal_equations.COMPILED_MIN`` unknowns load neither. Numba's kernels are
 cached on disk (``cache=True``, in ``__pycache__`` beside this file or Numba's user cache), so only its first run

@@ -1,8 +1,8 @@
 r"""The two sequential loops of the pose-level symbolic analysis (``multifrontal.plan_from_qdldl``), as
-plain functions on NumPy arrays: run as Python below ``multifrontal.COMPILED_LOOPS`` poses, compiled above — in C
-(``_ckernels.c`` through ``c_kernels``) when that library was built at install, else by Numba (``compiled_kernels``;
-its import and cached kernels cost about half a second per process, the C library a few milliseconds) — with
-the same arithmetic either way.
+plain functions on NumPy arrays: compiled in C (``_ckernels.c`` through ``c_kernels``) at every size when that
+library was built at install; else by Numba (``compiled_kernels``) from ``multifrontal.COMPILED_LOOPS`` poses and as
+Python below (Numba's import and cached kernels cost about half a second per process, the C library a few
+milliseconds) — with the same arithmetic every way (``multifrontal._loops``).
 
 * ``relax`` — relaxed amalgamation (CHOLMOD's rule, ``multifrontal.NRELAX``/``ZRELAX``): supernode c is
   merged into its parent p when the merged front has few pivots, or few explicit zeros;
