@@ -68,7 +68,8 @@ THREADED_FRONT = 384
 #: threads at all; how many threads is ``threads.cores()``, read when a factorization is scheduled.
 PARALLEL_WORK = 5e8
 
-#: Each compiled call factors at most this share of the fronts (progress is reported between calls).
+#: With a progress callback, each compiled call factors at most this share of the fronts (progress is reported
+#: between calls); without one, a call runs every front up to the next large one.
 CHUNK = 0.02
 
 
@@ -223,8 +224,10 @@ class CompiledLayout:
         done = [0.0]
 
         def report():
-            if progress is not None and total > 0:
+            if total > 0:
                 progress(min(done[0], total), total)
+
+        report = None if progress is None else report  # without one, each call runs as many fronts as it can
 
         with blas_threads(1) as threads:
             if sched is None:
@@ -249,7 +252,8 @@ class CompiledLayout:
             for j in jobs:
                 while j.is_alive():
                     j.join(0.25)
-                    report()
+                    if report is not None:
+                        report()
             if errors:
                 raise errors[0]
             where = {}  # subtree root → (its worker, offset, size) of its update
@@ -398,14 +402,15 @@ class _Front:
 
     def fronts(self, f0: int, f1: int, threads, done: list, report) -> None:
         """Fronts f0 … f1 − 1 (whole subtrees, or a top front whose children's updates are on this
-        stack): small runs inside one compiled call; with ``threads`` (this thread sets the BLAS thread
-        count) a large front alone, on every BLAS thread. ``done[0]`` += their work."""
+        stack): small runs inside one compiled call (``CHUNK`` of the fronts per call when ``report`` wants
+        progress between calls, else as many as run before a large one); with ``threads`` (this thread sets
+        the BLAS thread count) a large front alone, on every BLAS thread. ``done[0]`` += their work."""
         lay, kern = self.layout, self.kern
         run, assemble, finish, one, fn = kern["run"], kern["assemble"], kern["finish"], kern["one"], kern["fn"]
         b = lay.b
         common = (b, lay.fptr, lay.rptr, lay.rel, lay.nchild)
         big = lay.big if threads is not None else lay.none_big
-        step = max(int(lay.plan.n_fronts * CHUNK), 1)
+        step = max(int(lay.plan.n_fronts * CHUNK), 1) if report is not None else max(f1 - f0, 1)
         bufs = (self.F, self.stack, self.st_front, self.st_off, self.state)
         f = f0
         while f < f1:
