@@ -65,8 +65,12 @@ SMALL_WORK = 50_000
 THREADED_FRONT = 384
 
 #: The least work (Σ k·D² over the fronts) for which the factorization's subtrees are shared among
-#: threads at all; how many threads is ``threads.cores()``, read when a factorization is scheduled.
-PARALLEL_WORK = 5e8
+#: threads at all; how many threads is ``threads.cores()``, read when a factorization is scheduled. Below it
+#: the threads' start and the solves' sweeps split among them cost more than they share: ``space.lago3d`` on
+#: sphere2500 (joint step 7.1e8) took 0.103-0.106 s with every system in one thread against 0.113-0.116 s
+#: shared (in process, medians of 11), torus3D (2.8e9) 0.23-0.24 s either way, parking-garage (7.3e7) 0.062-
+#: 0.066 s either way. The planar systems the engine factors start near 9e9 (300 000 poses).
+PARALLEL_WORK = 1e9
 
 #: With a progress callback, each compiled call factors at most this share of the fronts (progress is reported
 #: between calls); without one, a call runs every front up to the next large one.
