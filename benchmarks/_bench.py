@@ -12,7 +12,9 @@ writes each result to ``benchmarks/<section>.md`` behind the one-line ``header``
 * ``FILES``, ``datasets_skipped``, ``find``, ``each_dataset`` — the public datasets, found through
   ``lago_cvx.datasets`` (``$LAGO_CVX_DATASETS``, then ``../shared/datasets``); a section that needs them
   reports "skipped: datasets not found" instead of failing. Reference values (χ² minima, SE-Sync
-  costs) are read from ``lago_cvx.datasets`` by the sections, never typed here.
+  costs) are read from ``lago_cvx.datasets`` by the sections, never typed here;
+* ``alternating``, ``have_gtsam``, ``gtsam_script_skipped`` — whole processes of ours and GTSAM's scripts in
+  alternating pairs, and why such a comparison cannot run here.
 """
 
 from __future__ import annotations
@@ -75,6 +77,15 @@ def alternating(first: list, second: list, pairs: int) -> tuple[list, list]:
 def have_gtsam() -> bool:
     """True when this Python can import ``gtsam`` (asked of a child process: nothing is imported here)."""
     return subprocess.run([sys.executable, "-c", "import gtsam"], capture_output=True).returncode == 0
+
+
+def gtsam_script_skipped(script: Path) -> str | None:
+    """None when both sides of a whole-process comparison can run; otherwise the line saying why not: the datasets
+    missing (``datasets_skipped``), or GTSAM's side (``script`` in ``../shared/bench``, the ``gtsam`` extra)."""
+    skipped = datasets_skipped()
+    if skipped is None and not (Path(script).is_file() and have_gtsam()):
+        skipped = f"skipped: GTSAM's side needs {script} and the `gtsam` extra"
+    return skipped
 
 
 # ------------------------------------------------------------------------------------- the machine

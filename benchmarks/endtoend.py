@@ -25,11 +25,9 @@ GTSAM_SCRIPT = _bench.HERE.parent.parent / "shared" / "bench" / "gtsam_lago.py"
 
 
 def run(args) -> str:
-    skipped = _bench.datasets_skipped()
+    skipped = _bench.gtsam_script_skipped(GTSAM_SCRIPT)
     if skipped:
         return skipped
-    if not GTSAM_SCRIPT.is_file() or not _bench.have_gtsam():
-        return f"skipped: GTSAM's side needs {GTSAM_SCRIPT} and the `gtsam` extra"
     pairs = max(9, args.repeat)
     rows = []
     with tempfile.TemporaryDirectory(prefix="lago_bench_e2e_") as d:

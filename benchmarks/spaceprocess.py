@@ -50,11 +50,9 @@ def _pairs(ours: list, theirs: list, pairs: int) -> list:
 
 
 def run(args) -> str:
-    skipped = _bench.datasets_skipped()
+    skipped = _bench.gtsam_script_skipped(GTSAM_SCRIPT)
     if skipped:
         return skipped
-    if not GTSAM_SCRIPT.is_file() or not _bench.have_gtsam():
-        return f"skipped: GTSAM's side needs {GTSAM_SCRIPT} and the `gtsam` extra"
     pairs = 3 if args.quick else max(9, args.repeat)
     py = sys.executable
     rows = []
