@@ -1,14 +1,43 @@
 """Conventions written once, for the reports of the library and the command line (no heavy imports:
 ``lago-cvx --help`` reads them).
 
-* ``CHI2_CONVENTION`` — χ² of eq. (3) in the g2o convention, Σ eᵀΩe with no ½ (twice GTSAM's ``error()``).
+The cost a file means
+=====================
+Every χ² lago_cvx reports is Σ_k e_kᵀ Ω_k e_k (no ½) for one of three named errors of an edge i → j with
+measurement Z = (t̃, R̃) and information Ω as the file gives it (:data:`COSTS`):
+
+* ``"g2o"`` — what g2o computes: e = t2v(Z⁻¹ · X_i⁻¹ X_j). Planar (``EDGE_SE2``):
+  e = [R(δ)ᵀ(R_iᵀ(p_j − p_i) − Δˡ) ; wrap(θ_j − θ_i − δ)], the translational residual in the *measurement's*
+  frame. 3-D (``EDGE_SE3:QUAT``): e = [translation of E ; x, y, z of E's unit quaternion, w ≥ 0],
+  E = Z⁻¹X_i⁻¹X_j. The default for g2o files.
+* ``"gtsam"`` — 2·``error()`` of GTSAM's ``BetweenFactor`` with the information read as ``gtsam.readG2o``
+  reads it: e = Log(Z⁻¹X_i⁻¹X_j), GTSAM's local coordinates (SE(2) Logmap in the plane, SE(3) Logmap in 3-D).
+* ``"paper"`` — the seed's eq. (3), e = [R_iᵀ(p_j − p_i) − Δˡ ; wrap(θ_j − θ_i − δ)], the translational
+  residual in the frame of the tail i: what a TORO file's information is written for (the default for TORO
+  files). Planar only.
+
+* ``CHI2_CONVENTION`` — how χ² is summed (no ½; twice GTSAM's ``error()``).
 * ``SESYNC_COST_CONVENTION`` — the cost the optimality certificate is about (``lago_cvx.certification``).
 * ``CERTIFY_TOL`` — the largest proven relative suboptimality (f − f*_lower)/f called "certified".
 """
 
-__all__ = ["CHI2_CONVENTION", "SESYNC_COST_CONVENTION", "CERTIFY_TOL"]
+__all__ = ["CHI2_CONVENTION", "SESYNC_COST_CONVENTION", "CERTIFY_TOL", "COSTS", "COSTS_3D", "COST_OF_FORMAT",
+           "COST_DESCRIPTION", "check_cost"]
 
-CHI2_CONVENTION = "g2o convention: sum e'Ωe, no 1/2"
+CHI2_CONVENTION = "sum e'Ωe, no 1/2"
+
+#: The named costs (module docstring), in the order the command line lists them.
+COSTS = ("g2o", "gtsam", "paper")
+#: The costs defined for 3-D graphs (the paper's eq. (3) is planar).
+COSTS_3D = ("g2o", "gtsam")
+#: The cost a file format means: its information matrices are written for that error.
+COST_OF_FORMAT = {"g2o": "g2o", "toro": "paper"}
+#: One line per cost, for reports and ``--help``.
+COST_DESCRIPTION = {
+    "g2o": "g2o's chi2: e = t2v(Z^-1 X_i^-1 X_j) (EDGE_SE2; EDGE_SE3:QUAT: translation, quaternion x,y,z)",
+    "gtsam": "GTSAM's 2*error(): e = Logmap(Z^-1 X_i^-1 X_j) (BetweenFactor, information as readG2o reads it)",
+    "paper": "the paper's eq. (3): e = [R_i'(p_j - p_i) - dl; wrap(th_j - th_i - d)] (TORO's information)",
+}
 
 #: One line stating which cost the certificate is about (eqs. (S1)–(S2) of ``certification/sesync.py``).
 SESYNC_COST_CONVENTION = ("SE-Sync cost f = Σ κ‖R_j−R_iR̃‖²_F + τ‖t_j−t_i−R_i t̃‖² (no ½; κ = Ω_θθ, "
@@ -16,3 +45,15 @@ SESYNC_COST_CONVENTION = ("SE-Sync cost f = Σ κ‖R_j−R_iR̃‖²_F + τ‖t
 
 #: The largest relative suboptimality bound (f − f*_lower)/f ``certify`` accepts as "certified" (default).
 CERTIFY_TOL = 1e-3
+
+
+def check_cost(cost, *, dim: int = 2) -> str:
+    """``cost`` as one of :data:`COSTS` (3-D: :data:`COSTS_3D`); ``OptionError`` naming the choices otherwise."""
+    from .errors import OptionError
+
+    allowed = COSTS if dim == 2 else COSTS_3D
+    name = str(cost).lower() if isinstance(cost, str) else cost
+    if name not in allowed:
+        extra = " (the paper's eq. (3) is planar)" if dim == 3 and name == "paper" else ""
+        raise OptionError(f"unknown cost {cost!r}{extra}; expected one of {allowed}")
+    return name
