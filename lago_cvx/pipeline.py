@@ -40,10 +40,14 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
          regularization: str | None = None, information: str | None = None, positions: str | None = None,
          anchor=None, anchor_pose=None, margin: float = AMBIGUITY_MARGIN,
          solver_settings: ClarabelSettings | None = None, backend: str = "auto", anchors=None,
-         integer_search: IntegerSearch | None = None, progress=None) -> LagoResult:
+         integer_search: IntegerSearch | None = None, progress=None, cost: str | None = None) -> LagoResult:
     """LAGO: the linear approximation of planar pose-graph optimization (the seed's Section IV).
 
     Parameters (keyword-only):
+      cost — the cost the graph's information is read for, one of ``lago_cvx.conventions.COSTS``
+        (``graph.with_cost(cost)``); None: the graph's own (``graph.cost``: a file format's, ``"paper"`` for a
+        graph built in Python). LAGO weighs eq. (3) with the information in that cost's frame
+        (``lago_cvx.posegraph``), and ``result.chi2`` is that cost.
       route — ``"default"`` or ``"seed"`` (``lago_cvx.routes.ROUTES``): the choices of tree, regularization,
         information and positions below when they are left ``None``. ``route="seed"`` is exactly the
         paper's procedure.
@@ -82,6 +86,8 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
     A 3-D graph (``graph.dim == 3``, a ``PoseGraph3D``) goes to ``lago_cvx.space.lago3d`` with ``route``,
     ``method``, ``anchor`` and ``solver_settings`` (the planar options do not apply and must be left unset).
     """
+    if cost is not None:
+        graph = graph.with_cost(cost)
     if getattr(graph, "dim", 2) == 3:
         return _in_space(graph, route=route, method=method, anchor=anchor, solver_settings=solver_settings,
                          spanning_tree=spanning_tree, regularization=regularization, information=information,
@@ -227,6 +233,8 @@ def compare_methods(graph: PoseGraph, *, solver_settings: ClarabelSettings | Non
     keyword of ``lago`` too). ``kwargs``: the keywords of ``lago`` but ``method`` (both run: ``OptionError``)."""
     if "method" in kwargs:
         raise OptionError("method: compare_methods solves both ways (closed form, then cvxpy); do not pass method")
+    if kwargs.get("cost") is not None:
+        graph = graph.with_cost(kwargs.pop("cost"))
     if anchors is not None:
         from .variants import compare_anchored_methods
 
