@@ -86,8 +86,7 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
     A 3-D graph (``graph.dim == 3``, a ``PoseGraph3D``) goes to ``lago_cvx.space.lago3d`` with ``route``,
     ``method``, ``anchor`` and ``solver_settings`` (the planar options do not apply and must be left unset).
     """
-    if cost is not None:
-        graph = graph.with_cost(cost)
+    graph = graph if cost is None else graph.with_cost(cost)
     if getattr(graph, "dim", 2) == 3:
         return _in_space(graph, route=route, method=method, anchor=anchor, solver_settings=solver_settings,
                          spanning_tree=spanning_tree, regularization=regularization, information=information,
