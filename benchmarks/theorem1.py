@@ -61,7 +61,7 @@ def run(args) -> str:
         out += [skipped, ""]
     else:
         out += [f"LAGO with the tree rounding on the BFS tree and {args.theorem1_information} information "
-                "(phases 2–3); χ² in the g2o convention; minima from `lago_cvx.datasets.REFERENCE_CHI2`.", "",
+                "(phases 2–3); χ² in each file's own cost (`lago_cvx.conventions`); minima from `lago_cvx.datasets.REFERENCE_CHI2`.", "",
                 dataset_table(args.theorem1_information), "",
                 "The identity x* = x̂ + [ρ̃; δ̃] of eqs. (16)–(17) holds to rounding on every file. The claim "
                 "that phase 3 moves x̂ towards a minimum does not: on INTEL, CSAIL and MIT χ²(x*) is many times "
