@@ -40,7 +40,7 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
          regularization: str | None = None, information: str | None = None, positions: str | None = None,
          anchor=None, anchor_pose=None, margin: float = AMBIGUITY_MARGIN,
          solver_settings: ClarabelSettings | None = None, backend: str = "auto", anchors=None,
-         integer_search: IntegerSearch | None = None, progress=None) -> LagoResult:
+         integer_search: IntegerSearch | None = None, progress=None, robust=None) -> LagoResult:
     """LAGO: the linear approximation of planar pose-graph optimization (the seed's Section IV).
 
     Parameters (keyword-only):
@@ -76,12 +76,22 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
       anchors — ``{id: (x, y, θ)}`` known poses (None for unknown components); when given (even ``{}``)
         LAGO runs with the known entries moved to the right-hand side (``lago_cvx.variants.anchored_lago``;
         returns its ``VariantResult``, a ``LagoResult``).
+      robust — None / False (default): least squares. True, ``"gnc-tls"``, ``"gnc-gm"`` or a
+        ``lago_cvx.variants.RobustSettings``: graduated non-convexity around weighted LAGO runs with the
+        options above, rejecting false loop closures (``lago_cvx.variants.gnc``); returns a ``RobustResult``
+        (``rejected_edges``, ``weights``; its ``graph`` and ``chi2`` are those of the accepted edges).
     Raises ``GraphError`` for a disconnected graph (naming component sizes), a broken odometric chain,
     or an unknown anchor; ``OptionError`` for a bad option.
 
     A 3-D graph (``graph.dim == 3``, a ``PoseGraph3D``) goes to ``lago_cvx.space.lago3d`` with ``route``,
     ``method``, ``anchor`` and ``solver_settings`` (the planar options do not apply and must be left unset).
     """
+    if robust is not None and robust is not False:
+        return _robust(graph, robust, dict(route=route, method=method, spanning_tree=spanning_tree,
+                                           regularization=regularization, information=information,
+                                           positions=positions, anchor=anchor, anchor_pose=anchor_pose,
+                                           margin=margin, solver_settings=solver_settings, backend=backend,
+                                           anchors=anchors, integer_search=integer_search, progress=progress))
     if getattr(graph, "dim", 2) == 3:
         return _in_space(graph, route=route, method=method, anchor=anchor, solver_settings=solver_settings,
                          spanning_tree=spanning_tree, regularization=regularization, information=information,
@@ -147,6 +157,16 @@ def _log_run(graph, route_name, method, tree, reg, choice, seconds) -> None:
     log.info("LAGO (%s route, %s, %s tree, %s regularization, %s information, %s positions): %d poses, %d edges, "
              "%d cycles regularized, %.3f s", route_name, method, tree.kind, reg.regularization,
              choice["information"], choice["positions"], graph.n_poses, graph.n_edges, reg.n_regularized, seconds)
+
+
+def _robust(graph, robust, options: dict):
+    """GNC (``lago_cvx.variants.gnc_lago``) around ``lago`` with ``options``."""
+    from .variants import gnc_lago, robust_settings
+
+    settings = robust_settings(robust)
+    if getattr(graph, "dim", 2) == 3:
+        raise OptionError("robust: planar graphs only")
+    return gnc_lago(graph, settings, solve=lambda g: lago(g, **options))
 
 
 def _in_space(graph, *, route, method, anchor, solver_settings, **planar):

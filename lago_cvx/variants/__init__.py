@@ -53,6 +53,8 @@ from .anchors import Anchor, AnchorRegularization, Prior, normalize_anchors, nor
 from .constraints import (NamedConstraint, PoseVariables, box_constraint, halfplane_constraint, orientation_bounds,
                           polygon_constraint)
 from .engine import VariantOptions, VariantPhase1, VariantPhase3, VariantResult, lago_variant
+from .gnc import (ROBUST_LOSSES, RobustResult, RobustSettings, RobustVariantResult, gnc_lago, gnc_threshold,
+                  gnc_weights, odometric_chain_complete, robust_settings)
 from .robust import GATE_THRESHOLD, robust_lago
 from .strain import STRAIN_LEVEL, AnchorStrain
 from .systems import (DEFAULT_THRESHOLD, LOSSES, WeightedSystem, anchored_phase2, phase1_system, phase3_system,
@@ -65,6 +67,8 @@ __all__ = [
     "WeightedSystem", "phase1_system", "anchored_phase2", "phase3_system", "system_problem", "solve_system",
     "solve_system_cvxpy", "PoseVariables", "NamedConstraint", "box_constraint", "polygon_constraint",
     "halfplane_constraint", "orientation_bounds", "LOSSES", "DEFAULT_THRESHOLD", "STRAIN_LEVEL", "GATE_THRESHOLD",
+    "RobustSettings", "RobustResult", "RobustVariantResult", "ROBUST_LOSSES", "robust_settings", "gnc_lago",
+    "gnc_threshold", "gnc_weights", "odometric_chain_complete",
 ]
 
 
