@@ -23,8 +23,9 @@ Black–Rangarajan duality each surrogate is minimized by alternating
   with r_max the largest residual of the first (unweighted) LAGO. c̄² is the χ² quantile of 3 dof at
   ``confidence`` (0.99 → 11.34): an inlier's whitened residual exceeds it with probability 1 − confidence.
   GNC stops when the weights no longer change (TLS: all binary, the same set twice; GM: μ = 1 and the
-  weights moved by less than ``weight_tolerance``) or after ``max_iterations``. The edges with final
-  weight < ½ are rejected and LAGO runs once more, unweighted, on the accepted edges: the result.
+  weights moved by less than ``weight_tolerance``) or after ``max_iterations``. The rejected edges — TLS:
+  final weight < ½; GM, whose weights never reach 0: r_k² > c̄² at GNC's estimate, where the GM weight
+  at μ = 1 is below ¼ — leave, and LAGO runs once more, unweighted, on the accepted edges: the result.
 
 Known inliers. Odometric edges (between consecutive ids) are never false loop closures in the usual
 protocol; ``trust_odometry=None`` holds their weight at 1 whenever the odometric chain 0–1–…–(n−1) is
@@ -222,7 +223,9 @@ def gnc_lago(graph: PoseGraph, settings: RobustSettings, *, solve: Callable) -> 
             r2 = whitened_errors(graph, res.poses) ** 2
             history.append(dict(mu=mu, n_outliers=int((w < 0.5).sum()), seconds=time.perf_counter() - t))
             mu = mu * settings.mu_factor if settings.loss == "tls" else max(1.0, mu / settings.mu_factor)
-    keep = w >= 0.5
+    # TLS ends with binary weights; GM's never reach 0: an edge is rejected where its residual at GNC's
+    # estimate exceeds c̄² (there GM's weight at μ = 1 has fallen below ¼)
+    keep = (w >= 0.5) if settings.loss == "tls" else (r2 <= c2)
     keep[known] = True
     accepted = graph.subgraph_edges(keep)
     k, _ = connected_components(accepted)
