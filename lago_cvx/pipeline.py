@@ -86,12 +86,8 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
     A 3-D graph (``graph.dim == 3``, a ``PoseGraph3D``) goes to ``lago_cvx.space.lago3d`` with ``route``,
     ``method``, ``anchor`` and ``solver_settings`` (the planar options do not apply and must be left unset).
     """
-    if robust is not None and robust is not False:
-        return _robust(graph, robust, dict(route=route, method=method, spanning_tree=spanning_tree,
-                                           regularization=regularization, information=information,
-                                           positions=positions, anchor=anchor, anchor_pose=anchor_pose,
-                                           margin=margin, solver_settings=solver_settings, backend=backend,
-                                           anchors=anchors, integer_search=integer_search, progress=progress))
+    if robust is not None and robust is not False:  # GNC around this function with the other options
+        return _robust(graph, robust, {k: v for k, v in locals().items() if k not in ("graph", "robust")})
     if getattr(graph, "dim", 2) == 3:
         return _in_space(graph, route=route, method=method, anchor=anchor, solver_settings=solver_settings,
                          spanning_tree=spanning_tree, regularization=regularization, information=information,
