@@ -41,6 +41,8 @@ date):
   ``InitializePose3`` and the minimum, χ² and times;
 * ``spaceprocess`` — 3-D graphs as whole processes: ``lago-cvx solve -o`` against GTSAM's ``gtsam_init3d.py``,
   what each process pays before reading (imports, the compiled engine's start), and a 100 000-pose 3-D world;
+* ``costs``    — the χ² ``lago-cvx solve [--refine] -o`` reports against g2o's own χ² of the file written (g2opy)
+  and, with ``--cost gtsam``, GTSAM's 2·error(); each peer's Levenberg–Marquardt from our refined estimate;
 * ``million``  — ``lago-cvx solve -o`` as a whole process on 100 000 to 1 000 000-pose worlds by both routes,
   step by step with peak memory, and phase 3 by QDLDL against the compiled engine (``COMPILED_MIN``).
 
@@ -63,7 +65,7 @@ from pathlib import Path
 import _bench
 
 SECTIONS = ("datasets", "scaling", "perf", "endtoend", "chordal", "certify", "integer", "theorem1", "route", "io",
-            "unseen", "million", "processes", "space", "spaceprocess")
+            "unseen", "million", "processes", "space", "spaceprocess", "costs")
 #: Sections whose module has another name (``io`` would be the standard library's).
 MODULE_OF = {"io": "io_bench"}
 

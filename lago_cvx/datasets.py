@@ -16,8 +16,9 @@ Reference values (from ``../shared/datasets/README.md``; every table in the proj
 here):
 
 * ``DATASET_TABLE`` — file, poses, edges, odometric edges (consecutive ids), loop closures;
-* ``REFERENCE_CHI2`` — the χ² minimum (g2o convention, Σ eᵀΩe) reached by Gauss–Newton from the chordal
-  / SE-Sync point (README §4.2: best found, not certified);
+* ``REFERENCE_CHI2`` — the minimum of the cost each file means (``lago_cvx.conventions``: g2o's χ² for g2o
+  files, eq. (3) for TORO files; Σ eᵀΩe, no ½): the lower of ``refine`` from LAGO and g2o's own
+  Levenberg–Marquardt from there (``benchmarks/costs.md``; best found, not certified);
 * ``REFERENCE_SESYNC`` — the minimum of the SE-Sync cost f (README §4.2; all certified by
   ``lago_cvx.certification.certify``, see benchmarks/);
 * ``PUBLISHED_SESYNC`` — SE-Sync's Table 1 (Rosen et al., IJRR 2019), as printed (4 digits).
@@ -37,21 +38,21 @@ __all__ = ["datasets_dir", "dataset", "DatasetNotFound", "DATASET_TABLE", "DATAS
            "source_url", "resolve_name"]
 
 #: Every pose-graph file of the datasets folder with the counts of its README and the reference minima of
-#: its §4.2 ("–" where there is none): χ² minimum in the g2o convention, minimum of the SE-Sync cost f.
+#: its §4.2 ("–" where there is none): the minimum of the file's own cost (``REFERENCE_CHI2``), of the SE-Sync cost f.
 _TABLE_TEXT = """
 file                                   poses  edges  odometric  loop_closures  chi2_min  sesync_min
-se-sync/intel.g2o                       1728   2512       1727            785   44.4178     52.3482
-se-sync/CSAIL.g2o                       1045   1172       1044            128    61.143     31.7037
-se-sync/MIT.g2o                          808    827        807             20   39.6013     61.1541
-se-sync/manhattan.g2o                   3500   5453       3499           1954   3533.46     6431.39
+se-sync/intel.g2o                       1728   2512       1727            785   45.0047     52.3482
+se-sync/CSAIL.g2o                       1045   1172       1044            128    40.5551     31.7037
+se-sync/MIT.g2o                          808    827        807             20   41.1633     61.1541
+se-sync/manhattan.g2o                   3500   5453       3499           1954   3549.04     6431.39
 se-sync/city10000.g2o                  10000  20687       9999          10688   511.985     638.625
-carlone/input_INTEL_g2o.g2o             1228   1483       1227            256   214.171     393.653
-carlone/INTEL_P_toro.graph              1228   1505       1227            278   213.212     391.721
+carlone/input_INTEL_g2o.g2o             1228   1483       1227            256   215.830     393.653
+carlone/INTEL_P_toro.graph              1228   1505       1227            278   214.873     391.721
 carlone/input_M3500_g2o.g2o             3500   5453       3499           1954   137.913     193.862
 carlone/input_M3500a_g2o.g2o            3500   5453       3499           1954   912.115     1597.64
-carlone/M3500_P_toro.graph              3500   5453       3499           1954   3533.46     6431.39
-carlone/CSAIL_P_toro.graph              1045   1172       1044            128    61.143     31.7037
-carlone/FR079_P_toro.graph               989   1217        988            229   36.4248     28.5858
+carlone/M3500_P_toro.graph              3500   5453       3499           1954   3549.04     6431.39
+carlone/CSAIL_P_toro.graph              1045   1172       1044            128    40.5551     31.7037
+carlone/FR079_P_toro.graph               989   1217        988            229   38.8449     28.5858
 gtsam/noisyToyGraph.txt                    4      5          3              2         –           –
 gtsam/orientationsNoisyToyGraph.txt        4      5          3              2         –           –
 gtsam/optimizedNoisyToyGraph.txt           4      5          3              2         –           –
@@ -68,7 +69,7 @@ _TABLE = tuple(_row(line) for line in _TABLE_TEXT.strip().splitlines()[1:])
 DATASET_TABLE = tuple(row[:5] for row in _TABLE)
 #: The files of ``DATASET_TABLE``.
 DATASET_FILES = tuple(row[0] for row in _TABLE)
-#: χ² minima, g2o convention (README §4.2).
+#: χ² minima of each file's own cost (module docstring).
 REFERENCE_CHI2 = {row[0]: row[5] for row in _TABLE if row[5] is not None}
 #: Minima of the SE-Sync cost f (README §4.2).
 REFERENCE_SESYNC = {row[0]: row[6] for row in _TABLE if row[6] is not None}

@@ -1,13 +1,16 @@
-"""How good an estimate is: the cost of eq. (3) in the g2o χ² convention, trajectory errors against a
-ground truth after rigid alignment, and the relative difference the cross-checks report.
+"""How good an estimate is: the cost the graph means, trajectory errors against a ground truth after rigid
+alignment, and the relative difference the cross-checks report.
 
-For an edge i → j with measurement (Δˡ, δ) and information Ω the error is
+For an edge i → j with measurement (Δˡ, δ) and the information Ω of eq. (3) (``PoseGraph.information``) the
+error is
 
-    e_ij = [ R(θ_i)ᵀ(p_j − p_i) − Δˡ ;  wrap(θ_j − θ_i − δ) ]   (wrap to [−π, π)),
+    e_ij = [ R(θ_i)ᵀ(p_j − p_i) − Δˡ ;  wrap(θ_j − θ_i − δ) ]   (wrap to [−π, π)),            eq. (3)
 
-and the cost is χ² = Σ e_ijᵀ Ω_ij e_ij — **no factor ½**. This is what g2o reports as χ²; GTSAM's
-``NonlinearFactorGraph.error()`` reports half of it (its factors carry ½‖·‖²). The SE-Sync objective
-(``lago_cvx.certification``) is a different function again. Every printed χ² in lago_cvx is this one.
+and the cost is χ² = Σ e_ijᵀ Ω_ij e_ij — **no factor ½**. For a graph of cost ``"paper"`` this is eq. (3); for
+``"g2o"`` it is exactly the χ² g2o computes (``lago_cvx.posegraph``: Ω is the file's rotated into this frame).
+For ``"gtsam"`` the translational error is GTSAM's Logmap's, ẽ_t = V(ε)⁻¹ e_t with ε = e_θ
+(``posegraph.se2_v_inverse``), and χ² is twice GTSAM's ``NonlinearFactorGraph.error()`` (its factors carry
+½‖·‖²). The SE-Sync objective (``lago_cvx.certification``) is a different function again.
 """
 
 from __future__ import annotations
@@ -16,14 +19,15 @@ import numpy as np
 
 from .sparse import row_blocks
 from .errors import OptionError
-from .posegraph import PoseGraph, rot2, wrap_angle
+from .posegraph import PoseGraph, rot2, se2_v_inverse, wrap_angle
 
 __all__ = ["edge_errors", "chi2", "chi2_parts", "whitened_errors", "alignment_angle", "alignment", "ate",
            "rotation_error", "relative_difference"]
 
 
 def edge_errors(graph: PoseGraph, poses) -> np.ndarray:
-    """Errors e_ij of eq. (3), shape (m, 3), for ``poses`` of shape (n, 3)."""
+    """Errors e_ij of the graph's cost weighed by ``graph.information`` (module docstring: eq. (3), or GTSAM's
+    [V(ε)⁻¹ e_t ; ε] for cost ``"gtsam"``), shape (m, 3), for ``poses`` of shape (n, 3)."""
     poses = _check_poses(graph, poses)
     e = np.empty((graph.n_edges, 3))
     for k in row_blocks(graph.n_edges):  # (arrays.row_blocks: temporaries a block long)
@@ -47,11 +51,16 @@ def _errors(graph: PoseGraph, poses: np.ndarray, k: slice) -> np.ndarray:
     e[:, 0] = c * dx + s * dy - graph.delta_l[k, 0]
     e[:, 1] = -s * dx + c * dy - graph.delta_l[k, 1]
     e[:, 2] = wrap_angle(pj[:, 2] - pi[:, 2] - graph.delta[k])
+    if graph.cost == "gtsam":  # GTSAM's Logmap: ẽ_t = V(ε)⁻¹ e_t = α e_t + β J e_t, J = [[0, 1], [−1, 0]]
+        alpha, beta, _ = se2_v_inverse(e[:, 2])
+        ex, ey = e[:, 0].copy(), e[:, 1].copy()
+        e[:, 0] = alpha * ex + beta * ey
+        e[:, 1] = alpha * ey - beta * ex
     return e
 
 
 def chi2(graph: PoseGraph, poses) -> float:
-    """χ² = Σ eᵀΩe over all edges (g2o convention, no ½; twice GTSAM's ``error()``)."""
+    """χ² = Σ eᵀΩe over all edges in the graph's cost (module docstring; no ½), a float."""
     poses = _check_poses(graph, poses)
     total = 0.0
     for k in row_blocks(graph.n_edges):

@@ -3,16 +3,16 @@
 GTSAM (``pip install 'lago-cvx[gtsam]'``, PyPI ``gtsam`` 4.x) ships LAGO as ``gtsam.lago.initialize``.
 Differences to keep in mind when comparing:
 
-* GTSAM's between factors take a noise *model*; we give it ``Diagonal.Sigmas`` built from the
-  marginal standard deviations of each edge's covariance Ω⁻¹ (x, y, θ). Cross terms are dropped —
-  GTSAM's LAGO accepts only diagonal models.
+* GTSAM's between factors take a noise *model*, written for its error Log(Z⁻¹X_i⁻¹X_j), whose translation is
+  in the *measurement's* frame (``lago_cvx.conventions``: the frame of g2o's information); we give it
+  ``Diagonal.Sigmas`` built from the marginal standard deviations of each edge's covariance in that frame
+  (``PoseGraph.information_in("measurement")``⁻¹; x, y, θ). Cross terms are dropped — GTSAM's LAGO accepts only
+  diagonal models.
 * GTSAM's final linear pose solve (``computePoses`` in gtsam/slam/lago.cpp) writes the relative-position
-  residual in the *global* frame but weights it with the edge's noise model, which is defined in the
-  *tail's* frame; eq. (10) of the seed rotates P_Δ by R(θ̂_i) first. With isotropic translational
-  noise (σx = σy: city10000, input_M3500*.g2o, the GTSAM toy graphs) the two coincide and both
-  implementations give the same estimate (tests/test_gtsam.py). With anisotropic noise they differ:
-  on carlone/INTEL_P_toro.graph GTSAM's estimate has χ² ≈ 1.13e6 against our 16598 (lecture 06), and
-  even given exactly GTSAM's diagonal input our LAGO lands at χ² 312.7 against GTSAM's 17787.
+  residual in the *global* frame but weights it with the edge's noise model unrotated; eq. (10) of the seed
+  rotates P_Δ into the global frame first. With isotropic translational noise (σx = σy: city10000,
+  input_M3500*.g2o, the GTSAM toy graphs) the two coincide and both implementations give the same estimate
+  (tests/test_gtsam.py); with anisotropic noise they differ (benchmarks/endtoend.md measures by how much).
 * GTSAM needs a prior on the anchor; we add ``PriorFactorPose2(anchor, Pose2(), tiny variances)``.
 * ``useOdometricPath=True`` (GTSAM's default) integrates orientations along consecutive keys and fails on
   graphs without a complete odometric chain; ``False`` uses its minimum spanning tree.
@@ -29,8 +29,9 @@ import numpy as np
 
 from .errors import MissingSolverError
 from .posegraph import PoseGraph
+from .sparse import spd_inverse
 
-__all__ = ["have_gtsam", "gtsam_factor_graph", "gtsam_lago"]
+__all__ = ["have_gtsam", "gtsam_factor_graph", "gtsam_lago", "have_g2o", "g2o_chi2", "gtsam_chi2"]
 
 #: Variances of the prior GTSAM needs on the anchor (x, y, θ).
 GTSAM_PRIOR_VARIANCES = (1e-10, 1e-10, 1e-12)
@@ -53,11 +54,11 @@ def _gtsam():
 
 
 def gtsam_factor_graph(graph: PoseGraph, *, anchor=None):
-    """GTSAM ``NonlinearFactorGraph`` of ``graph`` with diagonal noise models (marginal sigmas) and a
-    prior on the anchor (a pose id, default the smallest). Keys are pose indices."""
+    """GTSAM ``NonlinearFactorGraph`` of ``graph`` with diagonal noise models (marginal sigmas in the
+    measurement's frame, module docstring) and a prior on the anchor (a pose id, default the smallest). Keys are pose indices."""
     gtsam = _gtsam()
     a = graph.anchor_index(anchor)
-    cov = graph.covariance
+    cov = spd_inverse(graph.information_in("measurement"))
     sig = np.sqrt(np.stack([cov[:, 0, 0], cov[:, 1, 1], cov[:, 2, 2]], axis=1))
     fg = gtsam.NonlinearFactorGraph()
     for k in range(graph.n_edges):
@@ -84,3 +85,61 @@ def gtsam_lago(graph: PoseGraph, *, odometric_path: bool = True, anchor=None, re
     poses = np.array([[values.atPose2(i).x(), values.atPose2(i).y(), values.atPose2(i).theta()]
                       for i in range(graph.n_poses)])
     return poses, float(np.median(times))
+
+
+# ------------------------------------------------------------------------------ the cost a file means, by its owners
+def have_g2o() -> bool:
+    """True when g2o's own Python bindings (``pip install g2opy``, extra ``peers``) import."""
+    try:
+        import g2opy  # noqa: F401
+    except Exception:
+        return False
+    return True
+
+
+def g2o_chi2(path, *, iterations: int = 0) -> dict:
+    """g2o's verdict on a g2o file, planar or 3-D, computed by g2o itself (g2opy): the file loaded, its first
+    vertex fixed, ``chi2_at`` = g2o's χ² at the vertices as written and ``chi2_lm`` = its χ² after ``iterations``
+    of g2o's Levenberg–Marquardt from there (``chi2_at`` when 0)."""
+    try:
+        import g2opy as g
+    except ImportError as exc:
+        raise MissingSolverError("g2o comparisons need the optional extra: pip install 'lago-cvx[peers]'") from exc
+    text = open(path, encoding="utf-8", errors="replace").read()
+    threed = "VERTEX_SE3" in text or "EDGE_SE3" in text
+    opt = g.SparseOptimizer()
+    block = (g.BlockSolverSE3(g.LinearSolverEigenSE3()) if threed
+             else g.BlockSolverSE2(g.LinearSolverEigenSE2()))
+    opt.set_algorithm(g.OptimizationAlgorithmLevenberg(block))
+    if not opt.load(str(path)):
+        raise MissingSolverError(f"g2o could not load {path}")
+    opt.vertex(min(opt.vertices().keys())).set_fixed(True)
+    opt.initialize_optimization()
+    opt.compute_active_errors()
+    at = float(opt.chi2())
+    if iterations > 0:
+        opt.optimize(int(iterations))
+        opt.compute_active_errors()
+    return {"chi2_at": at, "chi2_lm": float(opt.chi2()) if iterations > 0 else at}
+
+
+def gtsam_chi2(path, *, iterations: int = 0) -> dict:
+    """GTSAM's verdict on a g2o file, planar or 3-D: ``gtsam.readG2o`` (its information, its Logmap error), the
+    first pose fixed, ``chi2_at`` = 2·``error()`` at the vertices as written and ``chi2_lm`` = 2·``error()`` after
+    ``iterations`` of GTSAM's Levenberg–Marquardt from there (``chi2_at`` when 0)."""
+    gtsam = _gtsam()
+    text = open(path, encoding="utf-8", errors="replace").read()
+    threed = "VERTEX_SE3" in text or "EDGE_SE3" in text
+    fg, values = gtsam.readG2o(str(path), threed)
+    first = min(values.keys())
+    at = 2.0 * fg.error(values)
+    if iterations <= 0:
+        return {"chi2_at": at, "chi2_lm": at}
+    pose = values.atPose3(first) if threed else values.atPose2(first)
+    fg.add(gtsam.NonlinearEqualityPose3(first, pose) if threed else gtsam.NonlinearEqualityPose2(first, pose))
+    params = gtsam.LevenbergMarquardtParams()
+    params.setMaxIterations(int(iterations))
+    params.setRelativeErrorTol(1e-14)
+    params.setAbsoluteErrorTol(1e-14)
+    out = gtsam.LevenbergMarquardtOptimizer(fg, values, params).optimize()
+    return {"chi2_at": at, "chi2_lm": 2.0 * fg.error(out)}

@@ -12,6 +12,8 @@ result is a ``VariantResult`` — a ``LagoResult`` with more fields.
 from __future__ import annotations
 
 import contextlib
+import functools
+import inspect
 import logging
 import time
 
@@ -36,14 +38,40 @@ __all__ = ["lago", "compare_methods"]
 log = logging.getLogger(__name__)
 
 
+def _robust_option(run):
+    """``lago``'s keyword ``robust=``: None / False run LAGO itself; anything else runs graduated
+    non-convexity (``lago_cvx.variants.gnc_lago``) around LAGO with the other options."""
+
+    @functools.wraps(run)
+    def lago(graph, *, robust=None, **options):
+        if robust is None or robust is False:
+            return run(graph, **options)
+        from .variants import gnc_lago, robust_settings
+
+        settings = robust_settings(robust)
+        if getattr(graph, "dim", 2) == 3:
+            raise OptionError("robust: planar graphs only")
+        return gnc_lago(graph, settings, solve=lambda g: run(g, **options))
+
+    sig = inspect.signature(run)
+    lago.__signature__ = sig.replace(parameters=[*sig.parameters.values(),
+                                                 inspect.Parameter("robust", inspect.Parameter.KEYWORD_ONLY)])
+    return lago
+
+
+@_robust_option
 def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form", spanning_tree=None,
          regularization: str | None = None, information: str | None = None, positions: str | None = None,
          anchor=None, anchor_pose=None, margin: float = AMBIGUITY_MARGIN,
          solver_settings: ClarabelSettings | None = None, backend: str = "auto", anchors=None,
-         integer_search: IntegerSearch | None = None, progress=None, robust=None) -> LagoResult:
+         integer_search: IntegerSearch | None = None, progress=None, cost: str | None = None) -> LagoResult:
     """LAGO: the linear approximation of planar pose-graph optimization (the seed's Section IV).
 
     Parameters (keyword-only):
+      cost — the cost the graph's information is read for, one of ``lago_cvx.conventions.COSTS``
+        (``graph.with_cost(cost)``); None: the graph's own (``graph.cost``: a file format's, ``"paper"`` for a
+        graph built in Python). LAGO weighs eq. (3) with the information in that cost's frame
+        (``lago_cvx.posegraph``), and ``result.chi2`` is that cost.
       route — ``"default"`` or ``"seed"`` (``lago_cvx.routes.ROUTES``): the choices of tree, regularization,
         information and positions below when they are left ``None``. ``route="seed"`` is exactly the
         paper's procedure.
@@ -86,8 +114,7 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
     A 3-D graph (``graph.dim == 3``, a ``PoseGraph3D``) goes to ``lago_cvx.space.lago3d`` with ``route``,
     ``method``, ``anchor`` and ``solver_settings`` (the planar options do not apply and must be left unset).
     """
-    if robust is not None and robust is not False:  # GNC around this function with the other options
-        return _robust(graph, robust, {k: v for k, v in locals().items() if k not in ("graph", "robust")})
+    graph = graph if cost is None else graph.with_cost(cost)
     if getattr(graph, "dim", 2) == 3:
         return _in_space(graph, route=route, method=method, anchor=anchor, solver_settings=solver_settings,
                          spanning_tree=spanning_tree, regularization=regularization, information=information,
@@ -153,16 +180,6 @@ def _log_run(graph, route_name, method, tree, reg, choice, seconds) -> None:
     log.info("LAGO (%s route, %s, %s tree, %s regularization, %s information, %s positions): %d poses, %d edges, "
              "%d cycles regularized, %.3f s", route_name, method, tree.kind, reg.regularization,
              choice["information"], choice["positions"], graph.n_poses, graph.n_edges, reg.n_regularized, seconds)
-
-
-def _robust(graph, robust, options: dict):
-    """GNC (``lago_cvx.variants.gnc_lago``) around ``lago`` with ``options``."""
-    from .variants import gnc_lago, robust_settings
-
-    settings = robust_settings(robust)
-    if getattr(graph, "dim", 2) == 3:
-        raise OptionError("robust: planar graphs only")
-    return gnc_lago(graph, settings, solve=lambda g: lago(g, **options))
 
 
 def _in_space(graph, *, route, method, anchor, solver_settings, **planar):
@@ -243,6 +260,8 @@ def compare_methods(graph: PoseGraph, *, solver_settings: ClarabelSettings | Non
     keyword of ``lago`` too). ``kwargs``: the keywords of ``lago`` but ``method`` (both run: ``OptionError``)."""
     if "method" in kwargs:
         raise OptionError("method: compare_methods solves both ways (closed form, then cvxpy); do not pass method")
+    if kwargs.get("cost") is not None:
+        graph = graph.with_cost(kwargs.pop("cost"))
     if anchors is not None:
         from .variants import compare_anchored_methods
 

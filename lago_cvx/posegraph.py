@@ -6,9 +6,26 @@ frame of pose ``i``:
 
 * ``delta_l[k]`` — Δˡ_ij, relative position of j in the frame of i, shape ``(2,)``;
 * ``delta[k]``   — δ_ij, relative orientation θ_j − θ_i, a scalar (radians, not wrapped);
-* ``information[k]`` — the 3×3 information matrix Ω_ij of the error
+* ``information[k]`` — the 3×3 information matrix Ω_ij of the seed's error, eq. (3),
   ``e = [R_iᵀ(p_j − p_i) − Δˡ_ij ; θ_j − θ_i − δ_ij]`` (order x, y, θ; translational block in the
-  frame of the tail i — the g2o convention; TORO files are converted on reading, see ``lago_cvx.io``).
+  frame of the tail i): the matrix every equation of LAGO weighs.
+
+The cost a graph means (``cost``, ``lago_cvx.conventions``)
+------------------------------------------------------------
+``cost`` names the error its edges were given for: ``"paper"`` (eq. (3); TORO files, and the default of a
+graph built in Python), ``"g2o"`` (g2o files) or ``"gtsam"``. A file's information Ω_f is written for its
+cost's error, and the two planar frames are related exactly:
+
+* g2o's error is e_g2o = blkdiag(R(δ)ᵀ, 1)·e (its translation is t2v(Z⁻¹X_i⁻¹X_j)'s, in the measurement's
+  frame), so e_g2oᵀ Ω_f e_g2o = eᵀ (T Ω_f Tᵀ) e with T = blkdiag(R(δ), 1): a g2o graph's ``information`` is
+  T Ω_f Tᵀ (:func:`to_tail_frame`), and eq. (3) with it **is** g2o's χ², at every pose — LAGO, the refinement
+  and χ² need nothing else. This is where the frame changes, once, on reading (``lago_cvx.io``) or in
+  :meth:`PoseGraph.with_cost`.
+* GTSAM's error is Log(Z⁻¹X_i⁻¹X_j) = [V(ε)⁻¹ R(δ)ᵀ e_t ; ε], ε = wrap(θ_j − θ_i − δ), V the SE(2) left
+  Jacobian (:func:`se2_v_inverse`); R(δ) and V(ε)⁻¹ commute, so with the same T Ω_f Tᵀ its χ² is
+  Σ ẽᵀ Ω ẽ, ẽ = [V(ε)⁻¹ e_t ; ε] (``lago_cvx.metrics.edge_errors``). To first order (ε → 0) it is g2o's.
+* ``given_information`` keeps Ω_f as given when it differs from ``information`` (g2o, gtsam), so that a
+  written file reproduces the input bit for bit; None otherwise.
 
 Everything is stored as NumPy arrays (never per-edge Python objects) and made read-only, so a
 ``PoseGraph`` can be shared freely; "modifying" methods return a new graph.
@@ -24,10 +41,15 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .sparse import row_blocks, spd_inverse
+from .conventions import check_cost
 from .errors import GraphError, OptionError
 from .posegraph_base import PoseGraphBase, pose_ids, readonly
 
-__all__ = ["PoseGraph", "wrap_angle", "rot2", "compose", "between", "is_spd"]
+__all__ = ["PoseGraph", "wrap_angle", "rot2", "compose", "between", "is_spd", "to_tail_frame",
+           "to_measurement_frame", "se2_v_inverse", "COST_FRAME"]
+
+#: The frame of the translational residual each cost's information is written in.
+COST_FRAME = {"paper": "tail", "g2o": "measurement", "gtsam": "measurement"}
 
 
 def wrap_angle(a):
@@ -63,13 +85,63 @@ def between(a, b):
     return np.stack([c * dx + s * dy, -s * dx + c * dy, b[..., 2] - a[..., 2]], -1)
 
 
+def _frame_change(info: np.ndarray, delta: np.ndarray, forward: bool) -> np.ndarray:
+    """T Ω Tᵀ (``forward``) or Tᵀ Ω T, T = blkdiag(R(δ), 1), for (m, 3, 3) stacks; exactly symmetric. Edges
+    whose translational block is isotropic (Ω_xx = Ω_yy, Ω_xy = Ω_xθ = Ω_yθ = 0) are the same in both frames
+    and are kept bit for bit."""
+    info = np.asarray(info, dtype=float)
+    delta = np.asarray(delta, dtype=float)
+    iso = ((info[:, 0, 0] == info[:, 1, 1]) & (info[:, 0, 1] == 0) & (info[:, 1, 0] == 0) & (info[:, 0, 2] == 0)
+           & (info[:, 1, 2] == 0) & (info[:, 2, 0] == 0) & (info[:, 2, 1] == 0))
+    out = info.copy()
+    k = np.flatnonzero(~iso)
+    if k.size:
+        T = np.zeros((k.size, 3, 3))
+        T[:, :2, :2] = rot2(delta[k])
+        T[:, 2, 2] = 1.0
+        Tt = np.swapaxes(T, 1, 2)
+        with np.errstate(over="ignore", invalid="ignore"):  # overflow: reported by the graph's checks
+            r = T @ info[k] @ Tt if forward else Tt @ info[k] @ T
+        out[k] = 0.5 * (r + np.swapaxes(r, 1, 2))
+    return out
+
+
+def to_tail_frame(info_measurement: np.ndarray, delta: np.ndarray) -> np.ndarray:
+    """Ω = T Ω_f Tᵀ, T = blkdiag(R(δ), 1): information written for g2o's error (translation in the
+    measurement's frame) as the information of eq. (3) (translation in the tail's frame), shapes (m, 3, 3),
+    (m,) → (m, 3, 3); the same cost at every pose (module docstring)."""
+    return _frame_change(info_measurement, delta, True)
+
+
+def to_measurement_frame(info_tail: np.ndarray, delta: np.ndarray) -> np.ndarray:
+    """The inverse of :func:`to_tail_frame`: Ω_f = Tᵀ Ω T."""
+    return _frame_change(info_tail, delta, False)
+
+
+def se2_v_inverse(eps):
+    """(α, β, α′) of V(ε)⁻¹ = α I + β J, J = [[0, 1], [−1, 0]], the inverse of SE(2)'s left Jacobian, with
+    α = (ε/2)·cot(ε/2), β = ε/2 and α′ = dα/dε = ½cot(ε/2) − (ε/4)/sin²(ε/2) (β′ = ½): GTSAM's
+    ``Pose2::Logmap`` translation is V(ε)⁻¹ t. Shapes follow ``eps``; Taylor series below |ε| = 0.01
+    (α = 1 − ε²/12 − ε⁴/720 − ε⁶/30240, α′ = −ε/6 − ε³/180 − ε⁵/5040; the next terms are below 1e-17)."""
+    eps = np.asarray(eps, dtype=float)
+    small = np.abs(eps) < 1e-2
+    e = np.where(small, 1.0, eps)
+    h = 0.5 * e
+    cot = np.cos(h) / np.sin(h)
+    alpha = np.where(small, 1.0 - eps ** 2 / 12.0 - eps ** 4 / 720.0 - eps ** 6 / 30240.0, h * cot)
+    dalpha = np.where(small, -eps / 6.0 - eps ** 3 / 180.0 - eps ** 5 / 5040.0,
+                      0.5 * cot - 0.25 * e / np.sin(h) ** 2)
+    return alpha, 0.5 * eps, dalpha
+
+
 @dataclass(frozen=True, eq=False, repr=False)
 class PoseGraph(PoseGraphBase):
     """Immutable planar pose graph. See the module docstring for the conventions.
 
     Shapes: ``tails, heads`` (m,) int64 pose indices; ``delta_l`` (m, 2); ``delta`` (m,);
     ``information`` (m, 3, 3) symmetric positive definite; ``initial`` (n, 3) or None;
-    ``ids`` (n,) int64 file identifiers (default ``arange(n)``).
+    ``ids`` (n,) int64 file identifiers (default ``arange(n)``); ``cost`` one of ``lago_cvx.conventions.COSTS``
+    (default ``"paper"``: ``information`` is the given Ω of eq. (3)); ``given_information`` (m, 3, 3) or None.
     """
 
     delta_l: np.ndarray
@@ -78,8 +150,11 @@ class PoseGraph(PoseGraphBase):
     initial: np.ndarray | None = None
     ids: np.ndarray | None = None
     name: str = field(default="")
+    cost: str = "paper"
+    given_information: np.ndarray | None = None
 
     MEASUREMENTS = (("delta_l", (2,)), ("delta", ()), ("information", (3, 3)))  # class attribute (PoseGraphBase)
+    OPTIONAL_MEASUREMENTS = ("given_information",)
 
     def __post_init__(self):
         n, tails, heads, (delta_l, delta, info) = self._checked_edges()
@@ -99,8 +174,16 @@ class PoseGraph(PoseGraphBase):
                 raise GraphError("initial poses must be finite")
             initial = readonly(initial)
         ids = pose_ids(n, self.ids)
+        object.__setattr__(self, "cost", check_cost(self.cost))
+        given = self.given_information
+        if given is not None:
+            given = np.asarray(given, dtype=float)
+            if given.shape != info.shape or not np.isfinite(given).all():
+                raise GraphError(f"given_information must be finite with shape {info.shape}, got {given.shape}")
+            given = readonly(given)
         self._store_readonly(tails=tails, heads=heads, delta_l=delta_l, delta=delta, information=info, ids=ids)
         object.__setattr__(self, "initial", initial)
+        object.__setattr__(self, "given_information", given)
 
     # ----------------------------------------------------------------- sizes
     @property
@@ -138,7 +221,29 @@ class PoseGraph(PoseGraphBase):
             out[k] = spd_inverse(self.information[idx[k]])[:, 2, 2]
         return out
 
+    def information_in(self, frame: str) -> np.ndarray:
+        """The information matrices (m, 3, 3) written for the translational residual in ``frame``: ``"tail"``
+        (eq. (3), TORO's) or ``"measurement"`` (g2o's, GTSAM's); the given matrices bit for bit when they are
+        in that frame (module docstring)."""
+        if frame not in ("tail", "measurement"):
+            raise OptionError(f"frame must be 'tail' or 'measurement', got {frame!r}")
+        if self.given_information is not None and COST_FRAME[self.cost] == frame:
+            return self.given_information
+        return self.information if frame == "tail" else to_measurement_frame(self.information, self.delta)
+
     # ------------------------------------------------------------ derivations
+    def with_cost(self, cost: str) -> "PoseGraph":
+        """The graph whose given information matrices are read as the information of ``cost``'s error
+        (``lago_cvx.conventions.COSTS``): for ``"g2o"`` and ``"gtsam"`` ``information`` becomes T Ω_f Tᵀ
+        (:func:`to_tail_frame`), for ``"paper"`` Ω_f itself. ``self`` when the cost is already ``cost``."""
+        cost = check_cost(cost)
+        if cost == self.cost:
+            return self
+        given = self.information_in(COST_FRAME[self.cost])
+        if COST_FRAME[cost] == "tail":
+            return replace(self, information=given, cost=cost, given_information=None)
+        return replace(self, information=to_tail_frame(given, self.delta), cost=cost, given_information=given)
+
     def with_initial(self, poses) -> "PoseGraph":
         """A copy with ``initial`` replaced (``poses`` of shape (n, 3) or None)."""
         return replace(self, initial=None if poses is None else np.asarray(poses, dtype=float))
@@ -165,15 +270,18 @@ class PoseGraph(PoseGraphBase):
         T[:, 2, 2] = 1.0
         info_rev = np.swapaxes(T, 1, 2) @ self.information @ T
         info = np.where(sel[:, None, None], 0.5 * (info_rev + np.swapaxes(info_rev, 1, 2)), self.information)
-        return replace(self, tails=tails, heads=heads, delta_l=meas[:, :2], delta=meas[:, 2], information=info)
+        return replace(self, tails=tails, heads=heads, delta_l=meas[:, :2], delta=meas[:, 2], information=info,
+                       given_information=None)
 
     def equals(self, other: "PoseGraph", *, rtol: float = 0.0, atol: float = 0.0) -> bool:
-        """Same poses, ids, edges and (within tolerance) measurements, information and initial guess."""
+        """Same poses, ids, edges and (within tolerance) measurements, information of eq. (3) and initial guess,
+        and the same cost function: ``"paper"`` and ``"g2o"`` graphs with equal information are one cost (module
+        docstring), ``"gtsam"``'s is another. ``cost`` and ``given_information`` themselves are not compared."""
         if (self.n_poses != other.n_poses or self.n_edges != other.n_edges
                 or not np.array_equal(self.ids, other.ids)
                 or not np.array_equal(self.tails, other.tails) or not np.array_equal(self.heads, other.heads)):
             return False
-        if (self.initial is None) != (other.initial is None):
+        if (self.initial is None) != (other.initial is None) or (self.cost == "gtsam") != (other.cost == "gtsam"):
             return False
         pairs = [(self.delta_l, other.delta_l), (self.delta, other.delta), (self.information, other.information)]
         if self.initial is not None:

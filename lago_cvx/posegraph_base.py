@@ -16,7 +16,27 @@ import numpy as np
 
 from .errors import GraphError
 
-__all__ = ["readonly", "edge_indices", "check_endpoints", "pose_ids", "PoseGraphBase"]
+__all__ = ["nearest_spd", "REPAIR_FLOOR", "readonly", "edge_indices", "check_endpoints", "pose_ids", "PoseGraphBase"]
+
+
+#: ``nearest_spd``'s eigenvalue floor, relative to each matrix's largest eigenvalue: the repaired matrix has a
+#: condition number of at most 1e8, the range of the public files' own informations (input_INTEL: 11 to 1e8).
+REPAIR_FLOOR = 1e-8
+
+
+def nearest_spd(mats: np.ndarray, *, floor: float = REPAIR_FLOOR) -> np.ndarray:
+    """The positive-definite matrices nearest to the symmetric parts S of ``mats`` (m, k, k) in the Frobenius
+    norm, with eigenvalues at least ``floor``·λ_max(S) (Higham 1988: S = V diag(λ) Vᵀ → V diag(max(λ, λ_min))
+    Vᵀ), shape (m, k, k). A matrix whose largest eigenvalue is not positive has no such neighbour: NaN rows."""
+    mats = np.asarray(mats, dtype=float)
+    S = 0.5 * (mats + np.swapaxes(mats, -1, -2))
+    lam, V = np.linalg.eigh(S)
+    top = lam[:, -1:]
+    lam = np.maximum(lam, floor * top)
+    out = (V * lam[:, None, :]) @ np.swapaxes(V, -1, -2)
+    out = 0.5 * (out + np.swapaxes(out, -1, -2))
+    out[top[:, 0] <= 0] = np.nan
+    return out
 
 
 def readonly(a: np.ndarray) -> np.ndarray:
@@ -76,6 +96,8 @@ class PoseGraphBase:
     heads: np.ndarray
 
     MEASUREMENTS: ClassVar[tuple[tuple[str, tuple[int, ...]], ...]] = ()
+    #: Per-edge arrays that may be None (e.g. the information as given, ``PoseGraph.given_information``).
+    OPTIONAL_MEASUREMENTS: ClassVar[tuple[str, ...]] = ()
 
     def _checked_edges(self) -> tuple[int, np.ndarray, np.ndarray, list[np.ndarray]]:
         """For ``__post_init__``: (n, tails, heads, measurements) with ``n_poses`` stored as the int n, the
@@ -131,7 +153,9 @@ class PoseGraphBase:
         sel = np.zeros(self.n_edges, bool)
         sel[mask] = True
         edge_fields = ("tails", "heads") + tuple(name for name, _ in self.MEASUREMENTS)
-        return replace(self, **{name: getattr(self, name)[sel] for name in edge_fields})
+        optional = {name: getattr(self, name)[sel] for name in self.OPTIONAL_MEASUREMENTS
+                    if getattr(self, name) is not None}
+        return replace(self, **{name: getattr(self, name)[sel] for name in edge_fields}, **optional)
 
     def __repr__(self) -> str:
         nm = f" {self.name!r}" if self.name else ""

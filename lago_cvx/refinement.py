@@ -34,6 +34,15 @@ Then, in the order (x, y, θ):
                [ 0,  0,  −1 ]]                   [ 0, 0, 1]]
 
 (∂(R_iᵀd)/∂θ_i = (u_y, −u_x); the wrap is piecewise constant, so it does not enter the derivative).
+
+The cost. ``Ω`` is the graph's information of eq. (3) (``lago_cvx.posegraph``): for a graph of cost
+``"paper"`` or ``"g2o"`` the χ² above *is* that cost, exactly. For ``"gtsam"`` the translational error is
+GTSAM's Logmap's, ẽ_t = V(ε)⁻¹ e_t with ε = e_θ and V(ε)⁻¹ = α(ε) I + (ε/2) J, J = [[0, 1], [−1, 0]]
+(``posegraph.se2_v_inverse``); its blocks are
+
+    ∂ẽ_t/∂x = V(ε)⁻¹ ∂e_t/∂x + (α′(ε) e_t + ½ J e_t) ∂ε/∂x,      ∂ε/∂x_i = (0, 0, −1), ∂ε/∂x_j = (0, 0, 1),
+
+and the rotational row is unchanged.
 The whitened blocks U_k·∂e/∂x_i and U_k·∂e/∂x_j (each 3×3, dense because U mixes the rows) fill
 rows 3k … 3k+2 of ONE sparse Jacobian J of shape (3m, d), 18 entries per edge minus the held
 columns. Its CSR structure (row pointers, column indices, and the gather index that
@@ -74,7 +83,7 @@ from .reports import refine_repr, refine_summary
 from .errors import OptionError, check_choice
 from .graph import accumulate_to_root, check_connected, spanning_tree as build_tree
 from .sparse import SOLVER_BACKENDS, factorize
-from .posegraph import PoseGraph, rot2, wrap_angle
+from .posegraph import PoseGraph, rot2, se2_v_inverse, wrap_angle
 from .rounding import TWO_PI
 
 __all__ = ["RefineResult", "refine", "REFINE_METHODS", "odometry_guess", "jacobian", "whitened_residuals",
@@ -123,6 +132,8 @@ class RefineResult:
     backend: str = ""
     #: (n, 3) bool, the coordinates held fixed.
     held: np.ndarray | None = None
+    #: The cost minimised (``lago_cvx.conventions.COSTS``).
+    cost: str = "paper"
 
     @property
     def times(self) -> np.ndarray:
@@ -151,6 +162,7 @@ class _Problem:
         self.n, self.m, self.anchor = n, m, anchor
         self.tails, self.heads = graph.tails, graph.heads
         self.delta_l, self.delta = graph.delta_l, graph.delta
+        self.gtsam = graph.cost == "gtsam"
         info = 0.5 * (graph.information + np.swapaxes(graph.information, 1, 2))
         self.U = np.ascontiguousarray(np.swapaxes(np.linalg.cholesky(info), 1, 2))  # UᵀU = Ω
         if held is None:
@@ -180,7 +192,8 @@ class _Problem:
 
     # -- residuals
     def errors(self, poses: np.ndarray):
-        """Errors e (m, 3) and u = R_iᵀ(p_j − p_i) (m, 2), cos θ_i, sin θ_i (m,)."""
+        """Errors e (m, 3) of the graph's cost (for ``"gtsam"`` ẽ, module docstring) and u = R_iᵀ(p_j − p_i)
+        (m, 2), cos θ_i, sin θ_i (m,)."""
         pi, pj = poses[self.tails], poses[self.heads]
         c, s = np.cos(pi[:, 2]), np.sin(pi[:, 2])
         dx, dy = pj[:, 0] - pi[:, 0], pj[:, 1] - pi[:, 1]
@@ -188,7 +201,17 @@ class _Problem:
         e = np.empty((self.m, 3))
         e[:, :2] = u - self.delta_l
         e[:, 2] = wrap_angle(pj[:, 2] - pi[:, 2] - self.delta)
+        if self.gtsam:
+            self._logmap(e)
         return e, u, c, s
+
+    def _logmap(self, e: np.ndarray) -> None:
+        """GTSAM's translational error in place: e_t ← V(ε)⁻¹ e_t; keeps (e_t, α′) for the Jacobian."""
+        alpha, beta, dalpha = se2_v_inverse(e[:, 2])
+        ex, ey = e[:, 0].copy(), e[:, 1].copy()
+        e[:, 0] = alpha * ex + beta * ey
+        e[:, 1] = alpha * ey - beta * ex
+        self._v = (alpha, beta, dalpha, ex, ey)
 
     def residuals(self, poses: np.ndarray) -> np.ndarray:
         """Whitened residuals r = U e, shape (m, 3)."""
@@ -213,6 +236,14 @@ class _Problem:
         Ji = -Jj
         Ji[:, 0, 2] = u[:, 1]
         Ji[:, 1, 2] = -u[:, 0]
+        if self.gtsam:  # ∂ẽ_t = V⁻¹ ∂e_t + (α′ e_t + ½ J e_t) ∂ε (module docstring)
+            alpha, beta, dalpha, ex, ey = self._v
+            for J, sign in ((Ji, -1.0), (Jj, 1.0)):
+                r0, r1 = J[:, 0, :].copy(), J[:, 1, :].copy()
+                J[:, 0, :] = alpha[:, None] * r0 + beta[:, None] * r1
+                J[:, 1, :] = alpha[:, None] * r1 - beta[:, None] * r0
+                J[:, 0, 2] += sign * (dalpha * ex + 0.5 * ey)
+                J[:, 1, 2] += sign * (dalpha * ey - 0.5 * ex)
         blocks = np.concatenate([self.U @ Ji, self.U @ Jj], axis=2)  # (m, 3, 6)
         data = blocks.reshape(-1)[self.take]
         J = sp.csr_matrix((data, self.indices, self.indptr), shape=(3 * self.m, self.dim))
@@ -291,8 +322,11 @@ def held_coordinates(graph: PoseGraph, poses: np.ndarray, anchors, anchor=None) 
 
 # ------------------------------------------------------------------------------ the solvers
 def refine(graph: PoseGraph, poses, *, method: str = "gauss-newton", max_iterations: int = 50,
-           tolerance: float = 1e-9, anchor=None, anchors=None, backend: str = "auto") -> RefineResult:
-    """Minimise the nonlinear χ² of eq. (3) over the SE(2) poses, starting from ``poses`` (n, 3).
+           tolerance: float = 1e-9, anchor=None, anchors=None, backend: str = "auto",
+           cost: str | None = None) -> RefineResult:
+    """Minimise the graph's nonlinear χ² over the SE(2) poses, starting from ``poses`` (n, 3): eq. (3) with the
+    information of the graph's cost — exactly g2o's χ² for cost ``"g2o"``, GTSAM's 2·error() for ``"gtsam"``
+    (module docstring).
 
     Parameters (keyword-only):
       method — ``"gauss-newton"`` (plain steps, backtracking line search if a step increases χ²) or
@@ -306,12 +340,16 @@ def refine(graph: PoseGraph, poses, *, method: str = "gauss-newton", max_iterati
         anchors), as in ``lago(anchors=...)``: their known coordinates are set to the given values (θ
         modulo 2π) and held fixed, removed from the system; ``result.held`` says which coordinates were.
       backend — sparse solver, see ``lago_cvx.sparse.linalg.factorize``.
+      cost — the cost to minimise, one of ``lago_cvx.conventions.COSTS`` (``graph.with_cost(cost)``); None: the
+        graph's own (``graph.cost``, the file format's when read from a file).
     Returns a ``RefineResult``. See the module docstring for the maths. Raises ``GraphError`` for a
     disconnected graph (its normal equations are singular), ``OptionError`` (a ``ValueError``) for bad
     arguments or anchors.
     """
     check_choice("method", method, REFINE_METHODS)
     check_choice("backend", backend, SOLVER_BACKENDS)
+    if cost is not None:
+        graph = graph.with_cost(cost)
     x, a = prepare(graph, poses, anchor=anchor, max_iterations=max_iterations, tolerance=tolerance)
     held = None
     if anchors is not None:
@@ -324,7 +362,7 @@ def refine(graph: PoseGraph, poses, *, method: str = "gauss-newton", max_iterati
     if method == "levenberg-marquardt":
         entries[0]["lambda"] = None
     result = RefineResult(poses=x, chi2=chi, chi2_initial=chi, iterations=0, converged=False, log=entries,
-                          method=method, anchor=int(graph.ids[a]), backend="", held=prob.held)
+                          method=method, anchor=int(graph.ids[a]), backend="", held=prob.held, cost=graph.cost)
     if prob.dim == 0 or graph.n_edges == 0:
         result.converged, result.reason = True, "nothing to optimize"
         return result

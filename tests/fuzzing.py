@@ -544,7 +544,10 @@ def _check_read(path: Path, data: bytes, roundtrip_dir) -> Outcome:
         return Outcome("unexpected", f"read_graph returned {type(graph).__name__}")
     if roundtrip_dir is not None:
         try:
-            out = write_graph(Path(roundtrip_dir) / ("rt_" + path.name + ".g2o"), graph, wrap_angles=False)
+            # in the input's own format (cost): a TORO graph written as g2o is the same cost to rounding only
+            fmt = "toro" if graph.cost == "paper" else "g2o"
+            out = write_graph(Path(roundtrip_dir) / ("rt_" + path.name + "." + fmt), graph, wrap_angles=False,
+                              format=fmt)
             again = read_graph(out)
             if not again.equals(graph):
                 return Outcome("unexpected", "write_graph → read_graph does not reproduce the graph")

@@ -18,6 +18,7 @@ from conftest import dataset_path
 
 import lago_cvx.io as lio
 from lago_cvx.io import ParseError, detect_format, read_graph, write_graph
+from lago_cvx.metrics import chi2
 from lago_cvx.posegraph import PoseGraph, rot2
 
 TORO_FILES = {rel for rel, *_ in DATASET_TABLE if rel.endswith("_toro.graph")}
@@ -50,10 +51,20 @@ def test_dataset_counts_and_round_trip(row, tmp_path):
     assert g.name == src.name
     assert detect_format(src) == ("toro" if rel in TORO_FILES else "g2o")
 
-    # read -> write g2o -> read is bit-identical (TORO: the g2o re-read equals the converted read).
+    # read -> write g2o -> read is bit-identical. A TORO file written as g2o means the same cost: read back (in
+    # g2o's cost), its information of eq. (3) is the TORO file's to rounding, and χ² is the same at any poses.
     out = write_graph(tmp_path / "out.g2o", g, wrap_angles=False)
     g2 = read_graph(out)
-    assert g.equals(g2, rtol=0.0, atol=0.0)
+    if rel in TORO_FILES:
+        assert (g.cost, g2.cost) == ("paper", "g2o")
+        assert np.array_equal(g2.measurements, g.measurements) and np.array_equal(g2.initial, g.initial)
+        scale = np.abs(g.information).max(axis=(1, 2))[:, None, None]
+        assert (np.abs(g2.information - g.information) / scale).max() <= 1e-12
+        assert chi2(g2, g.initial) == pytest.approx(chi2(g, g.initial), rel=1e-12)
+        g = g2
+    else:
+        assert g.cost == "g2o"
+        assert g.equals(g2, rtol=0.0, atol=0.0)
     assert g2.name == "out.g2o"
 
     # With the default angle wrapping only out-of-range vertex angles change, by multiples of 2π.
@@ -69,13 +80,11 @@ def test_dataset_counts_and_round_trip(row, tmp_path):
         assert np.array_equal(th[k == 0], g.initial[k == 0, 2])  # in-range angles kept bit for bit
     assert g.with_initial(g3.initial).equals(g3)
 
-    if rel in TORO_FILES:  # TORO -> TORO: the inverse conversion round-trips to rounding
-        g4 = read_graph(write_graph(tmp_path / "out.graph", g, format="toro", wrap_angles=False))
+    if rel in TORO_FILES:  # TORO -> TORO: no conversion, bit for bit
+        toro = read_graph(src)
+        g4 = read_graph(write_graph(tmp_path / "out.graph", toro, format="toro", wrap_angles=False))
         assert detect_format(tmp_path / "out.graph") == "toro"
-        assert np.array_equal(g4.tails, g.tails) and np.array_equal(g4.heads, g.heads)
-        assert np.array_equal(g4.measurements, g.measurements)
-        scale = np.abs(g.information).max(axis=(1, 2))[:, None, None]
-        assert (np.abs(g4.information - g.information) / scale).max() <= 1e-12
+        assert g4.equals(toro, rtol=0.0, atol=0.0)
 
 
 def _raw_toro_information(path):
@@ -97,28 +106,31 @@ def _max_rel_diff(a, b):
 
 @pytest.mark.parametrize("g2o_rel, toro_rel", [("se-sync/manhattan.g2o", "carlone/M3500_P_toro.graph"),
                                                ("se-sync/CSAIL.g2o", "carlone/CSAIL_P_toro.graph")])
-def test_toro_twins_agree_only_with_rotation(g2o_rel, toro_rel):
+def test_toro_twins_are_one_graph_each_in_its_own_cost(g2o_rel, toro_rel):
     g2o_path, toro_path = dataset_path(g2o_rel), dataset_path(toro_rel)
     a, b = read_graph(g2o_path), read_graph(toro_path)
+    assert (a.cost, b.cost) == ("g2o", "paper")  # each file's own cost
     assert a.initial is None and b.initial is not None  # the SE-Sync twins are edge-only
     assert np.array_equal(a.ids, b.ids)
     assert np.array_equal(a.tails, b.tails) and np.array_equal(a.heads, b.heads)
     assert np.array_equal(a.measurements, b.measurements)
-    # With the conversion Ω_g2o = Tᵀ Ω_toro T, T = blkdiag(R(dθ), 1): agreement to the 6 printed digits.
+    # g2o's matrices taken into eq. (3)'s frame (T Ω Tᵀ, T = blkdiag(R(dθ), 1)) are TORO's as written, to the 6
+    # printed digits: the same cost at every pose.
     assert _max_rel_diff(a.information, b.information) < 1e-4
+    assert chi2(a, b.initial) == pytest.approx(chi2(b, b.initial), rel=1e-4)
 
-    # The convention is proved, not assumed: the raw TORO matrices (correct slot order, no rotation)
-    # do not match, the rotation done by hand here does, and the opposite rotation does not.
+    # The convention is proved, not assumed: the raw TORO matrices (correct slot order, no rotation) are not
+    # g2o's as written, g2o's rotated by hand here are, and the opposite rotation is not.
     dtheta, raw = _raw_toro_information(toro_path)
     assert np.array_equal(dtheta, a.delta)
-    assert _max_rel_diff(a.information, raw) > 1e-2
+    assert np.array_equal(raw, b.information)
+    g2o_written = a.information_in("measurement")
+    assert _max_rel_diff(g2o_written, raw) > 1e-2
     T = np.zeros_like(raw)
     T[:, :2, :2] = rot2(dtheta)
     T[:, 2, 2] = 1
-    rotated = np.swapaxes(T, 1, 2) @ raw @ T
-    assert _max_rel_diff(a.information, rotated) < 1e-4
-    wrong_way = T @ raw @ np.swapaxes(T, 1, 2)
-    assert _max_rel_diff(a.information, wrong_way) > 1e-2
+    assert _max_rel_diff(T @ g2o_written @ np.swapaxes(T, 1, 2), raw) < 1e-4
+    assert _max_rel_diff(np.swapaxes(T, 1, 2) @ g2o_written @ T, raw) > 1e-2
 
 
 # ============================================================================ TORO conventions
@@ -134,15 +146,27 @@ def test_toro_information_order(tmp_path):
     assert np.array_equal(read_graph(q).information[0], expected)
 
 
-def test_toro_rotation_direction(tmp_path):
-    # dθ = π/2: a TORO translational information diag(1, 4) (head frame) is diag(4, 1) in the tail frame;
-    # the x-θ / y-θ cross terms rotate with it: [Ixθ, Iyθ] -> R(dθ)ᵀ [Ixθ, Iyθ].
+def test_information_frame_of_each_cost(tmp_path):
+    # TORO's matrices are eq. (3)'s as written. A g2o EDGE_SE2 with dθ = π/2 and translational information
+    # diag(1, 4) in the measurement's frame is diag(4, 1) in the tail's frame; the x-θ / y-θ cross terms rotate
+    # with it: [Ixθ, Iyθ] -> R(dθ) [Ixθ, Iyθ].
     p = _write(tmp_path, f"EDGE2 0 1 1 0 {np.pi / 2!r} 1 0 4 9 0.5 0.25\n", "t.graph")
-    info = read_graph(p).information[0]
+    toro = read_graph(p)
+    assert toro.cost == "paper" and toro.given_information is None
+    assert np.array_equal(toro.information[0], [[1, 0, 0.5], [0, 4, 0.25], [0.5, 0.25, 9]])
+    q = _write(tmp_path, f"EDGE_SE2 0 1 1 0 {np.pi / 2!r} 1 0 0.5 4 0.25 9\n")
+    g = read_graph(q)
+    info = g.information[0]
+    assert g.cost == "g2o"
     assert np.allclose(info[:2, :2], np.diag([4.0, 1.0]), atol=1e-14)
-    assert np.allclose(info[:2, 2], [0.25, -0.5], atol=1e-14)
-    assert info[2, 2] == 9.0
-    assert np.array_equal(info, info.T)
+    assert np.allclose(info[:2, 2], [-0.25, 0.5], atol=1e-14)
+    assert info[2, 2] == 9.0 and np.array_equal(info, info.T)
+    assert np.array_equal(g.given_information[0], toro.information[0])  # kept as written, for writing back
+    # cost="paper" reads the g2o file's matrices as eq. (3)'s; cost="g2o" reads TORO's as g2o's.
+    assert np.array_equal(read_graph(q, cost="paper").information, toro.information)
+    assert np.array_equal(read_graph(p, cost="g2o").information, g.information)
+    assert read_graph(q, cost="gtsam").equals(g.with_cost("gtsam")) and g.with_cost("paper").equals(
+        read_graph(q, cost="paper"))
 
 
 def test_toro_write_format(tmp_path):
@@ -411,10 +435,14 @@ def test_read_write_read_bit_identical(tmp_path):
     init[:, 2] = np.clip(init[:, 2], -3, 3)
     g = PoseGraph(n, tails, heads, rng.normal(size=(m, 2)) * 1e5, rng.normal(size=m) * 7, info,
                   initial=init, ids=np.arange(n) * 7 + 100)
-    g2 = read_graph(write_graph(tmp_path / "r.g2o", g))
-    assert g.equals(g2)  # rtol = atol = 0 by default
+    # A graph built in Python holds eq. (3)'s information (cost "paper"): TORO keeps it bit for bit; g2o's frame
+    # is a rotation away, so the g2o file read back is the same cost to rounding, and bit for bit from then on.
     g3 = read_graph(write_graph(tmp_path / "r.graph", g, format="toro"))
-    assert np.array_equal(g3.measurements, g.measurements) and g3.equals(g, rtol=1e-12)
+    assert g3.cost == "paper" and g.equals(g3)  # rtol = atol = 0 by default
+    g2 = read_graph(write_graph(tmp_path / "r.g2o", g))
+    assert g2.cost == "g2o" and g2.equals(g, rtol=1e-12) and not g2.equals(g)
+    assert chi2(g2, init) == pytest.approx(chi2(g, init), rel=1e-12)
+    assert read_graph(write_graph(tmp_path / "r2.g2o", g2)).equals(g2)
 
 
 # ============================================================================ write_graph

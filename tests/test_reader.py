@@ -320,7 +320,9 @@ def test_edge2_order_no_hint_when_neither_fits(tmp_path):
     p = _write(tmp_path, "VERTEX2 0 0 0 0\nVERTEX2 1 1 0 0\nEDGE2 0 1 1 0 0 1 0 1 -1 0 0\n", "g.graph")
     with pytest.raises(ParseError) as ei:
         read_graph(p)
-    assert ei.value.problem == "information matrix is not positive definite (eigenvalues -1, 1, 1)"
+    assert ei.value.problem == ("information matrix is not positive definite (eigenvalues -1, 1, 1); "
+                                "read_graph(path, repair=True) (CLI: --repair-information) replaces such matrices by "
+                                "the nearest positive-definite one")
 
 
 @pytest.mark.parametrize("name, n_edges", [("w100_30.g2o", 59), ("w20000.txt", 26831)])

@@ -230,3 +230,18 @@ def test_mit_ten_percent_keeps_every_false_loop_closure_out_of_most_of_the_graph
     res = lc.lago(go, robust=True)
     _, recall, _ = scores(res.rejected_edges, idx)
     assert recall >= 0.9 and res.chi2 / res.graph.n_edges < res.settings.c2
+
+
+def test_false_loop_closures_on_a_g2o_graph_round_trip_through_a_file(tmp_path):
+    """A g2o graph's information is given in the measurement's frame: the false edges copy it as given and
+    the written file reads back to the same graph."""
+    from lago_cvx.io import write_graph
+
+    g = read_graph(dataset_path("se-sync/MIT.g2o"))
+    go, idx = add_false_loop_closures(g, 0.1, seed=1)
+    assert go.cost == g.cost and (go.given_information is None) == (g.given_information is None)
+    write_graph(tmp_path / "o.g2o", go)
+    back = read_graph(tmp_path / "o.g2o")
+    assert back.n_edges == go.n_edges
+    np.testing.assert_allclose(back.information, go.information, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(back.delta_l[idx], go.delta_l[idx], rtol=1e-9)

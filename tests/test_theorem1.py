@@ -50,11 +50,11 @@ def _blk(blocks):
     return block_diag(*blocks)
 
 
-@pytest.mark.parametrize("rel,factor", [("carlone/INTEL_P_toro.graph", 50), ("se-sync/CSAIL.g2o", 5),
-                                        ("se-sync/MIT.g2o", 5), ("carlone/input_INTEL_g2o.g2o", 1000)])
+@pytest.mark.parametrize("rel,factor", [("carlone/INTEL_P_toro.graph", 50), ("se-sync/MIT.g2o", 5),
+                                        ("carlone/input_INTEL_g2o.g2o", 1000)])
 def test_phase3_moves_away_from_the_minimum_on_real_graphs(rel, factor):
-    """The claim fails: χ²(x*) ≫ χ²(x̂) on these files (INTEL_P 217.5 → 16 598), although the identity
-    holds; re-solving the positions for θ* brings χ² back below χ²(x̂)."""
+    """The claim fails: χ²(x*) ≫ χ²(x̂) on these files in their own costs (INTEL_P 220.0 → 14 531), although the
+    identity holds; re-solving the positions for θ* brings χ² back below χ²(x̂)."""
     g = lc.read_graph(dataset_path(rel))
     t = theorem1(g)
     print(f"{rel}: χ²(x̂) {t.chi2_suboptimal:.6g}, χ²(x*) {t.chi2_phase3:.6g}, resolved {t.chi2_resolved:.6g}, "
@@ -64,10 +64,17 @@ def test_phase3_moves_away_from_the_minimum_on_real_graphs(rel, factor):
     assert t.chi2_lago <= min(t.chi2_suboptimal, t.chi2_resolved) * (1 + 1e-12)
 
 
-def test_where_the_claim_holds():
-    g = lc.read_graph(dataset_path("se-sync/city10000.g2o"))
+@pytest.mark.parametrize("rel,factor", [("se-sync/city10000.g2o", 0.9), ("se-sync/CSAIL.g2o", 1.0),
+                                        ("se-sync/intel.g2o", 1.0)])
+def test_where_the_claim_holds(rel, factor):
+    """χ²(x*) < χ²(x̂). CSAIL in its own cost (g2o's); read as eq. (3)'s (cost "paper", a cost no tool computes for
+    this file) the claim failed there too, χ²(x*) > 5 χ²(x̂)."""
+    g = lc.read_graph(dataset_path(rel))
     t = theorem1(g)
-    assert t.chi2_phase3 < 0.9 * t.chi2_suboptimal and t.identity_error < 1e-9
+    assert t.chi2_phase3 < factor * t.chi2_suboptimal and t.identity_error < 1e-9
+    if rel == "se-sync/CSAIL.g2o":
+        t = theorem1(g.with_cost("paper"))
+        assert t.chi2_phase3 > 5 * t.chi2_suboptimal
 
 
 def test_frozen_and_model_reduce_to_chi2_where_they_must():

@@ -60,7 +60,7 @@ def _certify_lines(file, payload: dict) -> list[str]:
         f"  poses {p['n_poses']}, edges {p['n_edges']}"
         + (f"; frame: pose {p['anchor']} as anchored (one anchor is a choice of frame)" if p["anchor"] is not None
            else ""),
-        f"  chi2 (g2o convention, sum e'Ωe): LAGO estimate {p['chi2_lago']:.6g}, χ²-refined estimate "
+        f"  chi2 (cost {p['cost']}, sum e'Ωe): LAGO estimate {p['chi2_lago']:.6g}, χ²-refined estimate "
         f"{p['chi2_refined']:.6g} ({p['refine_iterations']} GN iterations"
         f"{'' if p['refine_converged'] else ', not converged'})",
         f"  {p['cost_convention']}:",
@@ -138,7 +138,7 @@ def cmd_certify(args) -> int:
                                      regularization=args.regularization, integer_search=integer_search(args),
                                      tol=args.tol, max_iterations=args.max_iterations,
                                      compare_lago=args.compare_lago, anchors=anchors)
-    payload = {"file": str(args.file), **payload}
+    payload = {"file": str(args.file), "cost": graph.cost, **payload}
     lines = _certify_lines(args.file, payload)
     if out is not None:
         write_estimate(out, graph, cert.poses)

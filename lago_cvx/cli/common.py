@@ -24,6 +24,7 @@ import sys
 import numpy as np
 
 from ..errors import NonFiniteError, OptionError
+from ..conventions import COSTS
 from ..routes import INFORMATION_MODES, POSITIONS, REGULARIZATIONS, ROUTES
 
 EXIT_OK, EXIT_INTERNAL, EXIT_BAD_INPUT, EXIT_NOT_CERTIFIED, EXIT_RESOURCE = 0, 1, 2, 3, 4
@@ -108,19 +109,41 @@ def nonneg_float(value: str) -> float:
     return v
 
 
-def add_input_options(s) -> None:
-    """``--edge2-order``: how ``EDGE2`` lines store their six information entries (``read_graph``'s
-    ``edge2_order``)."""
+COST_HELP = ("the cost the file's information is read for: g2o (g2o's chi2, the default for g2o files), gtsam "
+             "(GTSAM's 2*error(), Logmap error) or paper (the LAGO paper's eq. (3), the default for TORO files)")
+BLOCKS_HELP = "blocks: drop the information's translation-rotation cross terms on reading, as SE-Sync does"
+
+
+def add_input_options(s, *, information: bool = True) -> None:
+    """The reading options (``read_graph``'s keywords): ``--edge2-order`` (how ``EDGE2`` lines store their six
+    information entries), ``--cost``, ``--repair-information`` and, unless the command's route options define it
+    (``information=False``), ``--information {full,blocks}``."""
     s.add_argument("--edge2-order", choices=["toro", "g2o"], default=None, metavar="{toro,g2o}",
                    help="how TORO EDGE2 lines store the information: toro (Ixx Ixy Iyy Itt Ixt Iyt, the "
                         "default) or g2o (I11 I12 I13 I22 I23 I33, as some converted files do)")
+    s.add_argument("--cost", choices=list(COSTS), default=None, help=COST_HELP)
+    s.add_argument("--repair-information", action="store_true",
+                   help="replace information matrices that are not positive definite (e.g. in files g2o saved "
+                        "with 6 digits) by the nearest positive-definite matrix, counted and logged")
+    if information:
+        s.add_argument("--information", choices=["full", "blocks"], default=None,
+                       help="full (every entry as written, the default) or " + BLOCKS_HELP)
 
 
 def read_input(args, path=None):
     """Read ``path`` (default ``args.file``) with the command's input options."""
     from ..io import read_graph
 
-    return read_graph(args.file if path is None else path, edge2_order=getattr(args, "edge2_order", None))
+    return read_graph(args.file if path is None else path, edge2_order=getattr(args, "edge2_order", None),
+                      cost=getattr(args, "cost", None),
+                      information="blocks" if getattr(args, "information", None) == "blocks" else "full",
+                      repair=bool(getattr(args, "repair_information", False)))
+
+
+def route_information(args):
+    """The route's ``information`` option from ``--information`` (``blocks`` is applied on reading: None then)."""
+    value = getattr(args, "information", None)
+    return None if value == "blocks" else value
 
 
 def add_route_options(s, *, phases: bool = False, integer: bool = True) -> None:
@@ -130,9 +153,9 @@ def add_route_options(s, *, phases: bool = False, integer: bool = True) -> None:
                    help="bfs, odometry or mst (default: the route's: bfs, or odometry for --route seed)")
     s.add_argument("--regularization", choices=list(REGULARIZATIONS), default=None, help=REGULARIZATION_HELP)
     if phases:
-        s.add_argument("--information", choices=list(INFORMATION_MODES), default=None,
+        s.add_argument("--information", choices=[*INFORMATION_MODES, "blocks"], default=None,
                        help="full (each edge's 3×3 information in phases 2–3) or marginal (the paper's "
-                            "blkdiag(P_Δ, P_δ)); default: the route's")
+                            "blkdiag(P_Δ, P_δ)); default: the route's; " + BLOCKS_HELP)
         s.add_argument("--positions", choices=list(POSITIONS), default=None,
                        help="phase3 (the paper's poses) or resolve (positions re-solved exactly for the "
                             "orientations); default: the route's")

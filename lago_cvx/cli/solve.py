@@ -24,6 +24,7 @@ from .common import (
     output_target,
     progress_callback,
     read_input,
+    route_information,
     speak_cli,
     write_estimate,
 )
@@ -91,7 +92,7 @@ def cmd_info(args) -> int:
         return info3d(args, graph)
     k, _ = connected_components(graph)
     payload = {
-        "file": str(args.file), "format": detect_format(args.file),
+        "file": str(args.file), "format": detect_format(args.file), "cost": graph.cost,
         "n_poses": graph.n_poses, "n_edges": graph.n_edges,
         "n_odometric": graph.n_odometric, "n_loop_closures": graph.n_loop_closures,
         "n_components": int(k), "cyclomatic_number": int(graph.n_edges - graph.n_poses + k),
@@ -119,7 +120,7 @@ def cmd_info(args) -> int:
         note = "graph is not connected: no spanning tree"
         payload["note"] = note
     lines = [
-        f"file              {args.file} ({payload['format']})",
+        f"file              {args.file} ({payload['format']}; cost {graph.cost})",
         *graph_lines(graph, k, payload["cyclomatic_number"]),
         f"regularized ({payload['regularization']}, {payload['spanning_tree']} tree) "
         + (f"{payload['n_regularized']} cycles need a 2kπ correction" if payload["n_regularized"] is not None
@@ -149,7 +150,7 @@ def cmd_solve(args) -> int:
     if args.robust and args.check:
         raise UsageError("--check and --robust do not combine: --check compares one least-squares run both ways")
     kw = dict(route=args.route, spanning_tree=args.spanning_tree, anchor=anchor, regularization=args.regularization,
-              information=args.information, positions=args.positions, integer_search=integer_search(args))
+              information=route_information(args), positions=args.positions, integer_search=integer_search(args))
     if anchors:
         kw["anchors"] = anchors
     if args.robust:
@@ -167,7 +168,7 @@ def cmd_solve(args) -> int:
     solved = res.graph  # the accepted edges of a robust run (χ² is over them), else the graph read
     payload = {
         "file": str(args.file), "n_poses": graph.n_poses, "n_edges": graph.n_edges,
-        "method": "closed_form" if args.check else args.method, "spanning_tree": res.tree.kind,
+        "cost": graph.cost, "method": "closed_form" if args.check else args.method, "spanning_tree": res.tree.kind,
         "regularization": reg.regularization, "n_chords": int(reg.chords.size), "n_regularized": reg.n_regularized,
         "n_ambiguous": int(reg.ambiguous.size), "route": res.route, "information": res.information,
         "positions": res.positions, "chi2": res.chi2,  # χ² of the poses returned (phase 3's, or re-solved)
@@ -217,7 +218,7 @@ def cmd_solve(args) -> int:
         *([f"  robust ({args.robust}): {res.rejected_edges.size} of {graph.n_edges} edges rejected as outliers "
            f"after {res.iterations} GNC iterations ({res.timings['robust']:.3f} s); every chi2 below is over the "
            f"{solved.n_edges} accepted edges"] if args.robust else []),
-        f"  chi2 = {res.chi2:.6g}  (g2o convention: sum e'Ωe, no 1/2)"
+        f"  chi2 = {res.chi2:.6g}  (cost {graph.cost}: sum e'Ωe, no 1/2)"
         + (f"; phase 3's poses {payload['chi2_phase3']:.6g}" if "chi2_phase3" in payload else "")
         + (f"; at the file's initial guess {payload['chi2_initial']:.6g}" if "chi2_initial" in payload else ""),
         f"  time [s]: regularization {t['regularization']:.4f}, phase1 {t['phase1']:.4f}, "
@@ -250,7 +251,7 @@ def add_parsers(sub) -> None:
 
     s = sub.add_parser("solve", help="run LAGO on a file")
     s.add_argument("file")
-    add_input_options(s)
+    add_input_options(s, information=False)
     s.add_argument("-o", "--output", metavar="OUT",
                    help="write the estimate as g2o to OUT (- for standard output; the summary then goes to "
                         "standard error). A regular file is replaced atomically, a link is written through, "
@@ -267,8 +268,8 @@ def add_parsers(sub) -> None:
                         "(truncated least squares, or gnc-gm: Geman-McClure); odometric edges trusted when the "
                         "odometric chain is complete. JSON gives rejected_edges (indices of EDGE records in file "
                         "order); chi2 (and --refine) are over the accepted edges")
-    s.add_argument("--refine", action="store_true", help="refine the LAGO estimate on the full cost eq. (3) "
-                                                         "(with --robust: on the accepted edges)")
+    s.add_argument("--refine", action="store_true", help="refine the LAGO estimate on the full nonlinear cost (--cost; "
+                                                         "with --robust: on the accepted edges)")
     s.add_argument("--refine-method", choices=["gauss-newton", "levenberg-marquardt"], default="gauss-newton")
     s.add_argument("--max-iterations", type=nonneg_int, default=50, help="refinement iterations (default 50)")
     s.add_argument("--overwrite-input", action="store_true", help="allow -o to name the input file")

@@ -45,22 +45,23 @@ Records of other kinds are recognized only to say what they are: landmark record
 the kind (:data:`NON_POSE_TAGS`). A file whose first record is ``VERTEX_SE3:QUAT`` or ``EDGE_SE3:QUAT`` is a
 3-D graph: ``read_graph`` hands it to ``space.py``; such a record later in a planar file is a mix, refused.
 
-TORO → g2o information conversion
----------------------------------
-A TORO information matrix Ω_toro is converted on reading to the g2o convention by
+The cost each format means
+--------------------------
+A file's information matrices are written for its format's error (``lago_cvx.conventions``): g2o's
+``EDGE_SE2`` for e_g2o = t2v(Z⁻¹X_i⁻¹X_j), whose translation is in the **measurement's** frame, TORO's
+``EDGE2`` for the seed's eq. (3), whose translation is in the frame of the **tail** i. The reader takes each
+file's Ω_f for the cost asked (default: the format's, ``COST_OF_FORMAT``) and gives the graph the information
+of eq. (3) (``PoseGraph.information``): Ω_f itself for ``"paper"``, T Ω_f Tᵀ with T = blkdiag(R(dθ), 1)
+(``posegraph.to_tail_frame``) for ``"g2o"`` and ``"gtsam"`` — exactly the same cost at every pose. Writing
+applies the inverse for g2o files (``posegraph.to_measurement_frame``) and writes the given matrices bit for
+bit when the graph holds them.
 
-    Ω_g2o = Tᵀ Ω_toro T,    T = blkdiag(R(dθ), 1),
-
-where R(dθ) is the 2-D rotation by the edge's *own* measured angle dθ. This rotates the 2×2
-translational block (R(dθ)ᵀ Ω_tt R(dθ)) and the x-θ / y-θ cross terms consistently; Ω_θθ is unchanged.
-Writing TORO applies the inverse, Ω_toro = T Ω_g2o Tᵀ (T is orthogonal). The rotation and its
-direction are an empirical convention, fixed by the data below rather than derived from TORO's code.
-
-Evidence (datasets README §2.3, re-checked by ``tests/test_io.py``): SE-Sync's ``manhattan.g2o`` and
+Evidence (datasets README §2.3, re-checked by ``tests/test_costs.py``): SE-Sync's ``manhattan.g2o`` and
 ``CSAIL.g2o`` were produced from Carlone's ``M3500_P_toro.graph`` and ``CSAIL_P_toro.graph``. The twins
-have the same endpoints and measurements, and after this conversion *every* edge's information agrees
-to 1e-4 relative (the g2o files were printed with 6 decimals); without the rotation, or with the
-rotation the other way (T Ω_toro Tᵀ), they do not agree (relative differences > 1e-2).
+have the same endpoints and measurements, and every edge satisfies Ω_g2o = R(dθ)ᵀ Ω_toro R(dθ) on the
+translational block to 1e-4 relative (the g2o files were printed with 6 decimals): each twin, read with its
+own format's cost, is the same graph, and g2o's χ² of the g2o twin equals eq. (3)'s of the TORO twin at
+every pose (CSAIL at one estimate: 38 486.456 both).
 """
 
 from __future__ import annotations
@@ -70,10 +71,9 @@ from typing import NamedTuple
 import numpy as np
 
 from ..errors import OptionError
-from ..posegraph import rot2
 
 __all__ = ["FORMATS", "FORMAT_LABEL", "Spec", "SPECS", "FORMAT_SPECS", "TAGS_OF", "FIX", "EQUIV", "G2O_INFO_INDEX",
-           "TORO_INFO_INDEX", "EDGE2_ORDERS", "NON_POSE_TAGS", "non_pose_problem", "toro_to_g2o", "g2o_to_toro",
+           "TORO_INFO_INDEX", "EDGE2_ORDERS", "NON_POSE_TAGS", "non_pose_problem",
            "check_format", "check_edge2_order"]
 
 FORMATS = ("g2o", "toro")
@@ -147,27 +147,6 @@ TORO_INFO_INDEX = np.array([[0, 1, 4], [1, 2, 5], [4, 5, 3]])  # Ixx Ixy Iyy Itt
 
 
 # ----------------------------------------------------------------------------- information matrices
-def toro_to_g2o(info_toro: np.ndarray, dtheta: np.ndarray) -> np.ndarray:
-    """Ω_g2o = Tᵀ Ω_toro T with T = blkdiag(R(dθ), 1), for (m, 3, 3) stacks; exactly symmetric."""
-    T = rotation_block(dtheta)
-    out = np.swapaxes(T, 1, 2) @ info_toro @ T
-    return 0.5 * (out + np.swapaxes(out, 1, 2))
-
-
-def g2o_to_toro(info_g2o: np.ndarray, dtheta: np.ndarray) -> np.ndarray:
-    """Inverse of :func:`toro_to_g2o`: Ω_toro = T Ω_g2o Tᵀ."""
-    T = rotation_block(dtheta)
-    out = T @ info_g2o @ np.swapaxes(T, 1, 2)
-    return 0.5 * (out + np.swapaxes(out, 1, 2))
-
-
-def rotation_block(dtheta: np.ndarray) -> np.ndarray:
-    T = np.zeros((len(dtheta), 3, 3))
-    T[:, :2, :2] = rot2(dtheta)
-    T[:, 2, 2] = 1.0
-    return T
-
-
 def check_edge2_order(edge2_order) -> str:
     """The ``EDGE2`` information order to use: "toro" for None, else "toro" or "g2o" (``OptionError``
     for anything else)."""

@@ -44,15 +44,20 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import ParseError
-from ..posegraph import PoseGraph, is_spd
+from ..conventions import COST_OF_FORMAT, check_cost
+from ..errors import OptionError, ParseError
+from ..posegraph import COST_FRAME, PoseGraph, is_spd, to_tail_frame
+from ..posegraph_base import REPAIR_FLOOR, nearest_spd
 from .careful import decode, parse_careful, read_bytes, unknown_tag
 from .fastpath import parse_fast
 from .space import first_tag, is_3d_tag, read_graph3d
-from .formats import (EQUIV, FIX, G2O_INFO_INDEX, SPECS, TORO_INFO_INDEX, check_edge2_order, check_format,
-                      toro_to_g2o)
+from .formats import EQUIV, FIX, G2O_INFO_INDEX, SPECS, TORO_INFO_INDEX, check_edge2_order, check_format
 
-__all__ = ["read_graph", "detect_format"]
+__all__ = ["read_graph", "detect_format", "READ_INFORMATION"]
+
+#: ``read_graph(information=...)``: ``"full"`` every entry as written; ``"blocks"`` the translation–rotation
+#: cross terms dropped (Ω_tθ = 0 in the plane, Ω_tR = 0 in 3-D), as SE-Sync reads a file.
+READ_INFORMATION = ("full", "blocks")
 
 logger = logging.getLogger("lago_cvx.io")
 
@@ -108,22 +113,52 @@ def _symmetric(six: np.ndarray, index: np.ndarray) -> np.ndarray:
     return out.reshape(-1, 3, 3)
 
 
-def _information(evals: np.ndarray, fmt: str, order: str):
-    """(information in the g2o convention (m, 3, 3), the matrices as written (m, 3, 3))."""
+def _information(evals: np.ndarray, fmt: str, order: str) -> np.ndarray:
+    """The information matrices as written (m, 3, 3), read in ``order`` for TORO files."""
     six = evals[:, 3:]
-    if fmt != "toro" or order == "g2o":
-        raw = _symmetric(six, G2O_INFO_INDEX)
-        return raw, raw
-    raw = _symmetric(six, TORO_INFO_INDEX)
-    with np.errstate(over="ignore", invalid="ignore"):  # overflow is reported per edge below
-        return toro_to_g2o(raw, evals[:, 2]), raw
+    return _symmetric(six, G2O_INFO_INDEX if fmt != "toro" or order == "g2o" else TORO_INFO_INDEX)
+
+
+def _graph_information(raw: np.ndarray, dtheta: np.ndarray, cost: str) -> tuple[np.ndarray, np.ndarray | None]:
+    """(the information of eq. (3) (m, 3, 3), the given matrices when they differ from it, else None): the file's
+    matrices ``raw`` taken for ``cost``'s error (``formats.py``, "The cost each format means")."""
+    if COST_FRAME[cost] == "tail":
+        return raw, None
+    return to_tail_frame(raw, dtheta), raw
+
+
+def _drop_cross_terms(raw: np.ndarray) -> np.ndarray:
+    """``information="blocks"``: Ω with its translation–rotation entries Ω_tθ set to 0, shape (m, 3, 3)."""
+    out = raw.copy()
+    out[:, :2, 2] = 0.0
+    out[:, 2, :2] = 0.0
+    return out
+
+
+def _repair(path, raw: np.ndarray, elines: np.ndarray) -> np.ndarray:
+    """``repair=True``: every matrix of ``raw`` that fails :func:`is_spd` replaced by the nearest positive-definite
+    one (``posegraph_base.nearest_spd``), counted and logged; matrices with no positive eigenvalue stay (refused
+    later, as without the repair)."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        bad = np.flatnonzero(~is_spd(raw))
+    if bad.size == 0:
+        return raw
+    fixed = nearest_spd(np.where(np.isfinite(raw[bad]), raw[bad], 0.0))
+    ok = np.isfinite(fixed).all(axis=(1, 2)) & np.isfinite(raw[bad]).all(axis=(1, 2))
+    out = raw.copy()
+    out[bad[ok]] = fixed[ok]
+    if ok.any():
+        logger.warning("%s: %d information matrix(es) not positive definite replaced by the nearest positive-definite "
+                       "matrix (eigenvalues raised to %g of the largest; the first on line %d)",
+                       path, int(ok.sum()), REPAIR_FLOOR, int(elines[bad[ok][0]]))
+    return out
 
 
 def _order_hint(evals: np.ndarray, order: str) -> str:
     """For an EDGE2 file whose information fails in ``order``: a hint when every EDGE2 line would be
     positive definite in the other order, else ""."""
     other = "g2o" if order == "toro" else "toro"
-    info, _ = _information(evals, "toro", other)
+    info = _information(evals, "toro", other)
     with np.errstate(over="ignore", invalid="ignore"):
         fits = bool(is_spd(info).all())
     if not fits:
@@ -135,16 +170,28 @@ def _order_hint(evals: np.ndarray, order: str) -> str:
             f"read_graph(path, {fix}) (CLI: {flag})")
 
 
+def _blocks_hint(raw: np.ndarray) -> str:
+    """For a matrix that is not positive definite: the fixes that would read it (``information="blocks"`` when its
+    translation and rotation blocks are each positive definite; ``repair=True`` always)."""
+    blocks = _drop_cross_terms(raw[None])[0]
+    with np.errstate(over="ignore", invalid="ignore"):
+        fits = bool(is_spd(blocks[None])[0])
+    first = ("its translation and rotation blocks are each positive definite: read_graph(path, information='blocks') "
+             "(CLI: --information blocks) drops the cross terms, as SE-Sync does; or " if fits else "")
+    return (f"; {first}read_graph(path, repair=True) (CLI: --repair-information) replaces such matrices by the "
+            f"nearest positive-definite one")
+
+
 def _bad_information(info: np.ndarray, raw: np.ndarray, elines: np.ndarray, hint):
-    """First edge whose (converted) information fails :func:`is_spd` — the very test PoseGraph applies.
-    ``hint()`` gives the EDGE2-order hint appended to a "not positive definite" message."""
+    """First edge whose information (as the graph would hold it) fails :func:`is_spd` — the very test PoseGraph
+    applies. ``hint()`` gives the EDGE2-order hint appended to a "not positive definite" message."""
     with np.errstate(over="ignore", invalid="ignore"):  # absurdly large entries: reported below
         bad = np.flatnonzero(~is_spd(info))
     if bad.size == 0:
         return None
     k = bad[0]
     if not np.isfinite(info[k]).all():
-        return int(elines[k]), "information matrix overflows when rotated to the g2o convention"
+        return int(elines[k]), "information matrix overflows when rotated to the frame of eq. (3)"
     with np.errstate(over="ignore", invalid="ignore"):
         ev = np.linalg.eigvalsh(raw[k]) if np.isfinite(2.0 * raw[k]).all() else np.full(3, np.nan)
     shown = ", ".join(f"{e:.6g}" for e in ev)
@@ -153,7 +200,8 @@ def _bad_information(info: np.ndarray, raw: np.ndarray, elines: np.ndarray, hint
                                 f"(entries too large or too badly scaled; eigenvalues {shown})")
     if np.isnan(ev).any():
         return int(elines[k]), "information matrix is not numerically positive definite (entries too large)"
-    return int(elines[k]), f"information matrix is not positive definite (eigenvalues {shown}){hint()}"
+    extra = hint() or _blocks_hint(raw[k])
+    return int(elines[k]), f"information matrix is not positive definite (eigenvalues {shown}){extra}"
 
 
 def _warn_ignored(path, parsed, graph: PoseGraph) -> None:
@@ -168,12 +216,19 @@ def _warn_ignored(path, parsed, graph: PoseGraph) -> None:
                        path, parsed.equiv.count, parsed.equiv.first_line, parsed.equiv.first_text)
 
 
-def _build(path, parsed, order: str) -> PoseGraph:
+def _build(path, parsed, order: str, cost: str | None, information: str, repair: bool) -> PoseGraph:
     vid, vval, vlines = parsed.vid, parsed.vval, parsed.vlines
     eid, evals, elines = parsed.eid, parsed.evals, parsed.elines
     if vid.size == 0 and eid.shape[0] == 0:
         raise ParseError(path, None, "file contains no vertices and no edges")
-    info, raw = _information(evals, parsed.fmt, order)
+    if cost is None:  # EDGE2 lines in the g2o order are g2o records under the TORO tag: g2o's cost
+        cost = COST_OF_FORMAT["g2o" if order == "g2o" else parsed.fmt]
+    raw = _information(evals, parsed.fmt, order)
+    if information == "blocks":
+        raw = _drop_cross_terms(raw)
+    if repair:
+        raw = _repair(path, raw, elines)
+    info, given = _graph_information(raw, evals[:, 2], cost)
     hint = (lambda: _order_hint(evals, order)) if parsed.fmt == "toro" else (lambda: "")
 
     # Semantic problems; the earliest line among them is reported. Duplicate and unknown ids are
@@ -200,7 +255,7 @@ def _build(path, parsed, order: str) -> PoseGraph:
         with np.errstate(over="ignore", invalid="ignore"):  # absurd magnitudes are reported below
             return PoseGraph(n_poses=ids.size, tails=pos[:, 0], heads=pos[:, 1], delta_l=evals[:, 0:2],
                              delta=evals[:, 2], information=info, initial=initial, ids=ids,
-                             name=Path(path).name)
+                             name=Path(path).name, cost=cost, given_information=given)
     except ValueError as exc:  # GraphError from PoseGraph
         problem = _first([_self_loop(eid, elines), _bad_information(info, raw, elines, hint)])
         if problem:
@@ -209,15 +264,26 @@ def _build(path, parsed, order: str) -> PoseGraph:
 
 
 # ----------------------------------------------------------------------------- public API
-def read_graph(path, *, format: str | None = None, edge2_order: str | None = None) -> PoseGraph:
+def read_graph(path, *, format: str | None = None, edge2_order: str | None = None, cost: str | None = None,
+               information: str = "full", repair: bool = False) -> PoseGraph:
     """Read a g2o or TORO pose-graph file into a :class:`PoseGraph` (``name`` = the file's name).
 
     A file whose first record is ``VERTEX_SE3:QUAT`` or ``EDGE_SE3:QUAT`` is a 3-D graph: it is read by
     :func:`lago_cvx.io.space.read_graph3d` into a :class:`~lago_cvx.posegraph3d.PoseGraph3D` (``dim`` 3;
     ``format`` and ``edge2_order`` do not apply).
 
-    ``format``: None (auto-detect: the first data tag decides), ``"g2o"`` or ``"toro"``. TORO
-    information matrices are converted to the g2o convention (see ``formats.py``).
+    ``format``: None (auto-detect: the first data tag decides), ``"g2o"`` or ``"toro"``.
+
+    ``cost``: the error the file's information matrices are read for, one of ``lago_cvx.conventions.COSTS``;
+    None (the default) takes the format's own — ``"g2o"`` for g2o files (and ``EDGE2`` lines read with
+    ``edge2_order="g2o"``, g2o records under the TORO tag), ``"paper"`` (eq. (3)) for TORO files.
+    The graph holds the information of eq. (3) for that cost (``formats.py``; ``PoseGraph.cost``).
+
+    ``information``: ``"full"`` (every entry as written) or ``"blocks"`` (the translation–rotation cross terms
+    dropped, as SE-Sync reads a file; for files whose whole matrices are not positive definite while their blocks
+    are). ``repair``: replace every information matrix that is not positive definite (e.g. g2o's own saved files,
+    written with 6 significant digits) by the nearest positive-definite one (``posegraph_base.nearest_spd``),
+    counted and logged; without it such a file is refused, naming both options.
 
     ``edge2_order``: how the six information entries of ``EDGE2`` lines are read — None or ``"toro"``
     (the documented TORO order ``Ixx Ixy Iyy Itt Ixt Iyt`` in the TORO frame), or ``"g2o"`` for files
@@ -230,14 +296,17 @@ def read_graph(path, *, format: str | None = None, edge2_order: str | None = Non
     """
     fmt_forced = check_format(format)
     order = check_edge2_order(edge2_order)
+    if information not in READ_INFORMATION:
+        raise OptionError(f"unknown information {information!r}; expected one of {READ_INFORMATION}")
     data = read_bytes(path)
     if is_3d_tag(first_tag(data) or ""):  # VERTEX_SE3:QUAT / EDGE_SE3:QUAT: a 3-D graph (space.py)
-        return read_graph3d(path, data=data)
+        return read_graph3d(path, data=data, cost=cost, information=information, repair=repair)
+    cost = None if cost is None else check_cost(cost)
     parsed = parse_fast(data, fmt_forced)
     if parsed is None:
         parsed = parse_careful(decode(data), fmt_forced, path)
     del data  # the text is not needed any more (a third of the peak memory at a million poses)
-    graph = _build(path, parsed, order)
+    graph = _build(path, parsed, order, cost, information, bool(repair))
     _warn_ignored(path, parsed, graph)
     return graph
 

@@ -29,7 +29,7 @@ from ..sparse import cores, unique_sorted
 from ..errors import OptionError
 from ..posegraph import PoseGraph, wrap_angle
 from .floatfmt import int_fields, join_fields, repr_fields
-from .formats import check_format, g2o_to_toro
+from .formats import check_format
 from .output import open_output, same_file
 
 __all__ = ["write_graph", "write_bytes", "format_records", "format_records_py", "open_output", "same_file", "BLOCK"]
@@ -115,14 +115,14 @@ def format_records(tag: str, ids: np.ndarray, values: np.ndarray) -> bytes:
     return text
 
 
-def _edge_block(graph: PoseGraph, fmt: str, rows: slice):
-    """(ids (k, 2), values (k, 9): Δx Δy δ and the six stored information entries) of some edges."""
-    info, delta = graph.information[rows], graph.delta[rows]
+def _edge_block(graph: PoseGraph, info: np.ndarray, fmt: str, rows: slice):
+    """(ids (k, 2), values (k, 9): Δx Δy δ and the six stored information entries) of some edges; ``info``
+    (m, 3, 3) the information in the format's frame."""
+    info, delta = info[rows], graph.delta[rows]
     if fmt == "g2o":
         six = info[:, [0, 0, 0, 1, 1, 2], [0, 1, 2, 1, 2, 2]]
     else:
-        t = g2o_to_toro(info, delta)
-        six = t[:, [0, 0, 1, 2, 0, 1], [0, 1, 1, 2, 2, 2]]
+        six = info[:, [0, 0, 1, 2, 0, 1], [0, 1, 1, 2, 2, 2]]
     ids = np.column_stack([graph.ids[graph.tails[rows]], graph.ids[graph.heads[rows]]])
     return ids, np.column_stack([graph.delta_l[rows], delta, six])
 
@@ -148,8 +148,9 @@ def write_graph(path, graph: PoseGraph, poses=None, *, format: str = "g2o",
     file has edge lines only (poses that appear in no edge are then not represented). Ids are the
     graph's original ``ids``. Numbers are written with ``repr`` (shortest exact round trip), so
     read → write → read reproduces the graph bit for bit. Vertex angles outside [−π, π) are wrapped
-    when ``wrap_angles``; edge angles δ are written as stored. TORO output converts the information
-    back to the TORO frame (Ω_toro = T Ω Tᵀ).
+    when ``wrap_angles``; edge angles δ are written as stored. The information is written in the frame of the
+    format's error (``PoseGraph.information_in``): a written file means the cost the graph was read in —
+    g2o's χ² of a g2o file written from a g2o- or paper-cost graph is the graph's χ² at the written poses.
 
     ``path`` may be a file (written to a temporary file in the same directory and moved into place
     atomically, keeping an existing file's permissions), a symbolic link (written through to its
@@ -188,7 +189,8 @@ def write_graph(path, graph: PoseGraph, poses=None, *, format: str = "g2o",
     if poses is not None:
         jobs += [(lambda s=s: format_records(vtag, graph.ids[s:s + BLOCK, None], poses[s:s + BLOCK]))
                  for s in range(0, graph.n_poses, BLOCK)]
-    jobs += [(lambda s=s: format_records(etag, *_edge_block(graph, fmt, slice(s, s + BLOCK))))
+    edge_info = graph.information_in("measurement" if fmt == "g2o" else "tail")
+    jobs += [(lambda s=s: format_records(etag, *_edge_block(graph, edge_info, fmt, slice(s, s + BLOCK))))
              for s in range(0, graph.n_edges, BLOCK)]
     with open_output(path) as f:
         for block in _in_order(jobs):

@@ -3,7 +3,8 @@ r"""False loop closures appended to any planar pose graph, the protocol of robus
 drawn uniformly among the pairs that are neither equal nor consecutive in id (so it is never odometric),
 and measures a relative pose drawn uniformly: the translation Δˡ uniform in the square [−b/2, b/2]² of
 side ``box`` = b metres, the rotation δ uniform in [−π, π); its information Ω is that of a real edge of
-the graph drawn uniformly. Nothing about the false edges is told to the estimator.
+the graph drawn uniformly, as the graph's cost gives it (a g2o graph's in the measurement's frame, moved
+into eq. (3)'s frame for the new δ like every edge read from a file, ``lago_cvx.posegraph``). Nothing about the false edges is told to the estimator.
 
     add_false_loop_closures(graph, fraction, *, seed, box=20.0) -> (graph', outliers)
 
@@ -18,7 +19,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..errors import OptionError
-from ..posegraph import PoseGraph
+from ..posegraph import COST_FRAME, PoseGraph, to_tail_frame
 
 __all__ = ["add_false_loop_closures", "FALSE_LOOP_BOX"]
 
@@ -48,10 +49,14 @@ def add_false_loop_closures(graph: PoseGraph, fraction: float, *, seed: int = 0,
     tails, heads = _pairs(graph.ids, q, rng)
     delta_l = rng.uniform(-box / 2, box / 2, size=(q, 2))
     delta = rng.uniform(-np.pi, np.pi, size=q)
-    info = graph.information[rng.integers(0, m, size=q)]
+    # the information as the graph was given it (its cost's frame), moved into eq. (3)'s frame for the new δ
+    frame = COST_FRAME[graph.cost]
+    given = graph.information_in(frame)[rng.integers(0, m, size=q)]
+    info = to_tail_frame(given, delta) if frame == "measurement" else given
+    kept = None if graph.given_information is None else np.concatenate([graph.given_information, given])
     new = replace(graph, tails=np.r_[graph.tails, tails], heads=np.r_[graph.heads, heads],
                   delta_l=np.r_[graph.delta_l, delta_l], delta=np.r_[graph.delta, delta],
-                  information=np.concatenate([graph.information, info]))
+                  information=np.concatenate([graph.information, info]), given_information=kept)
     return new, np.arange(m, m + q, dtype=np.int64)
 
 

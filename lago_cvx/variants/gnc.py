@@ -279,7 +279,7 @@ def _weighted(graph: PoseGraph, w: np.ndarray, drop_below: float) -> PoseGraph:
         keep[minimum_spanning_edges(graph, 1.0 - w)] = True
     ww = np.maximum(w[keep], drop_below or 1e-6)
     sub = graph.subgraph_edges(keep)
-    return replace(sub, information=sub.information * ww[:, None, None])
+    return replace(sub, information=sub.information * ww[:, None, None], given_information=None)
 
 
 @dataclass(eq=False)
