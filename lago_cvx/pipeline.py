@@ -260,6 +260,8 @@ def compare_methods(graph: PoseGraph, *, solver_settings: ClarabelSettings | Non
     keyword of ``lago`` too). ``kwargs``: the keywords of ``lago`` but ``method`` (both run: ``OptionError``)."""
     if "method" in kwargs:
         raise OptionError("method: compare_methods solves both ways (closed form, then cvxpy); do not pass method")
+    if kwargs.get("robust") not in (None, False):
+        raise OptionError("robust: compare_methods compares one least-squares run; run lago(graph, robust=...)")
     if kwargs.get("cost") is not None:
         graph = graph.with_cost(kwargs.pop("cost"))
     if anchors is not None:

@@ -95,8 +95,20 @@ def test_robust_settings_and_options():
                dict(threshold=-1.0), dict(trust_odometry="yes")):
         with pytest.raises(OptionError):
             RobustSettings(**kw)
+    with pytest.raises(OptionError, match="robust"):
+        lc.compare_methods(manhattan_world(50, seed=0).graph, robust=True)
+    small = manhattan_world(60, seed=1).graph  # the cvxpy route inside GNC too
+    assert lc.lago(small, robust=True, method="cvxpy").method == "cvxpy"
     with pytest.raises(OptionError, match="planar"):
         lc.lago(sphere_world(4, 6, seed=0).graph, robust=True)
+
+
+def test_too_few_iterations_are_said(caplog):
+    w = manhattan_world(200, seed=2)
+    go, idx = add_false_loop_closures(w.graph, 0.1, seed=2)
+    with caplog.at_level("WARNING", logger="lago_cvx.variants"):
+        res = lc.lago(go, robust=RobustSettings(max_iterations=2))
+    assert res.iterations == 2 and "without converging" in caplog.text
 
 
 def test_odometric_chain_detection():

@@ -223,6 +223,9 @@ def gnc_lago(graph: PoseGraph, settings: RobustSettings, *, solve: Callable) -> 
             r2 = whitened_errors(graph, res.poses) ** 2
             history.append(dict(mu=mu, n_outliers=int((w < 0.5).sum()), seconds=time.perf_counter() - t))
             mu = mu * settings.mu_factor if settings.loss == "tls" else max(1.0, mu / settings.mu_factor)
+        else:
+            log.warning("GNC-%s stopped after max_iterations = %d without converging (weights still moving); "
+                        "edges are classified by their last weights", settings.loss.upper(), settings.max_iterations)
     # TLS ends with binary weights; GM's never reach 0: an edge is rejected where its residual at GNC's
     # estimate exceeds c̄² (there GM's weight at μ = 1 has fallen below ¼)
     keep = (w >= 0.5) if settings.loss == "tls" else (r2 <= c2)
