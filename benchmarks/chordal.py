@@ -9,7 +9,7 @@ C_bfs k (``cycle_integers``) —, the ambiguous roundings, χ² of LAGO, χ² Ga
 regularization.
 Table 2 — synthetic Manhattan worlds with rising σ_θ (``lago_cvx.experiments.rotation_noise_sweep``):
 how often Gauss–Newton from each regularizer's LAGO reaches the optimum it reaches from the ground truth.
-χ² is the g2o convention Σ eᵀΩe (no ½).
+χ² is Σ eᵀΩe (no ½) in each file's own cost (`lago_cvx.conventions`).
 """
 
 from __future__ import annotations

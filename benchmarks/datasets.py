@@ -104,7 +104,7 @@ def run(args) -> str:
     out += [
         f"Medians of {args.repeat} runs. gtsam installed: {have_gtsam()}.",
         "",
-        "Conventions: χ² = Σ eᵀΩe (g2o convention, no ½). Reference minima: datasets README §4.2 "
+        "Conventions: χ² = Σ eᵀΩe (no ½) in each file's own cost (g2o's χ² for g2o files, eq. (3) for TORO files; `lago_cvx.conventions`). Reference minima: the lower of `refine` and g2o's LM from there "
         "(`lago_cvx.datasets.REFERENCE_CHI2`; best found by Gauss–Newton, not certified). Times are medians "
         "over the runs, wall clock, of the LAGO step only (file reading excluded).",
         "",

@@ -94,7 +94,7 @@ def run(args) -> str:
                      f"{from_lago.chi2 / best:.4f} ({from_lago.iterations})" if best > 0 else "–", f"{ms:.0f}"])
         print(" | ".join(map(str, rows[-1])), flush=True)
     return ("# LAGO on real graphs it was never tuned on\n\n"
-            "χ² in the g2o convention (Σ eᵀΩe). best = the lowest χ² Gauss–Newton reaches from LAGO or from the "
+            "χ² = Σ eᵀΩe in each file's own cost (`lago_cvx.conventions`). best = the lowest χ² Gauss–Newton reaches from LAGO or from the "
             "file's guess (dead reckoning along a BFS tree when the file has none): the best known local minimum, "
             "not a certified one. GN from default = Gauss–Newton (at most 100 iterations) started at the default "
             "route's estimate: what `lago-cvx solve --refine --max-iterations 100` ends at. seed = the paper's "

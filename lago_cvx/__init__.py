@@ -4,7 +4,7 @@ Public API::
 
     graph = read_graph("file.g2o")          # g2o or TORO, auto-detected
     result = lago(graph)                    # closed form; method="cvxpy" for the cvxpy problems
-    result.poses, result.chi2               # (n, 3) estimate and its χ² (g2o convention)
+    result.poses, result.chi2               # (n, 3) estimate and its χ² (the file's own cost)
     write_graph("out.g2o", graph, result.poses)
 
     lago(graph, regularization="chordal")   # 2kπ integers from the chordal relaxation (robust to rotation noise)

@@ -41,7 +41,7 @@ COST_DESCRIPTION = {
 
 #: One line stating which cost the certificate is about (eqs. (S1)–(S2) of ``certification/sesync.py``).
 SESYNC_COST_CONVENTION = ("SE-Sync cost f = Σ κ‖R_j−R_iR̃‖²_F + τ‖t_j−t_i−R_i t̃‖² (no ½; κ = Ω_θθ, "
-                          "τ = 2/tr(Ω_tt⁻¹)), not the g2o χ²")
+                          "τ = 2/tr(Ω_tt⁻¹)), not the χ²")
 
 #: The largest relative suboptimality bound (f − f*_lower)/f ``certify`` accepts as "certified" (default).
 CERTIFY_TOL = 1e-3

@@ -71,7 +71,7 @@ DATASET_TABLE = tuple(row[:5] for row in _TABLE)
 DATASET_FILES = tuple(row[0] for row in _TABLE)
 #: χ² minima of each file's own cost (module docstring).
 REFERENCE_CHI2 = {row[0]: row[5] for row in _TABLE if row[5] is not None}
-#: Minima of the SE-Sync cost f (README §4.2).
+#: Minima of the SE-Sync cost f (datasets README §4.1–4.2).
 REFERENCE_SESYNC = {row[0]: row[6] for row in _TABLE if row[6] is not None}
 
 #: SE-Sync's Table 1 (IJRR 2019), as printed.

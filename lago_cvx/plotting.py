@@ -115,7 +115,7 @@ def plot_convergence(ax: Axes, values, *, label: str | None = None, reference: f
     if logy:
         ax.set_yscale("log")
     ax.set_xlabel("iteration")
-    ax.set_ylabel("χ² (g2o convention)")
+    ax.set_ylabel("χ² (Σ eᵀΩe)")
     return ax
 
 

@@ -2,8 +2,8 @@
 initial guesses and trajectory error metrics.
 
 LAGO (``lago_cvx.pipeline``) gives a linear approximation of the maximum-likelihood estimate. This module
-minimises the **full nonlinear cost of eq. (3)** of the seed, in the g2o χ² convention of
-``lago_cvx.metrics`` (no factor ½), starting from any guess — typically LAGO's — so that the two can be
+minimises the **full nonlinear cost** the graph means — eq. (3) of the seed, g2o's χ² or GTSAM's (``lago_cvx.conventions``;
+no factor ½), starting from any guess — typically LAGO's — so that the two can be
 compared, and LAGO can be used as an initialization of an iterative solver (the seed's Section V).
 
 Problem
@@ -16,7 +16,7 @@ they leave open (``held_coordinates``); as in the variants engine (``lago_cvx.va
 columns leave J, so the system is over the d = 3n − |K| unknown coordinates, numbered in pose-major
 order (x_0, y_0, θ_0, x_1, …) without the held ones.
 
-For an edge k: i → j with measurement (Δˡ, δ) and information Ω (3×3, g2o convention) the error is
+For an edge k: i → j with measurement (Δˡ, δ) and information Ω (3×3, eq. (3)'s frame, ``lago_cvx.posegraph``) the error is
 
     e_k = [ R_iᵀ(p_j − p_i) − Δˡ ;  wrap(θ_j − θ_i − δ) ]          (3,)
 
@@ -109,7 +109,7 @@ class RefineResult:
 
     #: The refined estimate (n, 3) (θ unwrapped).
     poses: np.ndarray
-    #: Its χ² (g2o convention, no ½).
+    #: Its χ² (the graph's cost, no ½).
     chi2: float
     #: The χ² of the starting poses.
     chi2_initial: float

@@ -123,7 +123,7 @@ def refine_repr(res) -> str:
     ``iterations``, ``converged``, ``reason``, ``method``, ``anchor``, ``backend``, ``log``)."""
     t = res.log[-1]["time"] if res.log else float("nan")
     return short_repr("RefineResult", f"{res.poses.shape[0]} poses: χ² {res.chi2_initial:.10g} → {res.chi2:.10g} "
-                      "(g2o convention)", [
+                      f"(cost {getattr(res, 'cost', 'paper')})", [
                           f"{res.method or 'refine'}: {res.iterations} iterations, "
                           f"{'converged' if res.converged else 'not converged'}"
                           f"{': ' + res.reason if res.reason else ''}; anchor pose {res.anchor}; "

@@ -82,7 +82,7 @@ class LagoResult:
 
     @property
     def chi2(self) -> float:
-        """χ² of eq. (3) at ``poses`` (g2o convention, no ½)."""
+        """χ² at ``poses`` in the graph's cost (``lago_cvx.metrics.chi2``; no ½)."""
         return chi2(self.graph, self.poses)
 
     def pose_covariances(self, *, progress=None) -> np.ndarray:

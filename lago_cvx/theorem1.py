@@ -20,11 +20,14 @@ full information the exact positions given θ̂, ``lago_cvx.positions``), and
 normal equations of (p̂ = argmin ‖M_p p − (Wz − M_θ θ̂)‖; [·; δ̃] = argmin ‖MΔ − (Wz − M x̂)‖, whose normal
 equations are HΔ = [0; r_θ]; ρ̃ = argmin ‖M_p ρ + M_θ δ̃‖), each solved with corrected semi-normal
 refinement (``lago_cvx.sparse.linalg.solve_least_squares``: accurate also for input_INTEL's cond ≈ 1e8) — and
-reports how exactly x* − x̂ = [ρ̃; δ̃] holds (part 1: to rounding), and the χ² of eq. (3) at x̂, at x*, and at the positions re-solved for θ* (part 2: on several
-real graphs χ²(x*) ≫ χ²(x̂); ``python benchmarks/run.py theorem1``). The expansion is not what fails:
-eq. (18) weighs the position residuals with R(θ̂) frozen, and with those weights the step lowers the
-cost (INTEL_P 217.5 → 212.9); χ² weighs them with R at the returned orientations, and on files with very
-anisotropic translational information a small turn of a pose moves cheap residuals onto a stiff axis.
+reports how exactly x* − x̂ = [ρ̃; δ̃] holds (part 1: to rounding), and the χ² of eq. (3) — the cost the
+graph means (``lago_cvx.conventions``) — at x̂, at x*, and at the positions re-solved for θ* (part 2: on INTEL
+(both files), MIT and manhattan χ²(x*) > χ²(x̂), on INTEL_P 220.0 → 14 531; on CSAIL, intel, FR079, city10000
+and the M3500 g2o files χ²(x*) < χ²(x̂); ``python benchmarks/run.py theorem1``). The expansion is not what
+fails: eq. (18) weighs the position residuals with R(θ̂) frozen, and with those weights the step lowers the
+cost (INTEL_P 220.0 → 214.3, :func:`frozen_and_model`); χ² weighs them with R at the returned orientations, and
+on files with very anisotropic translational information a small turn of a pose moves cheap residuals onto a
+stiff axis.
 """
 
 from __future__ import annotations

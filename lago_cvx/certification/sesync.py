@@ -3,8 +3,8 @@ r"""The SE-Sync cost of a planar pose graph and its quadratic form (Rosen, Carlo
 38(2–3), 2019; below "SE-Sync"), specialised to d = 2 with the translations kept in the variable. Equation
 labels (S1)… are this package's own, not the seed's.
 
-The cost (SE-Sync's Problem 1, eq. (12); datasets README §4.1) — **not** the g2o χ²
----------------------------------------------------------------------------------------------------
+The cost (SE-Sync's Problem 1, eq. (12); datasets README §4.1) — **not** χ², the cost the file means
+----------------------------------------------------------------------------------------------------
 For poses x_i = (t_i, θ_i), R_i = R(θ_i), and an edge i → j with measurement (t̃_ij, R̃_ij = R(δ_ij))
 (``graph.delta_l``, ``graph.delta``)::
 
@@ -23,7 +23,9 @@ Relation to ``lago_cvx.metrics.chi2`` (χ² = Σ eᵀΩe, e = [R_iᵀ(t_j − t_
   otherwise τ is the harmonic mean of Ω_tt's eigenvalues and the two differ;
 * rotation: 4κ(1 − cos e) ≈ 2κe², **twice** χ²'s κe² for small residuals, and bounded (≤ 8κ);
 * cross terms: dropped by (S1).
-Hence f* ≠ χ²* (CSAIL: f* = 31.7037, χ²* = 61.143), and the minimisers differ slightly too.
+Hence f* ≠ χ²* (CSAIL: f* = 31.7037, χ²* = 40.5551, g2o's χ²), and the minimisers differ slightly too.
+τ and κ are unchanged by a rotation of Ω's translational block (tr((RΩ_ttRᵀ)⁻¹) = tr(Ω_tt⁻¹)), so f is the
+same whichever frame the file's information is read in (``lago_cvx.conventions``).
 
 The quadratic form — ``data_matrix``
 -----------------------------------

@@ -158,7 +158,7 @@ def add_parser(sub) -> None:
     s = sub.add_parser(
         "certify", help="LAGO, refinement and SE-Sync's global-optimality certificate",
         formatter_class=argparse.RawDescriptionHelpFormatter,
-        description="Run LAGO on FILE, refine it (Gauss-Newton on the g2o chi2, then Newton on the SE-Sync cost f), and\n"
+        description="Run LAGO on FILE, refine it (Gauss-Newton on the file's chi2 (--cost), then Newton on the SE-Sync cost f), and\n"
                     "verify global optimality with SE-Sync's Lagrangian-dual certificate (lago_cvx.certification).\n"
                     f"{SESYNC_COST_CONVENTION}.\nA point whose cost is above one already reached is never "
                     "certified; so the raw LAGO estimate never is,\nand its comparison certificate runs only with "

@@ -85,7 +85,7 @@ def cmd_demo(args) -> int:
         f"seed {args.seed}",
         f"  regularization ({res.regularization.regularization}): {res.regularization.n_regularized} of "
         f"{res.regularization.chords.size} chords needed a 2kπ correction",
-        "  chi2 (g2o convention, sum e'Ωe):",
+        "  chi2 (sum e'Ωe, no 1/2):",
         f"    odometric guess {payload['chi2']['odometry']:12.4f}",
         f"    LAGO            {payload['chi2']['lago']:12.4f}",
         f"    ground truth    {payload['chi2']['truth']:12.4f}",

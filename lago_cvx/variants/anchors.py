@@ -49,7 +49,7 @@ class Anchor:
 @dataclass(frozen=True, eq=False)
 class Prior:
     """A soft absolute measurement of pose ``id``: ``mean`` (3,) = (x, y, θ), ``information`` (3, 3)
-    SPD (order x, y, θ; GTSAM-style prior factor, g2o χ² convention eᵀΛe)."""
+    SPD (order x, y, θ; GTSAM-style prior factor, its χ² term eᵀΛe with no ½ like every χ² here)."""
 
     id: int
     index: int
