@@ -198,8 +198,10 @@ def test_cli_generate_outliers_and_solve_robust(tmp_path, capsys):
     assert d["chi2_refined"] <= d["chi2"]
     keep = np.setdiff1d(np.arange(g.n_edges), d["rejected_edges"])
     assert d["chi2"] == pytest.approx(chi2(g.subgraph_edges(keep), lc.lago(g, robust=True, anchor=4).poses))
-    code, out, _ = run(capsys, "solve", f, "--robust", "gnc-gm")
-    assert code == 0 and "edges rejected as outliers" in out and "accepted edges" in out
+    code, out, _ = run(capsys, "solve", "--robust-loss", "gm", f)
+    assert code == 0 and "robust (gnc-gm)" in out and "accepted edges" in out
+    code, out, _ = run(capsys, "solve", "--robust", f, "--json")  # a flag: the file may follow it
+    assert code == 0 and json.loads(out)["robust"] == "gnc-tls"
     code, out, err = run(capsys, "solve", f, "--robust", "--refine", "-o", "-")
     est = out.splitlines()
     assert code == 0 and sum(line.startswith("EDGE") for line in est) == g.n_edges  # all edges, estimated vertices

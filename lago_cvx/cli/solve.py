@@ -147,6 +147,7 @@ def cmd_solve(args) -> int:
 
     anchor, anchors = _parse_anchors(args.anchor)
     check_regularization(graph, args.regularization)
+    args.robust = f"gnc-{args.robust_loss or 'tls'}" if (args.robust or args.robust_loss) else None
     if args.robust and args.check:
         raise UsageError("--check and --robust do not combine: --check compares one least-squares run both ways")
     kw = dict(route=args.route, spanning_tree=args.spanning_tree, anchor=anchor, regularization=args.regularization,
@@ -263,11 +264,14 @@ def add_parsers(sub) -> None:
                         "(repeatable; leave fields empty for partial anchors, e.g. 7:,,1.57): poses known exactly")
     s.add_argument("--check", action="store_true", help="solve both ways and report the largest relative "
                                                         "difference per phase")
-    s.add_argument("--robust", nargs="?", const="gnc-tls", choices=["gnc-tls", "gnc-gm"], default=None,
+    s.add_argument("--robust", action="store_true",
                    help="reject false loop closures by graduated non-convexity around weighted LAGO runs "
-                        "(truncated least squares, or gnc-gm: Geman-McClure); odometric edges trusted when the "
-                        "odometric chain is complete. JSON gives rejected_edges (indices of EDGE records in file "
-                        "order); chi2 (and --refine) are over the accepted edges")
+                        "(truncated least squares); odometric edges trusted when the odometric chain is complete. "
+                        "JSON gives rejected_edges (indices of EDGE records in file order); chi2 (and --refine) are "
+                        "over the accepted edges")
+    s.add_argument("--robust-loss", choices=["tls", "gm"], default=None,
+                   help="the loss of --robust (implies it): tls, truncated least squares (default), or gm, "
+                        "Geman-McClure")
     s.add_argument("--refine", action="store_true", help="refine the LAGO estimate on the full nonlinear cost (--cost; "
                                                          "with --robust: on the accepted edges)")
     s.add_argument("--refine-method", choices=["gauss-newton", "levenberg-marquardt"], default="gauss-newton")
