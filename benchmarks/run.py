@@ -43,6 +43,9 @@ date):
   what each process pays before reading (imports, the compiled engine's start), and a 100 000-pose 3-D world;
 * ``costs``    — the χ² ``lago-cvx solve [--refine] -o`` reports against g2o's own χ² of the file written (g2opy)
   and, with ``--cost gtsam``, GTSAM's 2·error(); each peer's Levenberg–Marquardt from our refined estimate;
+* ``robust``   — false loop closures appended to intel, M3500, CSAIL, MIT and city10000 (10 %, 30 %, seeds
+  0–2): precision, recall, ATE and χ² of robust LAGO (graduated non-convexity) against the clean solution;
+  ``--robust-gtsam``: GTSAM's GNC on the same graphs;
 * ``million``  — ``lago-cvx solve -o`` as a whole process on 100 000 to 1 000 000-pose worlds by both routes,
   step by step with peak memory, and phase 3 by QDLDL against the compiled engine (``COMPILED_MIN``).
 
@@ -65,7 +68,7 @@ from pathlib import Path
 import _bench
 
 SECTIONS = ("datasets", "scaling", "perf", "endtoend", "chordal", "certify", "integer", "theorem1", "route", "io",
-            "unseen", "million", "processes", "space", "spaceprocess", "costs")
+            "unseen", "million", "processes", "space", "spaceprocess", "costs", "robust")
 #: Sections whose module has another name (``io`` would be the standard library's).
 MODULE_OF = {"io": "io_bench"}
 

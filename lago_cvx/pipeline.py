@@ -12,6 +12,8 @@ result is a ``VariantResult`` — a ``LagoResult`` with more fields.
 from __future__ import annotations
 
 import contextlib
+import functools
+import inspect
 import logging
 import time
 
@@ -36,6 +38,28 @@ __all__ = ["lago", "compare_methods"]
 log = logging.getLogger(__name__)
 
 
+def _robust_option(run):
+    """``lago``'s keyword ``robust=``: None / False run LAGO itself; anything else runs graduated
+    non-convexity (``lago_cvx.variants.gnc_lago``) around LAGO with the other options."""
+
+    @functools.wraps(run)
+    def lago(graph, *, robust=None, **options):
+        if robust is None or robust is False:
+            return run(graph, **options)
+        from .variants import gnc_lago, robust_settings
+
+        settings = robust_settings(robust)
+        if getattr(graph, "dim", 2) == 3:
+            raise OptionError("robust: planar graphs only")
+        return gnc_lago(graph, settings, solve=lambda g: run(g, **options))
+
+    sig = inspect.signature(run)
+    lago.__signature__ = sig.replace(parameters=[*sig.parameters.values(),
+                                                 inspect.Parameter("robust", inspect.Parameter.KEYWORD_ONLY)])
+    return lago
+
+
+@_robust_option
 def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form", spanning_tree=None,
          regularization: str | None = None, information: str | None = None, positions: str | None = None,
          anchor=None, anchor_pose=None, margin: float = AMBIGUITY_MARGIN,
@@ -80,6 +104,10 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
       anchors — ``{id: (x, y, θ)}`` known poses (None for unknown components); when given (even ``{}``)
         LAGO runs with the known entries moved to the right-hand side (``lago_cvx.variants.anchored_lago``;
         returns its ``VariantResult``, a ``LagoResult``).
+      robust — None / False (default): least squares. True, ``"gnc-tls"``, ``"gnc-gm"`` or a
+        ``lago_cvx.variants.RobustSettings``: graduated non-convexity around weighted LAGO runs with the
+        options above, rejecting false loop closures (``lago_cvx.variants.gnc``); returns a ``RobustResult``
+        (``rejected_edges``, ``weights``; its ``graph`` and ``chi2`` are those of the accepted edges).
     Raises ``GraphError`` for a disconnected graph (naming component sizes), a broken odometric chain,
     or an unknown anchor; ``OptionError`` for a bad option.
 
@@ -232,6 +260,8 @@ def compare_methods(graph: PoseGraph, *, solver_settings: ClarabelSettings | Non
     keyword of ``lago`` too). ``kwargs``: the keywords of ``lago`` but ``method`` (both run: ``OptionError``)."""
     if "method" in kwargs:
         raise OptionError("method: compare_methods solves both ways (closed form, then cvxpy); do not pass method")
+    if kwargs.get("robust") not in (None, False):
+        raise OptionError("robust: compare_methods compares one least-squares run; run lago(graph, robust=...)")
     if kwargs.get("cost") is not None:
         graph = graph.with_cost(kwargs.pop("cost"))
     if anchors is not None:

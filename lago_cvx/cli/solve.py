@@ -147,13 +147,18 @@ def cmd_solve(args) -> int:
 
     anchor, anchors = _parse_anchors(args.anchor)
     check_regularization(graph, args.regularization)
+    args.robust = f"gnc-{args.robust_loss or 'tls'}" if (args.robust or args.robust_loss) else None
+    if args.robust and args.check:
+        raise UsageError("--check and --robust do not combine: --check compares one least-squares run both ways")
     kw = dict(route=args.route, spanning_tree=args.spanning_tree, anchor=anchor, regularization=args.regularization,
               information=route_information(args), positions=args.positions, integer_search=integer_search(args))
     if anchors:
         kw["anchors"] = anchors
+    if args.robust:
+        kw["robust"] = args.robust
     if args.check:
         res, report = compare_methods(graph, **kw)
-    elif anchors:  # the variants engine directly: it honours every option of lago (the integer limits too)
+    elif anchors and not args.robust:  # the variants engine directly: it honours every option of lago (the integer limits too)
         from ..variants import anchored_lago
 
         res, report = anchored_lago(graph, method=args.method, progress=progress_callback(args), **kw), None
@@ -161,6 +166,7 @@ def cmd_solve(args) -> int:
         res, report = lago(graph, method=args.method, progress=progress_callback(args), **kw), None
     check_finite(res.chi2, res.poses, what="LAGO estimate")
     reg = res.regularization
+    solved = res.graph  # the accepted edges of a robust run (χ² is over them), else the graph read
     payload = {
         "file": str(args.file), "n_poses": graph.n_poses, "n_edges": graph.n_edges,
         "cost": graph.cost, "method": "closed_form" if args.check else args.method, "spanning_tree": res.tree.kind,
@@ -171,11 +177,15 @@ def cmd_solve(args) -> int:
                                                 "total")},
     }
     if res.polish is not None:
-        payload["chi2_phase3"] = chi2(graph, compose_anchor(res, res.phase3.poses))
+        payload["chi2_phase3"] = chi2(solved, compose_anchor(res, res.phase3.poses))
         payload["positions_alpha"] = res.polish.alpha
     payload["timings"]["regularization"] += res.timings["tree"]
     if graph.initial is not None:
-        payload["chi2_initial"] = chi2(graph, graph.initial)
+        payload["chi2_initial"] = chi2(solved, graph.initial)
+    if args.robust:
+        payload.update(robust=args.robust, chi2_edges="accepted", n_rejected=int(res.rejected_edges.size),
+                       rejected_edges=res.rejected_edges.tolist(), robust_iterations=res.iterations)
+        payload["timings"]["robust"] = res.timings["robust"]
     strained = getattr(res, "strained", None)
     if anchors:
         payload["anchors"] = {str(k): list(v) for k, v in anchors.items()}
@@ -188,7 +198,7 @@ def cmd_solve(args) -> int:
         from ..refinement import refine
 
         # the poses the user fixed stay fixed: the anchors' known coordinates (or the bare anchor pose) are held
-        ref = refine(graph, res.poses, method=args.refine_method, max_iterations=args.max_iterations,
+        ref = refine(solved, res.poses, method=args.refine_method, max_iterations=args.max_iterations,
                      anchor=anchor if anchor is not None else res.anchor, anchors=anchors or None)
         check_finite(ref.chi2, ref.poses, what="refined estimate")
         final = ref.poses
@@ -206,6 +216,9 @@ def cmd_solve(args) -> int:
         f"{args.file}",
         f"  poses {graph.n_poses}, edges {graph.n_edges}, chords {reg.chords.size}, "
         f"regularized {reg.n_regularized}, ambiguous {reg.ambiguous.size}",
+        *([f"  robust ({args.robust}): {res.rejected_edges.size} of {graph.n_edges} edges rejected as outliers "
+           f"after {res.iterations} GNC iterations ({res.timings['robust']:.3f} s); every chi2 below is over the "
+           f"{solved.n_edges} accepted edges"] if args.robust else []),
         f"  chi2 = {res.chi2:.6g}  (cost {graph.cost}: sum e'Ωe, no 1/2)"
         + (f"; phase 3's poses {payload['chi2_phase3']:.6g}" if "chi2_phase3" in payload else "")
         + (f"; at the file's initial guess {payload['chi2_initial']:.6g}" if "chi2_initial" in payload else ""),
@@ -251,7 +264,16 @@ def add_parsers(sub) -> None:
                         "(repeatable; leave fields empty for partial anchors, e.g. 7:,,1.57): poses known exactly")
     s.add_argument("--check", action="store_true", help="solve both ways and report the largest relative "
                                                         "difference per phase")
-    s.add_argument("--refine", action="store_true", help="refine the LAGO estimate on the full nonlinear cost (--cost)")
+    s.add_argument("--robust", action="store_true",
+                   help="reject false loop closures by graduated non-convexity around weighted LAGO runs "
+                        "(truncated least squares); odometric edges trusted when the odometric chain is complete. "
+                        "JSON gives rejected_edges (indices of EDGE records in file order); chi2 (and --refine) are "
+                        "over the accepted edges")
+    s.add_argument("--robust-loss", choices=["tls", "gm"], default=None,
+                   help="the loss of --robust (implies it): tls, truncated least squares (default), or gm, "
+                        "Geman-McClure")
+    s.add_argument("--refine", action="store_true", help="refine the LAGO estimate on the full nonlinear cost (--cost; "
+                                                         "with --robust: on the accepted edges)")
     s.add_argument("--refine-method", choices=["gauss-newton", "levenberg-marquardt"], default="gauss-newton")
     s.add_argument("--max-iterations", type=nonneg_int, default=50, help="refinement iterations (default 50)")
     s.add_argument("--overwrite-input", action="store_true", help="allow -o to name the input file")

@@ -34,21 +34,31 @@ def cmd_generate(args) -> int:
     if truth_path == out:
         raise UsageError("--truth and -o name the same file")
     if args.world in WORLDS3D:
+        if args.outliers:
+            raise UsageError("--outliers: planar worlds only")
         from .space import world3d
 
         world = world3d(args.world, args.poses, args.seed, args.sigma_xy, args.sigma_theta)
     else:
         world = _world(args.world, args.poses, args.seed, args.sigma_xy, args.sigma_theta, args.laps)
-    write_graph(out, world.graph)  # vertices = dead-reckoning guess, as in real datasets
-    write_graph(truth_path, world.graph, world.truth)  # same edges, vertices = ground truth
-    g = world.graph
+    g, outliers = world.graph, None
+    if args.outliers:  # false loop closures appended after the world's edges (lago_cvx.synthetic.outliers)
+        from ..synthetic import add_false_loop_closures
+
+        g, outliers = add_false_loop_closures(g, args.outliers, seed=args.seed)
+    write_graph(out, g)  # vertices = dead-reckoning guess, as in real datasets
+    write_graph(truth_path, g, world.truth)  # same edges, vertices = ground truth
     shown = {p: ("standard output" if p == "-" else p) for p in (out, truth_path)}
     payload = {"output": str(out), "truth": str(truth_path), "world": args.world, "seed": args.seed,
                "n_poses": g.n_poses, "n_edges": g.n_edges, "n_loop_closures": g.n_loop_closures}
-    emit(args, payload, [f"wrote {shown[out]}: {args.world} world, {g.n_poses} poses, {g.n_edges} edges "
-                         f"({g.n_loop_closures} loop closures), seed {args.seed}; vertices = dead-reckoning guess",
-                         f"wrote {shown[truth_path]}: same edges, vertices = ground truth"],
-         stdout_taken="-" in (out, truth_path))
+    lines = [f"wrote {shown[out]}: {args.world} world, {g.n_poses} poses, {g.n_edges} edges "
+             f"({g.n_loop_closures} loop closures), seed {args.seed}; vertices = dead-reckoning guess",
+             f"wrote {shown[truth_path]}: same edges, vertices = ground truth"]
+    if outliers is not None:
+        payload.update(outlier_fraction=args.outliers, outlier_edges=outliers.tolist())
+        lines.append(f"{outliers.size} false loop closures appended: EDGE records {outliers[0] if outliers.size else '-'}"
+                     f"…{outliers[-1] if outliers.size else '-'} (0-based, file order)")
+    emit(args, payload, lines, stdout_taken="-" in (out, truth_path))
     return EXIT_OK
 
 
@@ -137,6 +147,10 @@ def add_parsers(sub) -> None:
     s.add_argument("--laps", type=positive_float, default=3.0, help="circle world: number of turns")
     s.add_argument("-o", "--output", required=True, metavar="OUT",
                    help="graph file (vertices = dead-reckoning guess); - for standard output (then give --truth)")
+    s.add_argument("--outliers", type=nonneg_float, default=0.0, metavar="FRACTION",
+                   help="append FRACTION × (number of edges) false loop closures (planar worlds): random pairs of "
+                        "poses, a uniform relative pose (translation in a 20 m square, any rotation), the "
+                        "information of a real edge; seeded by --seed; --json lists them as outlier_edges")
     s.add_argument("--truth", help="ground-truth file (default: OUT with .truth before the suffix)")
     s.add_argument("--json", action="store_true")
     s.set_defaults(func=cmd_generate)

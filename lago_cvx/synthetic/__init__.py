@@ -45,7 +45,9 @@ edge-index arrays ``"outliers"`` (false loop closures, see ``outlier_fraction``)
 
 from .noise import (OUTLIER_MIN_CHI2, REFERENCE_SIGMA_THETA, REFERENCE_SIGMA_XY, SyntheticWorld, add_noise,
                     dead_reckoning)
+from .outliers import FALSE_LOOP_BOX, add_false_loop_closures
 from .worlds import circle_world, manhattan_world, random_graph
 
 __all__ = ["SyntheticWorld", "manhattan_world", "circle_world", "random_graph", "add_noise", "dead_reckoning",
-           "REFERENCE_SIGMA_XY", "REFERENCE_SIGMA_THETA", "OUTLIER_MIN_CHI2"]
+           "REFERENCE_SIGMA_XY", "REFERENCE_SIGMA_THETA", "OUTLIER_MIN_CHI2",
+           "add_false_loop_closures", "FALSE_LOOP_BOX"]

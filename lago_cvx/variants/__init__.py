@@ -35,7 +35,8 @@ Phase 3 (V7): x = [p; θ] ∈ ℝ³ⁿ, rows
 Where the rest lives: anchors and priors, and their 2kπ rounding (V4), in ``anchors.py``; the weighted
 systems of every phase (V1, V2, V5–V7) in ``systems.py``; the strain test of hard anchors (V3) in
 ``strain.py``; the frame decision and the steps of a run in ``engine.py``; named convex constraints (V9)
-in ``constraints.py``; robust losses and gating (V10, V11) in ``robust.py``.
+in ``constraints.py``; convex robust losses (V10) in the engine (``lago_variant(loss="huber")``, ``"l1"``);
+graduated non-convexity against false loop closures (V11, ``lago(graph, robust=True)``) in ``gnc.py``.
 """
 
 from __future__ import annotations
@@ -53,7 +54,8 @@ from .anchors import Anchor, AnchorRegularization, Prior, normalize_anchors, nor
 from .constraints import (NamedConstraint, PoseVariables, box_constraint, halfplane_constraint, orientation_bounds,
                           polygon_constraint)
 from .engine import VariantOptions, VariantPhase1, VariantPhase3, VariantResult, lago_variant
-from .robust import GATE_THRESHOLD, robust_lago
+from .gnc import (ROBUST_LOSSES, RobustResult, RobustSettings, RobustVariantResult, gnc_lago, gnc_threshold,
+                  gnc_weights, odometric_chain_complete, robust_settings)
 from .strain import STRAIN_LEVEL, AnchorStrain
 from .systems import (DEFAULT_THRESHOLD, LOSSES, WeightedSystem, anchored_phase2, phase1_system, phase3_system,
                       solve_system, solve_system_cvxpy, system_problem)
@@ -61,10 +63,12 @@ from .systems import (DEFAULT_THRESHOLD, LOSSES, WeightedSystem, anchored_phase2
 __all__ = [
     "Anchor", "Prior", "normalize_anchors", "normalize_priors", "AnchorRegularization", "AnchorStrain",
     "VariantOptions", "VariantPhase1", "VariantPhase3", "VariantResult",
-    "anchored_lago", "constrained_lago", "robust_lago", "lago_variant", "compare_anchored_methods",
+    "anchored_lago", "constrained_lago", "lago_variant", "compare_anchored_methods",
     "WeightedSystem", "phase1_system", "anchored_phase2", "phase3_system", "system_problem", "solve_system",
     "solve_system_cvxpy", "PoseVariables", "NamedConstraint", "box_constraint", "polygon_constraint",
-    "halfplane_constraint", "orientation_bounds", "LOSSES", "DEFAULT_THRESHOLD", "STRAIN_LEVEL", "GATE_THRESHOLD",
+    "halfplane_constraint", "orientation_bounds", "LOSSES", "DEFAULT_THRESHOLD", "STRAIN_LEVEL",
+    "RobustSettings", "RobustResult", "RobustVariantResult", "ROBUST_LOSSES", "robust_settings", "gnc_lago",
+    "gnc_threshold", "gnc_weights", "odometric_chain_complete",
 ]
 
 

@@ -447,7 +447,7 @@ def run_variant(graph: PoseGraph, opts: VariantOptions) -> VariantResult:
 
 
 def lago_variant(graph: PoseGraph, **options) -> VariantResult:
-    """The general engine behind ``anchored_lago``, ``constrained_lago`` and ``robust_lago`` (module
+    """The general engine behind ``anchored_lago`` and ``constrained_lago``, and of the convex robust losses (module
     docstrings of ``lago_cvx.variants``, V1–V10). All options keyword-only (``VariantOptions``):
 
       anchors — ``{id: (x, y, θ)}`` hard anchors, None components unknown (``normalize_anchors``).

@@ -1,0 +1,296 @@
+r"""Outlier-robust LAGO by graduated non-convexity (GNC; Yang, Antonante, Tzoumas, Carlone, RA-L 2020).
+
+False loop closures make least squares fail: one edge with an error of metres pulls the whole estimate.
+GNC minimizes a robust cost Σ_k ρ(r_k) of the whitened residuals r_k² = e_kᵀ Ω_k e_k (eq. (3) per edge,
+3 dof), with ρ the truncated least squares (TLS) ρ(r) = min(r², c̄²) or Geman–McClure (GM)
+ρ(r) = c̄² r² / (c̄² + r²), through a sequence of surrogates ρ_μ that start convex and end at ρ. By
+Black–Rangarajan duality each surrogate is minimized by alternating
+
+  (a) the weighted problem   x ← argmin_x Σ_k w_k e_k(x)ᵀ Ω_k e_k(x)   — here a **weighted LAGO**: the
+      graph with Ω_k replaced by w_k Ω_k, w_k ∈ [0, 1]; its 2kπ regularization (tree and chordal
+      relaxation) is redone on every solve, on the edges with w_k > ``drop_below`` only (an edge of weight
+      ~0 must not decide a cycle's integer; were that subgraph disconnected, the edges of a maximum-weight
+      spanning tree are added back with their small weights);
+  (b) the weights in closed form (Yang et al., eqs. (14), (12)):
+
+      TLS:  w_k = 1                                if r_k² ≤ μ/(μ+1) c̄²,
+            w_k = c̄/r_k · √(μ(μ+1)) − μ             if μ/(μ+1) c̄² < r_k² < (μ+1)/μ c̄²,
+            w_k = 0                                if r_k² ≥ (μ+1)/μ c̄²;
+            μ₀ = c̄² / (2 r_max² − c̄²), μ ← 1.4 μ (ρ_μ → TLS as μ → ∞);
+      GM:   w_k = (μ c̄² / (r_k² + μ c̄²))²,
+            μ₀ = 2 r_max² / c̄², μ ← max(1, μ / 1.4) (ρ_μ → GM at μ = 1);
+
+  with r_max the largest residual of the first (unweighted) LAGO. c̄² is the χ² quantile of 3 dof at
+  ``confidence`` (0.99 → 11.34): an inlier's whitened residual exceeds it with probability 1 − confidence.
+  GNC stops when the weights no longer change (TLS: all binary, the same set twice; GM: μ = 1 and the
+  weights moved by less than ``weight_tolerance``) or after ``max_iterations``. The rejected edges — TLS:
+  final weight < ½; GM, whose weights never reach 0: r_k² > c̄² at GNC's estimate, where the GM weight
+  at μ = 1 is below ¼ — leave, and LAGO runs once more, unweighted, on the accepted edges: the result.
+
+Known inliers. Odometric edges (between consecutive ids) are never false loop closures in the usual
+protocol; ``trust_odometry=None`` holds their weight at 1 whenever the odometric chain 0–1–…–(n−1) is
+complete (as robust front ends tell GNC, e.g. Kimera-RPGO), ``True`` always, ``False`` never.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from ..errors import OptionError
+from ..graph import connected_components, minimum_spanning_edges
+from ..metrics import whitened_errors
+from ..posegraph import PoseGraph
+from ..result import LagoResult
+from .engine import VariantResult
+
+__all__ = ["RobustSettings", "RobustResult", "RobustVariantResult", "ROBUST_LOSSES", "robust_settings", "gnc_lago", "gnc_threshold",
+           "gnc_weights", "odometric_chain_complete"]
+
+log = logging.getLogger("lago_cvx.variants")
+
+#: The names ``lago(graph, robust=...)`` accepts, and the loss each means.
+ROBUST_LOSSES = {"gnc-tls": "tls", "gnc-gm": "gm"}
+
+
+@dataclass(frozen=True)
+class RobustSettings:
+    """Settings of GNC (module docstring).
+
+    loss — ``"tls"`` (truncated least squares, default) or ``"gm"`` (Geman–McClure);
+    confidence — c̄² = χ²₃ quantile at this probability (default 0.99 → 11.34);
+    threshold — c̄² given directly (whitened, squared; overrides ``confidence``);
+    trust_odometry — None: hold odometric edges at weight 1 when the odometric chain is complete; True / False;
+    mu_factor — μ's factor per iteration (1.4, Yang et al.);
+    max_iterations — outer iterations at most (100);
+    drop_below — edges with a weight at or below this leave the weighted solve (its 2kπ regularization too);
+    weight_tolerance — a weight within this of 0 or 1 counts as binary; the GM stopping tolerance.
+    """
+
+    loss: str = "tls"
+    confidence: float = 0.99
+    threshold: float | None = None
+    trust_odometry: bool | None = None
+    mu_factor: float = 1.4
+    max_iterations: int = 100
+    drop_below: float = 1e-3
+    weight_tolerance: float = 1e-4
+
+    def __post_init__(self):
+        if self.loss not in ("tls", "gm"):
+            raise OptionError(f"robust loss must be 'tls' or 'gm', got {self.loss!r}")
+        if not 0.0 < self.confidence < 1.0:
+            raise OptionError(f"robust confidence must be in (0, 1), got {self.confidence}")
+        if self.threshold is not None and not (math.isfinite(self.threshold) and self.threshold > 0):
+            raise OptionError(f"robust threshold must be a finite number > 0, got {self.threshold}")
+        if self.trust_odometry not in (None, True, False):
+            raise OptionError(f"trust_odometry must be None, True or False, got {self.trust_odometry!r}")
+        if not self.mu_factor > 1.0:
+            raise OptionError(f"mu_factor must be > 1, got {self.mu_factor}")
+        if not (isinstance(self.max_iterations, int) and self.max_iterations >= 1):
+            raise OptionError(f"max_iterations must be an integer ≥ 1, got {self.max_iterations!r}")
+        if not 0.0 <= self.drop_below < 0.5:
+            raise OptionError(f"drop_below must be in [0, 0.5), got {self.drop_below}")
+        if not 0.0 < self.weight_tolerance < 0.5:
+            raise OptionError(f"weight_tolerance must be in (0, 0.5), got {self.weight_tolerance}")
+
+    @property
+    def c2(self) -> float:
+        """c̄², the squared whitened residual at which TLS truncates."""
+        return gnc_threshold(self.confidence) if self.threshold is None else float(self.threshold)
+
+
+def robust_settings(robust) -> RobustSettings | None:
+    """``lago``'s ``robust=`` as settings: None / False → None (off); True → the defaults (GNC-TLS);
+    ``"gnc-tls"`` / ``"gnc-gm"``; a ``RobustSettings`` as it is. ``OptionError`` otherwise."""
+    if robust is None or robust is False:
+        return None
+    if robust is True:
+        return RobustSettings()
+    if isinstance(robust, RobustSettings):
+        return robust
+    if isinstance(robust, str) and robust in ROBUST_LOSSES:
+        return RobustSettings(loss=ROBUST_LOSSES[robust])
+    raise OptionError(f"robust must be None, False, True, one of {tuple(ROBUST_LOSSES)} or a RobustSettings, "
+                      f"got {robust!r}")
+
+
+def gnc_threshold(confidence: float, dof: int = 3) -> float:
+    """c̄² = the χ² quantile of ``dof`` degrees of freedom at ``confidence`` (0.99, 3 → 11.345)."""
+    from scipy.stats import chi2  # loaded only by a robust run
+
+    return float(chi2.ppf(confidence, dof))
+
+
+def gnc_weights(r2: np.ndarray, mu: float, c2: float, loss: str) -> np.ndarray:
+    """The weights w (m,) minimizing the GNC surrogate at the squared residuals r2 (m,) (module
+    docstring, Yang et al. eqs. (14) TLS and (12) GM)."""
+    r2 = np.asarray(r2, dtype=float)
+    if loss == "gm":
+        return (mu * c2 / (r2 + mu * c2)) ** 2
+    w = np.ones_like(r2)
+    lo, hi = mu / (mu + 1.0) * c2, (mu + 1.0) / mu * c2
+    mid = (r2 > lo) & (r2 < hi)
+    w[r2 >= hi] = 0.0
+    w[mid] = np.sqrt(c2 / r2[mid]) * math.sqrt(mu * (mu + 1.0)) - mu
+    return np.clip(w, 0.0, 1.0)
+
+
+def odometric_chain_complete(graph) -> bool:
+    """True when the edges between consecutive ids link every pose: the chain 0–1–…–(n−1) of the ids."""
+    odo = graph.is_odometric
+    lower = np.minimum(graph.ids[graph.tails[odo]], graph.ids[graph.heads[odo]])
+    return np.unique(lower).size == graph.n_poses - 1
+
+
+@dataclass(eq=False)
+class RobustResult(LagoResult):
+    """A ``LagoResult`` of LAGO on the **accepted** edges (``graph`` is that subgraph, so ``chi2`` is over
+    them; the poses are indexed as in the input), plus the GNC record: ``input_graph`` the graph given;
+    ``rejected_edges`` (r,) int64 indices into its edges (file order); ``weights`` (m,) the final GNC
+    weights; ``settings``; ``iterations`` (outer); ``known_inliers`` (m,) bool the edges held at weight 1;
+    ``history`` one dict per iteration (μ, number of edges of weight < ½, seconds)."""
+
+    input_graph: PoseGraph | None = None
+    rejected_edges: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    weights: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    settings: RobustSettings | None = None
+    iterations: int = 0
+    known_inliers: np.ndarray | None = None
+    history: list = field(default_factory=list)
+
+    @property
+    def accepted_edges(self) -> np.ndarray:
+        """Indices (m − r,) of the accepted edges in the input graph."""
+        keep = np.ones(self.input_graph.n_edges, bool)
+        keep[self.rejected_edges] = False
+        return np.flatnonzero(keep)
+
+    def _describe(self) -> tuple[str, list[str]]:
+        head, lines = super()._describe()
+        s = self.settings
+        lines.insert(0, f"robust GNC-{s.loss.upper()} (c̄² = {s.c2:.4g}): {self.rejected_edges.size} of "
+                        f"{self.input_graph.n_edges} edges rejected after {self.iterations} iterations; χ² over "
+                        "the accepted edges")
+        return head, lines
+
+    def _summary_rows(self) -> list:
+        return super()._summary_rows() + [
+            ("n_rejected", "edges rejected", int(self.rejected_edges.size)),
+            ("robust_iterations", "GNC iterations", self.iterations)]
+
+
+def gnc_lago(graph: PoseGraph, settings: RobustSettings, *, solve: Callable) -> RobustResult:
+    """GNC around a weighted LAGO (module docstring). ``solve(graph) -> LagoResult`` is LAGO with the
+    caller's options (``lago_cvx.pipeline.lago`` without ``robust``); it is called on the weighted graphs
+    (same poses, fewer edges, scaled information) and once on the accepted edges. Returns a
+    ``RobustResult``."""
+    t0 = time.perf_counter()
+    m, c2 = graph.n_edges, settings.c2
+    trust = settings.trust_odometry
+    if trust is None:
+        trust = odometric_chain_complete(graph)
+    known = graph.is_odometric.copy() if trust else np.zeros(m, bool)
+    with _quiet():  # the inner runs' warnings (ambiguous 2kπ roundings of false edges) are not the result's
+        res = solve(graph)
+        r2 = whitened_errors(graph, res.poses) ** 2
+    free = ~known
+    r_max2 = float(r2[free].max()) if free.any() else 0.0
+    w = np.ones(m)
+    history, it = [], 0
+    if r_max2 > c2:  # else every edge is an inlier of the unweighted LAGO already
+        if settings.loss == "tls":
+            mu = c2 / max(2.0 * r_max2 - c2, 1e-12)
+        else:
+            mu = 2.0 * r_max2 / c2
+        prev = None
+        for it in range(1, settings.max_iterations + 1):
+            t = time.perf_counter()
+            w = gnc_weights(r2, mu, c2, settings.loss)
+            w[known] = 1.0
+            if _converged(w, prev, mu, settings):
+                history.append(dict(mu=mu, n_outliers=int((w < 0.5).sum()), seconds=time.perf_counter() - t))
+                break
+            prev = w
+            with _quiet():
+                res = solve(_weighted(graph, w, settings.drop_below))
+            r2 = whitened_errors(graph, res.poses) ** 2
+            history.append(dict(mu=mu, n_outliers=int((w < 0.5).sum()), seconds=time.perf_counter() - t))
+            mu = mu * settings.mu_factor if settings.loss == "tls" else max(1.0, mu / settings.mu_factor)
+        else:
+            log.warning("GNC-%s stopped after max_iterations = %d without converging (weights still moving); "
+                        "edges are classified by their last weights", settings.loss.upper(), settings.max_iterations)
+    # TLS ends with binary weights; GM's never reach 0: an edge is rejected where its residual at GNC's
+    # estimate exceeds c̄² (there GM's weight at μ = 1 has fallen below ¼)
+    keep = (w >= 0.5) if settings.loss == "tls" else (r2 <= c2)
+    keep[known] = True
+    accepted = graph.subgraph_edges(keep)
+    k, _ = connected_components(accepted)
+    if k > 1:  # the accepted edges must still link every pose: add back a maximum-weight spanning tree
+        keep[minimum_spanning_edges(graph, 1.0 - w)] = True
+        accepted = graph.subgraph_edges(keep)
+    final = solve(accepted)
+    rejected = np.flatnonzero(~keep).astype(np.int64)
+    timings = dict(final.timings)
+    timings["robust"] = timings["total"] = time.perf_counter() - t0  # GNC's run, the final LAGO included
+    log.info("GNC-%s: %d of %d edges rejected after %d iterations (c̄² = %.4g), %.3f s", settings.loss.upper(),
+             rejected.size, m, it, c2, timings["robust"])
+    fields = {f: getattr(final, f) for f in final.__dataclass_fields__}
+    fields.update(timings=timings)
+    return _result_type(final)(**fields, input_graph=graph, rejected_edges=rejected, weights=w, settings=settings,
+                               iterations=it, known_inliers=known, history=history)
+
+
+@contextlib.contextmanager
+def _quiet():
+    """The package's log records below ERROR held back while GNC's inner LAGO runs (a false loop closure
+    makes the regularizer warn about ambiguous roundings on every run; the final run logs as usual)."""
+    pkg = logging.getLogger("lago_cvx")
+    level = pkg.level
+    pkg.setLevel(max(logging.ERROR, level))
+    try:
+        yield
+    finally:
+        pkg.setLevel(level)
+
+
+def _converged(w: np.ndarray, prev: np.ndarray | None, mu: float, settings: RobustSettings) -> bool:
+    """TLS: every weight binary and the same set as the previous iteration; GM: μ = 1 and the weights
+    moved by less than the tolerance."""
+    if prev is None:
+        return False
+    tol = settings.weight_tolerance
+    if settings.loss == "tls":
+        binary = np.all((w <= tol) | (w >= 1.0 - tol))
+        return bool(binary and np.array_equal(w >= 0.5, prev >= 0.5))
+    return mu <= 1.0 and float(np.max(np.abs(w - prev))) < tol
+
+
+def _weighted(graph: PoseGraph, w: np.ndarray, drop_below: float) -> PoseGraph:
+    """The graph of the weighted solve: edges with w_k > ``drop_below``, information w_k Ω_k; if they do
+    not link every pose, a maximum-weight spanning tree is added back (weights floored at ``drop_below``,
+    or 10⁻⁶ when that is 0)."""
+    keep = w > drop_below
+    sub = graph.subgraph_edges(keep)
+    if connected_components(sub)[0] > 1:
+        keep[minimum_spanning_edges(graph, 1.0 - w)] = True
+    ww = np.maximum(w[keep], drop_below or 1e-6)
+    sub = graph.subgraph_edges(keep)
+    return replace(sub, information=sub.information * ww[:, None, None], given_information=None)
+
+
+@dataclass(eq=False)
+class RobustVariantResult(RobustResult, VariantResult):
+    """A ``RobustResult`` whose inner runs were the variants engine's (``anchors=``): every field of a
+    ``VariantResult`` (anchors, strain …) and of a ``RobustResult``."""
+
+
+def _result_type(final: LagoResult) -> type:
+    """``RobustVariantResult`` for a ``VariantResult``, else ``RobustResult``."""
+    return RobustVariantResult if isinstance(final, VariantResult) else RobustResult
