@@ -22,7 +22,7 @@ from .errors import GraphError, OptionError, check_choice
 from .graph import spanning_tree as build_tree
 from .metrics import relative_difference
 from .posegraph import PoseGraph, compose
-from .sparse import GraphElimination
+from .sparse import GraphElimination, threads_option
 from .positions import Polish, PositionSolver, isotropic, polish, positions_from_problem, resolve_positions
 from .regularization import REGULARIZATIONS, regularize
 from .result import LagoResult
@@ -36,11 +36,12 @@ __all__ = ["lago", "compare_methods"]
 log = logging.getLogger(__name__)
 
 
+@threads_option
 def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form", spanning_tree=None,
          regularization: str | None = None, information: str | None = None, positions: str | None = None,
          anchor=None, anchor_pose=None, margin: float = AMBIGUITY_MARGIN,
          solver_settings: ClarabelSettings | None = None, backend: str = "auto", anchors=None,
-         integer_search: IntegerSearch | None = None, progress=None) -> LagoResult:
+         integer_search: IntegerSearch | None = None, progress=None, workers: int | None = None) -> LagoResult:
     """LAGO: the linear approximation of planar pose-graph optimization (the seed's Section IV).
 
     Parameters (keyword-only):
@@ -73,6 +74,8 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
       progress — an optional ``lago_cvx.progress.ProgressCallback`` ``(stage, fraction)``, told about the
         long steps (large factorizations, the integer search); they also log at INFO level, at most
         once a second.
+      workers — the most threads the sparse engine runs at once (SciPy's name; None: the cores this process may
+        use, ``lago_cvx.sparse.cores``; 1: none besides the caller's). The process's BLAS settings are left alone.
       anchors — ``{id: (x, y, θ)}`` known poses (None for unknown components); when given (even ``{}``)
         LAGO runs with the known entries moved to the right-hand side (``lago_cvx.variants.anchored_lago``;
         returns its ``VariantResult``, a ``LagoResult``).

@@ -50,7 +50,7 @@ import numpy as np
 
 from .linalg import Factor, blas_threads
 from .multifrontal import NotPositiveDefinite
-from .threads import cores
+from .threads import cores, spawn
 
 __all__ = ["available", "use_kernels", "kernels", "CompiledLayout", "CompiledAssembler", "CompiledFactor",
            "CompiledPoseFactor", "CompiledEdgeOperator"]
@@ -214,7 +214,6 @@ class CompiledLayout:
         loop releases the GIL; one BLAS thread each), then the fronts above them (``schedule``) in this
         thread, large ones with every BLAS thread. ``progress(done, total)`` gets the multiply–adds done.
         Raises ``multifrontal.NotPositiveDefinite`` if a pivot block is not positive definite."""
-        import threading
 
         kern = kernels()
         A = np.ascontiguousarray(A, dtype=float)
@@ -223,7 +222,8 @@ class CompiledLayout:
         if L is None:
             L = np.empty(int(self.Lptr[-1]))
         data = (assembler.bptr, assembler.order, assembler.li, assembler.lj, assembler.transposed, A, B)
-        sched = self.schedule
+        n_threads = cores()
+        sched = self.schedule_for(n_threads)
         total = float(self.work.sum())
         done = [0.0]
 
@@ -237,9 +237,9 @@ class CompiledLayout:
             if sched is None:
                 _Front(self, kern, data, L, self.plan.n_fronts, np.arange(self.plan.n_fronts)).fronts(
                     0, self.plan.n_fronts, threads, done, report)
-                return CompiledFactor(self, L)
+                return CompiledFactor(self, L, n_threads)
             roots_of, top, first, ext = sched
-            workers = [_Front(self, kern, data, L, self.plan.n_fronts, seq) for seq in self.worker_fronts]
+            workers = [_Front(self, kern, data, L, self.plan.n_fronts, seq) for seq in self.worker_fronts_for(n_threads)]
             errors: list = []
 
             def work(w, roots):
@@ -249,10 +249,7 @@ class CompiledLayout:
                 except BaseException as exc:  # raised in the calling thread
                     errors.append(exc)
 
-            jobs = [threading.Thread(target=work, args=(w, roots), daemon=True, name="lago-fronts")
-                    for w, roots in zip(workers, roots_of)]
-            for j in jobs:
-                j.start()
+            jobs = [spawn(work, w, roots, name="lago-fronts") for w, roots in zip(workers, roots_of)]
             for j in jobs:
                 while j.is_alive():
                     j.join(0.25)
@@ -270,23 +267,27 @@ class CompiledLayout:
                     w, off, size = where[c]
                     kern["push"](w.stack, off, size, main.stack, main.st_front, main.st_off, main.state, c)
                 main.fronts(f, f + 1, threads, done, report)
-        return CompiledFactor(self, L)
+        return CompiledFactor(self, L, n_threads)
 
     @property
     def schedule(self):
-        """How the fronts are shared among ``cores()`` threads, or None to factor them in one: the front
+        """``schedule_for(cores())``."""
+        return self.schedule_for(cores())
+
+    def schedule_for(self, n_threads: int):
+        """How the fronts are shared among ``n_threads`` threads, or None to factor them in one: the front
         tree's largest subtrees are split (their root joins ``top``, the fronts left to this thread) until
         none holds more than 1/16 of the work, then dealt to the threads largest first. Returns
         (roots per thread, top fronts in postorder, first front of each subtree, {top front: its children
         that are subtree roots})."""
-        if "_schedule" in self.__dict__:
-            return self._schedule
+        known = self.__dict__.setdefault("_schedules", {})
+        if n_threads in known:
+            return known[n_threads]
         import heapq
 
         plan = self.plan
         total = float(self.work.sum())
-        self._schedule = None
-        n_threads = cores()
+        known[n_threads] = None
         if n_threads < 2 or total < PARALLEL_WORK or plan.n_fronts < 2:
             return None
         W, first = kernels()["subtrees"](plan.parent, self.work)
@@ -314,17 +315,15 @@ class CompiledLayout:
         ext = {}
         for f in top:
             ext[f] = [c for c in children[cptr[f]:cptr[f + 1]].tolist() if c in rootset]
-        self._schedule = (roots_of, np.array(sorted(top), np.int64), first, ext)
+        known[n_threads] = sched = (roots_of, np.array(sorted(top), np.int64), first, ext)
         log.debug("compiled engine: %d subtrees on %d threads (work %s), %d fronts above them", len(roots),
                   n_threads, [f"{x / total:.2f}" for x in load], len(top))
-        return self._schedule
+        return sched
 
     def reserve(self, *, threads: int | None = None) -> None:
         """Allocate the next factorization's L and touch every page of it now (from ``threads`` threads at
         once, default one per core, called where there is time: ``GraphElimination.prepare``), so that the factorization writes
         to memory already mapped."""
-        import threading
-
         if "_reserved" in self.__dict__:
             return
         threads = cores() if threads is None else max(1, int(threads))
@@ -334,24 +333,22 @@ class CompiledLayout:
         def touch(i):
             L[cuts[i]:cuts[i + 1]:512] = 0.0  # one write per 4 KiB page (NumPy releases the GIL)
 
-        jobs = [threading.Thread(target=touch, args=(i,), daemon=True) for i in range(1, threads)]
-        for j in jobs:
-            j.start()
+        jobs = [spawn(touch, i, name="lago-touch") for i in range(1, threads)]
         touch(0)
         L[cuts[-1]::512] = 0.0
         for j in jobs:
             j.join()
         self._reserved = L
 
-    @property
-    def worker_fronts(self) -> list:
-        """Per worker thread of ``schedule``, its fronts in the order it factors them (its subtrees, each
-        in postorder)."""
-        if "_worker_fronts" not in self.__dict__:
-            roots_of, _, first, _ = self.schedule
-            self._worker_fronts = [np.concatenate([np.arange(first[r], r + 1) for r in roots]).astype(np.int64)
-                                   if len(roots) else np.zeros(0, np.int64) for roots in roots_of]
-        return self._worker_fronts
+    def worker_fronts_for(self, n_threads: int) -> list:
+        """Per worker thread of ``schedule_for(n_threads)``, its fronts in the order it factors them (its subtrees,
+        each in postorder)."""
+        known = self.__dict__.setdefault("_worker_fronts", {})
+        if n_threads not in known:
+            roots_of, _, first, _ = self.schedule_for(n_threads)
+            known[n_threads] = [np.concatenate([np.arange(first[r], r + 1) for r in roots]).astype(np.int64)
+                                if len(roots) else np.zeros(0, np.int64) for roots in roots_of]
+        return known[n_threads]
 
     def pivot_slots(self, fronts: np.ndarray) -> np.ndarray:
         """The elimination slots of the pivots of ``fronts`` (contiguous per front)."""
@@ -455,36 +452,32 @@ class CompiledFactor:
     """N = L Lᵀ from ``CompiledLayout.factor``: ``solve_slots(y)`` for y (N,) or (N, r) in elimination
     slots."""
 
-    def __init__(self, layout: CompiledLayout, L: np.ndarray):
+    def __init__(self, layout: CompiledLayout, L: np.ndarray, n_threads: int = 1):
         self.layout = layout
         self.L = L
+        self.n_threads = n_threads  # the threads it was factored on: its solves sweep the same subtrees
 
     def solve_slots(self, y: np.ndarray) -> np.ndarray:
         """Solve N x = y for y (N,) or (N, r) in elimination slots; x likewise. With the layout's
         ``schedule``, each worker thread sweeps its own subtrees: forward on its own copy of y (its
         fronts update only their subtrees' slots and the top fronts'; the top slots' changes are summed
         afterwards), back on y itself (each writes only its own slots, reading the top fronts')."""
-        import threading
-
         kern = kernels()
         lay = self.layout
         one = y.ndim == 1
         Y = np.array(y.reshape(lay.N, -1).T, dtype=float, order="C")  # (r, N): each right-hand side contiguous
         args = (lay.b, lay.fptr, lay.rptr, lay.rows, lay.Lptr, self.L, lay.rmax)
-        sched = lay.schedule
+        sched = lay.schedule_for(self.n_threads)
         if sched is None:
             every = np.arange(lay.plan.n_fronts, dtype=np.int64)
             kern["forward"](Y, every, *args)
             kern["backward"](Y, every[::-1].copy(), *args)
             return Y[0] if one else Y.T
-        seqs, top = lay.worker_fronts, sched[1]
+        seqs, top = lay.worker_fronts_for(self.n_threads), sched[1]
         copies = [Y.copy() for _ in seqs]
 
         def each(fn, arrays, orders):
-            jobs = [threading.Thread(target=fn, args=(a, o) + args, daemon=True, name="lago-solve")
-                    for a, o in zip(arrays, orders)]
-            for j in jobs:
-                j.start()
+            jobs = [spawn(fn, a, o, *args, name="lago-solve") for a, o in zip(arrays, orders)]
             for j in jobs:
                 j.join()
 

@@ -40,6 +40,7 @@ from .compiled import CompiledPoseFactor
 from .block_factor import inverse_blocks
 from .multifrontal import COMPILED_RELAX, BlockFactor, EliminationPlan, plan_from_pattern, plan_from_qdldl
 from ..progress import Progress
+from .threads import Ahead, cores, engine_threads, in_engine_threads, spawn, thread_settings
 from .upper_pattern import BlockUpperPattern, PoseLaplacian, PoseUpperPattern, QdldlFactor, matrix_blocks
 from . import wide as wide_policy
 
@@ -169,11 +170,16 @@ class GraphElimination:
     need is prepared ahead — patterns beside another factorization, the compiled engine's layout and
     memory in a worker (``prepare``). ``ahead(task)`` hands over other work needed later (an
     ``Ahead``); the engine runs it beside the next QDLDL factorization, else it runs when first asked for.
-    ``wide``: the block sizes of the systems that ``factor_wide`` will factor (3-D; ``wide_compiled``)."""
+    ``wide``: the block sizes of the systems that ``factor_wide`` will factor (3-D; ``wide_compiled``).
+    ``workers`` caps the engine's own threads for everything done on this elimination (None: ``threads.cores()``;
+    1: no thread besides the caller's); ``blas_threads`` lets the engine hold the process's BLAS to that many
+    threads while it factors (None, the default: the BLAS settings are left alone; ``threads.engine_threads``)."""
 
     def __init__(self, graph, anchor_index: int, *, weights: np.ndarray | None = None,
                  factor_laplacian: bool | None = True, expect: tuple = (), wide: tuple = (),
-                 _background: bool = False):
+                 workers: int | None = None, blas_threads: int | None = None, _background: bool = False):
+        with engine_threads(workers=workers, blas_threads=blas_threads):  # checks both; None: the caller's context
+            self.workers, self.blas_threads, alone = thread_settings() + (cores() == 1,)
         n = graph.n_poses
         self.n = n
         self.d = d = n - 1
@@ -204,16 +210,18 @@ class GraphElimination:
             return
         if factor_laplacian is None:  # QDLDL will factor the chordal relaxation first: Ω_θ beside it
             factor_laplacian = not (self._expected[:1] == [2] and 2 * d < COMPILED_MIN)
-        if _background and d >= OVERLAP_MIN:
+        if _background and d >= OVERLAP_MIN and not alone:
             self._building = Ahead(self._build, factor_laplacian)
-            threading.Thread(target=self._building.run, daemon=True, name="lago-elimination").start()
+            spawn(self._building.run, name="lago-elimination")
         else:
             self._build(factor_laplacian)
 
     @classmethod
-    def start(cls, graph, anchor_index: int, *, weights: np.ndarray, expect: tuple = ()) -> "GraphElimination":
+    def start(cls, graph, anchor_index: int, *, weights: np.ndarray, expect: tuple = (), workers: int | None = None,
+              blas_threads: int | None = None) -> "GraphElimination":
         """The elimination built in a worker thread while the caller goes on (class docstring)."""
-        return cls(graph, anchor_index, weights=weights, factor_laplacian=None, expect=expect, _background=True)
+        return cls(graph, anchor_index, weights=weights, factor_laplacian=None, expect=expect, workers=workers,
+                   blas_threads=blas_threads, _background=True)
 
     def _build(self, factor_laplacian: bool) -> None:
         """AMD and the weighted Laplacian's factorization (or, without weights, nothing: the plan is built
@@ -425,6 +433,7 @@ class GraphElimination:
                 and np.array_equal(system.tails, self.tails) and np.array_equal(system.heads, self.heads)
                 and np.allclose(Bk * Bk, self._weights, rtol=1e-12, atol=0.0))
 
+    @in_engine_threads
     def factor(self, system: EdgeSystem, *, progress=None, engine: bool | str | None = None,
                solving: bool = False) -> Factor:
         """Factor the normal matrix (N) of ``system``. ``engine`` None (the default) picks: the weighted
@@ -479,6 +488,7 @@ class GraphElimination:
             for nb in self._expected:
                 self.prepare(nb)
 
+    @in_engine_threads
     def prepare(self, b: int) -> None:
         """Start building, in a worker thread, what the compiled factorization of a system with b×b blocks
         will need — the plan, its ``compiled.CompiledLayout``, the assembler, and L's storage allocated
@@ -486,22 +496,21 @@ class GraphElimination:
         machine more than 1 s per GiB) — while this thread goes on (phases 1 and 2 before phase 3).
         Nothing happens below ``COMPILED_MIN`` unknowns or without Numba; ``factor`` waits for the
         worker and raises its error."""
-        if self.d * b < COMPILED_MIN or b in self._preparing or ("compiled", b) in self._assemblers:
-            return
+        if self.d * b < COMPILED_MIN or b in self._preparing or ("compiled", b) in self._assemblers or cores() == 1:
+            return  # with one worker, ``factor`` builds what it needs when it needs it
 
         def work():
             if not compiled.available():
                 return
             lay = compiled.CompiledLayout.of(self.plan, b)
-            touch = threading.Thread(target=lay.reserve, daemon=True, name="lago-reserve")
-            touch.start()  # L's pages faulted in beside the assembler's work
+            touch = spawn(lay.reserve, name="lago-reserve")  # L's pages faulted in beside the assembler's work
             prow, pcol, _ = self.pairs
             asm = lay.assembler(prow, pcol)
             touch.join()
             self._assemblers["compiled", b] = (lay, asm)
 
         job = Ahead(work)
-        threading.Thread(target=job.run, daemon=True, name="lago-prepare").start()
+        spawn(job.run, name="lago-prepare")
         self._preparing[b] = job
 
     def cost(self, system: EdgeSystem, x: np.ndarray) -> float:
@@ -509,6 +518,7 @@ class GraphElimination:
         r = edge_operator(system).matvec(x) - system.c
         return float(np.sum(r * r))
 
+    @in_engine_threads
     def solve(self, system: EdgeSystem, *, factor: Factor | None = None, stage: str = "solve",
               progress=None):
         """Minimise (E): returns ``(x (d, b), factor, stats)`` with ``stats`` as
@@ -566,35 +576,3 @@ class GraphElimination:
             tracker.finish()
         self._prepare_next(b)
         return x.reshape((d, b) + system.c.shape[2:]), factor, stats
-
-
-class Ahead:
-    """``task(*args)``, run at most once: by the engine ahead of need (``run``), or by whoever first asks
-    for the value (``result``, which returns it or raises the task's error — a background failure reaches
-    the caller). A ``result()`` asked while another thread runs it waits for it; the task itself may start
-    a factorization that runs the engine's queue, where it is skipped (it is under way)."""
-
-    def __init__(self, task, *args):
-        self._task, self._args = task, args
-        self._lock = threading.RLock()
-        self.done, self._running = False, False
-        self._value, self._error = None, None
-
-    def run(self) -> None:
-        with self._lock:
-            if self.done or self._running:
-                return
-            self._running = True
-            try:
-                self._value = self._task(*self._args)
-            except BaseException as exc:  # kept for ``result``
-                self._error = exc
-            finally:
-                self.done, self._running = True, False
-                self._task = self._args = None
-
-    def result(self):
-        self.run()
-        if self._error is not None:
-            raise self._error
-        return self._value

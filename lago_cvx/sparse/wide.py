@@ -12,7 +12,6 @@ are loaded for the b = 6 one anyway), on a plan with the compiled engine's amalg
 
 from __future__ import annotations
 
-import contextlib
 import logging
 
 __all__ = ["WIDE_COMPILED_MIN", "compiled_from", "factor_wide", "solve_wide"]
@@ -43,29 +42,14 @@ def compiled_from() -> int:
     return 0 if compiled.native() else WIDE_COMPILED_MIN
 
 
-#: The compiled factorizations of the 3-D systems run with one BLAS thread. The engine gives its largest fronts every
-#: BLAS thread; OpenBLAS's threads wait for each other by spinning, and with the other core busy (another process)
-#: the waits dominate. lago3d's default route in process, alternating, median of 5, with a loaded second core:
-#: sphere2500 0.85-0.97 s with the threads against 0.26-0.29 s with one (QDLDL, before: 0.38-0.45 s), torus3D
-#: 3.3-4.5 s against 0.37-0.60 s (QDLDL: 1.22-1.62 s).
-_ONE_BLAS_THREAD = []
-
-
 def _one_blas_thread():
-    """A context manager holding every loaded BLAS to one thread (``threadpoolctl``), or a no-op without it."""
-    if not _ONE_BLAS_THREAD:
-        try:
-            import scipy.linalg  # noqa: F401  (SciPy's own OpenBLAS loaded, so that it is found)
-            from threadpoolctl import ThreadpoolController
+    """``linalg.blas_threads(1)``: the compiled factorizations of the 3-D systems run with one BLAS thread when the
+    caller let the engine set the BLAS thread count (``engine_threads(blas_threads=…)``); by default the process's
+    setting is left alone. OpenBLAS's threads wait for each other by spinning, and with the other core busy the
+    waits dominate (``benchmarks/`` 3-D in-process timings, docs/performance.md "3-D graphs")."""
+    from .linalg import blas_threads
 
-            _ONE_BLAS_THREAD.append(ThreadpoolController())
-        except Exception as exc:  # a dependency; without it only speed is lost
-            log.debug("BLAS threads left as they are (%s)", exc)
-            _ONE_BLAS_THREAD.append(None)
-    controller = _ONE_BLAS_THREAD[0]
-    if controller is None:
-        return contextlib.nullcontext()
-    return controller.limit(limits=1, user_api="blas")
+    return blas_threads(1)
 
 
 def _compiled(elimination, system):
