@@ -22,11 +22,11 @@ from lago_cvx.sparse import normal_equations as ne
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
-def _run(code: str, **env) -> subprocess.CompletedProcess:
-    """``code`` in a fresh Python process with this checkout first on the path."""
+def _run(code: str, *args: str, **env) -> subprocess.CompletedProcess:
+    """``code`` in a fresh Python process (``args`` its sys.argv[1:]) with this checkout first on the path."""
     e = dict(os.environ, PYTHONPATH=ROOT + os.pathsep + os.environ.get("PYTHONPATH", ""), **env)
-    return subprocess.run([sys.executable, "-c", textwrap.dedent(code)], capture_output=True, text=True, env=e,
-                          timeout=600)
+    return subprocess.run([sys.executable, "-c", textwrap.dedent(code), *args], capture_output=True, text=True,
+                          env=e, timeout=600)
 
 
 _BLAS_WATCH = """
@@ -114,3 +114,59 @@ def test_workers_caps_the_compiled_schedule(monkeypatch):
     for bad in (0, -1, 1.5, "2", True):
         with pytest.raises(OptionError, match="workers"):
             lc.lago(g, workers=bad)
+
+
+_MALFORMED = """
+    import dataclasses, sys
+    import numpy as np
+    import lago_cvx as lc
+    from lago_cvx.sparse import compiled, normal_equations as ne
+    compiled.use_kernels(sys.argv[1])
+    K = compiled.kernels()
+    i64 = lambda *v: np.array(v, np.int64)
+    g = lc.manhattan_world(200, seed=1).graph
+    plan = ne.GraphElimination(g, 0).plan
+    bad_parent = plan.parent.copy(); bad_parent[0] = 10**9
+    not_post = plan.parent.copy(); not_post[-1] = 0
+    bad_rows = plan.rows.copy(); bad_rows[0] = -5
+    bad_fptr = plan.fptr.copy(); bad_fptr[1], bad_fptr[2] = bad_fptr[2], bad_fptr[1]
+    bad_pos = plan.position.copy(); bad_pos[0] = bad_pos[1]
+    huge = i64(0, 2**31)
+    t = i64(0, 10**12)
+    cases = {
+        "heights": lambda: K["heights"](i64(10**12)),
+        "subtrees": lambda: K["subtrees"](i64(-7, 0), np.zeros(2)),
+        "stack_peak": lambda: K["stack_peak"](i64(5), i64(0), i64(0)),
+        "parent": lambda: compiled.CompiledLayout(dataclasses.replace(plan, parent=bad_parent), 3),
+        "postorder": lambda: compiled.CompiledLayout(dataclasses.replace(plan, parent=not_post), 3),
+        "rows": lambda: compiled.CompiledLayout(dataclasses.replace(plan, rows=bad_rows), 3),
+        "fptr": lambda: compiled.CompiledLayout(dataclasses.replace(plan, fptr=bad_fptr), 3),
+        "position": lambda: compiled.CompiledLayout(dataclasses.replace(plan, position=bad_pos), 3),
+        "int": lambda: K["one"](0, 1, huge, i64(0, 0), i64(0, 0), np.zeros(1), np.zeros(1), 2**31, K["fn"]),
+        "edges": lambda: K["edge_matvec"](np.zeros((2, 1, 1)), np.zeros((2, 1, 1)), t, t, np.zeros((3, 1, 1))),
+        "sweep": lambda: K["forward"](np.zeros((1, 4)), i64(3), 1, i64(0, 4), i64(0, 0), i64(), i64(0, 10),
+                                      np.zeros(10), 0),
+    }
+    for name, call in cases.items():
+        try:
+            call()
+            print(name, "no error")
+        except Exception as exc:
+            print(name, type(exc).__name__, isinstance(exc, ValueError) and isinstance(exc, lc.LagoError))
+"""
+
+
+@pytest.mark.parametrize("which", ["c", "numba"])
+def test_malformed_plans_raise_instead_of_crashing(which):
+    """Each malformed call of issue 41 — a parent pointer 10¹², a negative one, a sequence beyond the fronts, a plan
+    whose parent, postorder, rows, pointers or permutation is broken, a front too large for LAPACK's 32-bit sizes,
+    edge ends beyond x, a sweep over a front that does not exist — run in a fresh process on the C kernels and on
+    Numba's: the process exits normally (no signal) and every call raised PlanError (a LagoError and ValueError)."""
+    if which == "c" and not C.native():
+        pytest.skip("the C kernels are not built")
+    if which == "numba":
+        pytest.importorskip("numba")
+    out = _run(_MALFORMED, which)
+    assert out.returncode == 0, (out.returncode, out.stderr[-2000:])
+    lines = out.stdout.splitlines()
+    assert len(lines) == 11 and all(line.split()[1:] == ["PlanError", "True"] for line in lines), out.stdout

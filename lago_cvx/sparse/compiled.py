@@ -48,6 +48,7 @@ import logging
 
 import numpy as np
 
+from . import kernel_checks
 from .linalg import Factor, blas_threads
 from .multifrontal import NotPositiveDefinite
 from .threads import cores, spawn
@@ -168,6 +169,7 @@ class CompiledLayout:
         return cache[b]
 
     def __init__(self, plan, b: int):
+        kernel_checks.plan(plan)  # O(d) once: a malformed plan raises PlanError before any compiled call
         self.plan = plan
         self.b = b = int(b)
         self.N = plan.d * b
