@@ -102,7 +102,8 @@ SIGNATURES = dict(assemble="iiipppppppppppiippppp", finish="-iippppppppp", run="
                   one="iiippip", forward="-piipiippppppp", backward="-piipiippppppp", pose_local="-ppipppp",
                   block_count="ippippip", block_fill="-ppipppppipppppp", edge_matvec="-ppiiipppip",
                   edge_rmatvec="-ppiiipppip", stack_peak="ipippp", subtrees="-ppipp", push="ipiipipppi",
-                  relax="-ppppiiiidddp", heights="-pip")
+                  relax="-ppppiiiidddp", heights="-pip",
+                  postorder="-pippp")
 _C = {name: _c(name, sig) for name, sig in SIGNATURES.items()}
 
 
@@ -250,6 +251,14 @@ def heights(parent):
     return h
 
 
+def postorder(parent):
+    """``supernodes.postorder``."""
+    n = np.size(parent)
+    size, free, order = np.empty(n + 1, np.int64), np.empty(n + 1, np.int64), np.empty(n, np.int64)
+    _C["postorder"](_p(parent, _I64, "parent"), n, size.ctypes.data, free.ctypes.data, order.ctypes.data)
+    return order
+
+
 def _addresses() -> np.ndarray:
     """(3,) int64: the addresses of SciPy's LAPACK ``dpotrf`` and BLAS ``dtrsm``, ``dsyrk`` — the capsules of
     ``cython_lapack``/``cython_blas``, opened by the C API (what Numba's ``get_cython_function_address`` does)."""
@@ -271,5 +280,5 @@ def _addresses() -> np.ndarray:
 KERNELS = checked(dict(assemble=assemble, finish=finish, run=run, forward=forward, backward=backward,
                stack_peak=stack_peak, one=one, subtrees=subtrees, push=push, pose_local=pose_local,
                block_map=block_map, edge_matvec=edge_matvec, edge_rmatvec=edge_rmatvec, relax=relax,
-               heights=heights, fn=_addresses()))
+               heights=heights, postorder=postorder, fn=_addresses()))
 globals().update({name: fn for name, fn in KERNELS.items() if name != "fn"})

@@ -471,4 +471,5 @@ def one(f, b, fptr, rptr, Lptr, L, F, D, fn):
 KERNELS = checked(dict(assemble=assemble, finish=finish, run=run, forward=forward, backward=backward,
                stack_peak=stack_peak, one=one, subtrees=subtrees, push=push, pose_local=pose_local,
                block_map=block_map, edge_matvec=edge_matvec, edge_rmatvec=edge_rmatvec,
-               relax=_jit(supernodes.relax), heights=_jit(supernodes.heights), fn=_addresses()))
+               relax=_jit(supernodes.relax), heights=_jit(supernodes.heights),
+                       postorder=_jit(supernodes.postorder), fn=_addresses()))

@@ -205,6 +205,10 @@ def checked(raw: dict) -> dict:
         forest(parent)
         return raw["heights"](parent)
 
+    def postorder(parent):
+        forest(parent, postorder=True)
+        return raw["postorder"](parent)
+
     def subtrees(parent, work):
         forest(parent)
         _size(work, np.size(parent), "work")
@@ -321,7 +325,7 @@ def checked(raw: dict) -> dict:
             return raw[name](Y, seq, b, fptr, rptr, rows, Lptr, L, rmax)
         return sweep
 
-    out = dict(heights=heights, subtrees=subtrees, relax=relax, stack_peak=stack_peak, push=push,
+    out = dict(heights=heights, postorder=postorder, subtrees=subtrees, relax=relax, stack_peak=stack_peak, push=push,
                pose_local=pose_local, block_map=block_map, edge_matvec=edge_matvec, edge_rmatvec=edge_rmatvec,
                assemble=assemble, run=run, finish=finish, one=one, forward=_sweep("forward"),
                backward=_sweep("backward"), fn=raw["fn"])
