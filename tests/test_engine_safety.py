@@ -200,3 +200,75 @@ def test_total_is_the_whole_first_call():
     wall, total, first, wall2, total2 = map(float, (wall, total, first, wall2, total2))
     assert 0.8 * wall <= total <= wall and 0.0 < first < total, out.stdout
     assert 0.8 * wall2 <= total2 <= wall2 and again == "False", out.stdout
+
+
+_BLOCK = """
+    import sys
+
+    class Block:  # these packages are missing, as in an install without them
+        def __init__(self, names):
+            self.names = names
+
+        def find_spec(self, name, path=None, target=None):
+            if name.split(".")[0] in self.names or name in self.names:
+                raise ModuleNotFoundError(f"No module named {name!r}", name=name)
+            return None
+
+    sys.meta_path.insert(0, Block(set(sys.argv[1].split(","))))
+"""
+
+_NEITHER = _BLOCK + """
+    import numpy as np
+    import lago_cvx as lc
+    from lago_cvx.sparse import compiled, normal_equations as ne
+    ne.COMPILED_MIN = 0  # every system would go to the compiled engine
+    g = lc.manhattan_world(300, seed=4).graph
+    r = lc.lago(g)
+    el = ne.GraphElimination(g, 0)
+    rng = np.random.default_rng(0)
+    A, B = rng.standard_normal((2, g.n_edges, 3, 2))
+    system = ne.EdgeSystem(el.tails, el.heads, A, B, rng.standard_normal((g.n_edges, 3)), el.d)
+    try:
+        el.factor(system, engine="compiled")
+        forced = "no error"
+    except lc.LagoError as exc:
+        forced = type(exc).__name__ + ": " + str(exc)
+    print(compiled.available(), "numba" in sys.modules, repr(r.chi2))
+    print(forced)
+"""
+
+
+def test_without_c_kernels_or_numba_the_engine_falls_back():
+    """With neither the C kernels nor Numba (both blocked in a fresh process), ``compiled.available()`` is False, LAGO
+    on a graph whose systems would all go to the compiled engine runs through the NumPy engine and QDLDL to the same
+    χ² (1e-9 relative) as the default process, and forcing the compiled engine is a MissingSolverError naming the
+    ``numba`` extra."""
+    ref = lc.lago(lc.manhattan_world(300, seed=4).graph).chi2
+    out = _run(_NEITHER, "numba,llvmlite,lago_cvx.sparse.c_kernels,lago_cvx.sparse._ckernels")
+    assert out.returncode == 0, out.stderr
+    first, second = out.stdout.splitlines()
+    available, imported, chi2 = first.split()
+    assert available == "False" and imported == "False" and abs(float(chi2) - ref) <= 1e-9 * ref, out.stdout
+    assert second.startswith("MissingSolverError") and "lago-cvx[numba]" in second, second
+
+
+_LAZY = _BLOCK + """
+    import lago_cvx
+    try:
+        lago_cvx.plotting
+        print("no error")
+    except ImportError as exc:
+        print(type(exc).__name__, exc.name)
+    try:
+        lago_cvx.no_such_module
+    except AttributeError:
+        print("AttributeError")
+"""
+
+
+def test_the_lazy_loader_names_a_missing_dependency():
+    """``lago_cvx.plotting`` with matplotlib missing raises the ImportError that names matplotlib (not "has no
+    attribute"); a name that is no submodule still raises AttributeError."""
+    out = _run(_LAZY, "matplotlib")
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["ModuleNotFoundError", "matplotlib", "AttributeError"], out.stdout

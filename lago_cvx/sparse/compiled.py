@@ -48,6 +48,7 @@ import logging
 
 import numpy as np
 
+from ..errors import MissingSolverError
 from . import kernel_checks
 from .linalg import Factor, blas_threads
 from .multifrontal import NotPositiveDefinite
@@ -101,7 +102,13 @@ def kernels() -> dict:
         return _C_KERNELS[0]
     if IMPLEMENTATION == "c":
         raise ImportError("the sparse engine's C kernels are not built (lago_cvx/sparse/_ckernels.c)")
-    from . import compiled_kernels
+    try:
+        from . import compiled_kernels
+    except ModuleNotFoundError as exc:  # neither kernel set: the engine's choice falls back (``available()``)
+        if exc.name not in ("numba", "llvmlite"):
+            raise
+        raise MissingSolverError("the compiled engine needs its C kernels (built at install when a C compiler is "
+                                 "present) or Numba: pip install 'lago-cvx[numba]'") from exc
 
     if not _ANNOUNCED:
         _ANNOUNCED.append(True)
