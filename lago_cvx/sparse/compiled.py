@@ -31,14 +31,12 @@ thread, the children's updates copied across from the workers' stacks (``Compile
 **Kernels.** The compiled functions are C first (``c_kernels``: ``_ckernels.c``, built at install as an optional
 extension and loaded by ctypes), Numba as the fallback when it was not built (``compiled_kernels``; no compiler at
 install): the same functions with the same arithmetic in the same order, so both give the same bits. The reason is
-each process's start. Measured in fresh processes (SciPy loaded): ``kernels()`` 4 ms with C against 0.16-0.17 s
-with Numba (its import), then Numba loads each cached kernel at its first call: a first factorization and solve
-of 900 unknowns 13-14 ms against 0.42-0.44 s, ``space.lago3d`` on sphere2500 (every system compiled) 0.18 s
-against 0.63-0.68 s (0.12-0.13 s either way when called again). ``IMPLEMENTATION`` / ``use_kernels`` choose one (tests).
+each process's start: the C library loads in milliseconds where Numba's import and its cached kernels cost a good
+part of a second (whole processes: ``benchmarks/spaceprocess.md``). ``IMPLEMENTATION`` / ``use_kernels`` choose one.
 Nothing is loaded until a factorization runs (``available()`` tells whether one can): import lago_cvx, the CLI's
 start-up and every system below ``normal_equations.COMPILED_MIN`` unknowns load neither. Numba's kernels are
 cached on disk (``cache=True``, in ``__pycache__`` beside this file or Numba's user cache), so only its first run
-on a machine compiles (about 10 s). LAPACK/BLAS are called by address (``fn``): the addresses are arguments
+on a machine compiles (seconds). LAPACK/BLAS are called by address (``fn``): the addresses are arguments
 looked up in each process, which keeps Numba's compiled code cacheable.
 """
 
@@ -68,10 +66,8 @@ THREADED_FRONT = 384
 
 #: The least work (Σ k·D² over the fronts) for which the factorization's subtrees are shared among
 #: threads at all; how many threads is ``threads.cores()``, read when a factorization is scheduled. Below it
-#: the threads' start and the solves' sweeps split among them cost more than they share: ``space.lago3d`` on
-#: sphere2500 (joint step 7.1e8) took 0.103-0.106 s with every system in one thread against 0.113-0.116 s
-#: shared (in process, medians of 11), torus3D (2.8e9) 0.23-0.24 s either way, parking-garage (7.3e7) 0.062-
-#: 0.066 s either way. The planar systems the engine factors start near 9e9 (300 000 poses).
+#: the threads' start and the solves' sweeps split among them cost more than they share (the 3-D graphs' systems,
+#: 7e7 to 3e9, gain nothing from two threads: ``benchmarks/space.md``); the planar systems it factors start near 9e9.
 PARALLEL_WORK = 1e9
 
 #: With a progress callback, each compiled call factors at most this share of the fronts (progress is reported
@@ -534,8 +530,8 @@ class CompiledPoseFactor(Factor):
 class CompiledEdgeOperator:
     """M x and Mᵀ r of an edge system (E) (``normal_equations.EdgeSystem``) by compiled loops over its
     edges, reading A, B (m, q, b) where they are: no transposed copies and no temporaries of length m
-    (at a million poses the NumPy ``EdgeOperator``'s copies and temporaries are 0.3 GiB of fresh memory,
-    its products 0.2–0.45 s each). The same sums in the same order as the NumPy operator, for one
+    (at a million poses the NumPy ``EdgeOperator``'s copies and temporaries are 0.3 GiB of fresh memory:
+    ``benchmarks/million.md``). The same sums in the same order as the NumPy operator, for one
     right-hand side or several (a trailing axis)."""
 
     def __init__(self, system):

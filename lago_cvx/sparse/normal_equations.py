@@ -66,36 +66,22 @@ class PoseFactor(Factor):
 
 #: Systems with at least this many unknowns (d·b) are factored by the multifrontal engine
 #: (``lago_cvx.sparse.multifrontal``), smaller ones by QDLDL in the pose-level order (``lago_cvx.sparse.ldl``), whose C
-#: loop has no per-front Python cost. Measured (2 cores, a slow day of the shared machine; phase 3 from
-#: benchmarks/perf.md's last table, four runs; b = 1, 2 by factor plus refined solve of the isotropic
-#: positions and the chordal system, two runs each, the symbolic steps included):
-#:   b = 3, 100 000 poses (300 k unknowns): QDLDL 1.7–1.9 s, engine 2.0–2.8;
-#:   b = 3, 300 000 poses (900 k): 7.4–11.6 against 7.7–10.8 over six runs (four of perf.md, two of
-#:   the seed route with ENGINE_MIN switched): means 9.0 and 9.1, parity;
-#:   b = 3, 1 000 000 poses (3 M): 70–85 against 37–42;
-#:   b = 2, 300 000 poses (600 k): 2.1–2.8 against 3.0–5.1;  b = 2, 1 000 000 poses (2 M): 22 against 17–19;
-#:   b = 1, 300 000 poses: 1.2–1.3 against 2.6–4.1;  b = 1, 1 000 000 poses (1 M): 3.2–3.9 against 6.1–10.4.
-#: So the threshold sits between 1 M and 2 M unknowns, at phase 3's parity around 300 000 poses. (Before
-#: QDLDL was called in the pose order it ran its own AMD and the crossover was 250 000 unknowns.)
+#: loop has no per-front Python cost. QDLDL is faster up to about 1 M unknowns, the engine from about 2 M (phase 3
+#: of 100 000 – 1 000 000-pose worlds, b = 1, 2, 3: ``benchmarks/million.md``, ``benchmarks/scaling.md``).
 #: ``GraphElimination.factor(engine=...)`` forces either; ``Phase3.pose_covariances`` refactors a QDLDL
 #: system by the engine for its selected inversion (``QdldlFactor.engine_factor``).
 ENGINE_MIN = 1_200_000
 
 #: Systems with at least this many unknowns are factored by the compiled engine (``lago_cvx.sparse.compiled``)
 #: when it can run (C kernels or Numba; it then takes the place of the NumPy engine above ``ENGINE_MIN`` too).
-#: Phase 3 alone, a fresh process each (benchmarks/million.md): QDLDL against compiled + Numba's import
-#: 0.280 against 0.235 + 0.160 s at 90 000 unknowns, 1.10 against 0.64 + 0.16 s at 300 000, 5.61 against
-#: 1.62 + 0.17 s at 900 000 (another run: 0.375 against 0.216 + 0.160, 1.06 against 0.57 + 0.16, 4.41
-#: against 1.50 + 0.16; with ``multifrontal.COMPILED_RELAX``; before it, 0.48 against 0.81 + 0.30, 2.31
-#: against 1.68 + 0.32, 8.5 against 3.8 + 0.24). Kept where the gain is clear of the noise.
+#: From here the compiled engine, its start included, beats QDLDL clear of the noise (phase 3 alone, fresh
+#: processes, 90 000 – 900 000 unknowns: ``benchmarks/million.md``).
 COMPILED_MIN = 300_000
 
 #: Below this many free poses the engine works in the caller's thread alone: no worker builds the
 #: elimination, and QDLDL runs no handed-over work beside its factorizations (they run when asked for).
-#: Handing work to a thread and taking the GIL back cost more than they save on small graphs. The LAGO
-#: step alternating both ways in one process (median of 11): MIT (808 poses) 9.5 ms alone against 13.4
-#: with the overlap, input_INTEL (1 228) 13.3 against 17.9, manhattan (3 500) 41.9 against 47.0,
-#: input_M3500 (3 500) 33.1–37.4 against 31.9–33.0; city10000 gains from it.
+#: Handing work to a thread and taking the GIL back cost more than they save on small graphs (MIT, input_INTEL,
+#: manhattan; city10000 gains: the in-process table of ``benchmarks/perf.md``).
 OVERLAP_MIN = 2_500
 
 
@@ -492,8 +478,8 @@ class GraphElimination:
     def prepare(self, b: int) -> None:
         """Start building, in a worker thread, what the compiled factorization of a system with b×b blocks
         will need — the plan, its ``compiled.CompiledLayout``, the assembler, and L's storage allocated
-        and touched (``CompiledLayout.reserve``: first touches of fresh memory are costly, in a virtual
-        machine more than 1 s per GiB) — while this thread goes on (phases 1 and 2 before phase 3).
+        and touched (``CompiledLayout.reserve``: first touches of fresh memory are costly, above all in a
+        virtual machine: ``benchmarks/million.md``) — while this thread goes on (phases 1 and 2 before phase 3).
         Nothing happens below ``COMPILED_MIN`` unknowns or without Numba; ``factor`` waits for the
         worker and raises its error."""
         if self.d * b < COMPILED_MIN or b in self._preparing or ("compiled", b) in self._assemblers or cores() == 1:

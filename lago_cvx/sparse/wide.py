@@ -22,21 +22,16 @@ log = logging.getLogger(__name__)
 #: b = 6: the joint step) with at least this many unknowns d·b are factored by the engine's compiled multifrontal
 #: engine (``GraphElimination.factor(engine="compiled")``), smaller ones as the engine chooses (QDLDL there). The
 #: engine's own threshold is set by the planar systems (300 000 unknowns, b ≤ 3, little fill per unknown); a 3-D
-#: graph fills more per pose and the 6×6 blocks multiply it by 36, where dense fronts pay far sooner. Measured in
-#: process (one BLAS thread, median of 7, QDLDL / compiled, the whole elimination built per call): the joint step's
-#: b = 6 factorization on torus3D (30 000 unknowns) 0.74 / 0.11 s, sphere2500 (15 000) 0.175 / 0.066 s; the b = 3
-#: systems 0.063 / 0.055 and 0.026 / 0.010 s. But Numba's first compiled factorization in a process imports Numba
-#: and loads the kernels, about 0.5-1 s: a whole ``lago-cvx solve parking-garage.g2o`` (b = 6: 9 960 unknowns,
-#: 10 ms gained in process) took 1.45-1.58 s with it against 0.75-0.91 s without. Hence the threshold above
-#: parking-garage's joint step.
+#: graph fills more per pose and the 6×6 blocks multiply it by 36, where dense fronts pay far sooner; but Numba's
+#: import and kernel loading cost a one-shot process more than a small 3-D graph gains, hence a threshold above
+#: parking-garage's joint step (in process and whole processes: ``benchmarks/space.md``, ``benchmarks/spaceprocess.md``).
 WIDE_COMPILED_MIN = 12_000
 
 
 def compiled_from() -> int:
     """The least unknowns d·b of a 3-D system that the compiled engine factors: 0 with the C kernels
-    (``compiled.native()``; they load in milliseconds, and the compiled route was as fast or faster at every size
-    measured: lago3d in process, median of 15, QDLDL / compiled, parking-garage 84.5 / 77.4 ms, smallGrid3D 14.4 /
-    14.0 ms, tinyGrid3D 8.1 / 7.4 ms), :data:`WIDE_COMPILED_MIN` with Numba's."""
+    (``compiled.native()``; they load in milliseconds, and the compiled route was as fast or faster on every 3-D graph
+    measured: ``benchmarks/space.md``), :data:`WIDE_COMPILED_MIN` with Numba's."""
     from . import compiled
 
     return 0 if compiled.native() else WIDE_COMPILED_MIN
