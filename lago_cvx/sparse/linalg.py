@@ -4,8 +4,8 @@
 Backends:
 
 * ``"qdldl"`` — QDLDL's LDLᵀ with an AMD fill-reducing ordering (the ``qdldl`` package, which cvxpy
-  already depends on, and the same factorization Clarabel uses). 3–5× faster than SuperLU on our
-  systems (phase 3 of city10000: 0.19 s against 0.65 s) — the default.
+  already depends on, and the same factorization Clarabel uses). Several times faster than SuperLU on our
+  systems (``benchmarks/perf.md``) — the default.
 * ``"superlu"`` — SciPy's SuperLU with a symmetric minimum-degree ordering and no off-diagonal
   pivoting (for SPD matrices, Cholesky's sparsity). Solves many right-hand sides at once, so it is
   used for selected inverses (marginal covariances).
@@ -14,9 +14,8 @@ Backends:
 ``"auto"`` picks QDLDL (else SuperLU). The closed forms do not come through here: below 1 200 000
 unknowns they call QDLDL's C routines directly in the pose-level elimination order (``lago_cvx.sparse.ldl``, no
 AMD of QDLDL's own), from there on the multifrontal engine (``normal_equations.ENGINE_MIN``). CHOLMOD is
-used only when asked for. Its speed depends on the BLAS the system's SuiteSparse is linked to: on Debian's reference BLAS it was slower
-than QDLDL (phase 3 at 100 000 poses: 2.7 s against 1.9–2.1 s), on OpenBLAS it is the fastest at every
-size measured (1M poses: 21.7 s against the engine's 26.4 s, version 0.2's ``benchmarks/perf.md``).
+used only when asked for. Its speed depends on the BLAS the system's SuiteSparse is linked to: slower than QDLDL on
+a reference BLAS, the fastest on OpenBLAS (version 0.2's ``benchmarks/perf.md``).
 """
 
 from __future__ import annotations

@@ -67,10 +67,8 @@ ZRELAX = (0.8, 0.1, 0.05)
 
 #: The amalgamation for the compiled engine (``lago_cvx.sparse.compiled``), whose cost per front is a few hundred
 #: nanoseconds, not a Python call: fewer explicit zeros, so a smaller L (less memory to fault in, shorter
-#: solves) for the same factorization time. Phase 3 of the 1 000 000-pose world (its system captured and
-#: factored again in one process, version 0.2): L 1.85 GiB in 85 637 fronts with ``NRELAX``/``ZRELAX``,
-#: 1.48 GiB in 156 780 with these; the compiled factorization 2.5–2.9 s against 2.8 s. Tighter still,
-#: (2, 4, 16) and (0.8, 0.1, 0.05), gave 1.28 GiB but 3.7 s. Whole runs: ``benchmarks/million.md``.
+#: solves) for the same factorization time (phase 3 of the 1 000 000-pose world: L 1.85 GiB with ``NRELAX``/
+#: ``ZRELAX``, 1.48 GiB with these; tighter still cost time). Whole runs: ``benchmarks/million.md``.
 COMPILED_RELAX = ((2, 8, 32), (0.8, 0.1, 0.05))
 
 #: Fronts with at least this many pivot variables (k·b) are factored one at a time with exact sizes;
@@ -78,8 +76,8 @@ COMPILED_RELAX = ((2, 8, 32), (0.8, 0.1, 0.05))
 SINGLE_FRONT = 96
 
 #: Fronts with at least this many pivot variables are factored with every BLAS thread; smaller ones
-#: with one (threads cost more than they give on small dense blocks: measured, the factorization of
-#: phase 3 of a 100 000-pose world took 5.0 s with two OpenBLAS threads and 0.9 s with one).
+#: with one — when the caller let the engine set the BLAS threads (``threads.engine_threads``): threads cost far
+#: more than they give on small dense blocks (``benchmarks/million.md``).
 THREADED_FRONT = 384
 
 #: Pose-count ladder the small fronts are padded to (steps of about 1.25).
@@ -113,9 +111,8 @@ def _postorder(parent: np.ndarray) -> np.ndarray:
     parents. The reverse of the depth-first preorder that visits children by increasing index (``scipy.sparse.
     csgraph``'s), i.e. each node after its subtree and siblings by decreasing index. O(n) at every shape: for an
     elimination tree (parent[i] > i) ``supernodes.postorder``'s two passes (in C, by Numba or in Python, as
-    ``_loops`` chooses), else one depth-first walk by an explicit stack. (``csgraph.depth_first_order`` is
-    quadratic on a star: a 300 000-pose hub graph spent most of its symbolic analysis there,
-    ``benchmarks/postorder.md``.)"""
+    ``_loops`` chooses), else one depth-first walk by an explicit stack. (``csgraph.depth_first_order``, used
+    before, is quadratic on a star: every pose tied to one hub.)"""
     parent = np.ascontiguousarray(parent, np.int64)
     n = parent.size
     has = parent >= 0
@@ -133,10 +130,9 @@ def _postorder(parent: np.ndarray) -> np.ndarray:
     return np.array(pre[:0:-1], np.int64)
 
 
-#: From this many poses the symbolic analysis's two sequential loops run through Numba's ``compiled_kernels`` when
-#: the C kernels are not built (1.4 s of Python at a million poses; Numba's start, about 0.5 s, is not worth it
-#: below). The C kernels (``c_kernels``) run them at every size: loading them costs milliseconds, and ``relax`` takes
-#: 4.5 ms of Python on sphere2500's 2 500 poses.
+#: From this many poses the symbolic analysis's sequential loops run through Numba's ``compiled_kernels`` when the C
+#: kernels are not built: below it Numba's start costs more than the Python loops. The C kernels (``c_kernels``) run
+#: them at every size: they load in milliseconds (``benchmarks/million.md``, ``benchmarks/spaceprocess.md``).
 COMPILED_LOOPS = 200_000
 
 
