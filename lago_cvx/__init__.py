@@ -61,7 +61,9 @@ def __getattr__(name: str):
     if module is None:
         try:  # a submodule asked for as an attribute (``lago_cvx.phases``)
             return importlib.import_module(f"{__name__}.{name}")
-        except ModuleNotFoundError:
+        except ModuleNotFoundError as exc:
+            if exc.name != f"{__name__}.{name}":  # the submodule exists but a package it needs is missing
+                raise
             raise AttributeError(f"module {__name__!r} has no attribute {name!r}") from None
     value = getattr(importlib.import_module(f"{__name__}.{module}"), name)
     globals()[name] = value

@@ -28,7 +28,7 @@ import os
 
 __all__ = [
     "LagoError", "ParseError", "OutputError", "GraphError", "NumericalError", "NonFiniteError", "OptionError",
-    "InfeasibleConstraintsError",
+    "InfeasibleConstraintsError", "PlanError",
     "DatasetNotFound", "MissingSolverError", "ResourceLimitError", "SearchLimitError", "SolverError",
     "check_choice",
 ]
@@ -94,6 +94,12 @@ class NumericalError(GraphError):
 class NonFiniteError(NumericalError):
     """An estimate, or its χ², is not finite: the data overflow double precision (e.g. measurements of
     magnitude 1e200, whose squares are inf). Nothing is written."""
+
+
+class PlanError(LagoError, ValueError):
+    """A symbolic analysis handed to the sparse engine's compiled kernels is malformed — a parent pointer or an index
+    out of range, a postorder that is not a permutation, pointers not increasing or beyond their arrays, a front too
+    large for LAPACK's 32-bit sizes — found before any compiled code reads it (``lago_cvx.sparse.kernel_checks``)."""
 
 
 class OptionError(LagoError, ValueError):

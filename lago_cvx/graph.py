@@ -146,9 +146,8 @@ def _bfs_parents(n: int, tails: np.ndarray, heads: np.ndarray, root: int) -> np.
     return parent
 
 
-#: Levels of at most this many poses are walked in Python (measured on city10000, whose BFS has
-#: thousands of levels of a few poses each: 0.55 s level-vectorized; 30–40 ms with two NumPy calls per
-#: narrow level; 5–10 ms with a run of narrow levels kept in Python lists).
+#: Levels of at most this many poses are walked in Python: city10000's BFS has thousands of levels of a few poses
+#: each, where NumPy's cost per call dominates (the tree step of ``benchmarks/perf.md``).
 _NARROW_LEVEL = 64
 
 
@@ -344,9 +343,8 @@ def _bfs(n: int, tails: np.ndarray, heads: np.ndarray, root: int) -> np.ndarray:
     return np.where(pred < 0, -1, pred).astype(np.int64)
 
 
-#: Trees of at least this many poses are rooted by ``scipy.sparse.csgraph`` (measured: a 1 000 000-pose
-#: odometric chain took 3.4 s level by level in ``_bfs_parents``, 0.03 s this way; the BFS tree of the
-#: 1 000 000-pose world 0.78 s against 0.08 s, the same parents).
+#: Trees of at least this many poses are rooted by ``scipy.sparse.csgraph`` (the same parents; level by level costs a
+#: Python step per level, ruinous on a long odometric chain: ``benchmarks/million.md``).
 _CSGRAPH_TREE = 50_000
 
 

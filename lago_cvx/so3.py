@@ -114,7 +114,7 @@ def project_so3(M) -> np.ndarray:
     (X⁻ᵀ = cof(X)/det X), until no matrix moves by more than :data:`POLAR_TOLERANCE` (the iteration converges
     quadratically, so the last step leaves an error of its square). The SVD takes every other matrix (det M ≤ 0,
     not finite, or not converged in :data:`POLAR_ITERATIONS`), and is the reference the tests hold the iteration
-    to. The same matrices to rounding, 1.6 ms against 9.5 ms by LAPACK's SVD per matrix for 2 500 of them."""
+    to. The same matrices to rounding, several times faster than LAPACK's SVD per matrix (``benchmarks/space.md``)."""
     M = np.asarray(M, dtype=float)
     shape = M.shape
     M = M.reshape(-1, 3, 3)
@@ -162,8 +162,8 @@ def _project_svd(M) -> np.ndarray:
 def entries(M, index=None) -> list:
     """The entries of 3×3 matrices M (N, 3, 3) (or of M[index]) as rows of contiguous (N,) arrays,
     [[M_00, M_01, M_02], …]: arithmetic on them (``product``, ``apply``, formulas entry by entry) runs over all N
-    matrices at once, where NumPy's loops over (N, 3, 3) stacks pay their overhead per last axis of length 3 (a
-    stack of 5 000 products: 0.6 ms by ``@``, 0.1 ms by entries). ``M`` may also be given as its (9, N) rows
+    matrices at once, where NumPy's loops over (N, 3, 3) stacks pay their overhead per last axis of length 3
+    (``benchmarks/space.md``). ``M`` may also be given as its (9, N) rows
     ``M.reshape(-1, 9).T`` (contiguous)."""
     M = np.asarray(M, dtype=float)
     E = M if M.ndim == 2 and M.shape[0] == 9 else np.ascontiguousarray(M.reshape(-1, 9).T)

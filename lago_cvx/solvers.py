@@ -98,8 +98,8 @@ ROBUST = replace(LEAST_SQUARES, tol_gap_abs=1e-9, tol_gap_rel=1e-9, tol_feas=1e-
 #: The SDP relaxation. Not ``LEAST_SQUARES``: a static regularization of 1e-11 and 1e-12 tolerances make
 #: Clarabel fail on these SDPs; at its defaults (1e-8) it stops at the accuracy the data allow. Chordal
 #: decomposition is Clarabel's default; the clique merging is "parent_child" because the default
-#: "clique_graph" merge did not finish in 10 minutes on the first 200 poses of manhattan (parent_child:
-#: 80 cones, 6 s).
+#: "clique_graph" merge did not finish on the first 200 poses of manhattan where parent_child did
+#: (``benchmarks/certify.md``).
 SDP = ClarabelSettings(max_iter=300, chordal_decomposition_enable=True,
                        chordal_decomposition_merge_method="parent_child",
                        chordal_decomposition_complete_dual=True)

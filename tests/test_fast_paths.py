@@ -81,8 +81,9 @@ def test_an_indefinite_matrix_is_refused_by_name(single_front, monkeypatch):
 
 
 def test_blas_threads_sets_and_restores_the_thread_count():
-    """``linalg.blas_threads`` limits every loaded BLAS inside its block, lets the block change the
-    limit, and restores the count it found — also when the block raises."""
+    """``linalg.blas_threads`` leaves every BLAS alone unless the caller let the engine set it
+    (``engine_threads(blas_threads=…)``); then it limits every loaded BLAS inside its block, lets the block change
+    the limit, and restores the count it found — also when the block raises."""
     threadpoolctl = pytest.importorskip("threadpoolctl")
     import scipy.linalg  # noqa: F401  (its BLAS loaded before counting, as blas_threads loads it)
 
@@ -94,16 +95,30 @@ def test_blas_threads_sets_and_restores_the_thread_count():
     before = counts()
     if not before:
         pytest.skip("threadpoolctl finds no BLAS it can control in this build of NumPy/SciPy")
-    with blas_threads(1) as threads:
+    from lago_cvx.sparse import engine_threads
+
+    with blas_threads(1) as threads:  # not asked: nothing changes
+        threads(1)
+        assert counts() == before
+    with engine_threads(blas_threads=1024), blas_threads(1) as threads:
         assert set(counts()) == {1}
         threads(None)
         assert counts() == before
         threads(1)
         assert set(counts()) == {1}
     assert counts() == before
-    with pytest.raises(RuntimeError), blas_threads(1):
+    with pytest.raises(RuntimeError), engine_threads(blas_threads=1024), blas_threads(1):
         raise RuntimeError("inside")
     assert counts() == before
+
+
+def _both(a, b):
+    import contextlib
+
+    stack = contextlib.ExitStack()
+    stack.enter_context(a)
+    stack.enter_context(b)
+    return stack
 
 
 def test_blas_threads_of_two_threads_restore_the_count_they_found():
@@ -115,7 +130,11 @@ def test_blas_threads_of_two_threads_restore_the_count_they_found():
     threadpoolctl = pytest.importorskip("threadpoolctl")
     import scipy.linalg  # noqa: F401
 
-    from lago_cvx.sparse.linalg import blas_threads
+    from lago_cvx.sparse import engine_threads
+    from lago_cvx.sparse.linalg import blas_threads as engine_blas
+
+    def blas_threads(n):  # as the engine runs when asked to set the BLAS threads
+        return _both(engine_threads(blas_threads=1024), engine_blas(n))
 
     def counts():
         return [i["num_threads"] for i in threadpoolctl.threadpool_info() if i["user_api"] == "blas"]
@@ -353,13 +372,37 @@ def test_edge_operator_is_the_sparse_matrix(q, b, extra):
         assert np.allclose(rv.reshape(d * b, k), M.T @ r.reshape(m * q, k), rtol=1e-13, atol=1e-13)
 
 
-def test_postorder_by_loops_equals_scipys_depth_first_order(monkeypatch):
-    """``multifrontal._postorder``: the loops for small forests give exactly the order of the reversed depth-first
-    preorder of ``scipy.sparse.csgraph`` (the elimination order, hence every result, is unchanged)."""
-    from lago_cvx.sparse import multifrontal
+def _csgraph_postorder(parent):
+    """The reversed depth-first preorder of ``scipy.sparse.csgraph`` from a virtual root above the roots."""
+    import scipy.sparse as sp
+    from scipy.sparse import csgraph
 
+    n = parent.size
+    par = np.where(parent < 0, n, parent)
+    children = sp.csr_matrix((np.ones(n), (par, np.arange(n))), shape=(n + 1, n + 1))
+    return csgraph.depth_first_order(children, n, directed=True, return_predecessors=False)[:0:-1].astype(np.int64)
+
+
+def test_postorder_equals_scipys_depth_first_order():
+    """``multifrontal._postorder`` gives exactly the order of the reversed depth-first preorder of
+    ``scipy.sparse.csgraph`` (the elimination order, hence every result, is unchanged), by each of its ways — C,
+    Numba, the Python loops (elimination trees) and the explicit-stack walk (any other forest) — on random
+    forests, a star and a chain."""
+    from lago_cvx.sparse import multifrontal, supernodes
+    from lago_cvx.sparse import compiled as C
+
+    ways = {"python": multifrontal._postorder_python, "arrays": supernodes.postorder}
+    if C.native():
+        ways["c"] = C.kernels()["postorder"]
+    try:
+        from lago_cvx.sparse.compiled_kernels import KERNELS as NK
+
+        ways["numba"] = NK["postorder"]
+    except ImportError:
+        pass
     rng = np.random.default_rng(3)
-    forests = [np.array([-1]), np.array([-1, -1, -1]), np.array([1, 2, -1]), np.array([2, 2, -1, -1])]
+    forests = [np.array([-1]), np.array([-1, -1, -1]), np.array([1, 2, -1]), np.array([2, 2, -1, -1]),
+               np.r_[np.full(500, 500), -1], np.r_[np.arange(1, 500), -1]]  # a star, a chain
     for n in (5, 40, 300, 2000):
         parent = np.full(n, -1, np.int64)
         for i in range(n - 1):
@@ -367,12 +410,16 @@ def test_postorder_by_loops_equals_scipys_depth_first_order(monkeypatch):
                 parent[i] = rng.integers(i + 1, min(n, i + 1 + rng.integers(1, 30)))
         forests.append(parent)
     for parent in forests:
-        by_loops = multifrontal._postorder(parent)
-        with monkeypatch.context() as m:
-            m.setattr(multifrontal, "POSTORDER_LOOPS_MAX", -1)
-            by_scipy = multifrontal._postorder(parent)
-        assert by_loops.dtype == by_scipy.dtype and np.array_equal(by_loops, by_scipy), parent[:20]
+        parent = np.asarray(parent, np.int64)
+        ref = _csgraph_postorder(parent)
+        assert np.array_equal(multifrontal._postorder(parent), ref)
+        for name, way in ways.items():
+            assert np.array_equal(way(parent.copy()), ref), (name, parent[:20])
         place = np.empty(parent.size, np.int64)
-        place[by_loops] = np.arange(parent.size)
+        place[ref] = np.arange(parent.size)
         has = parent >= 0
         assert (place[has] < place[parent[has]]).all()  # children before parents
+        relabel = rng.permutation(parent.size)  # the same forest, parents no longer after their children
+        inv = np.argsort(relabel)
+        other = np.where(parent[inv] >= 0, relabel[np.maximum(parent[inv], 0)], -1)
+        assert np.array_equal(multifrontal._postorder(other), _csgraph_postorder(other))

@@ -26,9 +26,8 @@ CSAIL). An interior-point method resolves M − Λ̂ ⪰ 0 to ≈ 1e-9–1e-10 o
 accuracy of f_SDP is 1e-8 on synthetic/manhattan sub-graphs but only 1e-6…1e-3 on CSAIL/intel
 sub-graphs, where Clarabel ends "AlmostSolved" or, sometimes, with a numerical error (then
 ``solve_sdp`` retries with L = 1 and with the non-compact chordal transformation). The **dense
-primal** (S9) as a cvxpy PSD variable has no sparsity for Clarabel to exploit (a 3n−1 dense cone: 36 s
-at n = 30), so it is for cross-checks on n ≲ 15; the dual (S10) is what scales (CSAIL's 1045 poses:
-≈ 30 s, 1.7 GB).
+primal** (S9) as a cvxpy PSD variable has no sparsity for Clarabel to exploit (a 3n−1 dense cone), so it is
+for cross-checks on n ≲ 15; the dual (S10) is what scales (CSAIL's 1045 poses: ``benchmarks/certify.md``).
 
 Dangling chains are peeled first (``lago_cvx.graph.prune_leaves``), which is **exact for both f* and
 f_SDP**: a leaf ℓ on edge (i, ℓ) can always be placed with zero residual on that edge — R_ℓ = R_i R̃,

@@ -89,7 +89,10 @@ def main(argv=None) -> int:
     """Run one ``lago-cvx`` command; ``argv=None`` means the process's own command line.
 
     Only then (the console entry point) are NumPy's unused submodules made lazy before SciPy loads
-    (:mod:`lago_cvx.cli.startup`); an in-process caller passing ``argv`` keeps its import state.
+    (:mod:`lago_cvx.cli.startup`), and is the sparse engine asked to hold the BLAS to one thread while it factors
+    (``sparse.engine_threads(blas_threads=1)``: the process is the command's own, and OpenBLAS's threads cost far
+    more than they give on the engine's small dense blocks when the other cores are busy, ``benchmarks/million.md``);
+    an in-process caller passing ``argv`` keeps its import state and its BLAS settings.
     A standard output closed by its reader ends the command quietly with status 0 (``_quiet_stdout``).
     """
     if argv is None:
@@ -100,8 +103,10 @@ def main(argv=None) -> int:
     try:
         import numpy as np
 
-        with np.errstate(all="ignore"):  # overflow is reported as a non-finite estimate, not a warning
-            status = args.func(args)
+        from ..sparse import engine_threads
+
+        with np.errstate(all="ignore"), engine_threads(blas_threads=1 if argv is None else None):
+            status = args.func(args)  # overflow is reported as a non-finite estimate, not a warning
         if sys.stdout is not None:  # (None: started without a standard output)
             sys.stdout.flush()  # a reader that left shows here, not in the interpreter's final flush
         return status

@@ -4,9 +4,8 @@ Importing ``scipy.sparse`` (SciPy 1.15+) builds SciPy's array-API namespace by c
 up every public name of ``numpy``, and each lookup of a lazily loaded submodule executes it. So a
 process that only factors a sparse matrix pays for ``numpy.f2py`` (the Fortran wrapper generator, which
 pulls in ``charset_normalizer``), ``numpy.testing`` (``unittest``, ``difflib``, ``subprocess``),
-``numpy.ma``, ``numpy.random``, ``numpy.polynomial`` and ``numpy.ctypeslib``: 0.13–0.18 s here, a
-quarter of ``lago-cvx solve`` on a 3 500-pose file (whole process, alternating runs, input_M3500: 0.63 s against
-0.84 s with ``LAGO_CVX_EAGER_IMPORTS=1``).
+``numpy.ma``, ``numpy.random``, ``numpy.polynomial`` and ``numpy.ctypeslib``: a large share of a short
+``lago-cvx solve`` (whole processes against ``LAGO_CVX_EAGER_IMPORTS=1``: ``benchmarks/endtoend.md``).
 
 :func:`defer_unused_numpy_modules` registers those submodules with the standard library's
 :class:`importlib.util.LazyLoader` before SciPy is imported. The clone then binds module objects whose

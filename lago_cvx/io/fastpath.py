@@ -51,8 +51,8 @@ logger = logging.getLogger("lago_cvx.io")
 
 #: Bytes per chunk (a chunk ends at a line end, so it may be longer).
 CHUNK = 1 << 20
-#: Below this many numbers, ``np.fromstring`` converts them: importing ``scipy.io`` (≈ 0.3–1 s) would
-#: cost more than its faster conversion saves.
+#: Below this many numbers, ``np.fromstring`` converts them: importing ``scipy.io`` would cost more than its faster
+#: conversion saves (``benchmarks/io.md``).
 MMREAD_MIN_TOKENS = 1_500_000
 #: Threads for the chunk pass: at most this many, and no more than the cores this process may use now
 #: (``sparse.cores()``).

@@ -4,7 +4,7 @@
 in fixed notation when the decimal point position ``decpt`` (the number of digits before the point in
 ``0.d₁d₂… × 10^decpt``) satisfies −4 < decpt ≤ 16 and in exponential notation otherwise
 (``1e-05``, ``1.5e+16``). Python finds those digits with arbitrary-precision arithmetic, one number at a
-time (≈ 1 µs here for a 17-digit number); this module finds them for a whole array:
+time (``benchmarks/io.md``); this module finds them for a whole array:
 
 1. S = |x|·10^k with k = 16 − ⌊log₁₀|x|⌋, so that 10¹⁶ ≤ S < 10¹⁷, as a double-double (Dekker's exact
    product with a double-double table of 10^k): S is known to about 10⁻¹⁴, and split exactly into an

@@ -199,8 +199,8 @@ def write_graph(path, graph: PoseGraph, poses=None, *, format: str = "g2o",
 
 
 #: Threads formatting blocks at once: None for one per core of this process (``sparse.cores()``), at
-#: most ``_AHEAD`` (NumPy's column operations release the GIL: two threads write a million-pose file in
-#: 3.8 s against 5.3 s with one); and how many blocks may wait formatted.
+#: most ``_AHEAD`` (NumPy's column operations release the GIL, so two threads write a million-pose file faster
+#: than one: ``benchmarks/io.md``); and how many blocks may wait formatted.
 WRITE_THREADS: int | None = None
 _AHEAD = 4
 

@@ -77,19 +77,13 @@ Solvers
   HiGHS (installed with cvxpy) and SciPy's MILP cannot take it: cvxpy's HiGHS interface is
   mixed-integer only for LPs and HiGHS has no MIQP (``SolverError: The solver HIGHS cannot solve this
   problem``). SCIP's outer approximation of *one* (m+2)-dimensional cone stalls in the phase-1 form
-  (a 20-pose, 2-chord graph was not proven optimal in 30 s); writing the same sum of squares as
-  ``cp.sum(cp.square(W @ residual))`` — m small cones, identical value — solves it in 0.1 s, so the
+  (a 20-pose, 2-chord graph was not proven optimal); writing the same sum of squares as
+  ``cp.sum(cp.square(W @ residual))`` — m small cones, identical value — solves it at once, so the
   phase-1 form uses that (``split=True``). The cycle form's dense W keeps ``cp.sum_squares``.
-  Even so the phase-1 form is slow beyond a few dozen poses — measured here (2 cores), Manhattan worlds,
-  box (6): 60 poses / 26 chords at σθ = 0.4 (25 free integers) 22 s against 1.6 s for the cycle form;
-  80 poses / 19 chords at σθ = 0.5: 118 s against 1.6 s; 150 poses / 54 chords at σθ = 0.3: not done
-  in 120 s (incumbent far from optimal) against 9.6 s. With the plain box |k − k_round| ≤ 2 instead of
-  (6), 60 poses / 26 chords at σθ = 0.05: 116 s against 0.4 s. So the cycle form is the main path and
-  the phase-1 form a cross-check for small graphs. The enumeration solves all of these in < 0.1 s.
-  Even the cycle form's branch-and-bound is far slower than the enumeration once many integers are
-  free: a 100-pose world with 52 chords at σθ = 0.5 (all 52 free in the box) — SCIP finds the optimum
-  but cannot prove it in 60 s, the enumeration proves it in 0.01–0.05 s (500–7 640 nodes); a 3-lap
-  circle with 91 chords at σθ = 0.2: SCIP 59 s, enumeration milliseconds; same integers.
+  Even so the phase-1 form is slow beyond a few dozen poses, an order of magnitude and more behind the cycle
+  form on Manhattan worlds of 60–150 poses, so the cycle form is the main path and the phase-1 form a
+  cross-check for small graphs; and the cycle form's branch-and-bound is far slower than the enumeration
+  once many integers are free (same integers; ``benchmarks/integer.md``).
 * ``solver="enumerate"``: exact Schnorr–Euchner sphere decoding of (3) (LAMBDA-style integer least
   squares), no dependency. Order: min-variance pivoted Cholesky of S/(2π)² (the best-determined cycle
   integer first); initial radius J₀ (so the rounding is the incumbent and ties keep it); the box (6)
@@ -138,7 +132,7 @@ MIP_EXTRA = 'pip install "lago-cvx[mip]"'
 ENUMERATE = "enumerate"
 
 #: Largest number of chords (l) ``regularization="integer"`` accepts: it works with the dense l × l cycle
-#: covariance C P_δ Cᵀ and its Cholesky factor (l = 3000: 72 MB per matrix, ~1 s to factor).
+#: covariance C P_δ Cᵀ and its Cholesky factor (l = 3000: 72 MB per matrix; ``benchmarks/integer.md``).
 MAX_INTEGER_CHORDS = 3000
 
 

@@ -19,7 +19,7 @@ __all__ = ["enumerate_integers", "PROGRESS_NODES", "TIE_RTOL"]
 
 log = logging.getLogger("lago_cvx.regularization.integer")
 
-#: The enumeration logs its progress every this many nodes (≈ 5–10 s on M3500-sized problems).
+#: The enumeration logs its progress every this many nodes (seconds apart on M3500-sized problems).
 PROGRESS_NODES = 200_000
 
 #: Relative tolerance under which a candidate must beat the incumbent to replace it (ties keep the

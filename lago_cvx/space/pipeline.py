@@ -25,6 +25,7 @@ from ..graph import check_connected
 from ..posegraph3d import chi2_3d
 from ..solvers import check_method
 from ..so3 import exp_so3
+from ..sparse import threads_option
 from .chordal import WEIGHTINGS, chordal_closed_form, chordal_cvxpy
 from .gauss_newton import gauss_newton_step
 from .positions import positions_closed_form, positions_cvxpy
@@ -88,8 +89,10 @@ def _joint(graph, t0, R0, cost0, a, solve_positions, elimination=None):
     return t0, R0, cost0, 0.0, tuple(trials)
 
 
+@threads_option
 def lago3d(graph, *, route: str = "default", method: str = "closed_form", weighting: str = "isotropic",
-           anchor=None, solver_settings=None, fixed=None) -> Lago3DResult:
+           anchor=None, solver_settings=None, fixed=None, workers: int | None = None,
+           blas_threads: int | None = None) -> Lago3DResult:
     """LAGO on a 3-D pose graph (module docstring).
 
     Parameters (keyword-only): ``route`` ``"default"`` or ``"seed"``; ``method`` ``"closed_form"`` (sparse
@@ -98,7 +101,10 @@ def lago3d(graph, *, route: str = "default", method: str = "closed_form", weight
     both); ``weighting`` of the chordal relaxation, ``"isotropic"`` (SE-Sync's κ) or ``"anisotropic"`` (the whole
     rotational information; ``chordal``); ``anchor`` the id of the pose held at the identity (default: smallest);
     ``fixed`` ``{id: (t (3,), R (3, 3))}``: poses known exactly, which then define the frame instead of the anchor
-    (``space.fixed``; closed form only)."""
+    (``space.fixed``; closed form only); ``workers`` the most threads the sparse engine runs at once (SciPy's name;
+    None: ``lago_cvx.sparse.cores()``); ``blas_threads`` None (the default) leaves the process's BLAS thread count
+    alone, k holds it to at most k threads while the engine factors (the 3-D systems' compiled factorizations ask
+    for one: faster when another process shares the cores, docs/performance.md "3-D graphs")."""
     if getattr(graph, "dim", 2) != 3:
         raise OptionError("lago3d takes a 3-D pose graph (PoseGraph3D); planar graphs go to lago()")
     check_choice("route", route, ROUTES3D)

@@ -21,7 +21,10 @@ The door, in the spirit of scikit-sparse's ``cholesky(A) -> Factor``:
 * small per-edge kernels the mathematics calls by name: ``row_blocks`` (per-edge arithmetic a block of
   edges at a time), ``unique_sorted``, the closed-form 2×2 / 3×3 inverses and Cholesky factors
   (``spd_inverse``, ``spd_inverse_corner``, ``cholesky``), ``rotate`` (R(α_k) v_k, m rotations at once),
-  ``whitening_2x2``.
+  ``whitening_2x2``;
+* threads: ``cores()`` the engine's own threads; ``engine_threads(workers=…, blas_threads=…)`` caps them (SciPy's
+  name) and, only when asked, the process's BLAS threads while the engine runs (left alone by default);
+  ``threads_option`` runs a function with those keyword options inside it (``lago(…, workers=…)``).
 """
 
 from __future__ import annotations
@@ -33,7 +36,7 @@ from .linalg import (SOLVER_BACKENDS, Factor, augmented_least_squares, block_dia
 from .edge_system import EdgeSystem
 from .normal_equations import GraphElimination, RenumberedFactor, marginal_blocks
 from .smallmat import cholesky, rotate, spd_inverse, spd_inverse_corner
-from .threads import cores
+from .threads import cores, engine_threads, threads_option
 from .wide import factor_wide, solve_wide
 
 __all__ = [
@@ -41,4 +44,5 @@ __all__ = [
     "augmented_least_squares", "block_diagonal_inverse", "inverse_blocks", "whitening_2x2", "SOLVER_BACKENDS",
     "row_blocks", "unique_sorted", "cholesky", "spd_inverse", "spd_inverse_corner", "rotate",
     "RenumberedFactor", "marginal_blocks", "cores", "factor_wide", "solve_wide",
+    "engine_threads", "threads_option",
 ]

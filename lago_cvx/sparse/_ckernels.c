@@ -458,6 +458,24 @@ CK_API void ck_heights(const i64 *parent, i64 n, i64 *h)
     }
 }
 
+/* supernodes.postorder: order (n,) out; size, free (n + 1,) scratch. */
+CK_API void ck_postorder(const i64 *parent, i64 n, i64 *size, i64 *free_, i64 *order)
+{
+    for (i64 i = 0; i <= n; i++) {
+        size[i] = 1;
+        free_[i] = 0;
+    }
+    for (i64 i = 0; i < n; i++)
+        size[parent[i] < 0 ? n : parent[i]] += size[i];
+    for (i64 i = n - 1; i >= 0; i--) {
+        i64 p = parent[i] < 0 ? n : parent[i];
+        i64 lo = free_[p];
+        free_[p] = lo + size[i];
+        free_[i] = lo;
+        order[lo + size[i] - 1] = i;
+    }
+}
+
 static struct PyModuleDef ckernels_module = {PyModuleDef_HEAD_INIT, "_ckernels",
                                              "The sparse engine's kernels in C, called through ctypes "
                                              "(lago_cvx.sparse.c_kernels).",

@@ -1,12 +1,12 @@
 """Array helpers where NumPy is slow.
 
 * ``unique_sorted`` — ``numpy.unique`` of a plain integer array (no index, inverse or counts asked for) takes a hash-based path
-in NumPy 2.4 that is far slower than sorting on large arrays of distinct keys: 2.0 s against 0.03 s for
-the 1 786 812 pose-pair keys of a 1 000 000-pose graph. ``unique_sorted`` sorts instead.
+in NumPy 2.4 that is far slower than sorting on large arrays of distinct keys such as the pose-pair keys of a
+1 000 000-pose graph (``benchmarks/million.md``). ``unique_sorted`` sorts instead.
 * ``row_blocks`` — per-edge arithmetic on (m, …) stacks done a block of rows at a time. NumPy makes a
   fresh temporary for every operation; on a whole 1 786 812-edge stack each is 14–130 MB, memory the
-  kernel must hand over (and zero) anew, and in a virtual machine such first touches cost about
-  2.5 s per GiB (measured on the 2-core x86_64 VM of ``docs/benchmarks.md``). In blocks of ``BLOCK`` rows the temporaries fit in cache and are recycled by the
+  kernel must hand over (and zero) anew, and in a virtual machine such first touches are slow
+  (``benchmarks/million.md``). In blocks of ``BLOCK`` rows the temporaries fit in cache and are recycled by the
   allocator; only the outputs are new memory.
 """
 

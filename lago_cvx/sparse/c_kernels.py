@@ -5,7 +5,8 @@ compiled without fused multiply-add). It loads in a few milliseconds where Numba
 about half a second per process (``compiled``'s docstring); Numba remains the engine's kernels when the C library
 was not built (no compiler at install). Importing this module raises ImportError then; it never imports Numba.
 
-Each wrapper checks what the C code relies on — the dtype (float64, int64, bool) and C order of every array, the
+Each wrapper checks the indices the C code reads (``kernel_checks``: the plan once, O(n), then each call in O(1))
+and what else it relies on — the dtype (float64, int64, bool) and C order of every array, the
 arrays written in place writable, the shapes of the edge blocks — and raises TypeError or ValueError otherwise;
 nothing is copied. Arrays that a Numba kernel allocates (its results, its scratch) are allocated here, so the C
 functions keep no state: threads may call them at once on different data (ctypes releases the GIL during a call).
@@ -18,6 +19,8 @@ import ctypes
 import importlib.util
 
 import numpy as np
+
+from .kernel_checks import checked
 
 __all__ = ["KERNELS"]
 
@@ -99,7 +102,8 @@ SIGNATURES = dict(assemble="iiipppppppppppiippppp", finish="-iippppppppp", run="
                   one="iiippip", forward="-piipiippppppp", backward="-piipiippppppp", pose_local="-ppipppp",
                   block_count="ippippip", block_fill="-ppipppppipppppp", edge_matvec="-ppiiipppip",
                   edge_rmatvec="-ppiiipppip", stack_peak="ipippp", subtrees="-ppipp", push="ipiipipppi",
-                  relax="-ppppiiiidddp", heights="-pip")
+                  relax="-ppppiiiidddp", heights="-pip",
+                  postorder="-pippp")
 _C = {name: _c(name, sig) for name, sig in SIGNATURES.items()}
 
 
@@ -247,6 +251,14 @@ def heights(parent):
     return h
 
 
+def postorder(parent):
+    """``supernodes.postorder``."""
+    n = np.size(parent)
+    size, free, order = np.empty(n + 1, np.int64), np.empty(n + 1, np.int64), np.empty(n, np.int64)
+    _C["postorder"](_p(parent, _I64, "parent"), n, size.ctypes.data, free.ctypes.data, order.ctypes.data)
+    return order
+
+
 def _addresses() -> np.ndarray:
     """(3,) int64: the addresses of SciPy's LAPACK ``dpotrf`` and BLAS ``dtrsm``, ``dsyrk`` — the capsules of
     ``cython_lapack``/``cython_blas``, opened by the C API (what Numba's ``get_cython_function_address`` does)."""
@@ -262,8 +274,11 @@ def _addresses() -> np.ndarray:
     return np.array(out, np.int64)
 
 
-#: The kernels by name (the keys of ``compiled_kernels.KERNELS``), and ``fn`` the LAPACK/BLAS addresses.
-KERNELS = dict(assemble=assemble, finish=finish, run=run, forward=forward, backward=backward,
+#: The kernels by name (the keys of ``compiled_kernels.KERNELS``), and ``fn`` the LAPACK/BLAS addresses; each checks
+#: the indices it reads first (``kernel_checks``: a malformed plan raises PlanError, never reaches the C code), and
+#: so do this module's functions of the same names.
+KERNELS = checked(dict(assemble=assemble, finish=finish, run=run, forward=forward, backward=backward,
                stack_peak=stack_peak, one=one, subtrees=subtrees, push=push, pose_local=pose_local,
                block_map=block_map, edge_matvec=edge_matvec, edge_rmatvec=edge_rmatvec, relax=relax,
-               heights=heights, fn=_addresses())
+               heights=heights, postorder=postorder, fn=_addresses()))
+globals().update({name: fn for name, fn in KERNELS.items() if name != "fn"})

@@ -31,14 +31,12 @@ thread, the children's updates copied across from the workers' stacks (``Compile
 **Kernels.** The compiled functions are C first (``c_kernels``: ``_ckernels.c``, built at install as an optional
 extension and loaded by ctypes), Numba as the fallback when it was not built (``compiled_kernels``; no compiler at
 install): the same functions with the same arithmetic in the same order, so both give the same bits. The reason is
-each process's start. Measured in fresh processes (SciPy loaded): ``kernels()`` 4 ms with C against 0.16-0.17 s
-with Numba (its import), then Numba loads each cached kernel at its first call: a first factorization and solve
-of 900 unknowns 13-14 ms against 0.42-0.44 s, ``space.lago3d`` on sphere2500 (every system compiled) 0.18 s
-against 0.63-0.68 s (0.12-0.13 s either way when called again). ``IMPLEMENTATION`` / ``use_kernels`` choose one (tests).
+each process's start: the C library loads in milliseconds where Numba's import and its cached kernels cost a good
+part of a second (whole processes: ``benchmarks/spaceprocess.md``). ``IMPLEMENTATION`` / ``use_kernels`` choose one.
 Nothing is loaded until a factorization runs (``available()`` tells whether one can): import lago_cvx, the CLI's
 start-up and every system below ``normal_equations.COMPILED_MIN`` unknowns load neither. Numba's kernels are
 cached on disk (``cache=True``, in ``__pycache__`` beside this file or Numba's user cache), so only its first run
-on a machine compiles (about 10 s). LAPACK/BLAS are called by address (``fn``): the addresses are arguments
+on a machine compiles (seconds). LAPACK/BLAS are called by address (``fn``): the addresses are arguments
 looked up in each process, which keeps Numba's compiled code cacheable.
 """
 
@@ -48,9 +46,11 @@ import logging
 
 import numpy as np
 
+from ..errors import MissingSolverError
+from . import kernel_checks
 from .linalg import Factor, blas_threads
 from .multifrontal import NotPositiveDefinite
-from .threads import cores
+from .threads import cores, spawn
 
 __all__ = ["available", "use_kernels", "kernels", "CompiledLayout", "CompiledAssembler", "CompiledFactor",
            "CompiledPoseFactor", "CompiledEdgeOperator"]
@@ -66,10 +66,8 @@ THREADED_FRONT = 384
 
 #: The least work (Σ k·D² over the fronts) for which the factorization's subtrees are shared among
 #: threads at all; how many threads is ``threads.cores()``, read when a factorization is scheduled. Below it
-#: the threads' start and the solves' sweeps split among them cost more than they share: ``space.lago3d`` on
-#: sphere2500 (joint step 7.1e8) took 0.103-0.106 s with every system in one thread against 0.113-0.116 s
-#: shared (in process, medians of 11), torus3D (2.8e9) 0.23-0.24 s either way, parking-garage (7.3e7) 0.062-
-#: 0.066 s either way. The planar systems the engine factors start near 9e9 (300 000 poses).
+#: the threads' start and the solves' sweeps split among them cost more than they share (the 3-D graphs' systems,
+#: 7e7 to 3e9, gain nothing from two threads: ``benchmarks/space.md``); the planar systems it factors start near 9e9.
 PARALLEL_WORK = 1e9
 
 #: With a progress callback, each compiled call factors at most this share of the fronts (progress is reported
@@ -100,7 +98,13 @@ def kernels() -> dict:
         return _C_KERNELS[0]
     if IMPLEMENTATION == "c":
         raise ImportError("the sparse engine's C kernels are not built (lago_cvx/sparse/_ckernels.c)")
-    from . import compiled_kernels
+    try:
+        from . import compiled_kernels
+    except ModuleNotFoundError as exc:  # neither kernel set: the engine's choice falls back (``available()``)
+        if exc.name not in ("numba", "llvmlite"):
+            raise
+        raise MissingSolverError("the compiled engine needs its C kernels (built at install when a C compiler is "
+                                 "present) or Numba: pip install 'lago-cvx[numba]'") from exc
 
     if not _ANNOUNCED:
         _ANNOUNCED.append(True)
@@ -168,6 +172,7 @@ class CompiledLayout:
         return cache[b]
 
     def __init__(self, plan, b: int):
+        kernel_checks.plan(plan)  # O(d) once: a malformed plan raises PlanError before any compiled call
         self.plan = plan
         self.b = b = int(b)
         self.N = plan.d * b
@@ -214,7 +219,6 @@ class CompiledLayout:
         loop releases the GIL; one BLAS thread each), then the fronts above them (``schedule``) in this
         thread, large ones with every BLAS thread. ``progress(done, total)`` gets the multiply–adds done.
         Raises ``multifrontal.NotPositiveDefinite`` if a pivot block is not positive definite."""
-        import threading
 
         kern = kernels()
         A = np.ascontiguousarray(A, dtype=float)
@@ -223,7 +227,8 @@ class CompiledLayout:
         if L is None:
             L = np.empty(int(self.Lptr[-1]))
         data = (assembler.bptr, assembler.order, assembler.li, assembler.lj, assembler.transposed, A, B)
-        sched = self.schedule
+        n_threads = cores()
+        sched = self.schedule_for(n_threads)
         total = float(self.work.sum())
         done = [0.0]
 
@@ -237,9 +242,9 @@ class CompiledLayout:
             if sched is None:
                 _Front(self, kern, data, L, self.plan.n_fronts, np.arange(self.plan.n_fronts)).fronts(
                     0, self.plan.n_fronts, threads, done, report)
-                return CompiledFactor(self, L)
+                return CompiledFactor(self, L, n_threads)
             roots_of, top, first, ext = sched
-            workers = [_Front(self, kern, data, L, self.plan.n_fronts, seq) for seq in self.worker_fronts]
+            workers = [_Front(self, kern, data, L, self.plan.n_fronts, seq) for seq in self.worker_fronts_for(n_threads)]
             errors: list = []
 
             def work(w, roots):
@@ -249,10 +254,7 @@ class CompiledLayout:
                 except BaseException as exc:  # raised in the calling thread
                     errors.append(exc)
 
-            jobs = [threading.Thread(target=work, args=(w, roots), daemon=True, name="lago-fronts")
-                    for w, roots in zip(workers, roots_of)]
-            for j in jobs:
-                j.start()
+            jobs = [spawn(work, w, roots, name="lago-fronts") for w, roots in zip(workers, roots_of)]
             for j in jobs:
                 while j.is_alive():
                     j.join(0.25)
@@ -270,23 +272,27 @@ class CompiledLayout:
                     w, off, size = where[c]
                     kern["push"](w.stack, off, size, main.stack, main.st_front, main.st_off, main.state, c)
                 main.fronts(f, f + 1, threads, done, report)
-        return CompiledFactor(self, L)
+        return CompiledFactor(self, L, n_threads)
 
     @property
     def schedule(self):
-        """How the fronts are shared among ``cores()`` threads, or None to factor them in one: the front
+        """``schedule_for(cores())``."""
+        return self.schedule_for(cores())
+
+    def schedule_for(self, n_threads: int):
+        """How the fronts are shared among ``n_threads`` threads, or None to factor them in one: the front
         tree's largest subtrees are split (their root joins ``top``, the fronts left to this thread) until
         none holds more than 1/16 of the work, then dealt to the threads largest first. Returns
         (roots per thread, top fronts in postorder, first front of each subtree, {top front: its children
         that are subtree roots})."""
-        if "_schedule" in self.__dict__:
-            return self._schedule
+        known = self.__dict__.setdefault("_schedules", {})
+        if n_threads in known:
+            return known[n_threads]
         import heapq
 
         plan = self.plan
         total = float(self.work.sum())
-        self._schedule = None
-        n_threads = cores()
+        known[n_threads] = None
         if n_threads < 2 or total < PARALLEL_WORK or plan.n_fronts < 2:
             return None
         W, first = kernels()["subtrees"](plan.parent, self.work)
@@ -314,17 +320,15 @@ class CompiledLayout:
         ext = {}
         for f in top:
             ext[f] = [c for c in children[cptr[f]:cptr[f + 1]].tolist() if c in rootset]
-        self._schedule = (roots_of, np.array(sorted(top), np.int64), first, ext)
+        known[n_threads] = sched = (roots_of, np.array(sorted(top), np.int64), first, ext)
         log.debug("compiled engine: %d subtrees on %d threads (work %s), %d fronts above them", len(roots),
                   n_threads, [f"{x / total:.2f}" for x in load], len(top))
-        return self._schedule
+        return sched
 
     def reserve(self, *, threads: int | None = None) -> None:
         """Allocate the next factorization's L and touch every page of it now (from ``threads`` threads at
         once, default one per core, called where there is time: ``GraphElimination.prepare``), so that the factorization writes
         to memory already mapped."""
-        import threading
-
         if "_reserved" in self.__dict__:
             return
         threads = cores() if threads is None else max(1, int(threads))
@@ -334,24 +338,22 @@ class CompiledLayout:
         def touch(i):
             L[cuts[i]:cuts[i + 1]:512] = 0.0  # one write per 4 KiB page (NumPy releases the GIL)
 
-        jobs = [threading.Thread(target=touch, args=(i,), daemon=True) for i in range(1, threads)]
-        for j in jobs:
-            j.start()
+        jobs = [spawn(touch, i, name="lago-touch") for i in range(1, threads)]
         touch(0)
         L[cuts[-1]::512] = 0.0
         for j in jobs:
             j.join()
         self._reserved = L
 
-    @property
-    def worker_fronts(self) -> list:
-        """Per worker thread of ``schedule``, its fronts in the order it factors them (its subtrees, each
-        in postorder)."""
-        if "_worker_fronts" not in self.__dict__:
-            roots_of, _, first, _ = self.schedule
-            self._worker_fronts = [np.concatenate([np.arange(first[r], r + 1) for r in roots]).astype(np.int64)
-                                   if len(roots) else np.zeros(0, np.int64) for roots in roots_of]
-        return self._worker_fronts
+    def worker_fronts_for(self, n_threads: int) -> list:
+        """Per worker thread of ``schedule_for(n_threads)``, its fronts in the order it factors them (its subtrees,
+        each in postorder)."""
+        known = self.__dict__.setdefault("_worker_fronts", {})
+        if n_threads not in known:
+            roots_of, _, first, _ = self.schedule_for(n_threads)
+            known[n_threads] = [np.concatenate([np.arange(first[r], r + 1) for r in roots]).astype(np.int64)
+                                if len(roots) else np.zeros(0, np.int64) for roots in roots_of]
+        return known[n_threads]
 
     def pivot_slots(self, fronts: np.ndarray) -> np.ndarray:
         """The elimination slots of the pivots of ``fronts`` (contiguous per front)."""
@@ -455,36 +457,32 @@ class CompiledFactor:
     """N = L Lᵀ from ``CompiledLayout.factor``: ``solve_slots(y)`` for y (N,) or (N, r) in elimination
     slots."""
 
-    def __init__(self, layout: CompiledLayout, L: np.ndarray):
+    def __init__(self, layout: CompiledLayout, L: np.ndarray, n_threads: int = 1):
         self.layout = layout
         self.L = L
+        self.n_threads = n_threads  # the threads it was factored on: its solves sweep the same subtrees
 
     def solve_slots(self, y: np.ndarray) -> np.ndarray:
         """Solve N x = y for y (N,) or (N, r) in elimination slots; x likewise. With the layout's
         ``schedule``, each worker thread sweeps its own subtrees: forward on its own copy of y (its
         fronts update only their subtrees' slots and the top fronts'; the top slots' changes are summed
         afterwards), back on y itself (each writes only its own slots, reading the top fronts')."""
-        import threading
-
         kern = kernels()
         lay = self.layout
         one = y.ndim == 1
         Y = np.array(y.reshape(lay.N, -1).T, dtype=float, order="C")  # (r, N): each right-hand side contiguous
         args = (lay.b, lay.fptr, lay.rptr, lay.rows, lay.Lptr, self.L, lay.rmax)
-        sched = lay.schedule
+        sched = lay.schedule_for(self.n_threads)
         if sched is None:
             every = np.arange(lay.plan.n_fronts, dtype=np.int64)
             kern["forward"](Y, every, *args)
             kern["backward"](Y, every[::-1].copy(), *args)
             return Y[0] if one else Y.T
-        seqs, top = lay.worker_fronts, sched[1]
+        seqs, top = lay.worker_fronts_for(self.n_threads), sched[1]
         copies = [Y.copy() for _ in seqs]
 
         def each(fn, arrays, orders):
-            jobs = [threading.Thread(target=fn, args=(a, o) + args, daemon=True, name="lago-solve")
-                    for a, o in zip(arrays, orders)]
-            for j in jobs:
-                j.start()
+            jobs = [spawn(fn, a, o, *args, name="lago-solve") for a, o in zip(arrays, orders)]
             for j in jobs:
                 j.join()
 
@@ -532,8 +530,8 @@ class CompiledPoseFactor(Factor):
 class CompiledEdgeOperator:
     """M x and Mᵀ r of an edge system (E) (``normal_equations.EdgeSystem``) by compiled loops over its
     edges, reading A, B (m, q, b) where they are: no transposed copies and no temporaries of length m
-    (at a million poses the NumPy ``EdgeOperator``'s copies and temporaries are 0.3 GiB of fresh memory,
-    its products 0.2–0.45 s each). The same sums in the same order as the NumPy operator, for one
+    (at a million poses the NumPy ``EdgeOperator``'s copies and temporaries are 0.3 GiB of fresh memory:
+    ``benchmarks/million.md``). The same sums in the same order as the NumPy operator, for one
     right-hand side or several (a trailing axis)."""
 
     def __init__(self, system):

@@ -20,6 +20,7 @@ import numpy as np
 from numba import njit
 
 from . import supernodes
+from .kernel_checks import checked
 
 __all__ = ["KERNELS", "CACHED"]
 
@@ -464,8 +465,11 @@ def one(f, b, fptr, rptr, Lptr, L, F, D, fn):
     return dense_blas(F, D, (fptr[f + 1] - fptr[f]) * b, fn, iv, dv)
 
 
-#: The kernels by name, and ``fn`` the LAPACK/BLAS addresses of this process.
-KERNELS = dict(assemble=assemble, finish=finish, run=run, forward=forward, backward=backward,
+#: The kernels by name, and ``fn`` the LAPACK/BLAS addresses of this process; each checks the indices it reads first
+#: (``kernel_checks``: a malformed plan raises PlanError; the module's own functions, which call each other in
+#: compiled code, do not check).
+KERNELS = checked(dict(assemble=assemble, finish=finish, run=run, forward=forward, backward=backward,
                stack_peak=stack_peak, one=one, subtrees=subtrees, push=push, pose_local=pose_local,
                block_map=block_map, edge_matvec=edge_matvec, edge_rmatvec=edge_rmatvec,
-               relax=_jit(supernodes.relax), heights=_jit(supernodes.heights), fn=_addresses())
+               relax=_jit(supernodes.relax), heights=_jit(supernodes.heights),
+                       postorder=_jit(supernodes.postorder), fn=_addresses()))

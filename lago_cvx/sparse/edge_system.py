@@ -57,8 +57,7 @@ class EdgeSystem:
         """The same blocks entry by entry, (3, b, b, m): [k, r, c] the (r, c) entries of the k-th kind
         (A_kᵀA_k, B_kᵀB_k, B_kᵀA_k) for every edge, each a sum over the q rows of products of length-m
         vectors. For small m faster than the stacked products of ``normal_blocks`` (NumPy pays per 3×3
-        matrix there: city10000's phase 3 8.7 ms against 13 ms, the chordal 2×2 blocks 4 against 9 ms;
-        equal at 1.8 M edges)."""
+        matrix there; equal at 1.8 M edges: ``benchmarks/perf.md``)."""
         m, q, b = self.A.shape
         At = np.ascontiguousarray(self.A.transpose(1, 2, 0))  # (q, b, m)
         Bt = np.ascontiguousarray(self.B.transpose(1, 2, 0))

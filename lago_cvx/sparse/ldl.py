@@ -5,10 +5,9 @@ Python entry point, ``qdldl.Solver(A)``, which always computes AMD on the scalar
 factoring. LAGO's systems do not need that: every system of a graph has b×b blocks on the pattern of
 the anchor-reduced pose graph, whose fill-reducing ordering is computed once at the pose level
 (``normal_equations.GraphElimination``, AMD of the d × d pose Laplacian) and serves b = 1, 2, 3 alike.
-Repeating AMD on the 3d × 3d scalar matrix of phase 3 costs about two thirds of the numeric
-factorization's time (city10000: ``qdldl.Solver`` 83 ms, its numeric refactorization ``Solver.update``
-50 ms) and finds no better ordering: on se-sync/city10000.g2o L has 1 015 974 entries under scalar AMD and
-1 016 856 under the pose ordering expanded to 3 components per pose.
+Repeating AMD on the 3d × 3d scalar matrix of phase 3 costs more than half the numeric factorization's time and
+finds no better ordering: on se-sync/city10000.g2o L has 1 015 974 entries under scalar AMD and 1 016 856 under
+the pose ordering expanded to 3 components per pose (phase 3's times: ``benchmarks/perf.md``).
 
 So this module calls QDLDL's three C routines directly through ``ctypes``, on an upper-triangular CSC
 already in elimination order:
@@ -88,9 +87,8 @@ def _p(a: np.ndarray) -> int:
     return a.ctypes.data
 
 
-#: L's arrays of at least this many bytes are placed on transparent huge pages (``huge_empty``): at
-#: 2 MiB, input_M3500's phase 3 (L's arrays 1.4 MiB each) still took 10 ms instead of 7 after a run on
-#: city10000 had left the heap fragmented.
+#: L's arrays of at least this many bytes are placed on transparent huge pages (``huge_empty``): a 2 MiB threshold
+#: left input_M3500's phase 3 (L's arrays 1.4 MiB each) slower after a fragmenting run (``benchmarks/perf.md``).
 HUGE_MIN = 256 << 10
 #: Freed huge-page regions kept for the next factorization, up to this many bytes in all.
 HUGE_POOL = 64 << 20
@@ -131,9 +129,8 @@ def huge_empty(n: int, dtype) -> np.ndarray:
     forked child starts with an empty pool.
 
     Why: QDLDL writes L row by row, so each row's entries land in as many columns, far apart in ``Li``
-    and ``Lx``; on 4 KiB pages those writes miss the TLB. Measured on se-sync/city10000.g2o: the same
-    factorization of the chordal system took 13 ms or 39 ms depending on where NumPy's allocator put L
-    (memory reused from the heap is on 4 KiB pages), on huge pages 13.5–13.7 ms every time. Fresh huge
+    and ``Lx``; on 4 KiB pages those writes miss the TLB, and the same factorization's time then depends on where
+    NumPy's allocator put L (up to threefold on city10000's chordal system; ``benchmarks/perf.md``). Fresh huge
     pages must be zeroed, hence the pool: a LAGO run after another reuses the last run's regions."""
     dtype = np.dtype(dtype)
     nbytes = int(n) * dtype.itemsize

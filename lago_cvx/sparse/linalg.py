@@ -4,8 +4,8 @@
 Backends:
 
 * ``"qdldl"`` — QDLDL's LDLᵀ with an AMD fill-reducing ordering (the ``qdldl`` package, which cvxpy
-  already depends on, and the same factorization Clarabel uses). 3–5× faster than SuperLU on our
-  systems (phase 3 of city10000: 0.19 s against 0.65 s) — the default.
+  already depends on, and the same factorization Clarabel uses). Several times faster than SuperLU on our
+  systems (``benchmarks/perf.md``) — the default.
 * ``"superlu"`` — SciPy's SuperLU with a symmetric minimum-degree ordering and no off-diagonal
   pivoting (for SPD matrices, Cholesky's sparsity). Solves many right-hand sides at once, so it is
   used for selected inverses (marginal covariances).
@@ -14,9 +14,8 @@ Backends:
 ``"auto"`` picks QDLDL (else SuperLU). The closed forms do not come through here: below 1 200 000
 unknowns they call QDLDL's C routines directly in the pose-level elimination order (``lago_cvx.sparse.ldl``, no
 AMD of QDLDL's own), from there on the multifrontal engine (``normal_equations.ENGINE_MIN``). CHOLMOD is
-used only when asked for. Its speed depends on the BLAS the system's SuiteSparse is linked to: on Debian's reference BLAS it was slower
-than QDLDL (phase 3 at 100 000 poses: 2.7 s against 1.9–2.1 s), on OpenBLAS it is the fastest at every
-size measured (1M poses: 21.7 s against the engine's 26.4 s, version 0.2's ``benchmarks/perf.md``).
+used only when asked for. Its speed depends on the BLAS the system's SuiteSparse is linked to: slower than QDLDL on
+a reference BLAS, the fastest on OpenBLAS (version 0.2's ``benchmarks/perf.md``).
 """
 
 from __future__ import annotations
@@ -31,6 +30,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import NumericalError, OptionError
+from .threads import blas_limit
 
 __all__ = ["blas_threads", "Factor", "factorize", "solve_least_squares", "refine_normal_equations", "augmented_least_squares", "REFINEMENT_STEPS", "REFINEMENT_STOP", "TRUST_TOLERANCE", "whitening_2x2", "block_diagonal_inverse", "SOLVER_BACKENDS"]
 
@@ -58,13 +58,22 @@ if hasattr(os, "register_at_fork"):
 @contextlib.contextmanager
 def blas_threads(n: int | None):
     """Run a block with at most ``n`` BLAS threads (None: as many as configured on entry) and yield a
-    setter ``threads(k)`` that changes it inside the block (k None: back to the count on entry); the
-    process's count is restored when the last such block ends, also when blocks of several threads
-    overlap (the counts are kept from the first entry, not re-read from a count another block lowered).
+    setter ``threads(k)`` that changes it inside the block (k None: back to the count on entry) — only when a
+    caller asked the engine to (``threads.engine_threads(blas_threads=m)``, which also caps every count at m).
+    Otherwise (the default) the block runs with the process's BLAS settings untouched and the setter does
+    nothing: the BLAS thread count is process-wide, seen by every other thread meanwhile, so the engine leaves it
+    alone unless asked. When set, the process's count is restored when the last such block ends, also when blocks
+    of several threads overlap (the counts are kept from the first entry, not re-read from a count another block
+    lowered).
 
     Through threadpoolctl, which finds every loaded BLAS (NumPy and SciPy each carry an OpenBLAS).
     Small dense kernels run faster on one thread: OpenBLAS's threads cost more than they give on
     blocks of a few dozen rows, above all on a machine whose other core is busy."""
+    limit = blas_limit()
+    if limit is None:
+        yield _leave_blas
+        return
+    n = limit if n is None else min(n, limit)
     if not _BLAS:
         import scipy.linalg  # noqa: F401  (loads SciPy's BLAS, so that it is found)
 
@@ -84,9 +93,10 @@ def blas_threads(n: int | None):
     state = [None]
 
     def threads(k: int | None) -> None:
+        k = limit if k is None else min(k, limit)
         if k != state[0]:
             for lib, on_entry in libs:
-                lib.set_num_threads(on_entry if k is None else max(1, min(k, on_entry)))
+                lib.set_num_threads(max(1, min(k, on_entry)))
             state[0] = k
 
     threads(n)
@@ -98,6 +108,10 @@ def blas_threads(n: int | None):
             if _BLAS_USERS[0] == 0:
                 for lib, on_entry in libs:
                     lib.set_num_threads(on_entry)
+
+
+def _leave_blas(k: int | None) -> None:
+    """``blas_threads``'s setter when the engine leaves the BLAS alone: nothing."""
 
 
 def _not_kept():

@@ -67,10 +67,8 @@ ZRELAX = (0.8, 0.1, 0.05)
 
 #: The amalgamation for the compiled engine (``lago_cvx.sparse.compiled``), whose cost per front is a few hundred
 #: nanoseconds, not a Python call: fewer explicit zeros, so a smaller L (less memory to fault in, shorter
-#: solves) for the same factorization time. Phase 3 of the 1 000 000-pose world (its system captured and
-#: factored again in one process, version 0.2): L 1.85 GiB in 85 637 fronts with ``NRELAX``/``ZRELAX``,
-#: 1.48 GiB in 156 780 with these; the compiled factorization 2.5–2.9 s against 2.8 s. Tighter still,
-#: (2, 4, 16) and (0.8, 0.1, 0.05), gave 1.28 GiB but 3.7 s. Whole runs: ``benchmarks/million.md``.
+#: solves) for the same factorization time (phase 3 of the 1 000 000-pose world: L 1.85 GiB with ``NRELAX``/
+#: ``ZRELAX``, 1.48 GiB with these; tighter still cost time). Whole runs: ``benchmarks/million.md``.
 COMPILED_RELAX = ((2, 8, 32), (0.8, 0.1, 0.05))
 
 #: Fronts with at least this many pivot variables (k·b) are factored one at a time with exact sizes;
@@ -78,8 +76,8 @@ COMPILED_RELAX = ((2, 8, 32), (0.8, 0.1, 0.05))
 SINGLE_FRONT = 96
 
 #: Fronts with at least this many pivot variables are factored with every BLAS thread; smaller ones
-#: with one (threads cost more than they give on small dense blocks: measured, the factorization of
-#: phase 3 of a 100 000-pose world took 5.0 s with two OpenBLAS threads and 0.9 s with one).
+#: with one — when the caller let the engine set the BLAS threads (``threads.engine_threads``): threads cost far
+#: more than they give on small dense blocks (``benchmarks/million.md``).
 THREADED_FRONT = 384
 
 #: Pose-count ladder the small fronts are padded to (steps of about 1.25).
@@ -108,51 +106,57 @@ def _pad(x: np.ndarray) -> np.ndarray:
     return np.where(i < _LADDER.size, _LADDER[np.minimum(i, _LADDER.size - 1)], x)
 
 
-#: Up to this many nodes ``_postorder`` runs two Python loops instead of importing ``scipy.sparse.csgraph``, whose
-#: import (it loads ``scipy.sparse.linalg``) costs a fresh process about 55 ms: the 3-D graphs' plans then import no
-#: SciPy graph module. The loops take 0.7 ms at 2 500 nodes and 1.3 ms at 5 000 (csgraph: 0.3 ms), 5.6 ms at 20 000
-#: (0.9 ms). The same order either way (tested).
-POSTORDER_LOOPS_MAX = 10_000
-
-
 def _postorder(parent: np.ndarray) -> np.ndarray:
-    """A postorder of the forest ``parent`` (−1 at roots, else parent[i] > i, as in an elimination tree):
-    ``order[t]`` = the node visited t-th, children before parents. The reverse of the depth-first preorder that
-    visits children by increasing index (``scipy.sparse.csgraph``'s), i.e. each node after its subtree and
-    siblings by decreasing index; computed by loops for small forests (:data:`POSTORDER_LOOPS_MAX`)."""
+    """A postorder of the forest ``parent`` (−1 at roots): ``order[t]`` = the node visited t-th, children before
+    parents. The reverse of the depth-first preorder that visits children by increasing index (``scipy.sparse.
+    csgraph``'s), i.e. each node after its subtree and siblings by decreasing index. O(n) at every shape: for an
+    elimination tree (parent[i] > i) ``supernodes.postorder``'s two passes (in C, by Numba or in Python, as
+    ``_loops`` chooses), else one depth-first walk by an explicit stack. (``csgraph.depth_first_order``, used
+    before, is quadratic on a star: every pose tied to one hub.)"""
+    parent = np.ascontiguousarray(parent, np.int64)
     n = parent.size
-    if n <= POSTORDER_LOOPS_MAX and (parent[parent >= 0] > np.flatnonzero(parent >= 0)).all():
-        par = np.where(parent < 0, n, parent).tolist()
-        size = [1] * (n + 1)
-        for i in range(n):  # children before parents (parent[i] > i)
-            size[par[i]] += size[i]
-        free = [0] * (n + 1)  # next free place in each node's interval; the virtual root n starts at 0
-        where = [0] * n
-        for i in range(n - 1, -1, -1):  # parents before children, siblings by decreasing index
-            lo = free[par[i]]
-            free[par[i]] = lo + size[i]
-            free[i] = lo
-            where[i] = lo + size[i] - 1  # a node follows its subtree
-        order = np.empty(n, np.int64)
-        order[np.asarray(where, np.int64)] = np.arange(n)
-        return order
-    from scipy.sparse import csgraph
-
-    par = np.where(parent < 0, n, parent)  # a virtual root n above the roots
-    children = sp.csr_matrix((np.ones(n), (par, np.arange(n))), shape=(n + 1, n + 1))
-    pre = csgraph.depth_first_order(children, n, directed=True, return_predecessors=False)
-    return pre[:0:-1].astype(np.int64)  # drop the virtual root (first in preorder), reverse
+    has = parent >= 0
+    if (parent[has] > np.flatnonzero(has)).all():
+        return _loops(n)[2](parent)
+    par = np.where(has, parent, n)  # a virtual root n above the roots
+    kids = np.argsort(par, kind="stable")  # children of each node by increasing index
+    ptr = np.r_[0, np.cumsum(np.bincount(par, minlength=n + 1))].tolist()
+    kids = kids.tolist()
+    pre, stack = [], [n]
+    while stack:
+        v = stack.pop()
+        pre.append(v)
+        stack.extend(reversed(kids[ptr[v]:ptr[v + 1]]))  # the smallest child on top
+    return np.array(pre[:0:-1], np.int64)
 
 
-#: From this many poses the symbolic analysis's two sequential loops run through Numba's ``compiled_kernels`` when
-#: the C kernels are not built (1.4 s of Python at a million poses; Numba's start, about 0.5 s, is not worth it
-#: below). The C kernels (``c_kernels``) run them at every size: loading them costs milliseconds, and ``relax`` takes
-#: 4.5 ms of Python on sphere2500's 2 500 poses.
+#: From this many poses the symbolic analysis's sequential loops run through Numba's ``compiled_kernels`` when the C
+#: kernels are not built: below it Numba's start costs more than the Python loops. The C kernels (``c_kernels``) run
+#: them at every size: they load in milliseconds (``benchmarks/million.md``, ``benchmarks/spaceprocess.md``).
 COMPILED_LOOPS = 200_000
 
 
+def _postorder_python(parent: np.ndarray) -> np.ndarray:
+    """``supernodes.postorder`` on Python lists (faster than on NumPy scalars where nothing compiles)."""
+    n = parent.size
+    par = np.where(parent < 0, n, parent).tolist()
+    size = [1] * (n + 1)
+    for i in range(n):  # children before parents (parent[i] > i)
+        size[par[i]] += size[i]
+    free = [0] * (n + 1)  # next free place in each node's interval; the virtual root n starts at 0
+    where = [0] * n
+    for i in range(n - 1, -1, -1):  # parents before children, siblings by decreasing index
+        lo = free[par[i]]
+        free[par[i]] = lo + size[i]
+        free[i] = lo
+        where[i] = lo + size[i] - 1  # a node follows its subtree
+    order = np.empty(n, np.int64)
+    order[np.asarray(where, np.int64)] = np.arange(n)
+    return order
+
+
 def _loops(d: int):
-    """``supernodes.relax`` and ``supernodes.heights``: in C when its library was built, else through Numba for
+    """``supernodes.relax``, ``supernodes.heights`` and ``supernodes.postorder``: in C when its library was built, else through Numba for
     d ≥ ``COMPILED_LOOPS`` when it can be imported, else as Python (integer loops and the same floating-point
     operations: the same plan every way, tested)."""
     from . import supernodes
@@ -161,13 +165,13 @@ def _loops(d: int):
         from .c_kernels import KERNELS
     except ImportError:
         if d < COMPILED_LOOPS:
-            return supernodes.relax, supernodes.heights
+            return supernodes.relax, supernodes.heights, _postorder_python
         try:
             from .compiled_kernels import KERNELS
         except Exception as exc:  # no Numba: the same loops in Python
             log.debug("symbolic analysis in Python (%s)", exc)
-            return supernodes.relax, supernodes.heights
-    return KERNELS["relax"], KERNELS["heights"]
+            return supernodes.relax, supernodes.heights, _postorder_python
+    return KERNELS["relax"], KERNELS["heights"], KERNELS["postorder"]
 
 
 @dataclass(eq=False)
@@ -252,7 +256,7 @@ def plan_from_qdldl(L: sp.csc_matrix, perm: np.ndarray, *, relaxation=None) -> E
     last = ends - 1
     sparent = np.where(parent_p[last] >= 0, snode_of[np.maximum(parent_p[last], 0)], -1)
     # relaxed amalgamation: children first (supernodes are in topological order)
-    relax, heights = _loops(d)
+    relax, heights, _ = _loops(d)
     k = (ends - starts).astype(np.int64)
     true_nnz = np.add.reduceat(cnt_p + 1, starts).astype(np.int64) if d else np.zeros(0, np.int64)
     top = relax(k, cnt_p[last].astype(np.int64), true_nnz, sparent.astype(np.int64), *nrelax, *zrelax)

@@ -40,6 +40,7 @@ from .compiled import CompiledPoseFactor
 from .block_factor import inverse_blocks
 from .multifrontal import COMPILED_RELAX, BlockFactor, EliminationPlan, plan_from_pattern, plan_from_qdldl
 from ..progress import Progress
+from .threads import Ahead, cores, engine_threads, in_engine_threads, spawn, thread_settings
 from .upper_pattern import BlockUpperPattern, PoseLaplacian, PoseUpperPattern, QdldlFactor, matrix_blocks
 from . import wide as wide_policy
 
@@ -65,36 +66,22 @@ class PoseFactor(Factor):
 
 #: Systems with at least this many unknowns (d·b) are factored by the multifrontal engine
 #: (``lago_cvx.sparse.multifrontal``), smaller ones by QDLDL in the pose-level order (``lago_cvx.sparse.ldl``), whose C
-#: loop has no per-front Python cost. Measured (2 cores, a slow day of the shared machine; phase 3 from
-#: benchmarks/perf.md's last table, four runs; b = 1, 2 by factor plus refined solve of the isotropic
-#: positions and the chordal system, two runs each, the symbolic steps included):
-#:   b = 3, 100 000 poses (300 k unknowns): QDLDL 1.7–1.9 s, engine 2.0–2.8;
-#:   b = 3, 300 000 poses (900 k): 7.4–11.6 against 7.7–10.8 over six runs (four of perf.md, two of
-#:   the seed route with ENGINE_MIN switched): means 9.0 and 9.1, parity;
-#:   b = 3, 1 000 000 poses (3 M): 70–85 against 37–42;
-#:   b = 2, 300 000 poses (600 k): 2.1–2.8 against 3.0–5.1;  b = 2, 1 000 000 poses (2 M): 22 against 17–19;
-#:   b = 1, 300 000 poses: 1.2–1.3 against 2.6–4.1;  b = 1, 1 000 000 poses (1 M): 3.2–3.9 against 6.1–10.4.
-#: So the threshold sits between 1 M and 2 M unknowns, at phase 3's parity around 300 000 poses. (Before
-#: QDLDL was called in the pose order it ran its own AMD and the crossover was 250 000 unknowns.)
+#: loop has no per-front Python cost. QDLDL is faster up to about 1 M unknowns, the engine from about 2 M (phase 3
+#: of 100 000 – 1 000 000-pose worlds, b = 1, 2, 3: ``benchmarks/million.md``, ``benchmarks/scaling.md``).
 #: ``GraphElimination.factor(engine=...)`` forces either; ``Phase3.pose_covariances`` refactors a QDLDL
 #: system by the engine for its selected inversion (``QdldlFactor.engine_factor``).
 ENGINE_MIN = 1_200_000
 
 #: Systems with at least this many unknowns are factored by the compiled engine (``lago_cvx.sparse.compiled``)
 #: when it can run (C kernels or Numba; it then takes the place of the NumPy engine above ``ENGINE_MIN`` too).
-#: Phase 3 alone, a fresh process each (benchmarks/million.md): QDLDL against compiled + Numba's import
-#: 0.280 against 0.235 + 0.160 s at 90 000 unknowns, 1.10 against 0.64 + 0.16 s at 300 000, 5.61 against
-#: 1.62 + 0.17 s at 900 000 (another run: 0.375 against 0.216 + 0.160, 1.06 against 0.57 + 0.16, 4.41
-#: against 1.50 + 0.16; with ``multifrontal.COMPILED_RELAX``; before it, 0.48 against 0.81 + 0.30, 2.31
-#: against 1.68 + 0.32, 8.5 against 3.8 + 0.24). Kept where the gain is clear of the noise.
+#: From here the compiled engine, its start included, beats QDLDL clear of the noise (phase 3 alone, fresh
+#: processes, 90 000 – 900 000 unknowns: ``benchmarks/million.md``).
 COMPILED_MIN = 300_000
 
 #: Below this many free poses the engine works in the caller's thread alone: no worker builds the
 #: elimination, and QDLDL runs no handed-over work beside its factorizations (they run when asked for).
-#: Handing work to a thread and taking the GIL back cost more than they save on small graphs. The LAGO
-#: step alternating both ways in one process (median of 11): MIT (808 poses) 9.5 ms alone against 13.4
-#: with the overlap, input_INTEL (1 228) 13.3 against 17.9, manhattan (3 500) 41.9 against 47.0,
-#: input_M3500 (3 500) 33.1–37.4 against 31.9–33.0; city10000 gains from it.
+#: Handing work to a thread and taking the GIL back cost more than they save on small graphs (MIT, input_INTEL,
+#: manhattan; city10000 gains: the in-process table of ``benchmarks/perf.md``).
 OVERLAP_MIN = 2_500
 
 
@@ -169,11 +156,16 @@ class GraphElimination:
     need is prepared ahead — patterns beside another factorization, the compiled engine's layout and
     memory in a worker (``prepare``). ``ahead(task)`` hands over other work needed later (an
     ``Ahead``); the engine runs it beside the next QDLDL factorization, else it runs when first asked for.
-    ``wide``: the block sizes of the systems that ``factor_wide`` will factor (3-D; ``wide_compiled``)."""
+    ``wide``: the block sizes of the systems that ``factor_wide`` will factor (3-D; ``wide_compiled``).
+    ``workers`` caps the engine's own threads for everything done on this elimination (None: ``threads.cores()``;
+    1: no thread besides the caller's); ``blas_threads`` lets the engine hold the process's BLAS to that many
+    threads while it factors (None, the default: the BLAS settings are left alone; ``threads.engine_threads``)."""
 
     def __init__(self, graph, anchor_index: int, *, weights: np.ndarray | None = None,
                  factor_laplacian: bool | None = True, expect: tuple = (), wide: tuple = (),
-                 _background: bool = False):
+                 workers: int | None = None, blas_threads: int | None = None, _background: bool = False):
+        with engine_threads(workers=workers, blas_threads=blas_threads):  # checks both; None: the caller's context
+            self.workers, self.blas_threads, alone = thread_settings() + (cores() == 1,)
         n = graph.n_poses
         self.n = n
         self.d = d = n - 1
@@ -204,16 +196,18 @@ class GraphElimination:
             return
         if factor_laplacian is None:  # QDLDL will factor the chordal relaxation first: Ω_θ beside it
             factor_laplacian = not (self._expected[:1] == [2] and 2 * d < COMPILED_MIN)
-        if _background and d >= OVERLAP_MIN:
+        if _background and d >= OVERLAP_MIN and not alone:
             self._building = Ahead(self._build, factor_laplacian)
-            threading.Thread(target=self._building.run, daemon=True, name="lago-elimination").start()
+            spawn(self._building.run, name="lago-elimination")
         else:
             self._build(factor_laplacian)
 
     @classmethod
-    def start(cls, graph, anchor_index: int, *, weights: np.ndarray, expect: tuple = ()) -> "GraphElimination":
+    def start(cls, graph, anchor_index: int, *, weights: np.ndarray, expect: tuple = (), workers: int | None = None,
+              blas_threads: int | None = None) -> "GraphElimination":
         """The elimination built in a worker thread while the caller goes on (class docstring)."""
-        return cls(graph, anchor_index, weights=weights, factor_laplacian=None, expect=expect, _background=True)
+        return cls(graph, anchor_index, weights=weights, factor_laplacian=None, expect=expect, workers=workers,
+                   blas_threads=blas_threads, _background=True)
 
     def _build(self, factor_laplacian: bool) -> None:
         """AMD and the weighted Laplacian's factorization (or, without weights, nothing: the plan is built
@@ -425,6 +419,7 @@ class GraphElimination:
                 and np.array_equal(system.tails, self.tails) and np.array_equal(system.heads, self.heads)
                 and np.allclose(Bk * Bk, self._weights, rtol=1e-12, atol=0.0))
 
+    @in_engine_threads
     def factor(self, system: EdgeSystem, *, progress=None, engine: bool | str | None = None,
                solving: bool = False) -> Factor:
         """Factor the normal matrix (N) of ``system``. ``engine`` None (the default) picks: the weighted
@@ -479,29 +474,29 @@ class GraphElimination:
             for nb in self._expected:
                 self.prepare(nb)
 
+    @in_engine_threads
     def prepare(self, b: int) -> None:
         """Start building, in a worker thread, what the compiled factorization of a system with b×b blocks
         will need — the plan, its ``compiled.CompiledLayout``, the assembler, and L's storage allocated
-        and touched (``CompiledLayout.reserve``: first touches of fresh memory are costly, in a virtual
-        machine more than 1 s per GiB) — while this thread goes on (phases 1 and 2 before phase 3).
+        and touched (``CompiledLayout.reserve``: first touches of fresh memory are costly, above all in a
+        virtual machine: ``benchmarks/million.md``) — while this thread goes on (phases 1 and 2 before phase 3).
         Nothing happens below ``COMPILED_MIN`` unknowns or without Numba; ``factor`` waits for the
         worker and raises its error."""
-        if self.d * b < COMPILED_MIN or b in self._preparing or ("compiled", b) in self._assemblers:
-            return
+        if self.d * b < COMPILED_MIN or b in self._preparing or ("compiled", b) in self._assemblers or cores() == 1:
+            return  # with one worker, ``factor`` builds what it needs when it needs it
 
         def work():
             if not compiled.available():
                 return
             lay = compiled.CompiledLayout.of(self.plan, b)
-            touch = threading.Thread(target=lay.reserve, daemon=True, name="lago-reserve")
-            touch.start()  # L's pages faulted in beside the assembler's work
+            touch = spawn(lay.reserve, name="lago-reserve")  # L's pages faulted in beside the assembler's work
             prow, pcol, _ = self.pairs
             asm = lay.assembler(prow, pcol)
             touch.join()
             self._assemblers["compiled", b] = (lay, asm)
 
         job = Ahead(work)
-        threading.Thread(target=job.run, daemon=True, name="lago-prepare").start()
+        spawn(job.run, name="lago-prepare")
         self._preparing[b] = job
 
     def cost(self, system: EdgeSystem, x: np.ndarray) -> float:
@@ -509,6 +504,7 @@ class GraphElimination:
         r = edge_operator(system).matvec(x) - system.c
         return float(np.sum(r * r))
 
+    @in_engine_threads
     def solve(self, system: EdgeSystem, *, factor: Factor | None = None, stage: str = "solve",
               progress=None):
         """Minimise (E): returns ``(x (d, b), factor, stats)`` with ``stats`` as
@@ -566,35 +562,3 @@ class GraphElimination:
             tracker.finish()
         self._prepare_next(b)
         return x.reshape((d, b) + system.c.shape[2:]), factor, stats
-
-
-class Ahead:
-    """``task(*args)``, run at most once: by the engine ahead of need (``run``), or by whoever first asks
-    for the value (``result``, which returns it or raises the task's error — a background failure reaches
-    the caller). A ``result()`` asked while another thread runs it waits for it; the task itself may start
-    a factorization that runs the engine's queue, where it is skipped (it is under way)."""
-
-    def __init__(self, task, *args):
-        self._task, self._args = task, args
-        self._lock = threading.RLock()
-        self.done, self._running = False, False
-        self._value, self._error = None, None
-
-    def run(self) -> None:
-        with self._lock:
-            if self.done or self._running:
-                return
-            self._running = True
-            try:
-                self._value = self._task(*self._args)
-            except BaseException as exc:  # kept for ``result``
-                self._error = exc
-            finally:
-                self.done, self._running = True, False
-                self._task = self._args = None
-
-    def result(self):
-        self.run()
-        if self._error is not None:
-            raise self._error
-        return self._value

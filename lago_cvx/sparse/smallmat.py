@@ -1,8 +1,7 @@
 r"""Closed forms on stacks of small symmetric matrices: one per edge, (m, k, k) with k = 2 or 3.
 
-NumPy's ``linalg`` calls LAPACK once per matrix of a stack, so inverting the 3×3 information of every
-edge of a 1 786 812-edge graph took 0.70 s and its Cholesky factors 0.21 s; the closed forms below do
-each in a few vectorized passes (tens of milliseconds). Symmetric positive definite input is assumed;
+NumPy's ``linalg`` calls LAPACK once per matrix of a stack, a Python-level cost per matrix on graphs of millions of
+edges (``benchmarks/million.md``); the closed forms below do each in a few vectorized passes. Symmetric positive definite input is assumed;
 a matrix whose closed form breaks down (a pivot ≤ 0 or not finite) is handed to ``numpy.linalg``
 instead, which gives the same answer or raises ``numpy.linalg.LinAlgError`` as before.
 

@@ -6,14 +6,16 @@ milliseconds) — with the same arithmetic every way (``multifrontal._loops``).
 
 * ``relax`` — relaxed amalgamation (CHOLMOD's rule, ``multifrontal.NRELAX``/``ZRELAX``): supernode c is
   merged into its parent p when the merged front has few pivots, or few explicit zeros;
-* ``heights`` — each front's height in the front tree (0 at the leaves).
+* ``heights`` — each front's height in the front tree (0 at the leaves);
+* ``postorder`` — the elimination tree's postorder (children before parents), linear in its nodes at every shape
+  (a star as a chain).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["relax", "heights"]
+__all__ = ["relax", "heights", "postorder"]
 
 
 def relax(k, r, true_nnz, sparent, n0, n1, n2, z0, z1, z2):
@@ -47,3 +49,29 @@ def heights(parent):
         if p >= 0 and h[p] < h[f] + 1:
             h[p] = h[f] + 1
     return h
+
+
+def postorder(parent):
+    """(n,) ``order[t]`` the node visited t-th by the postorder of the forest ``parent`` (n,) (−1 at a root, else
+    parent[i] > i, as in an elimination tree): the reverse of the depth-first preorder that visits children by
+    increasing index (``scipy.sparse.csgraph.depth_first_order``'s), i.e. each node right after its subtree, siblings
+    by decreasing index. Two passes: subtree sizes (children first), then each node's interval in its parent's
+    (parents first), O(n)."""
+    n = parent.size
+    size = np.ones(n + 1, np.int64)
+    for i in range(n):  # children before parents (parent[i] > i); the virtual root n above the roots
+        p = parent[i]
+        if p < 0:
+            p = n
+        size[p] += size[i]
+    free = np.zeros(n + 1, np.int64)  # next free place in each node's interval; the virtual root's starts at 0
+    order = np.empty(n, np.int64)
+    for i in range(n - 1, -1, -1):  # parents before children, siblings by decreasing index
+        p = parent[i]
+        if p < 0:
+            p = n
+        lo = free[p]
+        free[p] = lo + size[i]
+        free[i] = lo
+        order[lo + size[i] - 1] = i  # a node follows its subtree
+    return order

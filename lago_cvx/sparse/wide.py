@@ -12,7 +12,6 @@ are loaded for the b = 6 one anyway), on a plan with the compiled engine's amalg
 
 from __future__ import annotations
 
-import contextlib
 import logging
 
 __all__ = ["WIDE_COMPILED_MIN", "compiled_from", "factor_wide", "solve_wide"]
@@ -23,49 +22,29 @@ log = logging.getLogger(__name__)
 #: b = 6: the joint step) with at least this many unknowns d·b are factored by the engine's compiled multifrontal
 #: engine (``GraphElimination.factor(engine="compiled")``), smaller ones as the engine chooses (QDLDL there). The
 #: engine's own threshold is set by the planar systems (300 000 unknowns, b ≤ 3, little fill per unknown); a 3-D
-#: graph fills more per pose and the 6×6 blocks multiply it by 36, where dense fronts pay far sooner. Measured in
-#: process (one BLAS thread, median of 7, QDLDL / compiled, the whole elimination built per call): the joint step's
-#: b = 6 factorization on torus3D (30 000 unknowns) 0.74 / 0.11 s, sphere2500 (15 000) 0.175 / 0.066 s; the b = 3
-#: systems 0.063 / 0.055 and 0.026 / 0.010 s. But Numba's first compiled factorization in a process imports Numba
-#: and loads the kernels, about 0.5-1 s: a whole ``lago-cvx solve parking-garage.g2o`` (b = 6: 9 960 unknowns,
-#: 10 ms gained in process) took 1.45-1.58 s with it against 0.75-0.91 s without. Hence the threshold above
-#: parking-garage's joint step.
+#: graph fills more per pose and the 6×6 blocks multiply it by 36, where dense fronts pay far sooner; but Numba's
+#: import and kernel loading cost a one-shot process more than a small 3-D graph gains, hence a threshold above
+#: parking-garage's joint step (in process and whole processes: ``benchmarks/space.md``, ``benchmarks/spaceprocess.md``).
 WIDE_COMPILED_MIN = 12_000
 
 
 def compiled_from() -> int:
     """The least unknowns d·b of a 3-D system that the compiled engine factors: 0 with the C kernels
-    (``compiled.native()``; they load in milliseconds, and the compiled route was as fast or faster at every size
-    measured: lago3d in process, median of 15, QDLDL / compiled, parking-garage 84.5 / 77.4 ms, smallGrid3D 14.4 /
-    14.0 ms, tinyGrid3D 8.1 / 7.4 ms), :data:`WIDE_COMPILED_MIN` with Numba's."""
+    (``compiled.native()``; they load in milliseconds, and the compiled route was as fast or faster on every 3-D graph
+    measured: ``benchmarks/space.md``), :data:`WIDE_COMPILED_MIN` with Numba's."""
     from . import compiled
 
     return 0 if compiled.native() else WIDE_COMPILED_MIN
 
 
-#: The compiled factorizations of the 3-D systems run with one BLAS thread. The engine gives its largest fronts every
-#: BLAS thread; OpenBLAS's threads wait for each other by spinning, and with the other core busy (another process)
-#: the waits dominate. lago3d's default route in process, alternating, median of 5, with a loaded second core:
-#: sphere2500 0.85-0.97 s with the threads against 0.26-0.29 s with one (QDLDL, before: 0.38-0.45 s), torus3D
-#: 3.3-4.5 s against 0.37-0.60 s (QDLDL: 1.22-1.62 s).
-_ONE_BLAS_THREAD = []
-
-
 def _one_blas_thread():
-    """A context manager holding every loaded BLAS to one thread (``threadpoolctl``), or a no-op without it."""
-    if not _ONE_BLAS_THREAD:
-        try:
-            import scipy.linalg  # noqa: F401  (SciPy's own OpenBLAS loaded, so that it is found)
-            from threadpoolctl import ThreadpoolController
+    """``linalg.blas_threads(1)``: the compiled factorizations of the 3-D systems run with one BLAS thread when the
+    caller let the engine set the BLAS thread count (``engine_threads(blas_threads=…)``); by default the process's
+    setting is left alone. OpenBLAS's threads wait for each other by spinning, and with the other core busy the
+    waits dominate (``benchmarks/`` 3-D in-process timings, docs/performance.md "3-D graphs")."""
+    from .linalg import blas_threads
 
-            _ONE_BLAS_THREAD.append(ThreadpoolController())
-        except Exception as exc:  # a dependency; without it only speed is lost
-            log.debug("BLAS threads left as they are (%s)", exc)
-            _ONE_BLAS_THREAD.append(None)
-    controller = _ONE_BLAS_THREAD[0]
-    if controller is None:
-        return contextlib.nullcontext()
-    return controller.limit(limits=1, user_api="blas")
+    return blas_threads(1)
 
 
 def _compiled(elimination, system):
