@@ -54,7 +54,8 @@ def solve3d(args, graph, out) -> int:
         res, report = lago3d(graph, route=args.route, method=args.method, anchor=anchor), None
     check_finite(res.chi2, res.t, what="LAGO estimate")
     payload = {"file": str(args.file), "dim": 3, "cost": graph.cost, "n_poses": graph.n_poses,
-               "n_edges": graph.n_edges, "method": "closed_form" if args.check else args.method, "route": res.route, "weighting": res.weighting,
+               "n_edges": graph.n_edges, "method": "closed_form" if args.check else args.method, "route": res.route,
+               "weighting": res.weighting,
                "chi2": res.chi2, "chi2_seed": res.chi2_seed, "joint_alpha": res.alpha,
                "timings": dict(res.timings)}
     if graph.initial is not None:
@@ -106,7 +107,8 @@ def certify3d_cmd(args, graph, out) -> int:
     res = lago3d(graph)
     cert = certify3d(graph, res.t, res.R, tol=args.tol, anchor_index=res.anchor_index)
     payload = {"file": str(args.file), "dim": 3, "cost": graph.cost, "n_poses": graph.n_poses,
-               "n_edges": graph.n_edges, "chi2_lago": res.chi2, "f_lago": sesync_cost3d(graph, res.t, res.R), "f": cert.cost,
+               "n_edges": graph.n_edges, "chi2_lago": res.chi2, "f_lago": sesync_cost3d(graph, res.t, res.R),
+               "f": cert.cost,
                "chi2_certified_point": chi2_3d(graph, cert.t, cert.R), "dual_value": cert.dual_value,
                "certified": cert.certified, "verdict": cert.verdict, "lower_bound": cert.lower_bound,
                "relative_suboptimality_bound": cert.relative_suboptimality_bound, "tol": cert.tol, "eta": cert.eta,

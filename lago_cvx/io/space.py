@@ -20,9 +20,10 @@ Every problem raises :class:`ParseError` naming ``file:line`` and the offending 
 token count, a bad number or id, a quaternion of zero norm, an information matrix that is not positive
 definite (naming ``information="blocks"`` when its translation and rotation blocks are, and ``repair=True``),
 duplicate vertex ids, edges to undefined vertices, self-loops, a file mixing planar and 3-D records, other 3-D
-records (``VERTEX_SE3:EXPMAP``, ``EDGE3``, … are named as unsupported). A quaternion whose norm differs from 1 by more than :data:`QUATERNION_TOLERANCE` is normalized with one warning per
-file (logger ``lago_cvx.io``) naming the count and the first line; every quaternion is normalized (files
-print 6–7 digits, so norms of 1 ± 1e-6 are ordinary). ``FIX`` lines are ignored with one warning, as in
+records (``VERTEX_SE3:EXPMAP``, ``EDGE3``, … are named as unsupported). A quaternion whose norm differs from 1
+by more than :data:`QUATERNION_TOLERANCE` is normalized with one warning per file (logger ``lago_cvx.io``) naming
+the count and the first line; every quaternion is normalized (files print 6–7 digits, so norms of 1 ± 1e-6 are
+ordinary; g2o itself normalizes the edges' quaternions but not the vertices'). ``FIX`` lines are ignored with one warning, as in
 planar files. A file without vertex lines defines the poses of its edges and has no initial guess.
 """
 

@@ -22,7 +22,8 @@ The weights
 ===========
 Near the optimum R_j = R_iR̃_ij Exp(φ_ij), φ the rotational Log error, weighed by the rotation block Ω_rr of the
 edge's information in Log coordinates (``posegraph3d.information_in_log_coordinates``: Ω itself for GTSAM's cost,
-¼ of the file's block for g2o's, whose rotational error is q_v ≈ φ/2), and R_j − R_iR̃_ij ≈ R_iR̃_ij [φ]×. For symmetric W = S²,
+¼ of the file's block for g2o's, whose rotational error is q_v ≈ φ/2), and R_j − R_iR̃_ij ≈ R_iR̃_ij [φ]×. For
+symmetric W = S²,
 
     ‖[φ]× S‖²_F = tr(S [φ]×ᵀ[φ]× S) = φᵀ (tr(W) I − W) φ,          since [φ]×ᵀ[φ]× = ‖φ‖²I − φφᵀ.
 

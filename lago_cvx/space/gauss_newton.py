@@ -14,10 +14,10 @@ E·Exp(−Ad(T_j⁻¹T_i) δ_i). So with D = ∂e(E·Exp(η))/∂η at η = 0,
 where D = J_r⁻¹(e), the inverse right Jacobian of SE(3) (``lago_cvx.so3.right_jacobian_inverse``), for GTSAM's
 Log error, and D = blkdiag(R_E, ½(w I + [q_v]×)) for g2o's (``posegraph3d.g2o_error_derivative``).
 
-Each iteration whitens the errors by Ω = LᵀL and solves the normal equations (JᵀΩJ + λ D) δ = −JᵀΩe for the free
-poses (the anchor stays put): the Gauss–Newton step (λ = 0) on the closed forms' pose-level elimination
-(``normal_equations``; ``blocks.factor``), Levenberg–Marquardt's damped ones (D = diag(JᵀΩJ)) through ``linalg.factorize`` when the
-Gauss–Newton step does not decrease χ² (``refine3d``).
+Each iteration whitens the errors by Ω = LᵀL and solves the normal equations (JᵀΩJ + λ diag(JᵀΩJ)) δ = −JᵀΩe for
+the free poses (the anchor stays put): the Gauss–Newton step (λ = 0) on the closed forms' pose-level elimination
+(``normal_equations``; ``blocks.factor``), Levenberg–Marquardt's damped ones (λ > 0) through ``linalg.factorize``
+when the Gauss–Newton step does not decrease χ² (``refine3d``).
 """
 
 from __future__ import annotations
