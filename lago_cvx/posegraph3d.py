@@ -38,11 +38,11 @@ import numpy as np
 from .conventions import check_cost
 from .errors import GraphError, OptionError
 from .posegraph_base import PoseGraphBase, pose_ids, readonly
-from .so3 import _quaternions, apply, entries, log_rotations, product, transposed, v_inverse_apply
+from .so3 import apply, entries, log_rotations, matrices, product, quaternions, transposed, v_inverse_apply
 
 __all__ = ["PoseGraph3D", "is_spd6", "edge_rotations", "edge_translations", "g2o_errors", "log_errors",
            "edge_errors3d", "chi2_3d", "relative_poses", "LOG_SCALE", "information_in_log_coordinates",
-           "without_cross_terms", "g2o_error_derivative"]
+           "without_cross_terms", "g2o_error_derivative", "g2o_errors_and_derivative"]
 
 #: S = blkdiag(I₃, ½I₃): g2o's error is S times GTSAM's to first order at zero error (module docstring).
 LOG_SCALE = np.diag([1.0, 1.0, 1.0, 0.5, 0.5, 0.5])
@@ -122,16 +122,24 @@ def edge_translations(graph: "PoseGraph3D", t, GT) -> list:
                                                       np.ascontiguousarray(graph.delta_t.T)))]
 
 
-def edge_quaternions(E) -> np.ndarray:
-    """(4, m): the unit quaternions (x, y, z, w) of the error rotations R_E given as ``so3.entries``, w ≥ 0."""
-    return _quaternions(E)
+def _g2o_parts(graph: "PoseGraph3D", t, R):
+    """(e (m, 6), R_E as ``so3.entries``, q (4, m)): g2o's errors, the error rotations and their unit quaternions
+    (x, y, z, w), w ≥ 0 (``so3.rot_to_quat``'s sign)."""
+    GT, E = edge_rotations(graph, R)
+    q = quaternions(E)
+    return np.ascontiguousarray(np.array(edge_translations(graph, t, GT) + [q[0], q[1], q[2]]).T), E, q
 
 
 def g2o_errors(graph: "PoseGraph3D", t, R) -> np.ndarray:
     """g2o's e_ij = [t_E ; q_v(R_E)] (module docstring), shape (m, 6), for poses t (n, 3), R (n, 3, 3)."""
-    GT, E = edge_rotations(graph, R)
-    q = edge_quaternions(E)
-    return np.ascontiguousarray(np.array(edge_translations(graph, t, GT) + [q[0], q[1], q[2]]).T)
+    return _g2o_parts(graph, t, R)[0]
+
+
+def g2o_errors_and_derivative(graph: "PoseGraph3D", t, R):
+    """(e (m, 6), D (m, 6, 6)): g2o's errors at poses t (n, 3), R (n, 3, 3) and :func:`g2o_error_derivative` of
+    each."""
+    e, E, q = _g2o_parts(graph, t, R)
+    return e, g2o_error_derivative(matrices(E), np.ascontiguousarray(q.T))
 
 
 def log_errors(graph: "PoseGraph3D", t, R) -> np.ndarray:

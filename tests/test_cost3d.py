@@ -261,3 +261,23 @@ def test_lago3d_reports_the_cost_it_minimizes():
             d = 1e-4 * rng.normal(size=t.shape)
             d[0] = 0.0
             assert chi2_3d(g, t + d, res.R) > best
+
+
+def test_repair_reads_the_indefinite_file_and_blocks_that_fail_are_named(tmp_path, caplog):
+    p, bad, _ = _indefinite_file(tmp_path)
+    with caplog.at_level("WARNING", logger="lago_cvx.io"):
+        g = read_graph(p, repair=True)
+    assert "3 information matrix(es) not positive definite replaced" in caplog.text and f"line {bad[0]}" in caplog.text
+    assert (np.linalg.eigvalsh(g.information[[3, 7, 12]]) > 0).all()
+    # a matrix whose rotation block itself is indefinite: blocks cannot help, and the message does not offer them
+    text = p.read_text().splitlines()
+    toks = text[bad[1] - 1].split()
+    toks[10 + 15] = "-2500.0"  # I44 (the first rotation entry) of the second such edge
+    text[bad[1] - 1] = " ".join(toks)
+    p.write_text("\n".join(text) + "\n")
+    with pytest.raises(ParseError, match=rf":{bad[1]}: information matrix without its cross terms is not positive"):
+        read_graph(p, information="blocks")
+    with pytest.raises(ParseError) as err:
+        read_graph(p)
+    assert f":{bad[0]}:" in str(err.value)  # the first bad line: its blocks are fine, so blocks is named
+    assert "information='blocks'" in str(err.value)

@@ -30,8 +30,8 @@ import scipy.sparse as sp
 
 from ..errors import check_choice
 from ..sparse import factorize
-from ..posegraph3d import (chi2_3d, edge_rotations, edge_translations, g2o_error_derivative, log_errors)
-from ..so3 import _quaternions, adjoint, exp_so3, matrices, right_jacobian_inverse
+from ..posegraph3d import chi2_3d, g2o_errors_and_derivative, log_errors
+from ..so3 import adjoint, exp_so3, right_jacobian_inverse
 from .blocks import edge_matrix, factor, free_index, per_graph
 
 __all__ = ["REFINE_METHODS", "jacobians", "normal_equations", "retract", "gauss_newton_step", "Refined3D",
@@ -46,10 +46,7 @@ def error_derivative(graph, t, R):
     if graph.cost == "gtsam":
         e = log_errors(graph, t, R)
         return e, right_jacobian_inverse(e)
-    GT, E = edge_rotations(graph, R)
-    q = _quaternions(E)
-    e = np.ascontiguousarray(np.array(edge_translations(graph, t, GT) + [q[0], q[1], q[2]]).T)
-    return e, g2o_error_derivative(matrices(E), np.ascontiguousarray(q.T))
+    return g2o_errors_and_derivative(graph, t, R)
 
 
 def jacobians(graph, t, R):

@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..posegraph3d import edge_rotations
-from ..so3 import _quaternions, apply, entries, log_rotations, matrices, product, transposed, v_inverse_entries
+from ..so3 import apply, entries, log_rotations, matrices, product, quaternions, transposed, v_inverse_entries
 from .blocks import edge_matrix, free_index, per_graph, solve, without_anchor
 
 __all__ = ["position_system", "positions_closed_form", "position_problem", "positions_cvxpy"]
@@ -52,7 +52,7 @@ def _whitened_edges(graph, R):
     L, K = (entries(rows) for rows in _edge_constants(graph))
     Mt_t = apply(transposed(entries(graph.delta_R)), np.ascontiguousarray(graph.delta_t.T))
     if graph.cost == "g2o":
-        r = list(_quaternions(E)[:3])
+        r = list(quaternions(E)[:3])
         B, Ut = GT, Mt_t
     else:
         r = log_rotations(E)
