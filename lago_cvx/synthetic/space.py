@@ -110,7 +110,8 @@ def _world(name, t, R, lc_tails, lc_heads, *, sigma_t, sigma_r, seed, cost, para
 def sphere_world(n_rings: int = 10, per_ring: int = 20, *, radius: float = 10.0, seed: int = 0,
                  sigma_t: float = 0.05, sigma_r: float = 0.01, cost: str = "g2o") -> SyntheticWorld3D:
     """Poses on a sphere, ring after ring (as in sphere2500): each ring's poses are joined by odometry, and each pose
-    to the pose of the ring above at the same longitude by a loop closure. n = n_rings · per_ring."""
+    to the pose of the ring above at the same longitude by a loop closure. n = n_rings · per_ring. ``cost``: the
+    graph's, its noise drawn in that cost's coordinates (module docstring)."""
     if n_rings < 2 or per_ring < 3:
         raise OptionError("sphere_world needs n_rings >= 2 and per_ring >= 3")
     k = np.arange(n_rings * per_ring)
@@ -127,7 +128,8 @@ def sphere_world(n_rings: int = 10, per_ring: int = 20, *, radius: float = 10.0,
 def torus_world(n_loops: int = 10, per_loop: int = 20, *, major: float = 10.0, minor: float = 3.0, seed: int = 0,
                 sigma_t: float = 0.05, sigma_r: float = 0.01, cost: str = "g2o") -> SyntheticWorld3D:
     """Poses on a torus, one small loop (around the tube) after another; each pose is joined to the pose at the
-    same place of the previous loop. n = n_loops · per_loop."""
+    same place of the previous loop. n = n_loops · per_loop. ``cost``: the graph's, its noise drawn in
+    that cost's coordinates (module docstring)."""
     if n_loops < 2 or per_loop < 3:
         raise OptionError("torus_world needs n_loops >= 2 and per_loop >= 3")
     k = np.arange(n_loops * per_loop)
@@ -146,7 +148,8 @@ def torus_world(n_loops: int = 10, per_loop: int = 20, *, major: float = 10.0, m
 def cube_grid_world(side: int = 5, *, spacing: float = 1.0, seed: int = 0, sigma_t: float = 0.05,
                     sigma_r: float = 0.01, cost: str = "g2o") -> SyntheticWorld3D:
     """A side³ lattice visited in a snake order (as smallGrid3D), each pose with a random orientation; every pair
-    of lattice neighbours not consecutive along the path is a loop closure."""
+    of lattice neighbours not consecutive along the path is a loop closure. ``cost``: the graph's, its noise drawn in
+    that cost's coordinates (module docstring)."""
     if side < 2:
         raise OptionError("cube_grid_world needs side >= 2")
     cells = []
