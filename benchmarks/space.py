@@ -1,7 +1,8 @@
 """3-D pose graphs: LAGO's initialization (``lago_cvx.space``) against GTSAM's ``InitializePose3``, and the minimum.
 
 For every 3-D graph of the datasets (``se-sync-3d/*.g2o``, GTSAM's ``pose3example*.txt``) and three seeded synthetic
-worlds: χ² (g2o convention Σ eᵀΩe, no ½ = GTSAM's 2·error) of
+worlds: χ² in GTSAM's cost (Σ eᵀΩe, no ½, e = Log(Z⁻¹X_i⁻¹X_j): GTSAM's 2·error, the cost ``InitializePose3`` and its
+LM are measured in; the graphs are read with ``cost="gtsam"`` and the worlds drawn in it) of
 
 * our initialization, both routes (seed: chordal → positions; default: + the guarded joint step) and both weightings
   of the chordal relaxation (isotropic: SE-Sync's κ; anisotropic: the whole rotational block);
@@ -36,9 +37,9 @@ from lago_cvx.synthetic.space import cube_grid_world, sphere_world, torus_world 
 FILES = ["se-sync-3d/tinyGrid3D.g2o", "se-sync-3d/smallGrid3D.g2o", "se-sync-3d/parking-garage.g2o",
          "se-sync-3d/sphere2500.g2o", "se-sync-3d/torus3D.g2o", "gtsam/pose3example-grid.txt",
          "gtsam/pose3example.txt", "gtsam/pose3example-offdiagonal.txt"]
-WORLDS = {"synthetic sphere (20×40, seed 11)": lambda: sphere_world(20, 40, seed=11),
-          "synthetic torus (25×40, seed 12)": lambda: torus_world(25, 40, seed=12),
-          "synthetic grid (9³, seed 13)": lambda: cube_grid_world(9, seed=13, sigma_r=0.03)}
+WORLDS = {"synthetic sphere (20×40, seed 11)": lambda: sphere_world(20, 40, seed=11, cost="gtsam"),
+          "synthetic torus (25×40, seed 12)": lambda: torus_world(25, 40, seed=12, cost="gtsam"),
+          "synthetic grid (9³, seed 13)": lambda: cube_grid_world(9, seed=13, sigma_r=0.03, cost="gtsam")}
 
 
 def _median(fn, repeat):
@@ -167,7 +168,7 @@ def measure(repeat: int) -> str:
         p = None if root is None else Path(root) / rel
         if p is None or not p.is_file():
             continue
-        rows.append(_row(Path(rel).name, read_graph(p), str(p), args.repeat))
+        rows.append(_row(Path(rel).name, read_graph(p, cost="gtsam"), str(p), args.repeat))
         print(rows[-1]["name"], file=sys.stderr)
     import tempfile
     for name, make in WORLDS.items():

@@ -7,7 +7,8 @@ Conventions (those of GTSAM and of the g2o files' information matrices):
 * a tangent vector of SE(3) is ordered **(v, φ), translation first**, like the g2o information matrices
   (GTSAM orders (φ, v); the g2o readers permute the information, which is the same thing);
 * Log(T) = (V(φ)⁻¹ t, φ) with φ = Log(R) and V(φ) = I + (1 − cosθ)/θ² [φ]× + (θ − sinθ)/θ³ [φ]×² — the
-  exact logarithm of SE(3), which is what GTSAM's ``BetweenFactor<Pose3>`` measures the error with.
+  exact logarithm of SE(3), which is what GTSAM's ``BetweenFactor<Pose3>`` measures the error with (g2o's
+  ``EDGE_SE3:QUAT`` takes the translation and the quaternion's vector part instead: ``lago_cvx.posegraph3d``).
 
 Quaternions are (qx, qy, qz, qw), scalar last, as in g2o files.
 """
@@ -18,7 +19,7 @@ import numpy as np
 
 __all__ = ["hat", "exp_so3", "log_so3", "quat_to_rot", "rot_to_quat", "project_so3", "v_inverse", "log_se3",
            "adjoint", "right_jacobian_inverse", "entries", "matrices", "product", "transposed", "apply", "cross",
-           "log_rotations", "v_inverse_entries", "v_inverse_apply"]
+           "log_rotations", "v_inverse_entries", "v_inverse_apply", "quaternions"]
 
 
 def hat(w) -> np.ndarray:
@@ -73,6 +74,12 @@ def _quaternions(E) -> np.ndarray:
                           np.array([(r01 + r10) * fy, y, (r21 + r12) * fy, (r02 - r20) * fy]),
                           np.array([(r02 + r20) * fz, (r12 + r21) * fz, z, (r10 - r01) * fz])])
     return q * np.where(q[3] < 0, -1.0, 1.0)
+
+
+def quaternions(E) -> np.ndarray:
+    """(4, N): the unit quaternions (x, y, z, w), w ≥ 0, of rotations given as ``entries`` (``rot_to_quat``'s, entry
+    by entry; g2o's ``EDGE_SE3:QUAT`` error takes the first three, ``lago_cvx.posegraph3d``)."""
+    return _quaternions(E)
 
 
 def quat_to_rot(q) -> np.ndarray:

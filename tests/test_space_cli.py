@@ -42,7 +42,10 @@ def test_solve_check_refine_output(world, tmp_path, capsys):
     g = read_graph(out)
     assert chi2_3d(g, *g.initial) == pytest.approx(res["chi2_refined"], rel=1e-9)  # the refined poses were written
     status, seed = _run(capsys, ["solve", str(world), "--route", "seed", "--anchor", "5", "--json"])
-    assert seed["route"] == "seed" and seed["chi2"] == pytest.approx(res["chi2_seed"], rel=1e-6)
+    # another anchor: the chordal relaxation's projected solution is not gauge-equivariant (the relaxed anchor block
+    # of one gauge is no rotation in the other), so the seed χ² moves by ~1e-6 relative (0.9e-6 in GTSAM's cost,
+    # 1.2e-6 in g2o's on this world)
+    assert seed["route"] == "seed" and seed["chi2"] == pytest.approx(res["chi2_seed"], rel=1e-5)
     assert main(["solve", str(world), "--anchor", "5:1,2,3"]) == 2  # a pose value is planar-only
 
 

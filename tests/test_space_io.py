@@ -174,7 +174,7 @@ def test_errors_match_gtsam_convention():
     dR = exp_so3(rng.normal(size=(m, 3)))
     A = rng.normal(size=(m, 6, 6))
     info = A @ np.swapaxes(A, 1, 2) + 6 * np.eye(6)
-    g = PoseGraph3D(n, tails, heads, rng.normal(size=(m, 3)), dR, info)
+    g = PoseGraph3D(n, tails, heads, rng.normal(size=(m, 3)), dR, info, cost="gtsam")
     fg, vals = gtsam.NonlinearFactorGraph(), gtsam.Values()
     perm = [3, 4, 5, 0, 1, 2]  # GTSAM orders the tangent (rotation, translation)
     for k in range(m):
@@ -184,6 +184,10 @@ def test_errors_match_gtsam_convention():
         vals.insert(i, gtsam.Pose3(gtsam.Rot3(R[i]), t[i]))
     assert chi2_3d(g, t, R) == pytest.approx(2 * fg.error(vals), rel=1e-12)
     assert edge_errors3d(g, t, R).shape == (m, 6)
+    # the default cost of a hand-built graph is g2o's; the gtsam cost stays reachable by name
+    h = PoseGraph3D(n, tails, heads, g.delta_t, dR, info)
+    assert h.cost == "g2o" and chi2_3d(h, t, R, cost="gtsam") == chi2_3d(g, t, R)
+    assert chi2_3d(h, t, R) != pytest.approx(chi2_3d(g, t, R), rel=1e-3)
 
 
 # ------------------------------------------------------------------ files

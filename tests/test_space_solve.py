@@ -86,12 +86,14 @@ def test_weights():
     info = np.zeros((m, 6, 6))
     info[:, :3, :3] = 100 * np.eye(3)
     info[:, 3:, 3:] = Q @ (lam[:, :, None] * np.swapaxes(Q, 1, 2))
-    S = rotation_weights(replace(w.graph, information=info), "anisotropic")
-    W = S @ S
-    back = np.trace(W, axis1=1, axis2=2)[:, None, None] * np.eye(3) - W
     ok = np.arange(m) % 2 == 0
-    assert np.allclose(back[ok], info[ok, 3:, 3:])
-    assert (np.linalg.eigvalsh(W[~ok]) > 0).all()  # the floor keeps the weights positive definite
+    # the weights take the information in Log coordinates: Ω_rr for GTSAM's cost, ¼Ω_rr for g2o's (q_v ≈ φ/2)
+    for cost, scale in (("gtsam", 1.0), ("g2o", 0.25)):
+        S = rotation_weights(replace(w.graph, information=info, cost=cost), "anisotropic")
+        W = S @ S
+        back = np.trace(W, axis1=1, axis2=2)[:, None, None] * np.eye(3) - W
+        assert np.allclose(back[ok], scale * info[ok, 3:, 3:])
+        assert (np.linalg.eigvalsh(W[~ok]) > 0).all()  # the floor keeps the weights positive definite
 
 
 def test_noiseless_world_is_recovered_exactly():
@@ -186,7 +188,7 @@ def test_refinement_reaches_gtsam_lm():
     gtsam = pytest.importorskip("gtsam")
     for name in ["gtsam/pose3example-grid.txt", "gtsam/pose3example.txt", "se-sync-3d/tinyGrid3D.g2o"]:
         p = str(dataset_path(name))
-        g = read_graph(p)
+        g = read_graph(p, cost="gtsam")  # GTSAM's LM minimizes its own cost
         res = lago3d(g)
         ref = refine3d(g, res.t, res.R)
         graph, initial = gtsam.readG2o(p, True)

@@ -1,12 +1,13 @@
 """The commands on 3-D graphs (``graph.dim == 3``, ``lago_cvx.space``): ``info``, ``solve``, ``certify`` and the 3-D
-worlds of ``generate``. The planar commands hand over here after reading the file; JSON keys are the planar ones
-where they mean the same, plus ``dim``."""
+worlds of ``generate``. The planar commands hand over here after reading the file (with ``--cost`` and
+``--information``); every χ² is the graph's cost (``graph.cost``, named by the key ``"cost"``). JSON keys are the
+planar ones where they mean the same, plus ``dim``."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..conventions import CHI2_CONVENTION
+from ..conventions import CHI2_CONVENTION, COST_DESCRIPTION
 from .common import (EXIT_NOT_CERTIFIED, EXIT_OK, UsageError, check_finite, emit, graph_lines, sigma_keywords,
                      write_estimate)
 
@@ -21,13 +22,14 @@ def _components(graph) -> int:
 
 def info3d(args, graph) -> int:
     k = _components(graph)
-    payload = {"file": str(args.file), "format": "g2o", "dim": 3, "n_poses": graph.n_poses, "n_edges": graph.n_edges,
+    payload = {"file": str(args.file), "format": "g2o", "dim": 3, "cost": graph.cost, "n_poses": graph.n_poses,
+               "n_edges": graph.n_edges,
                "n_odometric": graph.n_odometric, "n_loop_closures": graph.n_loop_closures, "n_components": k,
                "cyclomatic_number": int(graph.n_edges - graph.n_poses + k),
                "has_initial_guess": graph.initial is not None, "spanning_tree": None, "regularization": None,
                "n_regularized": None, "n_ambiguous": None,
                "note": "3-D graph: rotations by the chordal relaxation, no 2kπ regularization"}
-    lines = [f"file              {args.file} (g2o, 3-D: VERTEX_SE3:QUAT/EDGE_SE3:QUAT)",
+    lines = [f"file              {args.file} (g2o, 3-D: VERTEX_SE3:QUAT/EDGE_SE3:QUAT; cost {graph.cost})",
              *graph_lines(graph, k, payload["cyclomatic_number"]),
              "regularization    none needed in 3-D (rotation matrices do not wrap)"]
     emit(args, payload, lines)
@@ -51,8 +53,9 @@ def solve3d(args, graph, out) -> int:
     else:
         res, report = lago3d(graph, route=args.route, method=args.method, anchor=anchor), None
     check_finite(res.chi2, res.t, what="LAGO estimate")
-    payload = {"file": str(args.file), "dim": 3, "n_poses": graph.n_poses, "n_edges": graph.n_edges,
-               "method": "closed_form" if args.check else args.method, "route": res.route, "weighting": res.weighting,
+    payload = {"file": str(args.file), "dim": 3, "cost": graph.cost, "n_poses": graph.n_poses,
+               "n_edges": graph.n_edges, "method": "closed_form" if args.check else args.method, "route": res.route,
+               "weighting": res.weighting,
                "chi2": res.chi2, "chi2_seed": res.chi2_seed, "joint_alpha": res.alpha,
                "timings": dict(res.timings)}
     if graph.initial is not None:
@@ -77,8 +80,8 @@ def solve3d(args, graph, out) -> int:
     lines = [f"LAGO 3-D ({payload['method'].replace('_', '-')}, {res.route} route: chordal relaxation "
              f"({res.weighting} weights) → positions" + (" → joint step" if res.route == "default" else "")
              + f") on {args.file}",
-             f"  poses {graph.n_poses}, edges {graph.n_edges}",
-             f"  chi2 = {res.chi2:.6g}  ({CHI2_CONVENTION})"
+             f"  poses {graph.n_poses}, edges {graph.n_edges}; cost {graph.cost}: {COST_DESCRIPTION[graph.cost]}",
+             f"  chi2 = {res.chi2:.6g}  (cost {graph.cost}: {CHI2_CONVENTION})"
              + ("" if res.route == "seed" else f"; chordal + positions {res.chi2_seed:.6g}, step α = {res.alpha}")
              + (f"; at the file's initial guess {payload['chi2_initial']:.6g}" if "chi2_initial" in payload else ""),
              "  time [s]: " + ", ".join(f"{k} {v:.4f}" for k, v in t.items())]
@@ -103,16 +106,19 @@ def certify3d_cmd(args, graph, out) -> int:
 
     res = lago3d(graph)
     cert = certify3d(graph, res.t, res.R, tol=args.tol, anchor_index=res.anchor_index)
-    payload = {"file": str(args.file), "dim": 3, "n_poses": graph.n_poses, "n_edges": graph.n_edges,
-               "chi2_lago": res.chi2, "f_lago": sesync_cost3d(graph, res.t, res.R), "f": cert.cost,
+    payload = {"file": str(args.file), "dim": 3, "cost": graph.cost, "n_poses": graph.n_poses,
+               "n_edges": graph.n_edges, "chi2_lago": res.chi2, "f_lago": sesync_cost3d(graph, res.t, res.R),
+               "f": cert.cost,
                "chi2_certified_point": chi2_3d(graph, cert.t, cert.R), "dual_value": cert.dual_value,
                "certified": cert.certified, "verdict": cert.verdict, "lower_bound": cert.lower_bound,
                "relative_suboptimality_bound": cert.relative_suboptimality_bound, "tol": cert.tol, "eta": cert.eta,
                "shift": cert.shift, "n_negative": cert.n_negative, "lambda_min": cert.lambda_min,
                "residual_rel": cert.residual_rel, "times": cert.times}
     lines = [f"certify (3-D): LAGO → SE-Sync Newton → SE-Sync certificate, on {args.file}",
-             f"  poses {graph.n_poses}, edges {graph.n_edges}; chi2 of LAGO {res.chi2:.6g}",
-             f"  SE-Sync cost f = Σ κ‖R_j−R_iR̃‖²_F + τ‖t_j−t_i−R_i t̃‖² (κ = 3/(2tr Ω_rr⁻¹), τ = 3/tr Ω_tt⁻¹): "
+             f"  poses {graph.n_poses}, edges {graph.n_edges}; chi2 (cost {graph.cost}, {CHI2_CONVENTION}) of LAGO "
+             f"{res.chi2:.6g}, at the certified point {payload['chi2_certified_point']:.6g}",
+             f"  SE-Sync cost f = Σ κ‖R_j−R_iR̃‖²_F + τ‖t_j−t_i−R_i t̃‖² (κ = 3/(2tr Ω_rr⁻¹), τ = 3/tr Ω_tt⁻¹ of "
+             f"the information as written, as SE-Sync reads the file; not the chi2): "
              f"LAGO {payload['f_lago']:.10g}, refined {cert.cost:.12g}",
              f"  {'CERTIFIED globally optimal' if cert.certified else 'NOT certified'}: proven lower bound "
              f"f* ≥ {cert.lower_bound:.12g}; relative suboptimality ≤ {cert.relative_suboptimality_bound:.3g} "

@@ -10,17 +10,20 @@ Format
 The edge measures pose j in the frame of pose i (t̃_ij = (x, y, z), R̃_ij from the quaternion, scalar
 last) and carries the 21 entries of the upper triangle of the 6×6 information matrix, row by row, in the
 order (x, y, z, φx, φy, φz): translation first (:mod:`lago_cvx.posegraph3d`). This is the format of
-SE-Sync's and Carlone's 3-D benchmarks and of GTSAM's ``pose3example*.txt``; the lexical rules are the
-planar files' (``formats.py``: ``#`` comments, LF or CRLF, a byte-order mark skipped, a missing final
-newline accepted, ids any 64-bit integers, numbers plain ASCII decimals).
+SE-Sync's and Carlone's 3-D benchmarks and of GTSAM's ``pose3example*.txt``. A g2o file's information is written
+for g2o's error (``cost="g2o"``, the default); ``cost="gtsam"`` reads the same matrices as GTSAM's ``readG2o``
+does, for the Log error (:mod:`lago_cvx.posegraph3d`). The lexical rules are the planar files' (``formats.py``:
+``#`` comments, LF or CRLF, a byte-order mark skipped, a missing final newline accepted, ids any 64-bit integers,
+numbers plain ASCII decimals).
 
 Every problem raises :class:`ParseError` naming ``file:line`` and the offending token or field: a wrong
 token count, a bad number or id, a quaternion of zero norm, an information matrix that is not positive
-definite, duplicate vertex ids, edges to undefined vertices, self-loops, a file mixing planar and 3-D
-records, other 3-D records (``VERTEX_SE3:EXPMAP``, ``EDGE3``, … are named as unsupported). A quaternion
-whose norm differs from 1 by more than :data:`QUATERNION_TOLERANCE` is normalized with one warning per
-file (logger ``lago_cvx.io``) naming the count and the first line; every quaternion is normalized (files
-print 6–7 digits, so norms of 1 ± 1e-6 are ordinary). ``FIX`` lines are ignored with one warning, as in
+definite (naming ``information="blocks"`` when its translation and rotation blocks are, and ``repair=True``),
+duplicate vertex ids, edges to undefined vertices, self-loops, a file mixing planar and 3-D records, other 3-D
+records (``VERTEX_SE3:EXPMAP``, ``EDGE3``, … are named as unsupported). A quaternion whose norm differs from 1
+by more than :data:`QUATERNION_TOLERANCE` is normalized with one warning per file (logger ``lago_cvx.io``) naming
+the count and the first line; every quaternion is normalized (files print 6–7 digits, so norms of 1 ± 1e-6 are
+ordinary; g2o itself normalizes the edges' quaternions but not the vertices'). ``FIX`` lines are ignored with one warning, as in
 planar files. A file without vertex lines defines the poses of its edges and has no initial guess.
 """
 
@@ -31,8 +34,10 @@ from pathlib import Path
 
 import numpy as np
 
+from ..conventions import COST_OF_FORMAT, check_cost
 from ..errors import OptionError, ParseError
-from ..posegraph3d import PoseGraph3D, is_spd6
+from ..posegraph3d import PoseGraph3D, is_spd6, without_cross_terms
+from ..posegraph_base import REPAIR_FLOOR, nearest_spd
 from ..so3 import quat_to_rot, rot_to_quat
 from .careful import Notes, _convert, _Records, decode, ignored_line, read_bytes, unknown_tag, without_comment
 from .fastpath import parse_fast
@@ -129,16 +134,56 @@ def _rotations(q: np.ndarray, lines: np.ndarray, path, bad_norms: list):
     return quat_to_rot(q / norm[:, None])
 
 
-def _information(vals: np.ndarray, lines: np.ndarray, path) -> np.ndarray:
+def _fixes(matrix: np.ndarray) -> str:
+    """The options that would read a matrix (6, 6) that is not positive definite: ``information="blocks"`` when its
+    translation and rotation blocks are each positive definite, ``repair=True`` always."""
+    blocks = is_spd6(without_cross_terms(matrix[None]))[0] if np.isfinite(matrix).all() else False
+    first = ("its translation and rotation blocks are each positive definite: read_graph(path, "
+             "information='blocks') (CLI: --information blocks) drops the cross terms, as SE-Sync does; or "
+             if blocks else "")
+    return (f"; {first}read_graph(path, repair=True) (CLI: --repair-information) replaces such matrices by the "
+            f"nearest positive-definite one")
+
+
+def _repair(path, info: np.ndarray, lines: np.ndarray) -> np.ndarray:
+    """``repair=True``: every matrix of ``info`` (m, 6, 6) that fails :func:`is_spd6` replaced by the nearest
+    positive-definite one (``posegraph_base.nearest_spd``), counted and logged; matrices with no positive
+    eigenvalue or with non-finite entries stay (refused below, as without the repair)."""
+    bad = np.flatnonzero(~is_spd6(info))
+    if bad.size == 0:
+        return info
+    finite = np.isfinite(info[bad]).all(axis=(1, 2))
+    fixed = nearest_spd(np.where(np.isfinite(info[bad]), info[bad], 0.0))
+    ok = finite & np.isfinite(fixed).all(axis=(1, 2))
+    out = info.copy()
+    out[bad[ok]] = fixed[ok]
+    if ok.any():
+        logger.warning("%s: %d information matrix(es) not positive definite replaced by the nearest positive-definite "
+                       "matrix (eigenvalues raised to %g of the largest; the first on line %d)", path, int(ok.sum()),
+                       REPAIR_FLOOR, int(lines[bad[ok][0]]))
+    return out
+
+
+def _information(vals: np.ndarray, lines: np.ndarray, path, information: str = "full",
+                 repair: bool = False) -> np.ndarray:
+    """The 6×6 information matrices (m, 6, 6) of the 21 upper-triangle entries ``vals`` (m, 21), cross terms
+    dropped for ``information="blocks"``, repaired for ``repair``; ``ParseError`` at the first line whose matrix is
+    not positive definite, naming the options that would read it (:func:`_fixes`)."""
     info = np.zeros((vals.shape[0], 6, 6))
     info[:, _UPPER[0], _UPPER[1]] = vals
     info[:, _UPPER[1], _UPPER[0]] = vals
+    if information == "blocks":
+        info = without_cross_terms(info)
+    if repair:
+        info = _repair(path, info, lines)
     bad = np.flatnonzero(~is_spd6(info))
     if bad.size:
         k = int(bad[0])
         ev = np.linalg.eigvalsh(info[k]) if np.isfinite(info[k]).all() else np.full(6, np.nan)
         shown = ", ".join(f"{e:.6g}" for e in ev)
-        raise ParseError(path, int(lines[k]), f"information matrix is not positive definite (eigenvalues {shown})")
+        what = "information matrix" + (" without its cross terms" if information == "blocks" else "")
+        raise ParseError(path, int(lines[k]), f"{what} is not positive definite (eigenvalues {shown})"
+                         + ("" if information == "blocks" or repair else _fixes(info[k])))
     return info
 
 
@@ -176,10 +221,20 @@ def _ids(path, vid, vlines, eid, elines):
     return ids, order, pos
 
 
-def read_graph3d(path, *, data: bytes | None = None) -> PoseGraph3D:
+def read_graph3d(path, *, data: bytes | None = None, cost: str | None = None, information: str = "full",
+                 repair: bool = False) -> PoseGraph3D:
     """Read a g2o file of ``VERTEX_SE3:QUAT`` / ``EDGE_SE3:QUAT`` records into a :class:`PoseGraph3D`
-    (``name`` = the file's name). ``data``: the file's bytes when read already. Every problem raises
-    :class:`ParseError` with ``path:line:`` (module docstring)."""
+    (``name`` = the file's name). ``data``: the file's bytes when read already. ``cost``: the error the
+    information matrices are read for, ``"g2o"`` (None, the format's own: ``conventions.COST_OF_FORMAT``) or
+    ``"gtsam"`` (``posegraph3d``; the matrices are kept as written either way). ``information``: ``"full"`` (every
+    entry) or ``"blocks"`` (the translation–rotation cross terms dropped, as SE-Sync reads a file: for files whose
+    6×6 matrices are not positive definite while their two blocks are). ``repair``: replace every matrix that is
+    not positive definite by the nearest positive-definite one, counted and logged. Every problem raises
+    :class:`ParseError` with ``path:line:`` (module docstring); a matrix that is not positive definite names the
+    option that would read it."""
+    cost = COST_OF_FORMAT["g2o"] if cost is None else check_cost(cost, dim=3)
+    if information not in ("full", "blocks"):
+        raise OptionError(f"unknown information {information!r}; expected one of ('full', 'blocks')")
     data = read_bytes(path) if data is None else data
     parsed = parse_fast(data, "g2o", specs=(VERTEX3, EDGE3))  # ordinary files: vectorized (fastpath.py)
     if parsed is not None:
@@ -199,7 +254,7 @@ def read_graph3d(path, *, data: bytes | None = None) -> PoseGraph3D:
     bad_norms: list = []
     vR = _rotations(vval[:, 3:7], vlines, path, bad_norms) if vid.size else None
     eR = _rotations(evals[:, 3:7], elines, path, bad_norms)
-    info = _information(evals[:, 7:], elines, path)
+    info = _information(evals[:, 7:], elines, path, information, bool(repair))
     ids, order, pos = _ids(path, vid, vlines, eid, elines)
     if bad_norms:
         line, norm, _ = min(bad_norms)
@@ -216,7 +271,7 @@ def read_graph3d(path, *, data: bytes | None = None) -> PoseGraph3D:
         logger.info("%s: no VERTEX lines; %d poses inferred from the ids of the %d edges (no initial guess)",
                     path, ids.size, eid.shape[0])
     return PoseGraph3D(n_poses=ids.size, tails=pos[:, 0], heads=pos[:, 1], delta_t=evals[:, :3], delta_R=eR,
-                       information=info, initial_t=it, initial_R=iR, ids=ids, name=Path(path).name)
+                       information=info, initial_t=it, initial_R=iR, ids=ids, name=Path(path).name, cost=cost)
 
 
 # ----------------------------------------------------------------------------- writing

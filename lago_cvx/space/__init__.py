@@ -3,11 +3,13 @@
 * ``chordal`` — the rotations by the chordal relaxation (Carlone et al., ICRA 2015), as a cvxpy problem and as one
   sparse factorization with three right-hand sides, projected onto SO(3); SE-Sync's isotropic weights or the whole
   rotational information;
-* ``positions`` — the positions at fixed rotations, exactly (the full 6×6 information), cvxpy and closed form;
-* ``gauss_newton`` — the SE(3) error's Jacobians, Gauss–Newton / Levenberg–Marquardt with a right retraction;
+* ``positions`` — the positions at fixed rotations, exactly in the graph's cost (the full 6×6 information), cvxpy and
+  closed form;
+* ``gauss_newton`` — the Jacobians of both 3-D errors (g2o's and GTSAM's, ``posegraph3d``), Gauss–Newton /
+  Levenberg–Marquardt with a right retraction (``refine3d(..., cost=)``);
 * ``pipeline`` — ``lago3d``: the seed route (chordal → positions) and the default route (then one joint
   linearized step, positions re-solved, guarded), and the result type;
-* ``certify`` — SE-Sync's optimality certificate in 3-D;
+* ``certify`` — SE-Sync's optimality certificate in 3-D (SE-Sync's cost, weights from the information as written);
 * ``covariance`` — the poses' first-order covariances from the factor of JᵀΩJ (selected inversion);
 * ``fixed`` — the routes with several poses known exactly (``lago3d(graph, fixed={id: (t, R)})``).
 """

@@ -7,6 +7,11 @@ blocks, ``space.chordal``) κ_ij = 3 / (2 tr(Ω_rr⁻¹)), τ_ij = 3 / tr(Ω_tt�
 
     f(t, R) = Σ_ij κ_ij ‖R_j − R_i R̃_ij‖²_F + τ_ij ‖t_j − t_i − R_i t̃_ij‖²                      (S1)
 
+The weights are SE-Sync's own reading of each edge's 6×6 matrix **as written** (its rotation and translation blocks;
+the cross terms ignored), whichever cost the graph means (``graph.cost``, :mod:`lago_cvx.posegraph3d`): f, its
+certificate and the optima SE-Sync publishes for these files do not depend on ``cost``. f is neither cost's χ²; the
+χ² reported beside it (``lago-cvx certify``) is the graph's cost at the certified point.
+
 In the variable Y = [t_1 … t_n | R_1 … R_n] (3 × 4n) every residual is linear, so f = tr(Y M Yᵀ) with M = CᵀC
 (4n × 4n, C stacking √κ [I at R_j, −R̃ᵀ at R_i] and √τ [1 at t_j, −1 at t_i, −t̃ᵀ at R_i] per edge).
 
@@ -54,7 +59,7 @@ NUMERICAL_TOL = 1e-12
 
 
 def sesync_weights3d(graph):
-    """(κ (m,), τ (m,)) of (S1)."""
+    """(κ (m,), τ (m,)) of (S1), from the blocks of the information as written (module docstring)."""
     O = graph.information
     kappa = 3.0 / (2.0 * np.trace(np.linalg.inv(O[:, 3:, 3:]), axis1=1, axis2=2))
     tau = 3.0 / np.trace(np.linalg.inv(O[:, :3, :3]), axis1=1, axis2=2)

@@ -20,8 +20,10 @@ three least-squares problems with **the same matrix**: M X = B in the stacked tr
 
 The weights
 ===========
-Near the optimum R_j = R_iR̃_ij Exp(φ_ij), φ the rotational error the 6×6 information Ω_ij weighs (its block Ω_rr, the
-error's (translation, rotation) order), and R_j − R_iR̃_ij ≈ R_iR̃_ij [φ]×. For symmetric W = S²,
+Near the optimum R_j = R_iR̃_ij Exp(φ_ij), φ the rotational Log error, weighed by the rotation block Ω_rr of the
+edge's information in Log coordinates (``posegraph3d.information_in_log_coordinates``: Ω itself for GTSAM's cost,
+¼ of the file's block for g2o's, whose rotational error is q_v ≈ φ/2), and R_j − R_iR̃_ij ≈ R_iR̃_ij [φ]×. For
+symmetric W = S²,
 
     ‖[φ]× S‖²_F = tr(S [φ]×ᵀ[φ]× S) = φᵀ (tr(W) I − W) φ,          since [φ]×ᵀ[φ]× = ‖φ‖²I − φφᵀ.
 
@@ -42,6 +44,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import check_choice
+from ..posegraph3d import information_in_log_coordinates
 from ..so3 import project_so3
 from ..sparse import spd_inverse
 from .blocks import block_diagonal, edge_matrix, free_index, solve, without_anchor
@@ -57,7 +60,7 @@ ANISOTROPIC_FLOOR = 0.05
 def rotation_weights(graph, weighting: str = "isotropic") -> np.ndarray:
     """S_ij (m, 3, 3), the square roots of the weights of (C) (module docstring)."""
     check_choice("weighting", weighting, WEIGHTINGS)
-    Orr = graph.information[:, 3:, 3:]
+    Orr = information_in_log_coordinates(graph)[:, 3:, 3:]
     if weighting == "isotropic":
         kappa = 3.0 / (2.0 * np.trace(spd_inverse(Orr), axis1=1, axis2=2))
         return np.sqrt(kappa)[:, None, None] * np.eye(3)

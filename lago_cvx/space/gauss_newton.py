@@ -1,19 +1,23 @@
 r"""Gauss–Newton and Levenberg–Marquardt on SE(3), with a right retraction (the 3-D refinement).
 
-The cost is χ² = Σ e_ijᵀ Ω_ij e_ij with e_ij = Log(T̃_ij⁻¹ T_i⁻¹ T_j) (:mod:`lago_cvx.posegraph3d`, GTSAM's cost).
-A step δ = (δ_1, …, δ_n), δ_i = (δv_i, δφ_i) ∈ ℝ⁶, moves each pose on the right:
+The cost is the graph's χ² = Σ e_ijᵀ Ω_ij e_ij, e_ij the error of its ``cost`` (:mod:`lago_cvx.posegraph3d`:
+g2o's [t_E ; q_v] or GTSAM's Log(E), E = T̃_ij⁻¹ T_i⁻¹ T_j). A step δ = (δ_1, …, δ_n), δ_i = (δv_i, δφ_i) ∈ ℝ⁶,
+moves each pose on the right:
 
     R_i ← R_i Exp(δφ_i),   t_i ← t_i + R_i δv_i        (= T_i Exp(δ_i) to first order)
 
-and the error's Jacobians are, with E = T̃⁻¹T_i⁻¹T_j and J_r⁻¹ the inverse right Jacobian of SE(3)
-(``lago_cvx.so3.right_jacobian_inverse``),
+A step of the head moves E to E·Exp(δ_j); a step of the tail moves it to Z⁻¹ Exp(−δ_i) T_i⁻¹T_j =
+E·Exp(−Ad(T_j⁻¹T_i) δ_i). So with D = ∂e(E·Exp(η))/∂η at η = 0,
 
-    ∂e/∂δ_j = J_r⁻¹(e),     ∂e/∂δ_i = −J_r⁻¹(e) Ad(T_j⁻¹ T_i).
+    ∂e/∂δ_j = D,     ∂e/∂δ_i = −D Ad(T_j⁻¹ T_i),
 
-Each iteration whitens the errors by Ω = LᵀL and solves the normal equations (JᵀΩJ + λ D) δ = −JᵀΩe for the free
-poses (the anchor stays put): the Gauss–Newton step (λ = 0) on the closed forms' pose-level elimination
-(``normal_equations``; ``blocks.factor``), Levenberg–Marquardt's damped ones (D = diag(JᵀΩJ)) through ``linalg.factorize`` when the
-Gauss–Newton step does not decrease χ² (``refine3d``).
+where D = J_r⁻¹(e), the inverse right Jacobian of SE(3) (``lago_cvx.so3.right_jacobian_inverse``), for GTSAM's
+Log error, and D = blkdiag(R_E, ½(w I + [q_v]×)) for g2o's (``posegraph3d.g2o_error_derivative``).
+
+Each iteration whitens the errors by Ω = LᵀL and solves the normal equations (JᵀΩJ + λ diag(JᵀΩJ)) δ = −JᵀΩe for
+the free poses (the anchor stays put): the Gauss–Newton step (λ = 0) on the closed forms' pose-level elimination
+(``normal_equations``; ``blocks.factor``), Levenberg–Marquardt's damped ones (λ > 0) through ``linalg.factorize``
+when the Gauss–Newton step does not decrease χ² (``refine3d``).
 """
 
 from __future__ import annotations
@@ -26,7 +30,7 @@ import scipy.sparse as sp
 
 from ..errors import check_choice
 from ..sparse import factorize
-from ..posegraph3d import chi2_3d, edge_errors3d
+from ..posegraph3d import chi2_3d, g2o_errors_and_derivative, log_errors
 from ..so3 import adjoint, exp_so3, right_jacobian_inverse
 from .blocks import edge_matrix, factor, free_index, per_graph
 
@@ -36,10 +40,20 @@ __all__ = ["REFINE_METHODS", "jacobians", "normal_equations", "retract", "gauss_
 REFINE_METHODS = ("levenberg-marquardt", "gauss-newton")
 
 
+def error_derivative(graph, t, R):
+    """(e (m, 6), D (m, 6, 6)): the errors of the graph's cost and D = ∂e(E·Exp(η))/∂η at η = 0 (module
+    docstring)."""
+    if graph.cost == "gtsam":
+        e = log_errors(graph, t, R)
+        return e, right_jacobian_inverse(e)
+    return g2o_errors_and_derivative(graph, t, R)
+
+
 def jacobians(graph, t, R):
-    """(e (m, 6), J_i (m, 6, 6), J_j (m, 6, 6)): errors and their Jacobians in the tail's and head's steps."""
-    e = edge_errors3d(graph, t, R)
-    Jinv = right_jacobian_inverse(e)
+    """(e (m, 6), J_i (m, 6, 6), J_j (m, 6, 6)): the errors of the graph's cost and their Jacobians in the tail's
+    and head's steps (module docstring)."""
+    t, R = np.asarray(t, dtype=float), np.asarray(R, dtype=float)
+    e, Jinv = error_derivative(graph, t, R)
     Ri, Rj = R[graph.tails], R[graph.heads]
     RjT = np.swapaxes(Rj, 1, 2)
     Rji = RjT @ Ri                                     # T_j⁻¹ T_i = (R_jᵀR_i, R_jᵀ(t_i − t_j))
@@ -97,9 +111,10 @@ class Refined3D:
     log: tuple
 
 
-def refine3d(graph, t, R, *, method: str = "levenberg-marquardt", anchor: int | None = None,
+def refine3d(graph, t, R, *, cost: str | None = None, method: str = "levenberg-marquardt", anchor: int | None = None,
              max_iterations: int = 100, tolerance: float = 1e-12, initial_lambda: float = 1e-5) -> Refined3D:
-    """Refine poses (t (n, 3), R (n, 3, 3)) on χ² (module docstring).
+    """Refine poses (t (n, 3), R (n, 3, 3)) on the χ² of ``cost`` (None: the graph's, ``graph.cost``; ``"g2o"`` or
+    ``"gtsam"``, module docstring), with that cost's exact errors and Jacobians.
 
     Every iteration first tries the Gauss–Newton step, solved on the pose-level elimination shared by the closed
     forms (``gauss_newton_step``). ``"gauss-newton"`` takes it when χ² decreases; ``"levenberg-marquardt"`` then
@@ -112,6 +127,8 @@ def refine3d(graph, t, R, *, method: str = "levenberg-marquardt", anchor: int | 
     from ..sparse import GraphElimination
 
     check_choice("method", method, REFINE_METHODS)
+    if cost is not None:
+        graph = graph.with_cost(cost)
     a = graph.anchor_index(anchor)
     t, R = graph.check_poses(t, R)
     L = whitening(graph)

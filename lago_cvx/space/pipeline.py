@@ -4,11 +4,17 @@ r"""``lago3d``: LAGO's two routes in space, and the result they return.
   relaxation (``chordal``), then the positions at those rotations (``positions``: the exact minimizer of χ² for
   them, with the full 6×6 information).
 * ``route="default"`` — then one **joint linearized step**: the Gauss–Newton step δ = (δv, δφ) of χ² on all poses at
-  the seed's estimate, with the full 6×6 information (``gauss_newton``), the rotations moved to R_i Exp(α δφ_i)
-  and the positions re-solved exactly at them. Guarded like the planar position polish (``lago_cvx.positions``):
+  the seed's estimate, with the full 6×6 information and the exact Jacobians of the graph's cost (``gauss_newton``),
+  the rotations moved to R_i Exp(α δφ_i) and the positions re-solved exactly at them. Guarded like the planar position polish (``lago_cvx.positions``):
   α = 1 is kept if its χ² does not exceed the seed's, else α is halved (at most ``MAX_HALVINGS`` times) until it
   does, else the seed's estimate is kept — so χ²(default) ≤ χ²(seed) always. GTSAM's ``InitializePose3`` is the
   chordal relaxation followed by one Gauss–Newton step without the re-solve and without the guard.
+
+Every χ² is the graph's cost (``graph.cost``: g2o's, the default, or GTSAM's; :mod:`lago_cvx.posegraph3d`): the
+positions are its exact minimizer at fixed rotations and the joint step its Gauss–Newton step, in either cost. Only the
+chordal relaxation speaks Log coordinates: its weights take the information there
+(``posegraph3d.information_in_log_coordinates``; for g2o's cost S Ω S, S = blkdiag(I₃, ½I₃), the first-order
+equivalent — at zero error the g2o error's derivative is S, so the joint step's normal matrix is that too).
 
 The anchor (a pose **id**, default the smallest) is held at the identity pose (R = I, t = 0).
 """
@@ -41,8 +47,8 @@ MAX_HALVINGS = 3
 class Lago3DResult:
     """What ``lago3d`` returns; plain arrays and numbers only (picklable).
 
-    ``t`` (n, 3), ``R`` (n, 3, 3): the estimate; ``chi2`` its χ² (no ½); ``chi2_seed``: χ² after chordal →
-    positions; ``chi2_chordal_only`` is not kept (the positions are part of every route). ``alpha`` the fraction of
+    ``t`` (n, 3), ``R`` (n, 3, 3): the estimate; ``chi2`` its χ² (no ½) in the graph's cost, ``cost``;
+    ``chi2_seed``: χ² after chordal → positions; ``chi2_chordal_only`` is not kept (the positions are part of every route). ``alpha`` the fraction of
     the joint step taken (None on the seed route), ``trials`` the (α, χ²) pairs evaluated; ``route``, ``method``,
     ``weighting``; ``anchor`` (id) and ``anchor_index``; ``timings`` seconds per stage (chordal, positions, joint,
     total); ``accuracy`` the solvers' reports per stage."""
@@ -60,6 +66,7 @@ class Lago3DResult:
     trials: tuple = ()
     timings: dict = field(default_factory=dict)
     accuracy: dict = field(default_factory=dict)
+    cost: str = "g2o"
 
     dim = 3
 
@@ -92,7 +99,7 @@ def _joint(graph, t0, R0, cost0, a, solve_positions, elimination=None):
 @threads_option
 def lago3d(graph, *, route: str = "default", method: str = "closed_form", weighting: str = "isotropic",
            anchor=None, solver_settings=None, fixed=None, workers: int | None = None,
-           blas_threads: int | None = None) -> Lago3DResult:
+           blas_threads: int | None = None, cost: str | None = None) -> Lago3DResult:
     """LAGO on a 3-D pose graph (module docstring).
 
     Parameters (keyword-only): ``route`` ``"default"`` or ``"seed"``; ``method`` ``"closed_form"`` (sparse
@@ -104,9 +111,12 @@ def lago3d(graph, *, route: str = "default", method: str = "closed_form", weight
     (``space.fixed``; closed form only); ``workers`` the most threads the sparse engine runs at once (SciPy's name;
     None: ``lago_cvx.sparse.cores()``); ``blas_threads`` None (the default) leaves the process's BLAS thread count
     alone, k holds it to at most k threads while the engine factors (the 3-D systems' compiled factorizations ask
-    for one: faster when another process shares the cores, docs/performance.md "3-D graphs")."""
+    for one: faster when another process shares the cores, docs/performance.md "3-D graphs"); ``cost`` ``"g2o"`` or
+    ``"gtsam"`` (None: the graph's, ``graph.with_cost(cost)``)."""
     if getattr(graph, "dim", 2) != 3:
         raise OptionError("lago3d takes a 3-D pose graph (PoseGraph3D); planar graphs go to lago()")
+    if cost is not None:
+        graph = graph.with_cost(cost)
     check_choice("route", route, ROUTES3D)
     check_method(method)
     check_choice("weighting", weighting, WEIGHTINGS)
@@ -122,7 +132,7 @@ def lago3d(graph, *, route: str = "default", method: str = "closed_form", weight
         a = graph.index_of(next(iter(fixed)))
         return Lago3DResult(t=t, R=R, chi2=float(cost), chi2_seed=float(seed), route=route, method=method,
                             weighting=weighting, anchor=int(graph.ids[a]), anchor_index=a, alpha=alpha,
-                            trials=trials, timings={"total": time.perf_counter() - start})
+                            trials=trials, timings={"total": time.perf_counter() - start}, cost=graph.cost)
     a = graph.anchor_index(anchor)
     start = time.perf_counter()
     timings, accuracy = {}, {}
@@ -155,7 +165,7 @@ def lago3d(graph, *, route: str = "default", method: str = "closed_form", weight
     timings["total"] = time.perf_counter() - start
     return Lago3DResult(t=t, R=R, chi2=float(cost), chi2_seed=float(seed), route=route, method=method,
                         weighting=weighting, anchor=int(graph.ids[a]), anchor_index=a, alpha=alpha, trials=trials,
-                        timings=timings, accuracy=accuracy)
+                        timings=timings, accuracy=accuracy, cost=graph.cost)
 
 
 def _rel(a, b) -> float:

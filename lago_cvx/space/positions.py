@@ -1,20 +1,23 @@
 r"""The positions at fixed rotations, exactly: the 3-D counterpart of ``lago_cvx.positions``.
 
-At fixed rotations R_i the error of edge ij, e = (e_v, φ) = Log(T̃_ij⁻¹ T_i⁻¹ T_j), has a fixed rotational part
-φ_ij = Log(R̃_ijᵀ R_iᵀ R_j) and a translational part **affine** in the positions:
+At fixed rotations R_i the error of edge ij (:mod:`lago_cvx.posegraph3d`), e = (e_v, r), has a fixed rotational part
+r_ij and a translational part **affine** in the positions. With E = T̃_ij⁻¹T_i⁻¹T_j, G = R_iR̃_ij and
+t_E = Gᵀ(t_j − t_i) − R̃_ijᵀ t̃_ij:
 
-    e_v = V(φ_ij)⁻¹ R̃_ijᵀ (R_iᵀ (t_j − t_i) − t̃_ij)                       (lago_cvx.so3: Log of SE(3))
+* g2o's cost: e_v = t_E and r = q_v(R̃ᵀR_iᵀR_j), the quaternion's vector part (w ≥ 0);
+* GTSAM's cost: e_v = V(φ)⁻¹ t_E and r = φ = Log(R̃ᵀR_iᵀR_j)                     (lago_cvx.so3: Log of SE(3)).
 
-With the full 6×6 information Ω = [[Ω_tt, Ω_tr], [Ω_rt, Ω_rr]],
+So e_v = U (Gᵀ(t_j − t_i) − R̃ᵀt̃) with U = I (g2o) or V(φ)⁻¹ (GTSAM). With the full 6×6 information
+Ω = [[Ω_tt, Ω_tr], [Ω_rt, Ω_rr]],
 
-    eᵀΩe = (e_v + Ω_tt⁻¹Ω_tr φ)ᵀ Ω_tt (e_v + Ω_tt⁻¹Ω_tr φ) + φᵀ(Ω_rr − Ω_rtΩ_tt⁻¹Ω_tr)φ,
+    eᵀΩe = (e_v + Ω_tt⁻¹Ω_tr r)ᵀ Ω_tt (e_v + Ω_tt⁻¹Ω_tr r) + rᵀ(Ω_rr − Ω_rtΩ_tt⁻¹Ω_tr)r,
 
 so χ² over the positions is the linear least-squares problem
 
     min_t Σ_ij ‖L_ij (B_ij (t_j − t_i) − c_ij)‖²                                                       (P)
 
-with B = V(φ)⁻¹R̃ᵀR_iᵀ, c = V(φ)⁻¹R̃ᵀt̃ − Ω_tt⁻¹Ω_tr φ and LᵀL = Ω_tt, the anchor's position fixed: its solution is the exact minimizer of χ² at these rotations (χ² itself, not an
-approximation of it — GTSAM's cost, :mod:`lago_cvx.posegraph3d`).
+with B = U Gᵀ, c = U R̃ᵀt̃ − Ω_tt⁻¹Ω_tr r and LᵀL = Ω_tt, the anchor's position fixed: its solution is the exact
+minimizer of the graph's χ² at these rotations (χ² itself, in either cost, not an approximation of it).
 """
 
 from __future__ import annotations
@@ -22,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..posegraph3d import edge_rotations
-from ..so3 import apply, entries, log_rotations, matrices, product, transposed, v_inverse_entries
+from ..so3 import apply, entries, log_rotations, matrices, product, quaternions, transposed, v_inverse_entries
 from .blocks import edge_matrix, free_index, per_graph, solve, without_anchor
 
 __all__ = ["position_system", "positions_closed_form", "position_problem", "positions_cvxpy"]
@@ -43,15 +46,20 @@ def _edge_constants(graph):
 
 def _whitened_edges(graph, R):
     """(L B (m, 3, 3), L c (m, 3)) of (P) at rotations R (n, 3, 3), entry by entry over the edges
-    (``so3.entries``): with G = R_i R̃, E = Gᵀ R_j (``posegraph3d.edge_rotations``) and φ = Log E, B = V(φ)⁻¹ Gᵀ and
-    c = V(φ)⁻¹ R̃ᵀ t̃ − Ω_tt⁻¹Ω_tr φ."""
+    (``so3.entries``): with G = R_i R̃, E = Gᵀ R_j (``posegraph3d.edge_rotations``), B = U Gᵀ and
+    c = U R̃ᵀ t̃ − Ω_tt⁻¹Ω_tr r; g2o's cost: U = I, r = q_v(E); GTSAM's: U = V(φ)⁻¹, r = φ = Log E."""
     GT, E = edge_rotations(graph, R)
-    phi = log_rotations(E)
-    Vi = v_inverse_entries(phi)
     L, K = (entries(rows) for rows in _edge_constants(graph))
     Mt_t = apply(transposed(entries(graph.delta_R)), np.ascontiguousarray(graph.delta_t.T))
-    c = [a - b for a, b in zip(apply(Vi, Mt_t), apply(K, phi))]
-    return matrices(product(L, product(Vi, GT))), np.ascontiguousarray(np.array(apply(L, c)).T)
+    if graph.cost == "g2o":
+        r = list(quaternions(E)[:3])
+        B, Ut = GT, Mt_t
+    else:
+        r = log_rotations(E)
+        Vi = v_inverse_entries(r)
+        B, Ut = product(Vi, GT), apply(Vi, Mt_t)
+    c = [a - b for a, b in zip(Ut, apply(K, r))]
+    return matrices(product(L, B)), np.ascontiguousarray(np.array(apply(L, c)).T)
 
 
 def position_system(graph, R, *, anchor_index: int = 0, anchor_position=(0.0, 0.0, 0.0)):
