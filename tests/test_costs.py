@@ -172,3 +172,22 @@ def test_cli_cost_option(capsys):
     assert ei.value.code == 2 and "invalid choice: 'ceres'" in capsys.readouterr().err
     assert main(["info", path, "--cost", "paper"]) == 0
     assert "cost paper" in capsys.readouterr().out
+
+
+def test_write_graph_takes_any_result_of_either_dimension(tmp_path):
+    import lago_cvx as lc
+    from lago_cvx.space import lago3d, refine3d
+
+    g3 = lc.read_graph(dataset_path("se-sync-3d/smallGrid3D.g2o"))
+    r3 = lago3d(g3)
+    f3 = refine3d(g3, r3.t, r3.R)
+    back = lc.read_graph(lc.write_graph(tmp_path / "r3.g2o", g3, f3))
+    assert lc.chi2_3d(back, *back.initial) == pytest.approx(f3.chi2, rel=1e-12)
+    g2 = _world()
+    r2 = lc.lago(g2)
+    back2 = lc.read_graph(lc.write_graph(tmp_path / "r2.graph", g2, r2, format="toro"))
+    assert np.allclose(back2.initial[:, :2], r2.poses[:, :2])
+    with pytest.raises(OptionError, match="a 3-D graph's poses"):
+        lc.write_graph(tmp_path / "x.g2o", g3, np.zeros((g3.n_poses, 3)))
+    with pytest.raises(OptionError, match="a planar graph's poses"):
+        lc.write_graph(tmp_path / "x.g2o", g2, (r3.t[:g2.n_poses], r3.R[:g2.n_poses]))

@@ -140,11 +140,30 @@ def _checked_poses(path, graph: PoseGraph, poses):
     return poses
 
 
+def _pose_arrays(graph, poses):
+    """``poses`` as arrays: any result of either dimension (``.poses``; ``.t`` and ``.R``) or the arrays themselves;
+    ``OptionError`` for poses of the other dimension."""
+    if poses is None:
+        return None
+    if hasattr(poses, "t") and hasattr(poses, "R"):
+        poses = (poses.t, poses.R)
+    elif hasattr(poses, "poses"):
+        poses = poses.poses
+    three = getattr(graph, "dim", 2) == 3
+    pair = isinstance(poses, (tuple, list)) and len(poses) == 2 and np.ndim(poses[1]) == 3  # (t, R)
+    if three != pair:
+        raise OptionError("a 3-D graph's poses are (t (n, 3), R (n, 3, 3)) or a 3-D result; a planar graph's an "
+                          "(n, 3) array or a planar result" if three else
+                          "a planar graph's poses are an (n, 3) array or a planar result, not (t, R)")
+    return poses
+
+
 def write_graph(path, graph: PoseGraph, poses=None, *, format: str = "g2o",
                 wrap_angles: bool = True) -> Path:
     """Write ``graph`` as a g2o (default) or TORO file and return ``Path(path)``.
 
-    Vertex lines come from ``poses`` ((n, 3)) if given, else from ``graph.initial``; with neither the
+    Vertex lines come from ``poses`` ((n, 3); for a 3-D graph (t (n, 3), R (n, 3, 3)); or any result of LAGO or a
+    refinement) if given, else from ``graph.initial``; with neither the
     file has edge lines only (poses that appear in no edge are then not represented). Ids are the
     graph's original ``ids``. Numbers are written with ``repr`` (shortest exact round trip), so
     read → write → read reproduces the graph bit for bit. Vertex angles outside [−π, π) are wrapped
@@ -162,6 +181,7 @@ def write_graph(path, graph: PoseGraph, poses=None, *, format: str = "g2o",
     fmt = check_format(format)
     if fmt is None:
         raise OptionError("format must be 'g2o' or 'toro'")
+    poses = _pose_arrays(graph, poses)
     if getattr(graph, "dim", 2) == 3:  # a PoseGraph3D: VERTEX_SE3:QUAT / EDGE_SE3:QUAT (space.py)
         if fmt != "g2o":
             raise OptionError("3-D pose graphs are written as g2o (VERTEX_SE3:QUAT/EDGE_SE3:QUAT) only")
