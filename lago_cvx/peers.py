@@ -6,7 +6,7 @@ Differences to keep in mind when comparing:
 * GTSAM's between factors take a noise *model*, written for its error Log(Z⁻¹X_i⁻¹X_j), whose translation is
   in the *measurement's* frame (``lago_cvx.conventions``: the frame of g2o's information); we give it
   ``Diagonal.Sigmas`` built from the marginal standard deviations of each edge's covariance in that frame
-  (``PoseGraph.information_in("measurement")``⁻¹; x, y, θ). Cross terms are dropped — GTSAM's LAGO accepts only
+  (the inverse of ``PoseGraph.information_in("measurement")``; x, y, θ). Cross terms are dropped — GTSAM's LAGO accepts only
   diagonal models.
 * GTSAM's final linear pose solve (``computePoses`` in gtsam/slam/lago.cpp) writes the relative-position
   residual in the *global* frame but weights it with the edge's noise model unrotated; eq. (10) of the seed

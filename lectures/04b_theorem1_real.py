@@ -76,9 +76,8 @@ show(intuition_figure("04b"), "intuition")
 # `manhattan.g2o`.
 
 # %%
-FAILS = ["carlone/INTEL_P_toro.graph", "carlone/input_INTEL_g2o.g2o", "se-sync/CSAIL.g2o", "se-sync/MIT.g2o",
-         "se-sync/manhattan.g2o"]
-HOLDS = ["carlone/input_M3500_g2o.g2o"]
+FAILS = ["carlone/INTEL_P_toro.graph", "carlone/input_INTEL_g2o.g2o", "se-sync/MIT.g2o", "se-sync/manhattan.g2o"]
+HOLDS = ["carlone/input_M3500_g2o.g2o", "se-sync/CSAIL.g2o"]
 FILES = FAILS + HOLDS
 measured = {}
 for rel in FILES:
@@ -113,6 +112,26 @@ if measured:
           f"the claim fails — χ²(ρ*) > χ²(ρ̂) — on {', '.join(f.split('/')[1] for f in fails)}")
 
 # %% [markdown]
+# **It holds** on `input_M3500` (isotropic information) and on CSAIL, whose information is anisotropic — in the cost
+# its file means. Read CSAIL's g2o matrices as if they were written for eq. (3) (`cost="paper"`: the translational
+# residual in the tail's frame, while g2o writes them for the measurement's frame, a cost no tool computes for this
+# file) and the claim fails there too, by a factor the next cell prints: which cost a file means is part of the data
+# (docs/conventions.md).
+
+# %%
+if "se-sync/CSAIL.g2o" in measured:
+    t_paper = theorem1(measured["se-sync/CSAIL.g2o"][0].with_cost("paper"), regularization="tree",
+                       information="marginal", positions="phase3")
+    print(f"CSAIL in g2o's cost: χ²(ρ̂) {measured['se-sync/CSAIL.g2o'][1].chi2_suboptimal:.2f} → χ²(ρ*) "
+          f"{measured['se-sync/CSAIL.g2o'][1].chi2_phase3:.2f}; its matrices read as eq. (3)'s: "
+          f"{t_paper.chi2_suboptimal:.2f} → {t_paper.chi2_phase3:.2f}")
+
+# %% tags=["remove-input"]
+if "se-sync/CSAIL.g2o" in measured:
+    check(t_paper.chi2_phase3 > 5 * t_paper.chi2_suboptimal, "CSAIL read in the wrong cost: the claim fails by more "
+          "than 5×")
+
+# %% [markdown]
 # **Where the claim fails**, phase 3 moves a $\hat\rho$ that is already close to the minimum (column
 # χ²(ρ̂)/min: within 1–22 %) to anything from a few per cent above the minimum (manhattan) to tens or
 # thousands of times the minimum (the INTEL files), column χ²(ρ*)/min; the sentence below the table prints
@@ -140,8 +159,7 @@ if measured:
 #    with the positions re-solved, but it is all that the RMS error and the cosine between the step and
 #    the direction to the optimum see; remove that constant turn and the step points towards the optimum
 #    (column "cos, aligned"). On INTEL the excess of χ²(ρ*) is therefore all in the positions — the
-#    translational part of χ². CSAIL is different: there $F(\theta^*) > F(\hat\theta)$, and the orientations
-#    of phase 3 are themselves worse than phase 1's.
+#    translational part of χ².
 
 # %%
 alphas = np.linspace(0.0, 1.0, 6)
@@ -181,7 +199,7 @@ for rel, (gr, t, opt) in measured.items():
     if rel in FAILS:
         check(frozen < t.chi2_suboptimal < t.chi2_phase3, f"{rel}: with frozen weights the step lowers the cost "
               f"({t.chi2_suboptimal:.1f} → {frozen:.1f}); with the true weights it raises it (to {t.chi2_phase3:.1f})")
-    else:
+    elif rel == "carlone/input_M3500_g2o.g2o":
         check(abs(t.chi2_phase3 / frozen - 1) < 1e-9, f"{rel}: isotropic information, frozen weights = true weights")
     if rel in ("carlone/INTEL_P_toro.graph", "carlone/input_INTEL_g2o.g2o"):
         check(F_star < F_hat and F_star < 1.01 * opt.chi2,
@@ -195,11 +213,8 @@ for rel, (gr, t, opt) in measured.items():
         check(parts["translation"] - best["translation"] > 0.99 * (t.chi2_phase3 - opt.chi2),
               f"{rel}: the excess of χ²(ρ*) is in the positions (translational part {parts['translation']:.0f} "
               f"against the minimum's {best['translation']:.1f})")
-    if rel == "se-sync/CSAIL.g2o":
-        check(F_star > F_hat, f"{rel}: F(θ*)/min = {F_star / opt.chi2:.3f} > F(θ̂)/min = {F_hat / opt.chi2:.3f}: here the "
-              "orientations of phase 3 are worse too")
     if rel == "se-sync/manhattan.g2o":
-        check(t.chi2_phase3 < 1.05 * opt.chi2, f"{rel}: the smallest failure, χ²(ρ̂)/min = "
+        check(t.chi2_phase3 < 1.06 * opt.chi2, f"{rel}: the smallest failure, χ²(ρ̂)/min = "
               f"{t.chi2_suboptimal / opt.chi2:.4f} → χ²(ρ*)/min = {t.chi2_phase3 / opt.chi2:.4f}")
 
 # %%
@@ -483,8 +498,8 @@ if intel is not None and peers.have_gtsam():
 # With isotropic noise the two are the same estimate. With INTEL's anisotropic noise they differ, and
 # reading GTSAM's source (`computePoses` in `gtsam/slam/lago.cpp`) shows where: its final linear solve
 # writes each relative position in the global frame, $R(\hat\theta_i)\Delta l_{ij}$, but whitens that
-# residual with the noise model of the tail's frame, where eq. (10) rotates $P_{\Delta l}$ by
-# $R(\hat\theta_i)$ first. This is our reading of GTSAM's implementation, consistent with the isotropic
+# residual with the edge's noise model unrotated (a model written for GTSAM's own error, whose translation is in the
+# measurement's frame), where eq. (10) rotates $P_{\Delta l}$ by $R(\hat\theta_i)$ first. This is our reading of GTSAM's implementation, consistent with the isotropic
 # check; it is not a statement about the paper. It is another way to weigh a residual in the wrong
 # frame, and, like phase 3's frozen weights, it matters only where the information is anisotropic.
 

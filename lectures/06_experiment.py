@@ -527,7 +527,9 @@ check(rows["running example"]["paper"] < 1.01, "running example: the paper's pro
 if files:
     check(all(r["ok"] for r in rows.values()),
           "Gauss–Newton from LAGO (default route) converges to the lowest known χ² on every file")
-    check(bool(fails) and min(rows[f]["paper"] for f in fails) > 5, "where the claim fails, it fails by more than 5× on every file")
+    mild = sorted(f for f in fails if rows[f]["paper"] <= 5)
+    check(bool(fails) and all(rows[f]["paper"] < 1.1 for f in mild) and len(mild) < len(fails) / 2,
+          f"where the claim fails, it fails by more than 5× on every file but {mild or 'none'} (below 1.1×)")
     wrong_integers = [f for f in fails if rows[f]["ambiguous"] > 0]
     overshoot = [f for f in fails if rows[f]["ambiguous"] == 0]
     check(all(rows[f]["rho_hat"] > 1.1 for f in wrong_integers),
@@ -538,22 +540,26 @@ if files:
           "the default route is within 5 % of the minimum on every file")
     if "se-sync/MIT.g2o" in rows:
         check("se-sync/MIT.g2o" in trapped, "MIT: from odometry Gauss–Newton is trapped, from LAGO it is not")
-    check(all(r["it_lago"] <= 10 for r in rows.values()),
-          "from LAGO Gauss–Newton reaches the minimum on every file within 10 iterations")
+    slow = sorted(rel for rel, r in rows.items() if r["it_lago"] > 10)
+    check(all(r["it_lago"] <= 40 for r in rows.values()) and set(slow) <= {"carlone/input_INTEL_g2o.g2o"},
+          f"from LAGO Gauss–Newton reaches the minimum on every file within 10 iterations but {slow or 'none'} "
+          "(information from 11 to 1e8: its steps are halved along the stiff directions)")
 if "carlone/INTEL_P_toro.graph" in rows:
     check(rows["carlone/INTEL_P_toro.graph"]["paper"] > 50,
           f"INTEL: the paper's procedure leaves {rows['carlone/INTEL_P_toro.graph']['paper']:.1f}× the minimum")
 
 # %% [markdown]
 # So the claim needs its qualifier. With the paper's procedure it holds — within a few per cent of the
-# minimum — on the running example and on some of these graphs (the list is printed) and fails on the others, by large factors: on
+# minimum — on the running example and on some of these graphs (the list is printed) and fails on the others, by
+# large factors on most (the M3500 world with Olson's anisotropic information only by about 5 %): on
 # INTEL itself, the graph of Section V, the paper's procedure leaves more than 50× the minimum χ² (the
 # factor is printed above). The failures have two causes, which the two diagnostic columns tell apart. Where chords are
 # ambiguous, the rounding of Theorem 3 along the odometric tree picks wrong integers and already
 # $\hat\rho$ is far off (lecture 8 takes this up). Where no chord is ambiguous — INTEL among them —
 # $\hat\rho$ is within a few per cent of the minimum and phase 3 itself makes it worse; the next section
-# shows how. The other use holds everywhere: started from LAGO, Gauss–Newton reaches the minimum in a few
-# iterations on every file, while from odometry it can stop in a local minimum (the files printed above).
+# shows how. The other use holds everywhere: started from LAGO, Gauss–Newton reaches the minimum on every file, in a
+# few iterations on all but input_INTEL (whose information spans 11 to 1e8), while from odometry it can stop in a
+# local minimum (the files printed above).
 #
 # ## 8. Why INTEL fails: Theorem 1 measured
 #

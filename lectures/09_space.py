@@ -368,13 +368,16 @@ check(lc.chi2_3d(g, t_cf, two_small.R) < lc.chi2_3d(g, shift, two_small.R),
       "the positions minimize χ² at the two-step route's rotations (a random nudge raises it)")
 
 # %% [markdown]
-# **sphere2500** (2500 poses, 4949 edges), from the real file. GTSAM's `InitializePose3` runs in this process when the
+# **sphere2500** (2500 poses, 4949 edges), from the real file, read for GTSAM's cost (`cost="gtsam"`: the Logmap
+# error, the cost `InitializePose3` and its Levenberg–Marquardt are measured in; the file's own cost is g2o's, whose
+# rotational error is the quaternion's vector part, ≈ φ/2). GTSAM's `InitializePose3` runs in this process when the
 # Python package `gtsam` is installed, with a prior pinning the first pose as GTSAM requires; its χ² is GTSAM's
 # `2·error()`, which we check equals our χ² of its estimate.
 
 # %%
 sphere = real("se-sync-3d/sphere2500.g2o")
 if sphere is not None:
+    sphere = sphere.with_cost("gtsam")
     ours = {name: lago3d(sphere, route=route) for name, route in (("two", TWO), ("default", "default"))}
     minimum = refine3d(sphere, ours["default"].t, ours["default"].R)
     print(f"sphere2500: χ² two-step {ours['two'].chi2:.2f}, default {ours['default'].chi2:.2f} "
