@@ -9,7 +9,10 @@ thread, a 64-core workstation gets more. ``workers=1`` runs the engine in the ca
 ``blas_limit()`` — the BLAS thread count the engine may set around its small dense kernels: None (the default)
 leaves the process's BLAS settings alone; only a caller that asks (``engine_threads(blas_threads=k)``) lets the
 engine hold the BLAS to at most k threads while it runs (``linalg.blas_threads``) — a process-wide setting,
-visible to every thread of the process meanwhile, so never the default.
+visible to every thread of the process meanwhile, so never the default. OpenBLAS offers no thread-local count to
+use instead: its ``openblas_set_num_threads_local`` (0.3.27 on) calls the process-wide ``openblas_set_num_threads``
+and stores the count in a plain global (not thread-local storage), so another thread sees the change (the
+pthreads builds NumPy and SciPy bundle, 0.3.30 and 0.3.31, read from their machine code and seen at run time).
 
 Both are context variables: set for the calling thread's context, not for the process; the engine hands them
 to the threads it starts (``spawn``).
