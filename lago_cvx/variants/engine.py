@@ -51,6 +51,9 @@ __all__ = ["VariantOptions", "VariantPhase1", "VariantPhase3", "VariantResult", 
 
 log = logging.getLogger("lago_cvx.variants")
 
+#: Phase 3 moving an orientation further than this (rad) from phase 1 is logged as a warning.
+THETA_MOVE_WARNING = 0.3
+
 
 @dataclass(frozen=True)
 class VariantOptions:
@@ -425,6 +428,11 @@ def run_variant(graph: PoseGraph, opts: VariantOptions) -> VariantResult:
     n = graph.n_poses
     poses = np.column_stack([x[0:2 * n:2], x[1:2 * n:2], x[2 * n:]])
     st.timings["phase3"] = time.perf_counter() - t
+    moved = float(np.max(np.abs(poses[:, 2] - sol1.x), initial=0.0))
+    if moved > THETA_MOVE_WARNING:  # phase 3 corrects θ by O(noise); a large move means a fight
+        log.warning("phase 3 moved θ by up to %.3g rad from phase 1 (pose %d): constraints or priors far from "
+                    "the data pull against the measurements; check them (e.g. a wall on the wrong side)", moved,
+                    int(graph.ids[int(np.argmax(np.abs(poses[:, 2] - sol1.x)))]))
     t = time.perf_counter()
     problems, pol = {}, None
     if opts.positions == "resolve":
