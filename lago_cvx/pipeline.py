@@ -70,7 +70,8 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
          regularization: str | None = None, information: str | None = None, positions: str | None = None,
          anchor=None, anchor_pose=None, margin: float = AMBIGUITY_MARGIN,
          solver_settings: ClarabelSettings | None = None, backend: str = "auto", anchors=None,
-         priors=None, integer_search: IntegerSearch | None = None, progress=None, workers: int | None = None) -> LagoResult:
+         priors=None, integer_search: IntegerSearch | None = None, progress=None,
+         workers: int | None = None) -> LagoResult:
     """LAGO: the linear approximation of planar pose-graph optimization (the seed's Section IV).
 
     Parameters (keyword-only):
@@ -133,11 +134,10 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
                          integer_search=integer_search)
     choice, route_name = resolve_route(route, spanning_tree=spanning_tree, regularization=regularization,
                                        information=information, positions=positions)
-    if anchors is not None or priors is not None:
-        from .variants import anchored_lago  # the engine of anchors, priors, constraints (loaded on demand)
-
-        return anchored_lago(graph, anchors=anchors, priors=priors, method=method, route=route, spanning_tree=spanning_tree,
-                             regularization=regularization, information=information, positions=positions,
+    if anchors is not None or priors is not None:  # the variants engine (loaded on demand)
+        from .variants import anchored_lago
+        return anchored_lago(graph, anchors=anchors, priors=priors, method=method, route=route, positions=positions,
+                             spanning_tree=spanning_tree, regularization=regularization, information=information,
                              anchor=anchor, anchor_pose=anchor_pose, margin=margin, solver_settings=solver_settings,
                              backend=backend, integer_search=integer_search, progress=progress)
     _check_options(graph, method, choice)
