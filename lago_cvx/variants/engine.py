@@ -430,8 +430,9 @@ def run_variant(graph: PoseGraph, opts: VariantOptions) -> VariantResult:
     st.timings["phase3"] = time.perf_counter() - t
     moved = float(np.max(np.abs(poses[:, 2] - sol1.x), initial=0.0))
     if moved > THETA_MOVE_WARNING:  # phase 3 corrects θ by O(noise); a large move means a fight
-        log.warning("phase 3 moved θ by up to %.3g rad from phase 1 (pose %d): constraints or priors far from "
-                    "the data pull against the measurements; check them (e.g. a wall on the wrong side)", moved,
+        log.warning("phase 3 moved θ by up to %.3g rad from phase 1 (pose %d): the phases disagree — constraints "
+                    "or priors far from the data (e.g. a wall on the wrong side) or, with a robust loss, outliers "
+                    "pull against the measurements; check them", moved,
                     int(graph.ids[int(np.argmax(np.abs(poses[:, 2] - sol1.x)))]))
     t = time.perf_counter()
     problems, pol = {}, None
