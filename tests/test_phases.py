@@ -63,7 +63,7 @@ def test_phase3_cvxpy_equals_closed_form(small):
     g, res = small
     ph3, prob = P.phase3_from_problem(g, res.phase2)
     assert relative_difference(ph3.x_star, res.phase3.x_star) < 1e-9
-    assert len(prob.variables()) == 1 and prob.variables()[0].shape == (3 * (g.n_poses - 1),)
+    assert len(prob.variables()) == 1 and prob.variables()[0].shape == (3 * g.n_poses,)  # every pose by index
 
 
 def test_phase3_is_the_blue_of_eq15(small):

@@ -216,3 +216,28 @@ def test_unwrapped_orientation_bounds_warn(caplog):
     with caplog.at_level(logging.WARNING, logger="lago_cvx.variants"):
         constrained_lago(g, lambda pv: orientation_bounds(pv, poses=[g.ids[5]], lower=-3.0, upper=3.0))
     assert any("without center=" in r.message for r in caplog.records)
+
+
+def test_priors_and_plain_refine_load_no_cvxpy():
+    """The unconstrained path stays as it was: no cvxpy (and, without priors, not even this module)."""
+    import subprocess
+    import sys
+
+    code = ("import sys, numpy as np, lago_cvx as lc; w = lc.manhattan_world(60, seed=2); g = w.graph; "
+            "r = lc.refine(g, lc.lago(g).poses); a = 'lago_cvx.refine_variants' in sys.modules; "
+            "p = lc.refine(g, r.poses, priors={5: ((1.0, 2.0, None), np.eye(2))}); p.pose_covariances(); "
+            "print(a, 'cvxpy' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    assert out == ["False", "False"]
+
+
+def test_lago_accepts_position_only_and_theta_only_priors():
+    g, _, free, _, _ = _setup()
+    P = free.poses
+    gps = {int(g.ids[i]): ((P[i, 0] + 1.0, P[i, 1], None), 1e4 * np.eye(2)) for i in (100, 500)}
+    res = lago(g, priors=gps)
+    assert res.frame["position"] == "priors" and res.frame["orientation"].startswith("procrustes")
+    moved = res.poses[[100, 500], :2] - P[[100, 500], :2]
+    assert np.allclose(moved, [[1.0, 0.0], [1.0, 0.0]], atol=0.05)  # the data agree with a pure shift
+    th = lago(g, priors={int(g.ids[100]): ((None, None, P[100, 2] + 0.5), 1e8)})
+    assert abs(_wrap(th.poses[100, 2] - P[100, 2] - 0.5)) < 1e-3
