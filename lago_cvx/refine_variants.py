@@ -21,9 +21,12 @@ Convex constraints (R2). A constraint function f(pv) receives ``PoseVariables`` 
 ``theta`` (n,) are the affine cvxpy expressions x_k + S dx of the poses after the step dx (S the (3n × d)
 selector of the coordinates not held; held entries constant). Each Gauss–Newton step is the convex problem
 
-    minimise_dx  ½ dxᵀ(J̄ᵀJ̄)dx + (J̄ᵀr̄)ᵀdx     subject to  f(x_k + S dx)                    (R2)
+    minimise_dx  ‖r̄ + J̄ dx‖²     subject to  f(x_k + S dx)                                  (R2)
 
-(‖r̄ + J̄ dx‖² up to a constant; a QP for Clarabel when f is affine), then a backtracking line search
+(``cp.sum_squares``, one second-order cone for Clarabel, whose relative gap is then measured against χ²
+itself, not against the vanishing model decrease of the last steps; the ``ROBUST`` preset's 1e-9
+tolerances, since a conic problem with inequalities cannot reach ``LEAST_SQUARES``' 1e-12), then a
+backtracking line search
 x_{k+1} = x_k + α dx, α = 1, ½, …: when x_k and x_k + dx are feasible so is every point between them
 (the feasible set is convex), so every iterate is feasible. A start outside the feasible set takes the
 first step in full (it lands in the set) and logs it.
@@ -149,7 +152,7 @@ def constrained_gauss_newton(graph, prob, res, constraints, max_iterations: int,
     constraints when a step problem is infeasible."""
     import cvxpy as cp
 
-    from .solvers import INFEASIBLE_STATUSES, solve
+    from .solvers import INFEASIBLE_STATUSES, ROBUST, solve
     from .variants.constraints import diagnose
 
     Sx, Sy, St = _selector(prob.held)
@@ -167,10 +170,10 @@ def constrained_gauss_newton(graph, prob, res, constraints, max_iterations: int,
         cons = [k for c in named for k in c.constraints]
         dx.value = np.zeros(prob.dim)
         outside = _violation(named) > FEASIBILITY_TOLERANCE
-        problem = cp.Problem(cp.Minimize(0.5 * cp.quad_form(dx, cp.psd_wrap(H)) + g @ dx), cons)
-        status = solve(problem, solver_settings, what=f"refine step {it}", allow=INFEASIBLE_STATUSES)
+        problem = cp.Problem(cp.Minimize(cp.sum_squares(J @ dx + r)), cons)
+        status = solve(problem, solver_settings, preset=ROBUST, what=f"refine step {it}", allow=INFEASIBLE_STATUSES)
         if status in INFEASIBLE_STATUSES:
-            diagnose(f"refine step {it}", [], named, lambda p: solve(p, solver_settings, what="refine",
+            diagnose(f"refine step {it}", [], named, lambda p: solve(p, solver_settings, preset=ROBUST, what="refine",
                                                                       allow=INFEASIBLE_STATUSES))
         if dx.value is None:
             raise SolverError(f"refine step {it}: Clarabel returned no step", str(status))
