@@ -3,9 +3,11 @@ r"""Named convex constraints on the poses (V9), for the cvxpy route of every var
 ``constrained_lago`` solves phases 1 and 3 as cvxpy problems to which a user function adds named
 convex constraints through ``PoseVariables`` (affine expressions of every pose's x, y, θ):
 ``box_constraint``, ``polygon_constraint`` (convex polygon as half-planes nᵢᵀp ≤ cᵢ),
-``orientation_bounds`` (lower ≤ θ_v − center_v ≤ upper). Orientation bounds act in both phases,
-position constraints in phase 3. An infeasible problem raises ``InfeasibleConstraintsError`` naming the
-constraints (``diagnose``).
+``orientation_bounds`` (lower ≤ θ_v − center_v ≤ upper). The same function is called in every phase and
+by ``refine(constraints=...)`` with x, y, θ of length n (pose index order); phase 1 has θ only, so a
+constraint on positions applies from phase 3 on (``collect_constraints``). Bare cvxpy constraints are
+accepted; anything else is an ``OptionError`` naming it. An infeasible problem raises
+``InfeasibleConstraintsError`` naming the constraints (``diagnose``).
 """
 
 from __future__ import annotations
@@ -112,15 +114,22 @@ class PoseVariables:
 
 def halfplane_constraint(pv: PoseVariables, normals, offsets, *, poses=None, name: str = "half-planes") -> NamedConstraint:
     """Every pose in ``poses`` (ids; all when None) satisfies nᵢᵀp ≤ cᵢ for every half-plane i:
-    ``normals`` (h, 2), ``offsets`` (h,). One vectorized constraint (k rows) per half-plane, on ``pv.x``,
-    ``pv.y``: deferred from phase 1 to phase 3 (``PoseVariables``), kept by ``refine``."""
+    ``normals`` (h, 2), ``offsets`` (h,). One vectorized constraint of k·h rows (pose-major: row v·h + i is
+    half-plane i at the v-th pose) on ``pv.x``, ``pv.y``: deferred from phase 1 to phase 3
+    (``PoseVariables``), kept by ``refine``."""
     Nrm = np.atleast_2d(np.asarray(normals, dtype=float))
     c = np.atleast_1d(np.asarray(offsets, dtype=float))
     if Nrm.shape[1] != 2 or c.shape != (Nrm.shape[0],):
         raise OptionError(f"{name}: normals must be (h, 2) and offsets (h,)")
+    import cvxpy as cp
+
     idx = pv.index(poses)
-    X, Y = pv.x[idx], pv.y[idx]
-    return NamedConstraint(name, [Nrm[i, 0] * X + Nrm[i, 1] * Y <= c[i] for i in range(Nrm.shape[0])])
+    k, h = idx.size, Nrm.shape[0]
+    rows = np.arange(k * h)
+    pose = np.repeat(np.arange(k), h)
+    H = sp.csr_matrix((np.concatenate([np.tile(Nrm[:, 0], k), np.tile(Nrm[:, 1], k)]),
+                       (np.concatenate([rows, rows]), np.concatenate([pose, k + pose]))), shape=(k * h, 2 * k))
+    return NamedConstraint(name, [H @ cp.hstack([pv.x[idx], pv.y[idx]]) <= np.tile(c, k)])
 
 
 def box_constraint(pv: PoseVariables, *, poses=None, xmin=-np.inf, xmax=np.inf, ymin=-np.inf, ymax=np.inf,
