@@ -241,3 +241,15 @@ def test_lago_accepts_position_only_and_theta_only_priors():
     assert np.allclose(moved, [[1.0, 0.0], [1.0, 0.0]], atol=0.05)  # the data agree with a pure shift
     th = lago(g, priors={int(g.ids[100]): ((None, None, P[100, 2] + 0.5), 1e8)})
     assert abs(_wrap(th.poses[100, 2] - P[100, 2] - 0.5)) < 1e-3
+
+
+def test_a_wall_far_from_the_data_is_said(caplog):
+    """Phase 3 moving θ far (> 0.3 rad) from phase 1 means the constraints fight the data: a warning."""
+    g, _, free, _, _ = _setup()
+    c = float(free.poses[300:500, 0].min()) - 15.0  # every one of these poses 15 m beyond where the data put them
+    with caplog.at_level(logging.WARNING, logger="lago_cvx.variants"):
+        res = constrained_lago(g, lambda pv: halfplane_constraint(pv, [[1.0, 0.0]], [c], poses=g.ids[300:500]))
+    moved = np.abs(res.poses[:, 2] - res.phase1.theta).max()
+    said = any("phase 3 moved θ" in r.message for r in caplog.records)
+    assert said == (moved > 0.3), moved
+    assert said
