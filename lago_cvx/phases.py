@@ -153,21 +153,37 @@ def _phase1_terms(graph: PoseGraph, delta_reg, unc: EdgeUncertainty, a: int):
 
 
 def phase1_problem(graph: PoseGraph, delta_reg, unc: EdgeUncertainty, *, anchor=None):
-    """Phase 1 as a cvxpy problem (eq. (13)): minimise ‖P_δ^(-1/2)(Aᵀθ − δ_reg)‖² over θ ∈ ℝ^d, with A the
-    reduced incidence matrix (d × m, the anchor's row deleted) and P_δ = diag of the δ variances.
+    """Phase 1 as a cvxpy problem (eq. (13)): minimise ‖P_δ^(-1/2)(Aᵀθ − δ_reg)‖² over θ ∈ ℝⁿ subject to
+    θ_a = 0 (the anchor a, the gauge), A the incidence matrix with the anchor's row multiplied by 0 (so Aᵀθ =
+    A2ᵀθ_free, A2 the reduced one of the closed form) and P_δ = diag of the δ variances.
 
-    ``print(problem)`` reads ``minimize quad_over_lin(P_δ^(-1/2) @ (Aᵀ @ θ + -δ_reg), 1.0, …)`` (cvxpy's
-    spelling of ‖·‖²). δ_reg is a ``cp.Parameter`` (``problem.param_dict["δ_reg"]``): set its ``.value``
+    θ covers all n poses by index in graph order (``theta[v]`` is pose v's orientation), as in phase 3's
+    problem and the variants' (``lago_cvx.variants.PoseVariables``). ``print(problem)`` reads
+    ``minimize quad_over_lin(P_δ^(-1/2) @ (Aᵀ @ θ + -δ_reg), 1.0, …)`` (cvxpy's spelling of ‖·‖²) subject to
+    the anchor equality. δ_reg is a ``cp.Parameter`` (``problem.param_dict["δ_reg"]``): set its ``.value``
     and re-solve without rebuilding. Returns ``(problem, theta)``; add constraints with
-    ``cp.Problem(problem.objective, [...])``."""
+    ``cp.Problem(problem.objective, problem.constraints + [...])``."""
     import cvxpy as cp
 
-    A2, W, d_reg = _phase1_terms(graph, delta_reg, unc, graph.anchor_index(anchor))
-    At = named_constant(sp.csc_matrix(A2.T), "Aᵀ")
+    a = graph.anchor_index(anchor)
+    A2, W, d_reg = _phase1_terms(graph, delta_reg, unc, a)
+    At = named_constant(sp.csc_matrix(A2.T @ _free_selector(graph.n_poses, a, 1)), "Aᵀ")
     P_inv_sqrt = named_constant(sp.csc_matrix(W), "P_δ^(-1/2)")
     delta = parameter(d_reg, "δ_reg")
-    theta = cp.Variable(A2.shape[0], name="θ")
-    return cp.Problem(cp.Minimize(cp.sum_squares(P_inv_sqrt @ (At @ theta - delta)))), theta
+    theta = cp.Variable(graph.n_poses, name="θ")
+    return cp.Problem(cp.Minimize(cp.sum_squares(P_inv_sqrt @ (At @ theta - delta))), [theta[a] == 0.0]), theta
+
+
+def _free_selector(n: int, a: int, per_pose: int) -> sp.csr_matrix:
+    """S (b·(n−1) × b·n) from the coordinates of all poses to the reduced ones of the closed forms: b = 1
+    θ_free = S θ; b = 3 [p_free (interleaved); θ_free] = S [p; θ] (p interleaved over all n poses)."""
+    free = free_poses(n, a)
+    d = free.size
+    if per_pose == 1:
+        cols = free
+    else:
+        cols = np.concatenate([np.stack([2 * free, 2 * free + 1], 1).reshape(-1), 2 * n + free])
+    return sp.csr_matrix((np.ones(cols.size), (np.arange(cols.size), cols)), shape=(per_pose * d, per_pose * n))
 
 
 def phase1_system(graph: PoseGraph, delta_reg, unc: EdgeUncertainty, elim: GraphElimination) -> EdgeSystem:
@@ -212,13 +228,13 @@ def phase1_from_problem(graph: PoseGraph, delta_reg, unc: EdgeUncertainty, *, an
                         settings: ClarabelSettings | None = None):
     """Build and solve the phase-1 cvxpy problem with Clarabel; returns (Phase1, problem)."""
     problem, theta = phase1_problem(graph, delta_reg, unc, anchor=anchor)
-    if theta.size == 0:  # a single pose: nothing to estimate (cvxpy cannot build an empty problem)
+    if graph.n_poses == 1:  # a single pose: nothing to estimate
         return phase1_closed_form(graph, delta_reg, unc, anchor=anchor), problem
     solve(problem, settings, what="phase 1")
     a = graph.anchor_index(anchor)
     A2, W, _ = _phase1_terms(graph, delta_reg, unc, a)
     M = W @ A2.T
-    tf = np.asarray(theta.value, dtype=float)
+    tf = _free_selector(graph.n_poses, a, 1) @ np.asarray(theta.value, dtype=float)
     return Phase1(_full(graph.n_poses, a, tf), tf, (M.T @ M).tocsr(), a), problem
 
 
@@ -461,20 +477,23 @@ def design_matrix(graph: PoseGraph, *, anchor=None) -> sp.csr_matrix:
 
 
 def phase3_problem(graph: PoseGraph, ph2: Phase2):
-    """Phase 3 as a cvxpy problem (eqs. (12), (15)): minimise ‖W (z − Bᵀρ)‖² over ρ = [p; θ] ∈ ℝ^{3d}
-    (anchored where phase 2 was; WᵀW = P_z⁻¹, and W, z, Bᵀ of the paper's or the full-information form,
-    ``ph2.information``).
+    """Phase 3 as a cvxpy problem (eqs. (12), (15)): minimise ‖W (z − Bᵀρ)‖² over ρ = [p; θ] ∈ ℝ³ⁿ subject to
+    the anchor's coordinates = 0 (where phase 2 was anchored; WᵀW = P_z⁻¹, and W, z, Bᵀ of the paper's or
+    the full-information form, ``ph2.information``, with zero columns at the anchor).
 
-    ``print(problem)`` reads ``minimize quad_over_lin(W @ (z + -(Bᵀ @ ρ)), 1.0, …)``. z is a ``cp.Parameter``
-    (``problem.param_dict["z"]``). Returns ``(problem, rho)``; positions are ``rho[:2d]`` (interleaved),
-    orientations ``rho[2d:]``."""
+    ρ covers all n poses by index in graph order, as in phase 1's problem and the variants': positions
+    interleaved, ``rho[2v]``, ``rho[2v + 1]`` = x_v, y_v, orientations ``rho[2n + v]`` = θ_v.
+    ``print(problem)`` reads ``minimize quad_over_lin(W @ (z + -(Bᵀ @ ρ)), 1.0, …)`` subject to the anchor
+    equality. z is a ``cp.Parameter`` (``problem.param_dict["z"]``). Returns ``(problem, rho)``."""
     import cvxpy as cp
 
-    rho = cp.Variable(ph2.Bt.shape[1], name="ρ")
+    n, a = graph.n_poses, ph2.anchor_index
+    rho = cp.Variable(3 * n, name="ρ")
     W = named_constant(sp.csc_matrix(ph2.W), "W")
-    Bt = named_constant(sp.csc_matrix(ph2.Bt), "Bᵀ")
+    Bt = named_constant(sp.csc_matrix(ph2.Bt @ _free_selector(n, a, 3)), "Bᵀ")
     z = parameter(ph2.z, "z")
-    return cp.Problem(cp.Minimize(cp.sum_squares(W @ (z - Bt @ rho)))), rho
+    gauge = np.array([2 * a, 2 * a + 1, 2 * n + a])
+    return cp.Problem(cp.Minimize(cp.sum_squares(W @ (z - Bt @ rho))), [rho[gauge] == 0.0]), rho
 
 
 def _poses_from_x(n: int, a: int, x: np.ndarray) -> np.ndarray:
@@ -524,10 +543,10 @@ def _phase3_info(edges: EdgeSystem, d: int) -> sp.csr_matrix:
 def phase3_from_problem(graph: PoseGraph, ph2: Phase2, *, settings: ClarabelSettings | None = None):
     """Build and solve the phase-3 cvxpy problem with Clarabel; returns (Phase3, problem)."""
     problem, x = phase3_problem(graph, ph2)
-    if x.size == 0:  # a single pose
+    if graph.n_poses == 1:  # a single pose
         return phase3_closed_form(graph, ph2), problem
     solve(problem, settings, what="phase 3")
-    xv = np.asarray(x.value, dtype=float)
+    xv = _free_selector(graph.n_poses, ph2.anchor_index, 3) @ np.asarray(x.value, dtype=float)
     M = ph2.W @ ph2.Bt
     return Phase3(xv, _poses_from_x(graph.n_poses, ph2.anchor_index, xv), (M.T @ M).tocsr(), ph2.anchor_index), \
         problem

@@ -70,7 +70,8 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
          regularization: str | None = None, information: str | None = None, positions: str | None = None,
          anchor=None, anchor_pose=None, margin: float = AMBIGUITY_MARGIN,
          solver_settings: ClarabelSettings | None = None, backend: str = "auto", anchors=None,
-         integer_search: IntegerSearch | None = None, progress=None, workers: int | None = None) -> LagoResult:
+         priors=None, integer_search: IntegerSearch | None = None, progress=None,
+         workers: int | None = None) -> LagoResult:
     """LAGO: the linear approximation of planar pose-graph optimization (the seed's Section IV).
 
     Parameters (keyword-only):
@@ -112,6 +113,9 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
       anchors — ``{id: (x, y, θ)}`` known poses (None for unknown components); when given (even ``{}``)
         LAGO runs with the known entries moved to the right-hand side (``lago_cvx.variants.anchored_lago``;
         returns its ``VariantResult``, a ``LagoResult``).
+      priors — ``{id: (mean, information)}`` soft absolute measurements, full (x, y, θ) with a 3×3 information,
+        position-only ``((x, y, None), Λ 2×2)`` (GPS) or ``((None, None, θ), λ)``
+        (``lago_cvx.variants.normalize_priors``); like ``anchors`` they hand over to the variants engine.
       robust — None / False (default): least squares. True, ``"gnc-tls"``, ``"gnc-gm"`` or a
         ``lago_cvx.variants.RobustSettings``: graduated non-convexity around weighted LAGO runs with the
         options above, rejecting false loop closures (``lago_cvx.variants.gnc``); returns a ``RobustResult``
@@ -126,14 +130,14 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
     if getattr(graph, "dim", 2) == 3:
         return _in_space(graph, route=route, method=method, anchor=anchor, solver_settings=solver_settings,
                          spanning_tree=spanning_tree, regularization=regularization, information=information,
-                         positions=positions, anchor_pose=anchor_pose, anchors=anchors, integer_search=integer_search)
+                         positions=positions, anchor_pose=anchor_pose, anchors=anchors, priors=priors,
+                         integer_search=integer_search)
     choice, route_name = resolve_route(route, spanning_tree=spanning_tree, regularization=regularization,
                                        information=information, positions=positions)
-    if anchors is not None:
-        from .variants import anchored_lago  # the engine of anchors, priors, constraints (loaded on demand)
-
-        return anchored_lago(graph, anchors=anchors, method=method, route=route, spanning_tree=spanning_tree,
-                             regularization=regularization, information=information, positions=positions,
+    if anchors is not None or priors is not None:  # the variants engine (loaded on demand)
+        from .variants import anchored_lago
+        return anchored_lago(graph, anchors=anchors, priors=priors, method=method, route=route, positions=positions,
+                             spanning_tree=spanning_tree, regularization=regularization, information=information,
                              anchor=anchor, anchor_pose=anchor_pose, margin=margin, solver_settings=solver_settings,
                              backend=backend, integer_search=integer_search, progress=progress)
     _check_options(graph, method, choice)

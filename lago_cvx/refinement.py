@@ -134,6 +134,18 @@ class RefineResult:
     held: np.ndarray | None = None
     #: The cost minimised (``lago_cvx.conventions.COSTS``).
     cost: str = "paper"
+    #: The names of the constraints kept (``refine(constraints=...)``), else empty.
+    constraint_names: list = field(default_factory=list)
+    #: The least-squares problem refined (edge residuals, priors, held coordinates).
+    problem: object = field(default=None, repr=False)
+
+    def pose_covariances(self) -> np.ndarray:
+        """Marginal covariances (n, 3, 3) of (x, y, θ) of every pose at the refined estimate: the diagonal
+        blocks of (JᵀJ)⁻¹, J the whitened Jacobian of the refined problem (edges and priors), held coordinates
+        zero; with constraints, the unconstrained Hessian's (``lago_cvx.refine_variants``, R3)."""
+        from .refine_variants import pose_covariances
+
+        return pose_covariances(self.problem, self.poses)
 
     @property
     def times(self) -> np.ndarray:
@@ -289,19 +301,24 @@ def jacobian(graph: PoseGraph, poses, *, anchor=None) -> sp.csr_matrix:
     return prob.linearize(graph.check_poses(poses))[1]
 
 
-def held_coordinates(graph: PoseGraph, poses: np.ndarray, anchors, anchor=None) -> tuple[np.ndarray, np.ndarray, int]:
+def held_coordinates(graph: PoseGraph, poses: np.ndarray, anchors, anchor=None,
+                     priors=None) -> tuple[np.ndarray, np.ndarray, int]:
     """The coordinates ``refine`` holds fixed for known poses ``anchors`` ({id: (x, y, θ)}, None or NaN for
     an unknown component, as in ``lago``): returns (held (n, 3) bool, start (n, 3) the poses with the known
-    values put in, reference index).
+    values put in, reference index). ``priors`` ({id: (mean, information)}) fix the gauge as anchors
+    do (a position prior the translation, a θ prior or two distinct known positions the rotation) but are
+    not held.
 
     K = the known coordinates; a known θ is put on the branch nearest the starting pose's (θ + 2πk, the
     residuals wrap, so the cost does not change). The gauge the anchors leave open is held at the
     reference pose (``anchor`` if given, else as ``lago_cvx.variants.anchors.choose_reference``) at its
     starting value: its position when no position is known; its orientation when no orientation is
     known and fewer than two distinct positions are (two fix the rotation)."""
-    from .variants.anchors import choose_reference, normalize_anchors
+    from .refine_variants import prior_positions
+    from .variants.anchors import choose_reference, normalize_anchors, normalize_priors
 
     known = normalize_anchors(graph, anchors)
+    pri_pos, pri_theta = prior_positions(graph, priors)
     x = np.array(poses, dtype=float)
     held = np.zeros((graph.n_poses, 3), bool)
     for a in known:  # loop over anchors (few)
@@ -311,19 +328,20 @@ def held_coordinates(graph: PoseGraph, poses: np.ndarray, anchors, anchor=None) 
         if a.theta is not None:
             held[a.index, 2] = True
             x[a.index, 2] = a.theta + TWO_PI * np.round((x[a.index, 2] - a.theta) / TWO_PI)
-    ref = choose_reference(graph, known, [], anchor)
-    positions = np.array([a.position for a in known if a.position is not None]).reshape(-1, 2)
-    if not held[:, :2].any():
+    ref = choose_reference(graph, known, normalize_priors(graph, priors), anchor)
+    positions = np.array([a.position for a in known if a.position is not None] + [m for _, m in pri_pos])
+    positions = positions.reshape(-1, 2)
+    if not held[:, :2].any() and not pri_pos:
         held[ref, :2] = True
-    if not held[:, 2].any() and not (positions.shape[0] >= 2 and np.ptp(positions, axis=0).any()):
+    if not held[:, 2].any() and not pri_theta and not (positions.shape[0] >= 2 and np.ptp(positions, axis=0).any()):
         held[ref, 2] = True
     return held, x, ref
 
 
 # ------------------------------------------------------------------------------ the solvers
 def refine(graph: PoseGraph, poses, *, method: str = "gauss-newton", max_iterations: int = 50,
-           tolerance: float = 1e-9, anchor=None, anchors=None, backend: str = "auto",
-           cost: str | None = None) -> RefineResult:
+           tolerance: float = 1e-9, anchor=None, anchors=None, priors=None, constraints=None,
+           backend: str = "auto", cost: str | None = None, solver_settings=None) -> RefineResult:
     """Minimise the graph's nonlinear χ² over the SE(2) poses, starting from ``poses`` (n, 3): eq. (3) with the
     information of the graph's cost — exactly g2o's χ² for cost ``"g2o"``, GTSAM's 2·error() for ``"gtsam"``
     (module docstring).
@@ -342,6 +360,15 @@ def refine(graph: PoseGraph, poses, *, method: str = "gauss-newton", max_iterati
       backend — sparse solver, see ``lago_cvx.sparse.linalg.factorize``.
       cost — the cost to minimise, one of ``lago_cvx.conventions.COSTS`` (``graph.with_cost(cost)``); None: the
         graph's own (``graph.cost``, the file format's when read from a file).
+      priors — soft absolute measurements ``{id: (mean, information)}`` as in ``lago``: full (x, y, θ) with a
+        3×3 information, ``((x, y, None), Λ 2×2)`` (position / GPS) or ``((None, None, θ), λ)``; their χ²
+        terms join the cost and they fix the gauge as anchors do (``lago_cvx.refine_variants``, R1).
+      constraints — convex constraints kept feasible at every step: ``f(pv)`` returning cvxpy constraints or
+        ``NamedConstraint``s on ``pv.x``, ``pv.y``, ``pv.theta`` (n,) (pose index order, as in
+        ``constrained_lago``), or such a list; Gauss–Newton steps solved as convex problems by Clarabel
+        (``solver_settings``) with a line search (R2); ``method`` must be ``"gauss-newton"``. Without
+        ``priors`` and ``constraints`` nothing of this is loaded.
+    ``result.pose_covariances()`` gives the marginal covariances of the refined problem (R3).
     Returns a ``RefineResult``. See the module docstring for the maths. Raises ``GraphError`` for a
     disconnected graph (its normal equations are singular), ``OptionError`` (a ``ValueError``) for bad
     arguments or anchors.
@@ -352,21 +379,32 @@ def refine(graph: PoseGraph, poses, *, method: str = "gauss-newton", max_iterati
         graph = graph.with_cost(cost)
     x, a = prepare(graph, poses, anchor=anchor, max_iterations=max_iterations, tolerance=tolerance)
     held = None
-    if anchors is not None:
-        held, x, a = held_coordinates(graph, x, anchors, anchor)
+    if constraints is not None and method != "gauss-newton":
+        raise OptionError("constraints: refine keeps constraints with Gauss-Newton steps; use method='gauss-newton'")
+    if anchors is not None or priors is not None:
+        held, x, a = held_coordinates(graph, x, anchors or {}, anchor, priors)
     t0 = time.perf_counter()
     prob = _Problem(graph, a, held)
+    if priors is not None:
+        from .refine_variants import with_priors
+
+        prob = with_priors(prob, graph, priors)
     chi = prob.chi2(x)
     chi_initial = chi
     entries = [{"iteration": 0, "chi2": chi, "step_norm": 0.0, "time": time.perf_counter() - t0}]
     if method == "levenberg-marquardt":
         entries[0]["lambda"] = None
     result = RefineResult(poses=x, chi2=chi, chi2_initial=chi, iterations=0, converged=False, log=entries,
-                          method=method, anchor=int(graph.ids[a]), backend="", held=prob.held, cost=graph.cost)
+                          method=method, anchor=int(graph.ids[a]), backend="", held=prob.held, cost=graph.cost,
+                          problem=prob)
     if prob.dim == 0 or graph.n_edges == 0:
         result.converged, result.reason = True, "nothing to optimize"
         return result
-    if method == "gauss-newton":
+    if constraints is not None:
+        from .refine_variants import constrained_gauss_newton
+
+        constrained_gauss_newton(graph, prob, result, constraints, max_iterations, tolerance, t0, solver_settings)
+    elif method == "gauss-newton":
         _gauss_newton(prob, result, max_iterations, tolerance, t0, backend)
     else:
         _levenberg_marquardt(prob, result, max_iterations, tolerance, t0, backend)

@@ -28,7 +28,7 @@ LAYERS = [
     ["result"],
     ["variants"],
     ["pipeline"],
-    ["refinement"],
+    ["refinement", "refine_variants"],
     ["certification"],
     ["experiments", "plotting", "peers", "theorem1"],
     ["cli", "__main__", "__init__"],

@@ -14,7 +14,7 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -49,12 +49,23 @@ class Anchor:
 @dataclass(frozen=True, eq=False)
 class Prior:
     """A soft absolute measurement of pose ``id``: ``mean`` (3,) = (x, y, θ), ``information`` (3, 3)
-    SPD (order x, y, θ; GTSAM-style prior factor, its χ² term eᵀΛe with no ½ like every χ² here)."""
+    (order x, y, θ; GTSAM-style prior factor, its χ² term eᵀΛe with no ½ like every χ² here).
+    ``known`` (3,) bool: the measured components — all three (Λ SPD), the position only (a GPS fix:
+    Λ_pp SPD, the θ row and column zero, mean[2] = 0 unused) or θ only (Λ_θθ > 0, the rest zero)."""
 
     id: int
     index: int
     mean: np.ndarray
     information: np.ndarray
+    known: np.ndarray = field(default_factory=lambda: np.ones(3, bool))
+
+    @property
+    def has_theta(self) -> bool:
+        return bool(self.known[2])
+
+    @property
+    def has_position(self) -> bool:
+        return bool(self.known[0])
 
 
 def _items(spec) -> list:
@@ -98,23 +109,39 @@ def normalize_anchors(graph: PoseGraph, anchors) -> list[Anchor]:
 
 
 def normalize_priors(graph: PoseGraph, priors) -> list[Prior]:
-    """``{id: (mean (3,), information (3, 3))}`` (or pairs) → list of ``Prior``; the information must
-    be symmetric positive definite. Raises ``OptionError`` naming the prior."""
+    """``{id: (mean, information)}`` (or pairs) → list of ``Prior``. ``mean`` (x, y, θ) with None (or NaN)
+    for an unmeasured part: all three known with ``information`` (3, 3); ``(x, y, None)`` with (2, 2) (a
+    position / GPS prior); ``(None, None, θ)`` with a scalar or (1, 1). The information of the measured
+    part must be symmetric positive definite. Raises ``OptionError`` naming the prior."""
     out = []
-    for pid, idx, (mean, info) in _by_pose(graph, priors, "prior on pose"):
-        mean = np.asarray(mean, dtype=float).reshape(-1)
+    for pid, idx, spec in _by_pose(graph, priors, "prior on pose"):
+        try:
+            mean, info = spec
+        except (TypeError, ValueError):
+            raise OptionError(f"prior {pid}: expected (mean, information), got {spec!r}") from None
+        mean = [None if _unknown(v) else float(v) for v in np.asarray(mean, dtype=object).reshape(-1)]
+        known = np.array([v is not None for v in mean], bool)
+        if len(mean) != 3 or not (known.all() or known.tolist() in ([True, True, False], [False, False, True])):
+            raise OptionError(f"prior {pid}: mean must be (x, y, θ), (x, y, None) or (None, None, θ), got {mean!r}")
+        k = int(known.sum())
         info = np.asarray(info, dtype=float)
-        if mean.shape != (3,) or info.shape != (3, 3):
-            raise OptionError(f"prior {pid}: mean must have shape (3,) and information (3, 3)")
-        if not (np.isfinite(mean).all() and np.isfinite(info).all()):
+        info = info.reshape(1, 1) if k == 1 and info.size == 1 else info
+        if info.shape != (k, k):
+            raise OptionError(f"prior {pid}: the information of a prior on {k} component(s) must be ({k}, {k}), "
+                              f"got {info.shape}")
+        if not (all(math.isfinite(v) for v in mean if v is not None) and np.isfinite(info).all()):
             raise OptionError(f"prior {pid}: values must be finite")
         if not np.allclose(info, info.T, rtol=1e-9, atol=0.0):
             raise OptionError(f"prior {pid}: information matrix is not symmetric")
         try:
             np.linalg.cholesky(info)
         except np.linalg.LinAlgError:
-            raise OptionError(f"prior {pid}: information matrix is not positive definite") from None
-        out.append(Prior(int(pid), idx, mean, 0.5 * (info + info.T)))
+            hint = ("; for a position-only (GPS) prior give ((x, y, None), Λ 2×2), for θ only ((None, None, θ), λ)"
+                    if k == 3 else "")
+            raise OptionError(f"prior {pid}: information matrix is not positive definite{hint}") from None
+        full = np.zeros((3, 3))
+        full[np.ix_(known, known)] = 0.5 * (info + info.T)
+        out.append(Prior(int(pid), idx, np.array([0.0 if v is None else v for v in mean]), full, known))
     return out
 
 
@@ -148,11 +175,18 @@ def prior_arrays(priors: list[Prior], mean_theta: np.ndarray) -> PriorArrays:
     info = np.stack([p.information for p in priors])
     mean = np.stack([p.mean for p in priors])
     mean[:, 2] = mean_theta
-    var_theta = np.linalg.inv(info)[:, 2, 2]
-    Lpp = info[:, :2, :2]
-    h = np.linalg.solve(Lpp, info[:, :2, 2][..., None])[..., 0]
-    return PriorArrays(np.array([p.index for p in priors], np.int64), mean, np.sqrt(var_theta),
-                       whitening_2x2(Lpp), h)
+    has_p = np.array([p.has_position for p in priors])
+    has_t = np.array([p.has_theta for p in priors])
+    var_theta = np.full(q, np.inf)  # a position-only prior says nothing about θ (weight 1/σ = 0)
+    both = has_p & has_t
+    var_theta[both] = np.linalg.inv(info[both])[:, 2, 2]
+    var_theta[has_t & ~has_p] = 1.0 / info[has_t & ~has_p, 2, 2]
+    C, h = np.zeros((q, 2, 2)), np.zeros((q, 2))  # a θ-only prior has no conditional position part
+    if has_p.any():
+        Lpp = info[has_p, :2, :2]
+        h[has_p] = np.linalg.solve(Lpp, info[has_p, :2, 2][..., None])[..., 0]
+        C[has_p] = whitening_2x2(Lpp)
+    return PriorArrays(np.array([p.index for p in priors], np.int64), mean, np.sqrt(var_theta), C, h)
 
 
 @dataclass(frozen=True, eq=False)

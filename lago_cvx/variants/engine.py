@@ -51,6 +51,9 @@ __all__ = ["VariantOptions", "VariantPhase1", "VariantPhase3", "VariantResult", 
 
 log = logging.getLogger("lago_cvx.variants")
 
+#: Phase 3 moving an orientation further than this (rad) from phase 1 is logged as a warning.
+THETA_MOVE_WARNING = 0.3
+
 
 @dataclass(frozen=True)
 class VariantOptions:
@@ -200,7 +203,7 @@ class VariantResult(LagoResult):
         """eᵀΛe per prior at the final poses (e = pose − mean, θ on the rounded branch), shape (q,)."""
         out = []
         for p in self.priors:
-            e = self.poses[p.index] - p.mean
+            e = np.where(p.known, self.poses[p.index] - p.mean, 0.0)
             e[2] = (e[2] + np.pi) % TWO_PI - np.pi
             out.append(float(e @ p.information @ e))
         return np.array(out)
@@ -228,21 +231,24 @@ def _frame(st: _State) -> None:
     g, anc, pri = st.graph, st.anchors, st.priors
     th_anc = [a for a in anc if a.theta is not None]
     pos_anc = [a for a in anc if a.position is not None]
+    th_pri = [p for p in pri if p.has_theta]
+    pos_pri = [p for p in pri if p.has_position]  # position (GPS) priors fix the frame as position anchors do
     ref_id = int(g.ids[st.ref])
     st.frame["reference"] = ref_id
-    if not th_anc and not pri and len(pos_anc) >= 2:
+    if not th_anc and not th_pri and len(pos_anc) + len(pos_pri) >= 2:
         prov = run_variant(g, replace(st.opts, anchors={ref_id: (0.0, 0.0, 0.0)}, priors=None, constraints_fn=None,
                                       anchor=None))
-        idx = np.array([a.index for a in pos_anc])
-        st.theta_gauge = alignment_angle(prov.poses[idx, :2], np.array([a.position for a in pos_anc]))
+        idx = np.array([a.index for a in pos_anc] + [p.index for p in pos_pri])
+        target = np.array([a.position for a in pos_anc] + [p.mean[:2] for p in pos_pri]).reshape(-1, 2)
+        st.theta_gauge = alignment_angle(prov.poses[idx, :2], target)
         st.frame["orientation"] = (f"procrustes: provisional LAGO rotated by {st.theta_gauge:.6g} rad onto "
-                                   f"{len(pos_anc)} position anchors")
-    elif not th_anc and not pri:
+                                   f"{len(idx)} known positions")
+    elif not th_anc and not th_pri:
         st.theta_gauge = float(st.gauge_pose[2])
         st.frame["orientation"] = f"gauge: θ of pose {ref_id} := {st.theta_gauge:.6g}"
     else:
         st.frame["orientation"] = "anchors" if th_anc else "priors"
-    st.pos_gauge = not pos_anc and not pri
+    st.pos_gauge = not pos_anc and not pos_pri
     st.frame["position"] = (f"gauge: position of pose {ref_id} := ({st.gauge_pose[0]:.6g}, {st.gauge_pose[1]:.6g})"
                             if st.pos_gauge else ("anchors" if pos_anc else "priors"))
 
@@ -259,7 +265,7 @@ def _regularize(st: _State):
                      settings=o.solver_settings, search=o.integer_search, progress=o.progress)
     tt0 = reg.reference  # 0 at the root: θ_tree (tree rounding) or the chordal φ̃, the branch δ_reg follows
     th_anc = sorted((a for a in st.anchors if a.theta is not None), key=lambda a: a.index != st.ref)
-    pri = sorted(st.priors, key=lambda p: p.index != st.ref)  # the reference's own value fixes the offset
+    pri = sorted((p for p in st.priors if p.has_theta), key=lambda p: p.index != st.ref)  # reference's first
     if th_anc:
         offset, offset_from = th_anc[0].theta - tt0[th_anc[0].index], f"anchor {th_anc[0].id}"
     elif pri:
@@ -269,14 +275,16 @@ def _regularize(st: _State):
     th_anc = [a for a in st.anchors if a.theta is not None]  # given order again
     a_idx = np.array([a.index for a in th_anc] + [p.index for p in st.priors], np.int64)
     a_src = np.array(["anchor"] * len(th_anc) + ["prior"] * len(st.priors))
-    a_val = np.array([a.theta for a in th_anc] + [p.mean[2] for p in st.priors], float)
+    # a prior without θ keeps its (unused, weight 0) mean on the tree's branch
+    a_val = np.array([a.theta for a in th_anc] + [p.mean[2] if p.has_theta else tt0[p.index] + offset
+                                                   for p in st.priors], float)
     areg = anchor_regularization(g, tt0, a_idx, a_src, a_val, offset, offset_from, o.margin)
     reg = replace(reg, theta_tree=areg.theta_tree)
     nt = len(th_anc)
     th_known, th_vals = np.zeros(g.n_poses, bool), np.zeros(g.n_poses)
     th_known[a_idx[:nt]] = True
     th_vals[a_idx[:nt]] = areg.corrected[:nt]
-    if not th_anc and not st.priors:
+    if not th_anc and not any(p.has_theta for p in st.priors):
         th_known[st.ref], th_vals[st.ref] = True, st.theta_gauge
     st.timings["regularization"] = time.perf_counter() - t
     return tree, reg, areg, th_known, th_vals, prior_arrays(st.priors, areg.corrected[nt:])
@@ -420,6 +428,12 @@ def run_variant(graph: PoseGraph, opts: VariantOptions) -> VariantResult:
     n = graph.n_poses
     poses = np.column_stack([x[0:2 * n:2], x[1:2 * n:2], x[2 * n:]])
     st.timings["phase3"] = time.perf_counter() - t
+    moved = float(np.max(np.abs(poses[:, 2] - sol1.x), initial=0.0))
+    if moved > THETA_MOVE_WARNING:  # phase 3 corrects θ by O(noise); a large move means a fight
+        log.warning("phase 3 moved θ by up to %.3g rad from phase 1 (pose %d): the phases disagree — constraints "
+                    "or priors far from the data (e.g. a wall on the wrong side) or, with a robust loss, outliers "
+                    "pull against the measurements; check them", moved,
+                    int(graph.ids[int(np.argmax(np.abs(poses[:, 2] - sol1.x)))]))
     t = time.perf_counter()
     problems, pol = {}, None
     if opts.positions == "resolve":

@@ -24,7 +24,7 @@ from ..posegraph import PoseGraph, rot2, wrap_angle
 from ..solvers import INFEASIBLE_STATUSES, ClarabelSettings, solve
 from ..uncertainty import EdgeUncertainty
 from .anchors import PriorArrays, prior_arrays
-from .constraints import diagnose
+from .constraints import collect_constraints, diagnose
 
 __all__ = ["LOSSES", "DEFAULT_THRESHOLD", "WeightedSystem", "phase1_system", "AnchoredPhase2", "anchored_phase2",
            "phase3_system", "position_system", "SystemSolution", "solve_system", "system_problem",
@@ -321,9 +321,9 @@ def solve_system_cvxpy(sys_: WeightedSystem, *, loss: str = "l2", threshold: flo
     from ..solvers import LEAST_SQUARES
 
     problem, x, anchor = system_problem(sys_, loss=loss, threshold=threshold, grouping=grouping)
-    if callable(constraints):
-        constraints = constraints(pose_variables(x))
-    named = [c for c in (constraints or []) if c.constraints]
+    named = [] if constraints is None else collect_constraints(
+        constraints, pose_variables(x) if pose_variables is not None else None, sys_.name)
+    named = [c for c in named if c.constraints]
     if named:
         import cvxpy as cp
 
