@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
+
 import pytest
 
 from conftest import dataset_path
@@ -66,3 +68,22 @@ def test_plot_projections(world, tmp_path, capsys):
     status, res = _run(capsys, ["plot", str(world), "-o", str(fig), "--json"])
     assert status == 0 and res["dim"] == 3 and fig.read_bytes().startswith(b"<?xml")
     assert main(["plot", str(world), "-o", str(fig), "--covariances"]) == 2  # planar ellipses only
+
+
+def test_certify_3d_honours_the_anchor(capsys, tmp_path):
+    """certify on a 3-D file: an unknown --anchor id exits 2 naming it; ID moves the frame; ID:X,Y,Z,QX,QY,QZ,QW puts
+    that pose where given (f unchanged); a malformed spec exits 2 with one line."""
+    path = str(dataset_path("se-sync-3d/smallGrid3D.g2o"))
+    assert main(["certify", path, "--anchor", "99999"]) == 2
+    assert "no pose with id 99999" in capsys.readouterr().err
+    assert main(["certify", path, "--json"]) == 0
+    plain = json.loads(capsys.readouterr().out)
+    out = tmp_path / "c.g2o"
+    assert main(["certify", path, "--anchor", "5:1,2,3,0,0,0,1", "--json", "-o", str(out)]) == 0
+    moved = json.loads(capsys.readouterr().out)
+    assert moved["f"] == pytest.approx(plain["f"], rel=1e-9) and moved["certified"]
+    t, R = read_graph(out).initial
+    k = list(read_graph(out).ids).index(5)
+    assert np.allclose(t[k], [1, 2, 3], atol=1e-12) and np.allclose(R[k], np.eye(3), atol=1e-12)
+    assert main(["certify", path, "--anchor", "5:1,2"]) == 2
+    assert capsys.readouterr().err.count("\n") == 1

@@ -124,15 +124,15 @@ def cmd_certify(args) -> int:
     from ..certification import certify_estimate
     from ..errors import GraphError
 
-    anchors = _certify_anchors(args.anchor)
     out = output_target(args)
     graph = read_input(args)
     if graph.n_edges == 0:
         raise GraphError(f"{args.file}: the graph has {graph.n_poses} pose(s) and no edges: nothing to certify")
-    if graph.dim == 3:
+    if graph.dim == 3:  # --anchor ID or ID:X,Y,Z,QX,QY,QZ,QW (cli/space.py)
         from .space import certify3d_cmd
 
         return certify3d_cmd(args, graph, out)
+    anchors = _certify_anchors(args.anchor)
     check_regularization(graph, args.regularization)
     payload, cert = certify_estimate(graph, route=args.route, spanning_tree=args.spanning_tree,
                                      regularization=args.regularization, integer_search=integer_search(args),

@@ -18,7 +18,7 @@ log = logging.getLogger("lago_cvx")
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="lago-cvx", description="LAGO for planar pose graphs (g2o / TORO files).",
+    p = argparse.ArgumentParser(prog="lago-cvx", description="LAGO for planar and 3-D pose graphs (g2o / TORO files).",
                                 epilog=EXIT_TABLE)
     p.add_argument("--version", action="version", version=f"lago-cvx {__version__}")
     p.add_argument("-v", "--verbose", action="count", default=0, help="log progress (-vv for debug)")

@@ -5,6 +5,8 @@ planar ones where they mean the same, plus ``dim``."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from ..conventions import CHI2_CONVENTION, COST_DESCRIPTION
@@ -99,13 +101,44 @@ def solve3d(args, graph, out) -> int:
     return EXIT_OK
 
 
+def _frame3d(specs, graph):
+    """``--anchor`` on a 3-D file: (anchor id or None, the frame pose (t (3,), R (3, 3)) or None). One anchor at most
+    (a choice of frame): a bare ``ID`` puts that pose at the identity, ``ID:X,Y,Z,QX,QY,QZ,QW`` at the given pose; the
+    id must exist (``GraphError``, exit 2)."""
+    if not specs:
+        return None, None
+    if len(specs) > 1:
+        raise UsageError(f"certify takes at most one --anchor (a choice of frame), got {len(specs)}")
+    head, _, rest = specs[0].partition(":")
+    try:
+        pid = int(head)
+        values = [float(v) for v in rest.split(",")] if rest else []
+    except ValueError:
+        raise UsageError(f"bad anchor {specs[0]!r}: expected ID or ID:X,Y,Z,QX,QY,QZ,QW on a 3-D file") from None
+    graph.index_of(pid)  # an unknown id: GraphError naming it
+    if not values:
+        return pid, None
+    if len(values) != 7 or not np.isfinite(values).all() or np.linalg.norm(values[3:]) == 0:
+        raise UsageError(f"bad anchor {specs[0]!r}: expected ID:X,Y,Z,QX,QY,QZ,QW (a finite position and a non-zero "
+                         "quaternion) on a 3-D file")
+    from ..so3 import quat_to_rot
+
+    q = np.asarray(values[3:]) / np.linalg.norm(values[3:])
+    return pid, (np.asarray(values[:3]), quat_to_rot(q[None])[0])
+
+
 def certify3d_cmd(args, graph, out) -> int:
     from ..posegraph3d import chi2_3d
     from ..space import lago3d
     from ..space.certify import certify3d, sesync_cost3d
 
-    res = lago3d(graph)
+    anchor, frame = _frame3d(args.anchor, graph)
+    res = lago3d(graph, route=args.route, anchor=anchor)
     cert = certify3d(graph, res.t, res.R, tol=args.tol, anchor_index=res.anchor_index)
+    if frame is not None:  # the certified estimate moved rigidly: the anchor pose at the given one (f is unchanged)
+        a = graph.index_of(anchor)
+        G = frame[1] @ cert.R[a].T
+        cert = replace(cert, t=(cert.t - cert.t[a]) @ G.T + frame[0], R=np.einsum("ab,kbc->kac", G, cert.R))
     payload = {"file": str(args.file), "dim": 3, "cost": graph.cost, "n_poses": graph.n_poses,
                "n_edges": graph.n_edges, "chi2_lago": res.chi2, "f_lago": sesync_cost3d(graph, res.t, res.R),
                "f": cert.cost,
