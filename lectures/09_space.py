@@ -93,8 +93,10 @@ check(np.median(err_lago) < 0.5 * np.median(err_drift),
 # $\varphi\,(1 + 2\pi/\|\varphi\|)$, a whole extra turn about the same axis, give the same matrix — so a residual
 # written with matrices needs no integer. The chordal distance between two rotations depends only on the angle
 # $\psi$ of $R_1^\top R_2$:
-# $$\|R_2 - R_1\|_F^2 = 2\operatorname{tr}(I - R_1^\top R_2) = 4\,(1 - \cos\psi) \;=\; \psi^2 + O(\psi^4),\tag{D}$$
-# smooth and $2\pi$-periodic in $\psi$. Keeping the residuals and dropping the constraint $R_i\in SO(3)$ gives
+# $$\|R_2 - R_1\|_F^2 = 2\operatorname{tr}(I - R_1^\top R_2) = 4\,(1 - \cos\psi) \;=\; 2\psi^2 - \tfrac{\psi^4}{6} + O(\psi^6),\tag{D}$$
+# smooth and $2\pi$-periodic in $\psi$. Near $\psi = 0$ it is *twice* the squared geodesic angle — the factor 2 of
+# (Q) below at $S_{ij} = I$ ($\operatorname{tr}(I)I - I = 2I$), and of lecture 8's planar $4(1-\cos) \approx 2(a-b)^2$ —
+# and it lies below $2\psi^2$ for every $\psi > 0$ (the figure). Keeping the residuals and dropping the constraint $R_i\in SO(3)$ gives
 # $$\min_{R_1,\dots,R_{n-1}\in\mathbb R^{3\times3}}\ \sum_{ij}\big\|(R_j - R_i\tilde R_{ij})\,S_{ij}\big\|_F^2,
 # \qquad R_0 = I,\tag{C}$$
 # with $S_{ij}$ a weight (section 3): a sum of squares of linear functions of $9(n-1)$ unknowns, i.e. a convex,
@@ -116,14 +118,19 @@ print(f"largest change of Exp(φ) under one extra turn about its axis: {np.abs(e
 check(np.linalg.norm(log_so3(exp_so3(a) @ exp_so3(b)) - (a + b)) > 0.1, "composition in 3-D is not addition of axis–angle vectors")
 check(np.abs(exp_so3(turned) - exp_so3(axis_angle)).max() < 1e-12, "a whole turn more about the axis: the same matrix")
 check(np.abs(chord - 4 * (1 - np.cos(psi))).max() < 1e-12, "(D): the chordal distance is 4(1 − cos ψ) on 500 random pairs")
+small_psi = np.linspace(0.01, 0.5, 50)
+series_gap = 8 * np.sin(small_psi / 2) ** 2 - (2 * small_psi ** 2 - small_psi ** 4 / 6)   # 4(1 − cos ψ) without cancellation
+check(np.all((0 <= series_gap) & (series_gap <= small_psi ** 6 / 180 * 1.0001)),
+      "(D): 4(1 − cos ψ) = 2ψ² − ψ⁴/6 + O(ψ⁶) for ψ ≤ 0.5 (remainder ≤ ψ⁶/180)")
+check(np.all(chord <= 2 * psi ** 2 + 1e-12), "4(1 − cos ψ) ≤ 2ψ²: the chordal cost lies below twice the squared angle")
 
 # %%
 fig, ax = plt.subplots(figsize=(6, 3.6))
 grid = np.linspace(0, 3 * np.pi, 300)
-ax.plot(grid, grid ** 2, "--", color="0.5", label="ψ² (the geodesic cost, a branch to pick beyond π)")
+ax.plot(grid, 2 * grid ** 2, "--", color="0.5", label="2ψ² (the geodesic cost, doubled; a branch to pick beyond π)")
 ax.plot(grid, 4 * (1 - np.cos(grid)), color="tab:blue", label="4(1 − cos ψ) = ‖R₂ − R₁‖²_F")
 ax.plot(psi, chord, ".", ms=2, color="tab:red", label="500 random pairs")
-ax.set(xlabel="angle ψ of R₁ᵀR₂ [rad]", ylabel="cost", ylim=(0, 12), title="the chordal distance does not wrap")
+ax.set(xlabel="angle ψ of R₁ᵀR₂ [rad]", ylabel="cost", ylim=(0, 12), title="the chordal distance does not wrap; near 0 it is ≈ 2ψ²")
 ax.legend(fontsize=8)
 show(fig, "chordal_distance")
 
@@ -189,8 +196,9 @@ show(fig, "normal_matrix")
 # * the **distance** of the relaxed matrices from SO(3), or their smallest singular value: how much the
 #   relaxation had to bend the matrices to fit inconsistent cycles;
 # * the **gap** of (C): the constrained minimum of (C) over rotations lies between (C) at $\hat R$ (a relaxation,
-#   so a lower bound) and (C) at $\Pi(\hat R)$ (a feasible point). The ratio (C)$(\Pi\hat R)$ / (C)$(\hat R)$ bounds how
-#   far the projected rotations can be from the best rotations for (C).
+#   so a lower bound) and (C) at $\Pi(\hat R)$ (a feasible point). The ratio (C)$(\Pi\hat R)$ / (C)$(\hat R)$ bounds the **cost
+#   suboptimality** of the projected rotations: (C) at $\Pi\hat R$ is at most that ratio times the best (C) over
+#   rotations. It says nothing directly about how *far* $\Pi\hat R$ is from those best rotations.
 #
 # `project_so3` computes $\Pi$ without an SVD wherever $\det \hat R_i > 0$: there $\Pi(\hat R_i)$ is the orthogonal
 # polar factor of $\hat R_i$, the limit of Newton's iteration $X \leftarrow \tfrac12(X + X^{-\top})$ from
@@ -425,13 +433,17 @@ check(max(ratio_min) < 1.01 and max(ratio_gtsam) < 1,
 # χ² is not the only cost one can minimize; SE-Sync {cite}`rosen2019sesync` minimizes, with the isotropic
 # weights of section 3 and $\tau_{ij} = 3/\operatorname{tr}\Omega_{tt}^{-1}$,
 # $$f(t, R) = \sum_{ij}\kappa_{ij}\|R_j - R_i\tilde R_{ij}\|_F^2 + \tau_{ij}\|t_j - t_i - R_i\tilde t_{ij}\|^2 .\tag{S1}$$
-# In $Y = [t_1 \cdots t_n\,|\,R_1 \cdots R_n]$ ($3\times4n$) every residual is linear, so $f = \operatorname{tr}(YMY^\top)$ for a sparse
+# In $Y = [t_0 \cdots t_{n-1}\,|\,R_0 \cdots R_{n-1}]$ ($3\times4n$; the same poses $0,\dots,n-1$ as above, the anchor
+# included as column 0 and block 0, so $Y$ has $n$ blocks where (C) had $n-1$ unknowns) every residual is linear, so $f = \operatorname{tr}(YMY^\top)$ for a sparse
 # $4n\times4n$ matrix $M$. At a critical point the multipliers of $R_i^\top R_i = I$ are
 # $\Lambda_i = \operatorname{sym}(R_i^\top(YM)_{R_i})$, and $\sum_i\operatorname{tr}\Lambda_i = f$. If $S = M - \operatorname{blkdiag}(0, \Lambda_i)
 # \succeq 0$, $\Lambda$ is feasible for the dual of the semidefinite relaxation, so $f^\star \ge \sum_i \operatorname{tr}\Lambda_i = f$:
 # the point is a **global** minimum of (S1). `certify3d` first refines to a critical point of (S1), then counts the
-# negative pivots of one sparse $LDL^\top$ of $S$ (Sylvester's law of inertia), allowing a floor
-# $\eta = 10^{-12}\|M\|_\infty$ for rounding, and reports the proven bound $f^\star \ge \sum\operatorname{tr}\Lambda_i - 3n\mu$.
+# negative pivots of one sparse $LDL^\top$ of $S_g + \mu\hat I_R$ (Sylvester's law of inertia), where $S_g$ is $S$ with
+# the anchor's translation row and column removed and $\hat I_R$ the identity on the $3n$ rotation coordinates. The
+# shift $\mu$ allows for rounding: it starts at the floor $\eta = 10^{-12}\|M\|_\infty$ and, while a negative pivot
+# remains, is **multiplied by 4** ($\mu = 4^k\eta$, $k = 0, 1, \dots$, the first with no negative pivot; `cert.shift`).
+# $\Lambda_i - \mu I$ is then dual feasible, so the proven bound is $f^\star \ge \sum_i\operatorname{tr}\Lambda_i - 3n\mu$.
 #
 # What it proves: that no set of poses has a lower $f$ than the bound — a statement about (S1), with its
 # isotropic weights, not about χ². The minimum of χ² is a different point (its full $6\times 6$ information weighs
@@ -451,6 +463,9 @@ print(f"  {'certified':15s} f = {cert.cost:12.6f}   χ² = {lc.chi2_3d(g, cert.t
 
 # %% tags=["remove-input"]
 check(cert.certified and cert.lower_bound <= cert.cost, "the cube grid's estimate is certified (bound ≤ f)")
+k_shift = np.log(cert.shift / cert.eta) / np.log(4)
+check(abs(k_shift - round(k_shift)) < 1e-9 and cert.lower_bound == cert.dual_value - 3 * g.n_poses * cert.shift,
+      f"μ = 4^{round(k_shift)}·η = {cert.shift:.3g} and the bound is Σ tr Λ_i − 3nμ with n = {g.n_poses}")
 check(all(sesync_cost3d(g, tp, Rp) >= cert.lower_bound for tp, Rp in points.values()),
       "every other point, the truth included, costs at least the proven bound")
 check(sesync_cost3d(g, best_small.t, best_small.R) > cert.cost and lc.chi2_3d(g, cert.t, cert.R) > best_small.chi2,
