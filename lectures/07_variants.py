@@ -121,7 +121,7 @@ check(err < 1e-8, f"by hand = the package's anchored phase 1 (closed form, eq. (
 # $\nu_a$ of anchor $a$ equals $-\partial f/\partial\theta_a$, the net torque of the springs on it. Because
 # every column of $A$ sums to zero, the torques on all poses add up to zero — so the torques on the anchors do
 # too: the data push some anchors one way and the others the other way, never all the same way (with a single
-# anchor, the torque is zero, as lecture 6 found).
+# anchor, the torque is zero, as lecture 2 §5 found).
 
 # %%
 nu = np.asarray(anchor_c.dual_value, dtype=float)
