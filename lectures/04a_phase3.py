@@ -63,8 +63,8 @@ setup("04a_phase3")
 
 
 def solve_qp(problem):
-    """Clarabel as `_lecture.solve_qp` runs it, with static regularization 1e-7: QDLDL's factorization of the
-    running example's dense parameters fails at 1e-8. Returns the status."""
+    """Clarabel with static regularization 1e-7 (its default, 1e-8, fails on the running example's dense
+    parameters: section 1), the package's tolerances 1e-12 and QDLDL. Returns the status."""
     kwargs = ClarabelSettings(static_regularization_constant=1e-7).over(LEAST_SQUARES).solver_kwargs()
     problem.solve(solver=cp.CLARABEL, direct_solve_method="qdldl", **kwargs)
     return problem.status
@@ -100,6 +100,12 @@ show(intuition_figure("04a"), "intuition")
 # Naming $e$ keeps one parameter per product (cvxpy's "disciplined parametrized programming": changing a
 # parameter's `.value` re-solves without rebuilding), and its multiplier has a meaning (below).
 #
+# **Which Clarabel call.** With Clarabel's defaults, `phase3.solve(solver=cp.CLARABEL)` may stop with a numerical
+# error (cvxpy raises `SolverError`; the first line printed below says what happened here): the factorization of
+# its KKT system with the dense parameter $B^\top$ needs a static regularization above the default $10^{-8}$.
+# `phase3.solve(solver=cp.CLARABEL, static_regularization_constant=1e-7)` works; the lecture's `solve_qp`
+# (defined at the top) makes the same call with the package's tolerances $10^{-12}$ and QDLDL.
+#
 # We work on the running example, whose information is block-diagonal — the paper's setting — with the
 # paper's phases (`paper_lago`: tree rounding, $\mathrm{blkdiag}(P_\Delta, P_\delta)$, phase-3 poses).
 
@@ -134,7 +140,17 @@ print(phase3)
 W.value, z.value, Bt.value = res.phase2.W.toarray(), res.phase2.z, P.design_matrix(g).toarray()
 
 TOL = 1e-8   # accepted relative disagreement with the closed form, for an "optimal" status at 1e-12 gaps
-status = solve_qp(phase3)
+try:
+    phase3.solve(solver=cp.CLARABEL)                                    # Clarabel's defaults
+    plain = phase3.status
+except cp.error.SolverError as exc:
+    plain = f"SolverError: {exc}"
+print(f"phase3.solve(solver=cp.CLARABEL) → {plain}")
+phase3.solve(solver=cp.CLARABEL, static_regularization_constant=1e-7)   # the call that works
+status_1e7, e_1e7 = phase3.status, relative_difference(rho.value, res.phase3.x_star)
+print(f"phase3.solve(solver=cp.CLARABEL, static_regularization_constant=1e-7) → {status_1e7}, "
+      f"relative difference from the closed form {e_1e7:.1e}")
+status = solve_qp(phase3)                                 # the same, with tolerances 1e-12 (top of the lecture)
 
 P_z = res.phase2.covariance_z()                           # dense, for this small graph only
 Bd = Bt.value.T                                           # B
@@ -145,6 +161,7 @@ e_dense = relative_difference(rho15, res.phase3.x_star)
 e_info = np.abs(info15 - res.phase3.info.toarray()).max() / np.abs(info15).max()
 
 # %% tags=["remove-input"]
+check(status_1e7 == "optimal" and e_1e7 < TOL, f"static regularization 1e-7: Clarabel's default tolerances suffice ({e_1e7:.1e})")
 check(status == "optimal" and e_cvx < TOL, f"cvxpy (Clarabel, {status}) = package closed form ({e_cvx:.1e})")
 check(e_dense < 1e-9, f"eq. (15) with the dense P_z = package closed form ({e_dense:.1e})")
 check(e_info < 1e-9, f"information B P_z⁻¹ Bᵀ = phase3.info ({e_info:.1e})")
