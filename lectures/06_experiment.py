@@ -287,7 +287,7 @@ if INTEL is not None:
 #
 # ## 5. Table II — the paper's two scenarios on a world with ground truth
 #
-# Table II scores estimates with the SLAM benchmark metric of Kümmerle et al. (2009): over a set of
+# Table II scores estimates with the SLAM benchmark metric of Kümmerle et al. {cite}`kummerle2009measuring`: over a set of
 # relations $(i,j)$ with known true relative pose $\delta^*_{ij}$, the estimate's relative pose
 # $\hat\delta_{ij} = \hat p_j \ominus \hat p_i$ (eq. (1)) is compared with it,
 # $$\varepsilon_t = \frac1N\sum_{(i,j)}\big\|\mathrm{trans}(\hat\delta_{ij}\ominus\delta^*_{ij})\big\|^2\ [\mathrm m^2],
