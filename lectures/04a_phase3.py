@@ -524,16 +524,16 @@ for label, gr in cases:
     t_lago = time.perf_counter() - t0
     gn_dr = lc.refine(gr, odometry_guess(gr), max_iterations=100)
     gn_lago = lc.refine(gr, r.poses, max_iterations=100)
-    H = jacobian(gr, r.poses)
-    H = (H.T @ H).tocsr()
+    Jg = jacobian(gr, r.poses)
+    JtJ = (Jg.T @ Jg).tocsr()                  # Gauss–Newton's normal matrix (not lecture 3's H)
     nn = gr.n_poses - 1
     runs[label] = (r, gn_dr, gn_lago)
     print(f"{label}: n = {nn}\n"
           f"  phase 1 normal matrix {r.phase1.info.shape}, nnz {r.phase1.info.nnz};  phase 3 {r.phase3.info.shape}, "
-          f"nnz {r.phase3.info.nnz};  one Gauss–Newton step {H.shape}, nnz {H.nnz}\n"
+          f"nnz {r.phase3.info.nnz};  one Gauss–Newton step {JtJ.shape}, nnz {JtJ.nnz}\n"
           f"  LAGO {1e3 * t_lago:.0f} ms in all;  Gauss–Newton from dead reckoning: {gn_dr.iterations} steps, "
           f"{1e3 * gn_dr.log[-1]['time']:.0f} ms;  from LAGO: {gn_lago.iterations} steps")
-    sizes[label] = (nn, H.shape)
+    sizes[label] = (nn, JtJ.shape)
 
 # %% tags=["remove-input"]
 for label, (r, gn_dr, gn_lago) in runs.items():
@@ -581,16 +581,23 @@ if intel is not None:
 # from it needs fewer steps than from dead reckoning.
 
 # %% [markdown]
+# **Summary.** Phase 3 is a linear least-squares problem: given $\hat\theta$ and the phase-2 vector $z$, eq. (12)
+# makes $z$ linear in $\rho = [p;\ \theta]$ and eq. (15) is its best linear unbiased estimate, solved here by cvxpy
+# (with an explicit Clarabel setting) and by the package's sparse closed form. Theorem 1 splits $\rho^*$ into the
+# sub-optimal estimate of eq. (14) plus the corrections of eqs. (16)–(17), which minimise the first-order expansion
+# eq. (18); Remark 1: the three phases cost about one Gauss–Newton step.
+
+# %% [markdown]
 # ## Exercise 1 — The information matrix of phase 3, block by block
 #
-# *Derive.* Starting from $P_z$ of eq. (11) (write it as $G\,\mathrm{blkdiag}(P_{\Delta l}, P_\theta)G^\top$ with
-# $G = \begin{bmatrix} R & J\\ 0 & I_n\end{bmatrix}$), show that
+# *Derive.* Starting from $P_z$ of eq. (11) (write it as $H\,\mathrm{blkdiag}(P_{\Delta l}, P_\theta)H^\top$ with
+# $H = \begin{bmatrix} R & J\\ 0 & I_n\end{bmatrix}$, lecture 3's Jacobian), show that
 # $BP_z^{-1}B^\top = \begin{bmatrix} A_2 P_{\Delta g}^{-1} A_2^\top & -A_2 P_{\Delta g}^{-1} J\\ -J^\top P_{\Delta g}^{-1} A_2^\top & P_\theta^{-1} + J^\top P_{\Delta g}^{-1} J\end{bmatrix}$
 # (the matrix the paper inverts blockwise to obtain eqs. (16)–(17)), and that the Schur complement of its
 # position block is $P_{\theta^*}^{-1}$. Check both numerically on a small graph against `phase3.info`.
 #
-# **Hint.** $G$ is block upper triangular, so $G^{-1} = \begin{bmatrix} R^\top & -R^\top J\\ 0 & I_n\end{bmatrix}$;
-# form $G^{-1}B^\top$ first, and remember that $R$ is orthogonal.
+# **Hint.** $H$ is block upper triangular, so $H^{-1} = \begin{bmatrix} R^\top & -R^\top J\\ 0 & I_n\end{bmatrix}$;
+# form $H^{-1}B^\top$ first, and remember that $R$ is orthogonal.
 
 # %%
 # your solution here

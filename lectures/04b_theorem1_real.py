@@ -489,6 +489,14 @@ if intel is not None and peers.have_gtsam():
 # frame, and, like phase 3's frozen weights, it matters only where the information is anisotropic.
 
 # %% [markdown]
+# **Summary.** On real graphs Theorem 1's correction can move away from the minimum of χ², because phase 3 freezes
+# the weights of the relative positions at $\hat\theta$ and a near-rigid rotation of the map escapes the first-order
+# model; the repair (`positions="resolve"`) re-solves the positions with the true weights along a guarded step.
+# Remark 2's block-diagonal noise is an approximation the
+# package can drop, the covariances of eq. (15) come from sparse factors, and GTSAM's LAGO agrees with ours where
+# the noise is isotropic.
+
+# %% [markdown]
 # ## Exercise 1 — The guarded polish, by hand
 #
 # *Implement.* Write $F(\theta)$ (χ² with the positions re-solved by `resolve_positions`) and the guarded

@@ -37,7 +37,7 @@ from lago_cvx.plotting import plot_edges, plot_trajectory
 from lago_cvx.regularization import regularize
 from lago_cvx.rounding import AMBIGUITY_MARGIN
 from lago_cvx.uncertainty import edge_uncertainty
-from _lecture import FULL, check, intuition_figure, paper_lago, real, running_example, setup, show, solve_qp
+from _lecture import FULL, check, intuition_figure, paper_lago, quiet, real, running_example, setup, show, solve_qp
 
 setup("05_regularization")
 TWO_PI = 2 * np.pi
@@ -465,7 +465,8 @@ for sig in SIGMAS:
         bfs = lc.spanning_tree(gm, "bfs")
         for kind in TREES + ("chordal",):
             tree = bfs if kind == "chordal" else lc.spanning_tree(gm, kind)
-            rep = regularize(gm, tree, regularization="chordal" if kind == "chordal" else "tree")
+            with quiet():                      # the ambiguous chords are counted below, not logged
+                rep = regularize(gm, tree, regularization="chordal" if kind == "chordal" else "tree")
 
             def circuit(x):                            # C x through tree path sums, without forming C
                 return x[tree.chords] - tree.path_sums(gm, x)[tree.chords]

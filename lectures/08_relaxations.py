@@ -32,7 +32,7 @@ from scipy.special import erfc
 from scipy.stats import spearmanr
 
 import lago_cvx as lc
-from _lecture import FULL, check, real, setup, show
+from _lecture import FULL, check, quiet, real, setup, show
 from lago_cvx.certification import certify, refine_sesync, sdp_relaxation, sesync_cost, solve_sdp
 from lago_cvx.certification.sesync import reduced_certificate_matrix
 from lago_cvx.datasets import PUBLISHED_SESYNC, REFERENCE_CHI2, REFERENCE_SESYNC
@@ -79,7 +79,7 @@ rng = np.random.default_rng(1)
 wrong = np.zeros(tree.n_chords)
 for _ in range(draws):                   # fresh noise on the same graph, δ wrapped as a sensor reports it
     gd = replace(g0, delta=wrap_angle(true_rel + sigma * rng.standard_normal(g0.n_edges)))
-    wrong += lc.regularize(gd, tree).k_chords != true_cycle_integers(gd, tree, w.truth)
+    with quiet(): wrong += lc.regularize(gd, tree).k_chords != true_cycle_integers(gd, tree, w.truth)  # counted here
 observed = wrong / draws
 se = np.sqrt(predicted * (1 - predicted) / draws)                                 # binomial standard error
 print(f"{tree.n_chords} chords, {draws} draws: mean P[wrong k] predicted {predicted.mean():.3f}, "
@@ -232,8 +232,9 @@ regs = {"tree (bfs)": {"spanning_tree": "bfs", "regularization": "tree"},
         "tree (odometry)": {"spanning_tree": "odometry", "regularization": "tree"},
         "integer program": {"regularization": "integer"}, "chordal": {"regularization": "chordal"}}
 sweep_sigmas = [0.05, 0.15, 0.2, 0.25, 0.3, 0.35, 0.4, 0.5] if FULL else [0.05, 0.2, 0.3, 0.4]
-sweep = rotation_noise_sweep(sweep_sigmas, seeds=range(10 if FULL else 4), n_poses=300 if FULL else 100,
-                             regularizers=regs)
+with quiet():                   # the ambiguous roundings' warnings: the sweep counts its failures itself
+    sweep = rotation_noise_sweep(sweep_sigmas, seeds=range(10 if FULL else 4), n_poses=300 if FULL else 100,
+                                 regularizers=regs)
 print(format_sweep(sweep))
 by = {(r["sigma_theta"], r["regularizer"]): r for r in sweep}
 
@@ -285,12 +286,12 @@ for rel in dict.fromkeys(rel for rel, _ in ends):
 # $CA^\top = 0$ and the whitened ranges of $A^\top$ and $C^\top$ are orthogonal complements, for any right-hand side
 # $d$, $\min_\theta\|P_\delta^{-1/2}(A^\top\theta - d)\|^2 = (Cd)^\top(CP_\delta C^\top)^{-1}(Cd)$ ($A$ reduced). With
 # $d = \delta + 2\pi k$, $r = C\delta$ and the cycle integers $q = Ck \in\mathbb Z^l$:
-# $$J(q) = \big\|L^{-1}(r + 2\pi q)\big\|^2,\qquad S = CP_\delta C^\top = LL^\top,\qquad q^\star = \arg\min_{q\in\mathbb Z^l} J(q). \tag{IP}$$
+# $$J(q) = \big\|K^{-1}(r + 2\pi q)\big\|^2,\qquad \Sigma_C = CP_\delta C^\top = KK^\top,\qquad q^\star = \arg\min_{q\in\mathbb Z^l} J(q). \tag{IP}$$
 # $J(q)$ **is** phase 1's optimal cost, eq. (13), for the integers $q$: (IP) picks the regularization phase 1 fits
 # best. The paper's rounding $q_c = -\mathrm{round}(r_c/2\pi)$ minimises the *decoupled* $\sum_c(r + 2\pi q)_c^2$ and
-# solves (IP) when $S$ is diagonal — but two fundamental cycles that share tree edges share their noise. A box
-# $|r_c + 2\pi q_c| \le \sqrt{J(q_{\rm round})S_{cc}}$ contains every optimum (Cauchy–Schwarz), so the search is
-# finite. As a cvxpy mixed-integer problem from named parts:
+# solves (IP) when $\Sigma_C$ (`data.S`; $K$ its Cholesky factor, not the $L$ of (G)) is diagonal — but two fundamental
+# cycles that share tree edges share their noise. A box $|r_c + 2\pi q_c| \le \sqrt{J(q_{\rm round})(\Sigma_C)_{cc}}$
+# contains every optimum (Cauchy–Schwarz), so the search is finite. As a cvxpy mixed-integer problem from named parts:
 
 # %%
 wi = lc.manhattan_world(100, seed=2, sigma_theta=0.4)
@@ -299,7 +300,7 @@ ti = lc.spanning_tree(gi, "bfs")
 data = cycle_data(gi, ti)
 lo, hi, _ = exact_box(data)
 q = cp.Variable(data.n_chords, integer=True, name="q")
-ip = cp.Problem(cp.Minimize(cp.sum_squares(cp.Constant(data.W, name="L⁻¹") @ (cp.Constant(data.r, name="r")
+ip = cp.Problem(cp.Minimize(cp.sum_squares(cp.Constant(data.W, name="K⁻¹") @ (cp.Constant(data.r, name="r")
                                                                                 + 2 * np.pi * q))),
                 [q >= cp.Constant(lo, name="q_lo"), q <= cp.Constant(hi, name="q_hi")])
 print(ip)

@@ -1,11 +1,11 @@
 """Lecture 4a, Exercise 1 — the information matrix of phase 3, block by block.
 
-Derivation. Eq. (11) gives P_z = G blkdiag(P_Δl, P_θ) Gᵀ with G = [[R, J], [0, I_n]], so
-P_z⁻¹ = G⁻ᵀ blkdiag(P_Δl⁻¹, P_θ⁻¹) G⁻¹ with G⁻¹ = [[Rᵀ, −RᵀJ], [0, I_n]]. With Bᵀ = [[A₂ᵀ, 0], [0, I_n]]
+Derivation. Eq. (11) gives P_z = H blkdiag(P_Δl, P_θ) Hᵀ with H = (lecture 3's H) [[R, J], [0, I_n]], so
+P_z⁻¹ = H⁻ᵀ blkdiag(P_Δl⁻¹, P_θ⁻¹) H⁻¹ with H⁻¹ = [[Rᵀ, −RᵀJ], [0, I_n]]. With Bᵀ = [[A₂ᵀ, 0], [0, I_n]]
 (eq. (12)):
 
-    G⁻¹Bᵀ = [[RᵀA₂ᵀ, −RᵀJ], [0, I_n]],
-    B P_z⁻¹ Bᵀ = (G⁻¹Bᵀ)ᵀ blkdiag(P_Δl⁻¹, P_θ⁻¹) (G⁻¹Bᵀ)
+    H⁻¹Bᵀ = [[RᵀA₂ᵀ, −RᵀJ], [0, I_n]],
+    B P_z⁻¹ Bᵀ = (H⁻¹Bᵀ)ᵀ blkdiag(P_Δl⁻¹, P_θ⁻¹) (H⁻¹Bᵀ)
                = [[A₂ R P_Δl⁻¹ Rᵀ A₂ᵀ,   −A₂ R P_Δl⁻¹ Rᵀ J],
                   [−Jᵀ R P_Δl⁻¹ Rᵀ A₂ᵀ,  P_θ⁻¹ + Jᵀ R P_Δl⁻¹ Rᵀ J]],
 
