@@ -39,13 +39,19 @@
 # $3\times3$ per edge).
 
 # %%
+try:                                  # run alone (Colab, a fresh environment)? then install the package first
+    import lago_cvx  # noqa: F401
+except ImportError:
+    import subprocess, sys; subprocess.run([sys.executable, "-m", "pip", "install", "lago-cvx[course]"], check=True)
+
+# %%
 import matplotlib.pyplot as plt
 import numpy as np
 from scipy.stats import chi2 as chi2_law
 from scipy.stats import multivariate_normal
 
 import lago_cvx as lc
-from _lecture import S, check, intuition_figure, real, running_example, setup, show
+from lago_cvx.course import S, check, intuition_figure, real, running_example, setup, show
 from lago_cvx import plotting
 from lago_cvx.datasets import REFERENCE_CHI2
 from lago_cvx.errors import GraphError

@@ -41,6 +41,12 @@
 # eq. (12), in lecture 5 for the tree block of the cycle basis $C = [I_l\ B]$; the two are unrelated.
 
 # %%
+try:                                  # run alone (Colab, a fresh environment)? then install the package first
+    import lago_cvx  # noqa: F401
+except ImportError:
+    import subprocess, sys; subprocess.run([sys.executable, "-m", "pip", "install", "lago-cvx[course]"], check=True)
+
+# %%
 import time
 
 import cvxpy as cp
@@ -57,7 +63,7 @@ from lago_cvx.positions import resolve_positions
 from lago_cvx.refinement import jacobian, odometry_guess
 from lago_cvx.solvers import LEAST_SQUARES, ClarabelSettings
 from lago_cvx.theorem1 import theorem1
-from _lecture import S, check, intuition_figure, paper_lago, real, running_example, setup, show
+from lago_cvx.course import S, check, intuition_figure, paper_lago, real, running_example, setup, show
 
 setup("04a_phase3")
 

@@ -34,6 +34,12 @@
 # are fixed.
 
 # %%
+try:                                  # run alone (Colab, a fresh environment)? then install the package first
+    import lago_cvx  # noqa: F401
+except ImportError:
+    import subprocess, sys; subprocess.run([sys.executable, "-m", "pip", "install", "lago-cvx[course]"], check=True)
+
+# %%
 from dataclasses import replace
 
 import matplotlib.pyplot as plt
@@ -48,7 +54,7 @@ from lago_cvx.plotting import plot_covariances, plot_trajectory
 from lago_cvx.posegraph import wrap_angle
 from lago_cvx.positions import resolve_positions
 from lago_cvx.theorem1 import frozen_and_model, theorem1
-from _lecture import FULL, check, intuition_figure, paper_lago, real, running_example, setup, show
+from lago_cvx.course import FULL, check, intuition_figure, paper_lago, real, running_example, setup, show
 
 setup("04b_theorem1_real")
 

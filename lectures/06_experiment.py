@@ -35,13 +35,16 @@
 # relative orientations, $P_\delta$ their variances.
 
 # %%
+try:                                  # run alone (Colab, a fresh environment)? then install the package first
+    import lago_cvx  # noqa: F401
+except ImportError:
+    import subprocess, sys; subprocess.run([sys.executable, "-m", "pip", "install", "lago-cvx[course]"], check=True)
 import cvxpy as cp
 import matplotlib.pyplot as plt
 import numpy as np
 from dataclasses import replace
-
 import lago_cvx as lc
-from _lecture import FULL, check, intuition_figure, real, running_example, section_v_world, setup, show
+from lago_cvx.course import FULL, check, intuition_figure, real, running_example, section_v_world, setup, show
 from lago_cvx import phases, plotting
 from lago_cvx.datasets import DATASET_FILES, REFERENCE_CHI2
 from lago_cvx.posegraph import between, wrap_angle
@@ -49,7 +52,6 @@ from lago_cvx.solvers import solve
 from lago_cvx.positions import resolve_positions
 from lago_cvx.theorem1 import frozen_and_model, theorem1
 from lago_cvx.uncertainty import edge_uncertainty
-
 setup("06_experiment")
 INTEL = real("carlone/INTEL_P_toro.graph")
 
@@ -297,7 +299,7 @@ if INTEL is not None:
 # \mathrm{diag}(P_{\Delta l,ij}, P_{\delta,ij})$ with "the corresponding uncertainties […] assumed to be proportional
 # to the respective measurements, e.g. bigger displacements correspond to higher uncertainty". The paper gives no
 # constants; we take, per component of the measured relative pose, $\sigma = 0.1\,|\Delta l_x| + 1\,\mathrm{mm}$ (and
-# the same for $y$) and $\sigma_\delta = 0.05\,|\delta| + 10^{-3}$ rad (`_lecture.section_v_world`): a floor keeps the
+# the same for $y$) and $\sigma_\delta = 0.05\,|\delta| + 10^{-3}$ rad (`course.section_v_world`): a floor keeps the
 # information finite on edges that do not move along an axis, as INTEL's file does (lecture 4b, section 2).
 #
 # **What replaces what is missing.** INTEL's benchmark relations (hand-checked scan alignments) are not available: the
@@ -349,8 +351,7 @@ def table_ii(graph, truth):
     return table, runs
 
 def print_table(title, table, runs):
-    print(f"{title}\n{'':36s}{'proportional P':>26s}{'P = I₃':>26s}")
-    print(f"{'':36s}" + f"{'ε_t [m²]':>13s}{'ε_θ [rad²]':>13s}" * 2)
+    print(f"{title}\n{'':36s}{'proportional P':>26s}{'P = I₃':>26s}\n{'':36s}" + f"{'ε_t [m²]':>13s}{'ε_θ [rad²]':>13s}" * 2)
     for row in PAPER_TABLE_II:
         print(f"{'paper: ' + row:36s}" + "".join(f"{v[0]:13.2e}{v[1]:13.2e}" for v in PAPER_TABLE_II[row].values()))
     for row in table["proportional"]:

@@ -22,13 +22,19 @@
 # Below a phase is written over **all** $n+1$ poses and a set $K$ of its coordinates is known, $U$ the rest.
 
 # %%
+try:                                  # run alone (Colab, a fresh environment)? then install the package first
+    import lago_cvx  # noqa: F401
+except ImportError:
+    import subprocess, sys; subprocess.run([sys.executable, "-m", "pip", "install", "lago-cvx[course]"], check=True)
+
+# %%
 import cvxpy as cp
 import matplotlib.pyplot as plt
 import numpy as np
 from scipy import stats
 
 import lago_cvx as lc
-from _lecture import check, real, setup, show
+from lago_cvx.course import check, real, setup, show
 from lago_cvx import variants as V
 from lago_cvx.plotting import plot_edges, plot_trajectory
 from lago_cvx.posegraph import wrap_angle

@@ -29,12 +29,18 @@
 # $\mathrm{Log}$ map between $\mathbb R^3$ and $SO(3)$. Pose 0 is the anchor, held at $R_0 = I$, $t_0 = 0$.
 
 # %%
+try:                                  # run alone (Colab, a fresh environment)? then install the package first
+    import lago_cvx  # noqa: F401
+except ImportError:
+    import subprocess, sys; subprocess.run([sys.executable, "-m", "pip", "install", "lago-cvx[course]"], check=True)
+
+# %%
 import matplotlib.pyplot as plt
 import numpy as np
 import scipy.sparse.linalg as spla
 
 import lago_cvx as lc
-from _lecture import check, real, setup, show
+from lago_cvx.course import check, real, setup, show
 from lago_cvx.so3 import exp_so3, log_so3, project_so3
 from lago_cvx.solvers import LEAST_SQUARES, solve
 from lago_cvx.space import (chordal_closed_form, chordal_problem, lago3d, positions_closed_form,

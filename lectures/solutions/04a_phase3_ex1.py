@@ -13,14 +13,13 @@ and R P_Δl⁻¹ Rᵀ = (R P_Δl Rᵀ)⁻¹ = P_Δg⁻¹ because R is orthogonal
 block, P_θ⁻¹ + JᵀP_Δg⁻¹J − JᵀP_Δg⁻¹A₂ᵀ P_p̂ A₂P_Δg⁻¹J with P_p̂ = (A₂P_Δg⁻¹A₂ᵀ)⁻¹, is the inverse of the
 orientation block of P_ρ* = (B P_z⁻¹ Bᵀ)⁻¹ (block inversion) — the P_θ* of eqs. (16)–(17).
 """
-import sys, pathlib; sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # lectures/
 
 import numpy as np
 import scipy.linalg as sla
 
 import lago_cvx as lc
 from lago_cvx.posegraph import rot2
-from _lecture import check, paper_lago, setup
+from lago_cvx.course import check, paper_lago, setup
 
 setup("04a_phase3")
 

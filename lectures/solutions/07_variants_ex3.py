@@ -1,4 +1,3 @@
-import sys, pathlib; sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # lectures/
 # Exercise 3 of lecture 7 — the Huber threshold M.
 #
 # Huber's loss is quadratic up to ‖r_k‖ = M and linear beyond: an edge pulls with at most 2M. For M → ∞ it
@@ -12,7 +11,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import lago_cvx as lc
-from _lecture import check, setup, show
+from lago_cvx.course import check, setup, show
 from lago_cvx import variants as V
 
 setup("07_variants")

@@ -1,4 +1,3 @@
-import sys, pathlib; sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # lectures/
 # Exercise 1 of lecture 9 — the chordal distance (D) and the weights (Q).
 #
 # (D). ‖R₂ − R₁‖²_F = tr(R₂ᵀR₂) + tr(R₁ᵀR₁) − 2 tr(R₁ᵀR₂) = 6 − 2 tr(R₁ᵀR₂), and a rotation of angle ψ has trace
@@ -13,7 +12,7 @@ import sys, pathlib; sys.path.insert(0, str(pathlib.Path(__file__).resolve().par
 # e.g. Ω = diag(1, 1, 10): W = diag(5, 5, −4). No weight of the form (C) reproduces such an Ω_rr.
 import numpy as np
 
-from _lecture import check, setup
+from lago_cvx.course import check, setup
 from lago_cvx.so3 import exp_so3, hat, log_so3
 
 setup("09_space")

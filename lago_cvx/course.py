@@ -1,10 +1,11 @@
 """What every lecture shares: set-up, one-line checks, inline figures (written to disk, byte for byte
 reproducibly, only when asked), real benchmark graphs (or a clear skip), and the paper's procedure.
 
-Used as ``from _lecture import ...`` by the lectures (run from any working directory: Jupyter, a script,
-the tests) and by their exercise solutions in ``solutions/``::
+Used as ``from lago_cvx.course import ...`` by the lectures (run from any working directory, or alone: Jupyter,
+Colab, a script, the tests) and by their exercise solutions in ``lectures/solutions/``; it reads nothing from the
+project's checkout::
 
-    from _lecture import setup, check, show, real, FULL
+    from lago_cvx.course import setup, check, show, real, FULL
     setup("02_phase1")                   # compact printing, figures named 02_phase1_*
     check(err < 1e-9, f"cvxpy = closed form ({err:.1e})")     # prints "✓ cvxpy = closed form (3.1e-16)"
     fig, ax = plt.subplots(); ...; show(fig, "laplacian")      # inline in Jupyter; saved only on request
@@ -31,11 +32,8 @@ import numpy as np
 import lago_cvx as lc
 from lago_cvx.datasets import DatasetNotFound, dataset
 
-__all__ = ["ROOT", "FULL", "S", "setup", "check", "show", "real", "paper_lago", "figure_dir", "section_v_world",
+__all__ = ["FULL", "S", "setup", "check", "show", "real", "paper_lago", "figure_dir", "section_v_world",
            "running_example", "intuition_figure", "quiet"]
-
-#: The project checkout.
-ROOT = Path(__file__).resolve().parents[1]
 
 #: Bigger sweeps (more seeds, sizes, noise levels) run only with ``LAGO_CVX_FULL=1``.
 FULL = os.environ.get("LAGO_CVX_FULL", "") not in ("", "0")
