@@ -507,7 +507,7 @@ check(minima.size >= 3, f"{minima.size} local minima along one line")
 # **Local solvers land where they start.** Gauss–Newton linearizes the cost at the current guess and
 # converges to a *local* minimum near it. On the running example the headings are measured too well for
 # a trap: from dead reckoning (the odometry composed along the path, `odometry_guess`) and from LAGO's
-# estimate (the subject of lectures 2–6) it reaches one minimum. With twice the heading noise (0.1 rad),
+# estimate (the subject of lectures 2–6) it reaches one minimum. With four times the heading noise (0.2 rad),
 # on a larger Manhattan world, the two runs can stop in two different minima (the cell draws worlds from
 # `DRAW` on until they do, and says how many it tried), and the cost between them rises above the chord — a second proof of non-convexity. On a real graph (MIT) the same happens.
 
@@ -516,9 +516,9 @@ ex = running_example().graph
 one_minimum = [refine(ex, start, max_iterations=200) for start in (odometry_guess(ex), lc.lago(ex).poses)]
 print("running example, Gauss–Newton from dead reckoning and from LAGO: cost", [f"{r.chi2:.4f}" for r in one_minimum])
 DRAW = 0   # change it and rerun: the draws from DRAW on are tried until the two starts end in two minima
-for draw in range(DRAW, DRAW + 20):
+for draw in range(DRAW, DRAW + 40):       # about one draw in four traps Gauss–Newton at this noise
     # own world: heading noise that traps Gauss–Newton
-    mw = lc.manhattan_world(200, seed=draw, sigma_theta=0.1, sigma_xy=0.05)
+    mw = lc.manhattan_world(200, seed=draw, sigma_theta=0.2, sigma_xy=0.05)
     gm = mw.graph
     from_dr = refine(gm, odometry_guess(gm), max_iterations=200)
     from_lago = refine(gm, lc.lago(gm).poses, max_iterations=200)
