@@ -32,6 +32,12 @@
 # variances of the relative orientations.
 
 # %%
+try:                                  # run alone (Colab, a fresh environment)? then install the package first
+    import lago_cvx  # noqa: F401
+except ImportError:
+    import subprocess, sys; subprocess.run([sys.executable, "-m", "pip", "install", "lago-cvx[course]"], check=True)
+
+# %%
 import cvxpy as cp
 import matplotlib.pyplot as plt
 import numpy as np
@@ -40,7 +46,7 @@ import scipy.sparse.linalg as spla
 from scipy.sparse import csgraph
 
 import lago_cvx as lc
-from _lecture import check, intuition_figure, paper_lago, real, running_example, setup, show
+from lago_cvx.course import check, intuition_figure, paper_lago, real, running_example, setup, show
 from lago_cvx import phases
 from lago_cvx.errors import GraphError
 from lago_cvx.graph import spanning_tree

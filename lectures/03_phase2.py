@@ -35,13 +35,19 @@
 # "marginal")`; the package's default (`"full"`) goes beyond the paper and is not used here.
 
 # %%
+try:                                  # run alone (Colab, a fresh environment)? then install the package first
+    import lago_cvx  # noqa: F401
+except ImportError:
+    import subprocess, sys; subprocess.run([sys.executable, "-m", "pip", "install", "lago-cvx[course]"], check=True)
+
+# %%
 import matplotlib.pyplot as plt
 import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
 import lago_cvx as lc
-from _lecture import S, check, intuition_figure, paper_lago, real, running_example, setup, show
+from lago_cvx.course import S, check, intuition_figure, paper_lago, real, running_example, setup, show
 from lago_cvx import phases, plotting
 from lago_cvx.graph import spanning_tree
 from lago_cvx.posegraph import between, rot2, wrap_angle

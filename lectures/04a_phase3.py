@@ -41,6 +41,12 @@
 # eq. (12), in lecture 5 for the tree block of the cycle basis $C = [I_l\ B]$; the two are unrelated.
 
 # %%
+try:                                  # run alone (Colab, a fresh environment)? then install the package first
+    import lago_cvx  # noqa: F401
+except ImportError:
+    import subprocess, sys; subprocess.run([sys.executable, "-m", "pip", "install", "lago-cvx[course]"], check=True)
+
+# %%
 import time
 
 import cvxpy as cp
@@ -57,14 +63,14 @@ from lago_cvx.positions import resolve_positions
 from lago_cvx.refinement import jacobian, odometry_guess
 from lago_cvx.solvers import LEAST_SQUARES, ClarabelSettings
 from lago_cvx.theorem1 import theorem1
-from _lecture import S, check, intuition_figure, paper_lago, real, running_example, setup, show
+from lago_cvx.course import S, check, intuition_figure, paper_lago, real, running_example, setup, show
 
 setup("04a_phase3")
 
 
 def solve_qp(problem):
-    """Clarabel as `_lecture.solve_qp` runs it, with static regularization 1e-7: QDLDL's factorization of the
-    running example's dense parameters fails at 1e-8. Returns the status."""
+    """Clarabel with static regularization 1e-7 (its default, 1e-8, fails on the running example's dense
+    parameters: section 1), the package's tolerances 1e-12 and QDLDL. Returns the status."""
     kwargs = ClarabelSettings(static_regularization_constant=1e-7).over(LEAST_SQUARES).solver_kwargs()
     problem.solve(solver=cp.CLARABEL, direct_solve_method="qdldl", **kwargs)
     return problem.status
@@ -100,6 +106,12 @@ show(intuition_figure("04a"), "intuition")
 # Naming $e$ keeps one parameter per product (cvxpy's "disciplined parametrized programming": changing a
 # parameter's `.value` re-solves without rebuilding), and its multiplier has a meaning (below).
 #
+# **Which Clarabel call.** With Clarabel's defaults, `phase3.solve(solver=cp.CLARABEL)` may stop with a numerical
+# error (cvxpy raises `SolverError`; the first line printed below says what happened here): the factorization of
+# its KKT system with the dense parameter $B^\top$ needs a static regularization above the default $10^{-8}$.
+# `phase3.solve(solver=cp.CLARABEL, static_regularization_constant=1e-7)` works; the lecture's `solve_qp`
+# (defined at the top) makes the same call with the package's tolerances $10^{-12}$ and QDLDL.
+#
 # We work on the running example, whose information is block-diagonal — the paper's setting — with the
 # paper's phases (`paper_lago`: tree rounding, $\mathrm{blkdiag}(P_\Delta, P_\delta)$, phase-3 poses).
 
@@ -134,7 +146,17 @@ print(phase3)
 W.value, z.value, Bt.value = res.phase2.W.toarray(), res.phase2.z, P.design_matrix(g).toarray()
 
 TOL = 1e-8   # accepted relative disagreement with the closed form, for an "optimal" status at 1e-12 gaps
-status = solve_qp(phase3)
+try:
+    phase3.solve(solver=cp.CLARABEL)                                    # Clarabel's defaults
+    plain = phase3.status
+except cp.error.SolverError as exc:
+    plain = f"SolverError: {exc}"
+print(f"phase3.solve(solver=cp.CLARABEL) → {plain}")
+phase3.solve(solver=cp.CLARABEL, static_regularization_constant=1e-7)   # the call that works
+status_1e7, e_1e7 = phase3.status, relative_difference(rho.value, res.phase3.x_star)
+print(f"phase3.solve(solver=cp.CLARABEL, static_regularization_constant=1e-7) → {status_1e7}, "
+      f"relative difference from the closed form {e_1e7:.1e}")
+status = solve_qp(phase3)                                 # the same, with tolerances 1e-12 (top of the lecture)
 
 P_z = res.phase2.covariance_z()                           # dense, for this small graph only
 Bd = Bt.value.T                                           # B
@@ -145,6 +167,7 @@ e_dense = relative_difference(rho15, res.phase3.x_star)
 e_info = np.abs(info15 - res.phase3.info.toarray()).max() / np.abs(info15).max()
 
 # %% tags=["remove-input"]
+check(status_1e7 == "optimal" and e_1e7 < TOL, f"static regularization 1e-7: Clarabel's default tolerances suffice ({e_1e7:.1e})")
 check(status == "optimal" and e_cvx < TOL, f"cvxpy (Clarabel, {status}) = package closed form ({e_cvx:.1e})")
 check(e_dense < 1e-9, f"eq. (15) with the dense P_z = package closed form ({e_dense:.1e})")
 check(e_info < 1e-9, f"information B P_z⁻¹ Bᵀ = phase3.info ({e_info:.1e})")
@@ -507,16 +530,16 @@ for label, gr in cases:
     t_lago = time.perf_counter() - t0
     gn_dr = lc.refine(gr, odometry_guess(gr), max_iterations=100)
     gn_lago = lc.refine(gr, r.poses, max_iterations=100)
-    H = jacobian(gr, r.poses)
-    H = (H.T @ H).tocsr()
+    Jg = jacobian(gr, r.poses)
+    JtJ = (Jg.T @ Jg).tocsr()                  # Gauss–Newton's normal matrix (not lecture 3's H)
     nn = gr.n_poses - 1
     runs[label] = (r, gn_dr, gn_lago)
     print(f"{label}: n = {nn}\n"
           f"  phase 1 normal matrix {r.phase1.info.shape}, nnz {r.phase1.info.nnz};  phase 3 {r.phase3.info.shape}, "
-          f"nnz {r.phase3.info.nnz};  one Gauss–Newton step {H.shape}, nnz {H.nnz}\n"
+          f"nnz {r.phase3.info.nnz};  one Gauss–Newton step {JtJ.shape}, nnz {JtJ.nnz}\n"
           f"  LAGO {1e3 * t_lago:.0f} ms in all;  Gauss–Newton from dead reckoning: {gn_dr.iterations} steps, "
           f"{1e3 * gn_dr.log[-1]['time']:.0f} ms;  from LAGO: {gn_lago.iterations} steps")
-    sizes[label] = (nn, H.shape)
+    sizes[label] = (nn, JtJ.shape)
 
 # %% tags=["remove-input"]
 for label, (r, gn_dr, gn_lago) in runs.items():
@@ -564,16 +587,23 @@ if intel is not None:
 # from it needs fewer steps than from dead reckoning.
 
 # %% [markdown]
+# **Summary.** Phase 3 is a linear least-squares problem: given $\hat\theta$ and the phase-2 vector $z$, eq. (12)
+# makes $z$ linear in $\rho = [p;\ \theta]$ and eq. (15) is its best linear unbiased estimate, solved here by cvxpy
+# (with an explicit Clarabel setting) and by the package's sparse closed form. Theorem 1 splits $\rho^*$ into the
+# sub-optimal estimate of eq. (14) plus the corrections of eqs. (16)–(17), which minimise the first-order expansion
+# eq. (18); Remark 1: the three phases cost about one Gauss–Newton step.
+
+# %% [markdown]
 # ## Exercise 1 — The information matrix of phase 3, block by block
 #
-# *Derive.* Starting from $P_z$ of eq. (11) (write it as $G\,\mathrm{blkdiag}(P_{\Delta l}, P_\theta)G^\top$ with
-# $G = \begin{bmatrix} R & J\\ 0 & I_n\end{bmatrix}$), show that
+# *Derive.* Starting from $P_z$ of eq. (11) (write it as $H\,\mathrm{blkdiag}(P_{\Delta l}, P_\theta)H^\top$ with
+# $H = \begin{bmatrix} R & J\\ 0 & I_n\end{bmatrix}$, lecture 3's Jacobian), show that
 # $BP_z^{-1}B^\top = \begin{bmatrix} A_2 P_{\Delta g}^{-1} A_2^\top & -A_2 P_{\Delta g}^{-1} J\\ -J^\top P_{\Delta g}^{-1} A_2^\top & P_\theta^{-1} + J^\top P_{\Delta g}^{-1} J\end{bmatrix}$
 # (the matrix the paper inverts blockwise to obtain eqs. (16)–(17)), and that the Schur complement of its
 # position block is $P_{\theta^*}^{-1}$. Check both numerically on a small graph against `phase3.info`.
 #
-# **Hint.** $G$ is block upper triangular, so $G^{-1} = \begin{bmatrix} R^\top & -R^\top J\\ 0 & I_n\end{bmatrix}$;
-# form $G^{-1}B^\top$ first, and remember that $R$ is orthogonal.
+# **Hint.** $H$ is block upper triangular, so $H^{-1} = \begin{bmatrix} R^\top & -R^\top J\\ 0 & I_n\end{bmatrix}$;
+# form $H^{-1}B^\top$ first, and remember that $R$ is orthogonal.
 
 # %%
 # your solution here

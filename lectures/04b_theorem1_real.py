@@ -34,6 +34,12 @@
 # are fixed.
 
 # %%
+try:                                  # run alone (Colab, a fresh environment)? then install the package first
+    import lago_cvx  # noqa: F401
+except ImportError:
+    import subprocess, sys; subprocess.run([sys.executable, "-m", "pip", "install", "lago-cvx[course]"], check=True)
+
+# %%
 from dataclasses import replace
 
 import matplotlib.pyplot as plt
@@ -48,7 +54,7 @@ from lago_cvx.plotting import plot_covariances, plot_trajectory
 from lago_cvx.posegraph import wrap_angle
 from lago_cvx.positions import resolve_positions
 from lago_cvx.theorem1 import frozen_and_model, theorem1
-from _lecture import FULL, check, intuition_figure, paper_lago, real, running_example, setup, show
+from lago_cvx.course import FULL, check, intuition_figure, paper_lago, real, running_example, setup, show
 
 setup("04b_theorem1_real")
 
@@ -502,6 +508,14 @@ if intel is not None and peers.have_gtsam():
 # measurement's frame), where eq. (10) rotates $P_{\Delta l}$ by $R(\hat\theta_i)$ first. This is our reading of GTSAM's implementation, consistent with the isotropic
 # check; it is not a statement about the paper. It is another way to weigh a residual in the wrong
 # frame, and, like phase 3's frozen weights, it matters only where the information is anisotropic.
+
+# %% [markdown]
+# **Summary.** On real graphs Theorem 1's correction can move away from the minimum of χ², because phase 3 freezes
+# the weights of the relative positions at $\hat\theta$ and a near-rigid rotation of the map escapes the first-order
+# model; the repair (`positions="resolve"`) re-solves the positions with the true weights along a guarded step.
+# Remark 2's block-diagonal noise is an approximation the
+# package can drop, the covariances of eq. (15) come from sparse factors, and GTSAM's LAGO agrees with ours where
+# the noise is isotropic.
 
 # %% [markdown]
 # ## Exercise 1 — The guarded polish, by hand

@@ -25,6 +25,10 @@
 # The letter $B$ in $C = [I_l\ B]$ is unrelated to the $B$ of phase 3 (lecture 4a).
 
 # %%
+try:                                  # run alone (Colab, a fresh environment)? then install the package first
+    import lago_cvx  # noqa: F401
+except ImportError:
+    import subprocess, sys; subprocess.run([sys.executable, "-m", "pip", "install", "lago-cvx[course]"], check=True)
 import cvxpy as cp
 import matplotlib.pyplot as plt
 import numpy as np
@@ -37,7 +41,7 @@ from lago_cvx.plotting import plot_edges, plot_trajectory
 from lago_cvx.regularization import regularize
 from lago_cvx.rounding import AMBIGUITY_MARGIN
 from lago_cvx.uncertainty import edge_uncertainty
-from _lecture import FULL, check, intuition_figure, paper_lago, real, running_example, setup, show, solve_qp
+from lago_cvx.course import FULL, check, intuition_figure, paper_lago, quiet, real, running_example, setup, show, solve_qp
 
 setup("05_regularization")
 TWO_PI = 2 * np.pi
@@ -134,12 +138,12 @@ check(err_reg < 1e-9, f"with regularization ({res4.regularization.n_regularized}
 # %% [markdown]
 # ## 2. Cycles and circuits
 #
-# The paper's definitions (cycle / circuit, Section IV-E): a **cycle** is a subgraph in which every node
-# appears in an even number of edges; a **circuit** is a cycle in which every node appears in exactly two
-# edges. A circuit is one closed walk without repeated nodes; a cycle may be several circuits glued together (a figure
-# eight). A *directed* circuit is written as a vector $c\in\{-1,0,1\}^m$: $+1$ for an edge traversed from
-# tail to head, $-1$ for one traversed backwards, $0$ for an edge not in it. Walking around it, every pose
-# is entered as often as it is left, so $A c = 0$.
+# The paper's definitions (cycle / circuit, Section IV-E): a **cycle** is a subgraph in which every node appears in an
+# even number of edges; a **circuit** is a cycle in which every node appears in exactly two edges. A circuit is one
+# closed walk without repeated nodes; a cycle may be several circuits glued together (a figure eight). A *directed*
+# circuit is written as a vector $c\in\{-1,0,1\}^m$: $+1$ for an edge traversed from tail to head, $-1$ for one
+# traversed backwards, $0$ for an edge not in it. Walking around it, every pose is entered as often as it is left, so
+# $A c = 0$.
 #
 # A small graph that contains both: two loops sharing pose 3, odometry $0\to1\to\dots\to6$, loop
 # closures $3\to0$, $6\to3$ and $2\to4$.
@@ -153,8 +157,7 @@ heads8 = np.array([1, 2, 3, 4, 5, 6, 0, 3, 4])
 meas8 = lc.between(truth8[tails8], truth8[heads8])
 eight = lc.PoseGraph(7, tails8, heads8, meas8[:, :2], lc.wrap_angle(meas8[:, 2]), np.broadcast_to(np.eye(3), (9, 3, 3)))
 A8 = lc.incidence_matrix(eight).toarray().astype(int)
-print("edges:", [f"{i}→{j}" for i, j in zip(tails8, heads8)])
-print("incidence matrix A:\n", A8)
+print("edges:", [f"{i}→{j}" for i, j in zip(tails8, heads8)], "\nincidence matrix A:\n", A8)
 
 def degrees(graph, c):
     """How many edges of the support of c meet each pose."""
@@ -187,13 +190,12 @@ check(all(set(degrees(eight, c)[degrees(eight, c) > 0]) == {2} and np.all(A8 @ c
 # A **cycle basis** is a smallest set of circuits such that every cycle is a combination of them; they span
 # the cycle space.
 #
-# **Theorem 2** (fundamental circuits form a cycle basis). *The fundamental circuits of a directed graph
-# constitute a cycle basis.* The paper refers to graph-theory textbooks for the proof. The argument is short
-# in vector form: each fundamental circuit contains exactly one chord, its own, so they are independent;
-# and if $c$ is any cycle vector, $c' = c - \sum_{\text{chords } k} c_k\, c^{(k)}$ has no chord edge left and
-# still satisfies $Ac' = 0$ — a cycle inside a tree, which can only be empty. So
-# $c = \sum_k c_k\, c^{(k)}$: **the coefficients of a cycle in the fundamental basis are its own chord
-# entries** (Exercise 1).
+# **Theorem 2** (fundamental circuits form a cycle basis). *The fundamental circuits of a directed graph constitute a
+# cycle basis.* The paper refers to graph-theory textbooks for the proof. The argument is short in vector form: each
+# fundamental circuit contains exactly one chord, its own, so they are independent; and if $c$ is any cycle vector, $c'
+# = c - \sum_{\text{chords } k} c_k\, c^{(k)}$ has no chord edge left and still satisfies $Ac' = 0$ — a cycle inside a
+# tree, which can only be empty. So $c = \sum_k c_k\, c^{(k)}$: **the coefficients of a cycle in the fundamental basis
+# are its own chord entries** (Exercise 1).
 #
 # **Corollary 1** (the dimension of the cycle space). *The cycle space of a connected graph has dimension
 # $l = m - n$, the cyclomatic number.* (Also $m - \operatorname{rank} A$ with $\operatorname{rank}A = n$,
@@ -270,10 +272,10 @@ for name, kind, holds in spanning:
 #
 # $$ C = [\,I_l\ \ B\,], \qquad B\in\{-1,0,1\}^{l\times n}. \tag{19}$$
 #
-# Each fundamental circuit contains its own chord and no other (the identity), plus tree edges traversed
-# either way ($B$). `SpanningTree.edge_order` is that order; `cycle_basis` keeps the graph's own edge order,
-# and builds $B^\top = -A_T^{-1}A_C$ from the reduced incidence matrix split into tree and chord columns
-# ($A_T$ is square and invertible: a tree is connected, Proposition 1).
+# Each fundamental circuit contains its own chord and no other (the identity), plus tree edges traversed either way
+# ($B$). `SpanningTree.edge_order` is that order; `cycle_basis` keeps the graph's own edge order, and builds $B^\top =
+# -A_T^{-1}A_C$ from the reduced incidence matrix split into tree and chord columns ($A_T$ is square and invertible: a
+# tree is connected, Proposition 1).
 
 # %%
 print("C in the order [chords | tree edges] (eq. (19)):\n", C8[:, tree8.edge_order])
@@ -290,10 +292,10 @@ for name, gr, kinds in CASES:
 # %% [markdown]
 # ## 5. The zero-sum property, eqs. (20)–(23), and Theorem 3
 #
-# **Why measured orientations sum to multiples of $2\pi$** (a lemma of this lecture, call it *the
-# $2\pi$-multiple property*). Exact measurements are $\delta = A^\top\theta + 2\pi w$ for the true orientations
-# $\theta$ and some integers $w$ (the wrap into $[-\pi,\pi)$). For a cycle vector $c$, $c^\top A^\top\theta =
-# (Ac)^\top\theta = 0$, so $c^\top\delta = 2\pi\,c^\top w \in 2\pi\mathbb Z$.
+# **Why measured orientations sum to multiples of $2\pi$** (a lemma of this lecture, call it *the $2\pi$-multiple
+# property*). Exact measurements are $\delta = A^\top\theta + 2\pi w$ for the true orientations $\theta$ and some
+# integers $w$ (the wrap into $[-\pi,\pi)$). For a cycle vector $c$, $c^\top A^\top\theta = (Ac)^\top\theta = 0$, so
+# $c^\top\delta = 2\pi\,c^\top w \in 2\pi\mathbb Z$.
 #
 # The paper asks for more: the **zero-sum property** — corrected measurements $\bar\delta$ sum to zero
 # around every cycle. It suffices to ask it of a cycle basis, the fundamental circuits $c_i$ (the rows of $C$):
@@ -465,7 +467,8 @@ for sig in SIGMAS:
         bfs = lc.spanning_tree(gm, "bfs")
         for kind in TREES + ("chordal",):
             tree = bfs if kind == "chordal" else lc.spanning_tree(gm, kind)
-            rep = regularize(gm, tree, regularization="chordal" if kind == "chordal" else "tree")
+            with quiet():                      # the ambiguous chords are counted below, not logged
+                rep = regularize(gm, tree, regularization="chordal" if kind == "chordal" else "tree")
 
             def circuit(x):                            # C x through tree path sums, without forming C
                 return x[tree.chords] - tree.path_sums(gm, x)[tree.chords]
@@ -519,14 +522,14 @@ show(fig, "noise_margin")
 # %% [markdown]
 # ## 8. Ambiguous roundings, and the chordal regularizer
 #
-# A wrong $k$ is a gross error: it tells phase 1 that a loop is off by a full turn. The package's default
-# regularizer (`regularization="chordal"`, beyond the paper) avoids tree paths altogether: it estimates all
-# rotations at once by the chordal relaxation — each rotation written as a unit vector
-# $r_i = (\cos\theta_i, \sin\theta_i)$, the measurement $r_j = R(\delta_e) r_i$ linear in them, $\lVert r_i\rVert = 1$
-# dropped, a sparse least squares (`regularization.chordal.chordal_problem` in cvxpy, `chordal_closed_form`)
-# — and rounds every edge against that estimate. $\delta$ enters the relaxation only through $\cos\delta$ and
-# $\sin\delta$: it ignores how the measurements were wrapped and accumulates no noise along a tree path.
-# Section 7's sweep shows it keeps the right $k$ to a larger noise level than either tree — not to any.
+# A wrong $k$ is a gross error: it tells phase 1 that a loop is off by a full turn. The package's default regularizer
+# (`regularization="chordal"`, beyond the paper) avoids tree paths altogether: it estimates all rotations at once by
+# the chordal relaxation — each rotation written as a unit vector $r_i = (\cos\theta_i, \sin\theta_i)$, the measurement
+# $r_j = R(\delta_e) r_i$ linear in them, $\lVert r_i\rVert = 1$ dropped, a sparse least squares
+# (`regularization.chordal.chordal_problem` in cvxpy, `chordal_closed_form`) — and rounds every edge against that
+# estimate. $\delta$ enters the relaxation only through $\cos\delta$ and $\sin\delta$: it ignores how the measurements
+# were wrapped and accumulates no noise along a tree path. Section 7's sweep shows it keeps the right $k$ to a larger
+# noise level than either tree — not to any.
 #
 # **Real data: M3500a** (`carlone/input_M3500a_g2o.g2o`, the M3500 world with extra rotation noise). No
 # ground truth: we compare χ² with the reference minimum and count the circuits on which two
@@ -573,11 +576,11 @@ if m3500a is not None:
 #
 # ## 9. The regularization steps of Section V and Table I
 #
-# The regularization steps (Section V): (1) extract the odometric and loop-closing constraints — here they
-# come in the file; (2) **regularize** the orientations with the cycle basis $C$ of the odometric tree and the
-# correction $v = [-(C\delta)^\top\ 0^\top]^\top$ of eq. (23), rounded; (3) run the three phases. Table I
-# (Intel Research Lab, `carlone/INTEL_P_toro.graph`): 1228 nodes, 1227 odometric constraints, 278 loop
-# closing constraints, 198 chords needing a correction $2k\pi$, $k\neq 0$ — computed below.
+# The regularization steps (Section V): (1) extract the odometric and loop-closing constraints — here they come in the
+# file; (2) **regularize** the orientations with the cycle basis $C$ of the odometric tree and the correction $v =
+# [-(C\delta)^\top\ 0^\top]^\top$ of eq. (23), rounded; (3) run the three phases. Table I (Intel Research Lab,
+# `carlone/INTEL_P_toro.graph`): 1228 nodes, 1227 odometric constraints, 278 loop closing constraints, 198 chords
+# needing a correction $2k\pi$, $k\neq 0$ — computed below.
 
 # %%
 TABLE_I = {"nodes": 1228, "odometric constraints": 1227, "loop closing constraints": 278,
@@ -607,11 +610,10 @@ if intel is not None:
 # %% [markdown]
 # ## Exercise 1 — Coordinates in the fundamental basis
 #
-# *Derive.* Show that a cycle vector $c$ ($Ac = 0$) equals $\sum_k c_k\,c^{(k)}$, the sum over the chords $k$
-# of $T$ of its chord entries times the fundamental circuits — hence that the fundamental circuits span the
-# cycle space (Theorem 2). Then check it: express every fundamental circuit of the BFS tree of a
-# Manhattan world in the basis of the odometric tree, i.e. verify $C_{\rm bfs} = C_{\rm bfs}[:, \text{odometric
-# chords}]\; C_{\rm odo}$.
+# *Derive.* Show that a cycle vector $c$ ($Ac = 0$) equals $\sum_k c_k\,c^{(k)}$, the sum over the chords $k$ of $T$ of
+# its chord entries times the fundamental circuits — hence that the fundamental circuits span the cycle space (Theorem
+# 2). Then check it: express every fundamental circuit of the BFS tree of a Manhattan world in the basis of the
+# odometric tree, i.e. verify $C_{\rm bfs} = C_{\rm bfs}[:, \text{odometric chords}]\; C_{\rm odo}$.
 #
 # **Hint.** Subtract from $c$ the combination of fundamental circuits weighted by its chord entries: what is left
 # lives on the tree and has $Ac = 0$.

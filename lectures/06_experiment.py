@@ -7,12 +7,12 @@
 # covariance scenarios on a world with known truth; and then asks the question the abstract answers — is
 # the linear estimate accurate enough that refinement is often unnecessary? — on every graph at hand.
 #
-# **The idea in one paragraph.** A robot drives around an office floor; odometry corrected by scan matching
-# gives a trajectory that is right locally and drifts globally, and loop closures say where it came back to
-# a place it had seen (Fig. 1, section 3). LAGO turns those measurements into a map in closed form, scored
-# by the relations it predicts against true ones (Table II, which needs a truth) or by the χ² it leaves. The
-# paper's scores say that the way each measurement's uncertainty is stated matters as much as the method.
-# Below: INTEL's dead reckoning and the paper's LAGO, each against the minimum of χ² (grey).
+# **The idea in one paragraph.** A robot drives around an office floor; odometry corrected by scan matching gives a
+# trajectory that is right locally and drifts globally, and loop closures say where it came back to a place it had
+# seen (Fig. 1, section 3). LAGO turns those measurements into a map in closed form, scored by the relations it
+# predicts against true ones (Table II, which needs a truth) or by the χ² it leaves. The paper's scores say that the
+# way each measurement's uncertainty is stated matters as much as the method. Below: INTEL's dead reckoning and the
+# paper's LAGO, each against the minimum of χ² (grey).
 #
 # **Learning goals.** After this lecture you can
 #
@@ -24,24 +24,27 @@
 # 4. test the abstract's claim "refinement is often unnecessary" on every real graph, and explain with
 #    Theorem 1 why it fails on INTEL.
 #
-# **What cannot be reproduced here, and what replaces it.** The graph files hold no laser scans, so the
-# occupancy grid of Fig. 2(b) cannot be drawn (section 4 draws the grid the robot's footprint swept instead).
-# TORO, the iterative solver of Table II and Fig. 3, is not part of this package, and the benchmark's
-# ground-truth relations are not available: sections 5–6 compute the same metric on a synthetic world with
-# known truth and the paper's proportional uncertainty, Gauss–Newton standing in for TORO, beside the paper's values.
+# **What cannot be reproduced here, and what replaces it.** The graph files hold no laser scans, so the occupancy grid
+# of Fig. 2(b) cannot be drawn (section 4 draws the grid the robot's footprint swept instead). TORO, the iterative
+# solver of Table II and Fig. 3, is not part of this package, and the benchmark's ground-truth relations are not
+# available: sections 5–6 compute the same metric on a synthetic world with known truth and the paper's proportional
+# uncertainty, Gauss–Newton standing in for TORO, beside the paper's values.
 #
 # **Notation.** χ² is the cost of eq. (3), $\sum_{ij} e_{ij}^\top \Omega_{ij} e_{ij}$, no factor ½
 # (`lago_cvx.metrics.chi2`); $n+1$ poses, $m$ edges, $A$ the $(n+1)\times m$ incidence matrix, $\delta$ the
 # relative orientations, $P_\delta$ their variances.
 
 # %%
+try:                                  # run alone (Colab, a fresh environment)? then install the package first
+    import lago_cvx  # noqa: F401
+except ImportError:
+    import subprocess, sys; subprocess.run([sys.executable, "-m", "pip", "install", "lago-cvx[course]"], check=True)
 import cvxpy as cp
 import matplotlib.pyplot as plt
 import numpy as np
 from dataclasses import replace
-
 import lago_cvx as lc
-from _lecture import FULL, check, intuition_figure, real, running_example, section_v_world, setup, show
+from lago_cvx.course import FULL, check, intuition_figure, real, running_example, section_v_world, setup, show
 from lago_cvx import phases, plotting
 from lago_cvx.datasets import DATASET_FILES, REFERENCE_CHI2
 from lago_cvx.posegraph import between, wrap_angle
@@ -49,7 +52,6 @@ from lago_cvx.solvers import solve
 from lago_cvx.positions import resolve_positions
 from lago_cvx.theorem1 import frozen_and_model, theorem1
 from lago_cvx.uncertainty import edge_uncertainty
-
 setup("06_experiment")
 INTEL = real("carlone/INTEL_P_toro.graph")
 
@@ -59,16 +61,15 @@ show(intuition_figure("06"), "intuition")
 # %% [markdown]
 # ## 1. Table I — the Intel graph and its regularization
 #
-# Section V runs in three steps — the regularization steps (Section V): (i) odometric and loop-closing
-# constraints are extracted from the sensor data — here they are given, as the file's edges; (ii) the
-# relative orientations are regularized; (iii) the three phases run. Step (ii) rests on three results.
-# Proposition 2 (the odometric edges form a spanning tree) and Corollary 3 (the loop closures are its
-# chords) say that with the odometric tree every loop closure is exactly one chord, so the cycle basis
-# matrix $C = [I_l\ B]$ of eq. (19) has one row per loop closure. Theorem 3 (existence of correction
-# factors) then gives the correction of eq. (23), $v = [-(C\delta)^\top\ 0^\top]^\top$: only chords are
-# corrected, and after rounding to the nearest multiple of $2\pi$ the correction of chord $c$ is $2\pi k_c$,
-# $k_c = -\mathrm{round}((C\delta)_c / 2\pi)$. A chord "needs regularization" when $k_c \neq 0$ — the last
-# column of Table I.
+# Section V runs in three steps — the regularization steps (Section V): (i) odometric and loop-closing constraints are
+# extracted from the sensor data — here they are given, as the file's edges; (ii) the relative orientations are
+# regularized; (iii) the three phases run. Step (ii) rests on three results. Proposition 2 (the odometric edges form a
+# spanning tree) and Corollary 3 (the loop closures are its chords) say that with the odometric tree every loop
+# closure is exactly one chord, so the cycle basis matrix $C = [I_l\ B]$ of eq. (19) has one row per loop closure.
+# Theorem 3 (existence of correction factors) then gives the correction of eq. (23),
+# $v = [-(C\delta)^\top\ 0^\top]^\top$: only chords are corrected, and after rounding to the nearest multiple of $2\pi$ the correction of
+# chord $c$ is $2\pi k_c$, $k_c = -\mathrm{round}((C\delta)_c / 2\pi)$. A chord "needs regularization" when $k_c \neq
+# 0$ — the last column of Table I.
 #
 # We build $C$ (`lc.cycle_basis`) and count by hand — on INTEL and, beside it, on the running example — then
 # compare with the paper's procedure as the package runs it, `lc.lago(graph, route="seed")`.
@@ -224,12 +225,11 @@ if INTEL is not None:
 # paper: breadth-first tree, chordal regularization, full information, positions re-solved) and the minimum
 # of eq. (3) found by Gauss–Newton.
 #
-# **(b)** in the paper is the occupancy grid built by placing the laser scans at the estimated poses. The
-# graph file has **no laser scans**, so that map cannot be drawn. The closest honest substitute uses the
-# poses alone: mark the cells of a grid that the robot's footprint (radius 0.3 m) swept along the
-# estimated trajectory — the free space the robot itself proves. A globally consistent estimate lays a
-# corridor driven twice on top of itself, so its swept area shrinks; walls and rooms the robot never
-# entered cannot be recovered without the scans.
+# **(b)** in the paper is the occupancy grid built by placing the laser scans at the estimated poses. The graph file
+# has **no laser scans**, so that map cannot be drawn. The closest honest substitute uses the poses alone: mark the
+# cells of a grid that the robot's footprint (radius 0.3 m) swept along the estimated trajectory — the free space the
+# robot itself proves. A globally consistent estimate lays a corridor driven twice on top of itself, so its swept area
+# shrinks; walls and rooms the robot never entered cannot be recovered without the scans.
 
 # %%
 def swept_grid(poses, resolution=0.2, radius=0.3):
@@ -289,28 +289,27 @@ if INTEL is not None:
 #
 # ## 5. Table II — the paper's two scenarios on a world with ground truth
 #
-# Table II scores estimates with the SLAM benchmark metric of Kümmerle et al. (2009): over a set of
+# Table II scores estimates with the SLAM benchmark metric of Kümmerle et al. {cite}`kummerle2009measuring`: over a set of
 # relations $(i,j)$ with known true relative pose $\delta^*_{ij}$, the estimate's relative pose
 # $\hat\delta_{ij} = \hat p_j \ominus \hat p_i$ (eq. (1)) is compared with it,
 # $$\varepsilon_t = \frac1N\sum_{(i,j)}\big\|\mathrm{trans}(\hat\delta_{ij}\ominus\delta^*_{ij})\big\|^2\ [\mathrm m^2],
 # \qquad \varepsilon_\theta = \frac1N\sum_{(i,j)}\mathrm{rot}(\hat\delta_{ij}\ominus\delta^*_{ij})^2\ [\mathrm{rad}^2].$$
 #
-# **The paper's two scenarios.** In one, $P_{ij} = I_3$ for every edge. In the other,
-# $P_{ij} = \mathrm{diag}(P_{\Delta l,ij}, P_{\delta,ij})$ with "the corresponding uncertainties […] assumed
-# to be proportional to the respective measurements, e.g. bigger displacements correspond to higher
-# uncertainty". The paper gives no constants; we take, per component of the measured relative pose,
-# $\sigma = 0.1\,|\Delta l_x| + 1\,\mathrm{mm}$ (and the same for $y$) and $\sigma_\delta = 0.05\,|\delta| +
-# 10^{-3}$ rad (`_lecture.section_v_world`): a floor keeps the information finite on edges that do not move
-# along an axis, as INTEL's file does (lecture 4b, section 2).
+# **The paper's two scenarios.** In one, $P_{ij} = I_3$ for every edge. In the other, $P_{ij} =
+# \mathrm{diag}(P_{\Delta l,ij}, P_{\delta,ij})$ with "the corresponding uncertainties […] assumed to be proportional
+# to the respective measurements, e.g. bigger displacements correspond to higher uncertainty". The paper gives no
+# constants; we take, per component of the measured relative pose, $\sigma = 0.1\,|\Delta l_x| + 1\,\mathrm{mm}$ (and
+# the same for $y$) and $\sigma_\delta = 0.05\,|\delta| + 10^{-3}$ rad (`course.section_v_world`): a floor keeps the
+# information finite on edges that do not move along an axis, as INTEL's file does (lecture 4b, section 2).
 #
-# **What replaces what is missing.** INTEL's benchmark relations (hand-checked scan alignments) are not
-# available: the world is a 500-pose Manhattan world of its own (the running example's information is the
-# same on every edge, not proportional), the relations its edges with their true relative poses. TORO is not
-# available either. **Gauss–Newton on eq. (3), started from odometry, stands in for it** — the "direct
-# (iterative) method" of Remark 1, the package's own (`lc.refine`). It is not TORO: TORO does stochastic
-# gradient descent on a tree parametrization of the poses, takes hundreds of cheap steps, and is built to
-# survive a poor initial guess; Gauss–Newton takes a few expensive steps and can stop in a local minimum.
-# The minimum of χ² (Gauss–Newton from LAGO) is the best any iterative solver can reach.
+# **What replaces what is missing.** INTEL's benchmark relations (hand-checked scan alignments) are not available: the
+# world is a 500-pose Manhattan world of its own (the running example's information is the same on every edge, not
+# proportional), the relations its edges with their true relative poses. TORO is not available either. **Gauss–Newton
+# on eq. (3), started from odometry, stands in for it** — the "direct (iterative) method" of Remark 1, the package's
+# own (`lc.refine`). It is not TORO: TORO does stochastic gradient descent on a tree parametrization of the poses,
+# takes hundreds of cheap steps, and is built to survive a poor initial guess; Gauss–Newton takes a few expensive
+# steps and can stop in a local minimum. The minimum of χ² (Gauss–Newton from LAGO) is the best any iterative solver
+# can reach.
 #
 # **Two worlds.** The paper's scenario as it is stated has noise that really is proportional to the
 # displacement; then the proportional $P$ is the *true* covariance (world A). But on real data nobody
@@ -352,8 +351,7 @@ def table_ii(graph, truth):
     return table, runs
 
 def print_table(title, table, runs):
-    print(f"{title}\n{'':36s}{'proportional P':>26s}{'P = I₃':>26s}")
-    print(f"{'':36s}" + f"{'ε_t [m²]':>13s}{'ε_θ [rad²]':>13s}" * 2)
+    print(f"{title}\n{'':36s}{'proportional P':>26s}{'P = I₃':>26s}\n{'':36s}" + f"{'ε_t [m²]':>13s}{'ε_θ [rad²]':>13s}" * 2)
     for row in PAPER_TABLE_II:
         print(f"{'paper: ' + row:36s}" + "".join(f"{v[0]:13.2e}{v[1]:13.2e}" for v in PAPER_TABLE_II[row].values()))
     for row in table["proportional"]:
@@ -398,22 +396,26 @@ check(all(a["proportional"][r][c] < a["P = I₃"][r][c] for r in (L, G) for c in
 check(all(agree_b[f] for f in list(agree_b)[:4]), "world B: P = I₃ lowers ε_t and ε_θ of both methods, as in the paper")
 check(all(abs(t[s][L][0] / t[s][G][0] - 1) < 0.05 for t in (a, b) for s in t),
       "LAGO's ε_t is within 5 % of the converged iterative solver's in both worlds and both scenarios")
+up = {r: 100 * (np.array(a["proportional"][r]) / a["proportional"]["minimum of χ² (from LAGO)"] - 1) for r in (L, "LAGO, default route")}
+check(all(5 < up[r][1] < 20 for r in up) and up[L][0] < 5 < 15 < up["LAGO, default route"][0] < 40, "world A, proportional P, "
+      "above the minimum's: " + "; ".join(f"{r[6:]} ε_t {up[r][0]:+.0f} %, ε_θ {up[r][1]:+.0f} %" for r in up))
 
 # %% [markdown]
-# **World A, the scenario as stated.** Here the proportional $P$ is the true covariance, and it helps: with
-# it, both methods' $\varepsilon_\theta$ *and* $\varepsilon_t$ are lower than with $P = I_3$ — the **opposite**
-# of the paper on its four scenario findings, where $P = I_3$ did better. Gauss–Newton from odometry reaches
-# the minimum of χ², and LAGO's relations come within a few per cent of the minimum's.
+# **World A, the scenario as stated.** Here the proportional $P$ is the true covariance, and it helps: with it, both
+# methods' $\varepsilon_\theta$ *and* $\varepsilon_t$ are lower than with $P = I_3$ — the **opposite** of the paper on
+# its four scenario findings, where $P = I_3$ did better. Gauss–Newton from odometry reaches the minimum of χ²; LAGO's
+# relations stay above the minimum's (the last check above): about 10 % in $\varepsilon_\theta$ on either route; in
+# $\varepsilon_t$ a few per cent with the paper's procedure but over 20 % with the default route, whose joint step
+# lowers χ², not these errors.
 #
-# **World B, the proportional $P$ assumed but not true.** Now the paper's pattern across the scenarios
-# appears (the first four findings agree): $P = I_3$ lowers $\varepsilon_\theta$ of both methods about ten
-# times and $\varepsilon_t$ about three times. What does not appear is the paper's gap between the methods:
-# there LAGO loses $27\times$ in $\varepsilon_t$ to the proportional $P$ and TORO $3\times$; here LAGO and the
-# converged iterative solver end within 3 % of each other in every case (≈ 1: within 2 %). So Table II's
-# scenarios look like an *assumed* proportional $P$ — its $P = I_3$ doing better already suggests that
-# INTEL's real errors were not proportional to the displacements — but its large LAGO penalty is not
-# reproduced by these worlds, and where it comes from (TORO's 100 or 1000 iterations are not a converged
-# solver; INTEL's own information, lecture 4b) cannot be told from them.
+# **World B, the proportional $P$ assumed but not true.** Now the paper's pattern across the scenarios appears (the
+# first four findings agree): $P = I_3$ lowers $\varepsilon_\theta$ of both methods about ten times and
+# $\varepsilon_t$ about three times. What does not appear is the paper's gap between the methods: there LAGO loses
+# $27\times$ in $\varepsilon_t$ to the proportional $P$ and TORO $3\times$; here LAGO and the converged iterative
+# solver end within 3 % of each other in every case (≈ 1: within 2 %). So Table II's scenarios look like an *assumed*
+# proportional $P$ — its $P = I_3$ doing better already suggests that INTEL's real errors were not proportional to the
+# displacements — but its large LAGO penalty is not reproduced by these worlds, and where it comes from (TORO's 100 or
+# 1000 iterations are not a converged solver; INTEL's own information, lecture 4b) cannot be told from them.
 #
 # ## 6. Fig. 3 — errors versus iterations
 #
@@ -609,11 +611,11 @@ if INTEL is not None:
 # %% [markdown]
 # ## Exercise 1 — The metric needs no alignment
 #
-# Absolute trajectory errors need the estimate rigidly aligned to the truth first (the estimate lives in the
-# frame of its reference pose). Show that $\varepsilon_t$ and $\varepsilon_\theta$ of section 5 do not: for
-# any rigid motion $T$ of the plane, $(T\oplus\hat p_i)^{-1}\oplus(T\oplus\hat p_j) = \hat p_i^{-1}\oplus
-# \hat p_j$. Check it numerically on a LAGO estimate of a synthetic Manhattan world with a random $T$, and show
-# that the ATE (`lc.ate(..., align=False)`) does change.
+# Absolute trajectory errors need the estimate rigidly aligned to the truth first (the estimate lives in the frame of
+# its reference pose). Show that $\varepsilon_t$ and $\varepsilon_\theta$ of section 5 do not: for any rigid motion
+# $T$ of the plane, $(T\oplus\hat p_i)^{-1}\oplus(T\oplus\hat p_j) = \hat p_i^{-1}\oplus \hat p_j$. Check it
+# numerically on a LAGO estimate of a synthetic Manhattan world with a random $T$, and show that the ATE (`lc.ate(...,
+# align=False)`) does change.
 #
 # **Hint.** Apply $T$ with `lc.compose(np.broadcast_to(T, poses.shape), poses)`; `relation_errors` of
 # section 5 takes the graph, the estimate and the truth.

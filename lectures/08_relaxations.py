@@ -21,6 +21,10 @@
 # cycle basis $C = [I_l\ B]$ of eq. (19); $R(\cdot)$ a planar rotation.
 
 # %%
+try:                                  # run alone (Colab, a fresh environment)? then install the package first
+    import lago_cvx  # noqa: F401
+except ImportError:
+    import subprocess, sys; subprocess.run([sys.executable, "-m", "pip", "install", "lago-cvx[course]"], check=True)
 import cvxpy as cp
 import matplotlib.pyplot as plt
 import numpy as np
@@ -32,7 +36,7 @@ from scipy.special import erfc
 from scipy.stats import spearmanr
 
 import lago_cvx as lc
-from _lecture import FULL, check, real, setup, show
+from lago_cvx.course import FULL, check, quiet, real, setup, show
 from lago_cvx.certification import certify, refine_sesync, sdp_relaxation, sesync_cost, solve_sdp
 from lago_cvx.certification.sesync import reduced_certificate_matrix
 from lago_cvx.datasets import PUBLISHED_SESYNC, REFERENCE_CHI2, REFERENCE_SESYNC
@@ -58,11 +62,11 @@ setup("08_relaxations")
 # orientation problem. Only the cycle sums $Ck$ matter (adding $2\pi(w_j - w_i)$ to every edge just relabels
 # each $\theta_i$ by whole turns).
 #
-# Theorem 3 (existence of correction factors) corrects only the chords, by eq. (23) rounded: integrate
-# $\delta$ along the spanning tree and round each chord's cycle residual $(C\delta)_c$ to a multiple of $2\pi$.
-# With exact measurements the residual is a multiple of $2\pi$; with noise, the residual of the true
-# orientations is the sum of the noises around the cycle, of variance $\sigma_c^2 = \sum_{e\in c}P_{\delta,e}$,
-# and rounding is right iff that sum stays within $\pm\pi$:
+# Theorem 3 (existence of correction factors) corrects only the chords, by eq. (23) rounded: integrate $\delta$ along
+# the spanning tree and round each chord's cycle residual $(C\delta)_c$ to a multiple of $2\pi$. With exact
+# measurements the residual is a multiple of $2\pi$; with noise, the residual of the true orientations is the sum of
+# the noises around the cycle, of variance $\sigma_c^2 = \sum_{e\in c}P_{\delta,e}$, and rounding is right iff that sum
+# stays within $\pm\pi$:
 # $$\Pr[\text{wrong } k_c] = \Pr\big[|\mathcal N(0,\sigma_c^2)|>\pi\big] = \operatorname{erfc}\!\big(\pi/(\sqrt2\,\sigma_c)\big).
 # \tag{W}$$
 # Long tree paths make $\sigma_c$ large. A check of (W) chord by chord, on one world with fresh rotation noise
@@ -75,11 +79,10 @@ g0, tree = w.graph, lc.spanning_tree(w.graph, "odometry")
 true_rel = w.truth[g0.heads, 2] - w.truth[g0.tails, 2]
 sig_c = np.sqrt(abs(lc.cycle_basis(g0, tree)) @ g0.covariance[:, 2, 2])          # σ_c of every chord's cycle
 predicted = erfc(np.pi / (np.sqrt(2) * sig_c))                                    # (W)
-rng = np.random.default_rng(1)
-wrong = np.zeros(tree.n_chords)
+rng, wrong = np.random.default_rng(1), np.zeros(tree.n_chords)
 for _ in range(draws):                   # fresh noise on the same graph, δ wrapped as a sensor reports it
     gd = replace(g0, delta=wrap_angle(true_rel + sigma * rng.standard_normal(g0.n_edges)))
-    wrong += lc.regularize(gd, tree).k_chords != true_cycle_integers(gd, tree, w.truth)
+    with quiet(): wrong += lc.regularize(gd, tree).k_chords != true_cycle_integers(gd, tree, w.truth)  # counted here
 observed = wrong / draws
 se = np.sqrt(predicted * (1 - predicted) / draws)                                 # binomial standard error
 print(f"{tree.n_chords} chords, {draws} draws: mean P[wrong k] predicted {predicted.mean():.3f}, "
@@ -118,8 +121,7 @@ show(fig, "tree_rounding")
 # %%
 n = 300
 base = lc.manhattan_world(n, seed=0, sigma_theta=0.05)
-g = base.graph
-m = g.n_edges
+g, m = base.graph, base.graph.n_edges
 H = cp.Constant(sp.csr_matrix((np.ones(m), (np.arange(m), g.heads)), shape=(m, n)), name="H")
 T = cp.Constant(sp.csr_matrix((np.ones(m), (np.arange(m), g.tails)), shape=(m, n)), name="T")
 w_d = cp.Constant(edge_uncertainty(g).sqrt_info_delta, name="w_δ")       # √ω_e (the same for all edges here)
@@ -217,23 +219,23 @@ check(gap_blue < 0.01, "a short vector still points where eq. (13)'s estimate po
 # %% [markdown]
 # ## 3. Rounding against the chordal estimate
 #
-# With $\hat\varphi$ the chordal angles, every edge — tree edges included — gets the integer that brings
-# $\delta_e + 2\pi k_e - (\hat\varphi_j - \hat\varphi_i)$ into $(-\pi, \pi]$, and LAGO's three phases run unchanged
-# (`lc.lago(graph, regularization="chordal")`, the package's default route). Each rounding now needs only the
-# edge's own error plus the chordal estimate's error to stay below $\pi$, not a whole tree path's.
+# With $\hat\varphi$ the chordal angles, every edge — tree edges included — gets the integer that brings $\delta_e +
+# 2\pi k_e - (\hat\varphi_j - \hat\varphi_i)$ into $(-\pi, \pi]$, and LAGO's three phases run unchanged
+# (`lc.lago(graph, regularization="chordal")`, the package's default route). Each rounding now needs only the edge's
+# own error plus the chordal estimate's error to stay below $\pi$, not a whole tree path's.
 #
-# **The sweep.** Manhattan worlds of rising rotation noise; a trial counts as *optimal* when Gauss–Newton from
-# LAGO reaches the χ² that Gauss–Newton reaches from the ground truth (relative $10^{-6}$); in parentheses, the
-# trials whose cycle integers are all right. Beside the two tree roundings and the chordal one, the integer
-# program of section 4 (`regularization="integer"`).
+# **The sweep.** Manhattan worlds of rising rotation noise; a trial counts as *optimal* when Gauss–Newton from LAGO
+# reaches the χ² that Gauss–Newton reaches from the ground truth (relative $10^{-6}$); in parentheses, the trials whose
+# cycle integers are all right. Beside the two tree roundings and the chordal one, the integer program of section 4
+# (`regularization="integer"`).
 
 # %%
 regs = {"tree (bfs)": {"spanning_tree": "bfs", "regularization": "tree"},
         "tree (odometry)": {"spanning_tree": "odometry", "regularization": "tree"},
         "integer program": {"regularization": "integer"}, "chordal": {"regularization": "chordal"}}
 sweep_sigmas = [0.05, 0.15, 0.2, 0.25, 0.3, 0.35, 0.4, 0.5] if FULL else [0.05, 0.2, 0.3, 0.4]
-sweep = rotation_noise_sweep(sweep_sigmas, seeds=range(10 if FULL else 4), n_poses=300 if FULL else 100,
-                             regularizers=regs)
+with quiet(): sweep = rotation_noise_sweep(sweep_sigmas, seeds=range(10 if FULL else 4),  # failures counted below
+                                           n_poses=300 if FULL else 100, regularizers=regs)
 print(format_sweep(sweep))
 by = {(r["sigma_theta"], r["regularizer"]): r for r in sweep}
 
@@ -285,12 +287,12 @@ for rel in dict.fromkeys(rel for rel, _ in ends):
 # $CA^\top = 0$ and the whitened ranges of $A^\top$ and $C^\top$ are orthogonal complements, for any right-hand side
 # $d$, $\min_\theta\|P_\delta^{-1/2}(A^\top\theta - d)\|^2 = (Cd)^\top(CP_\delta C^\top)^{-1}(Cd)$ ($A$ reduced). With
 # $d = \delta + 2\pi k$, $r = C\delta$ and the cycle integers $q = Ck \in\mathbb Z^l$:
-# $$J(q) = \big\|L^{-1}(r + 2\pi q)\big\|^2,\qquad S = CP_\delta C^\top = LL^\top,\qquad q^\star = \arg\min_{q\in\mathbb Z^l} J(q). \tag{IP}$$
+# $$J(q) = \big\|K^{-1}(r + 2\pi q)\big\|^2,\qquad \Sigma_C = CP_\delta C^\top = KK^\top,\qquad q^\star = \arg\min_{q\in\mathbb Z^l} J(q). \tag{IP}$$
 # $J(q)$ **is** phase 1's optimal cost, eq. (13), for the integers $q$: (IP) picks the regularization phase 1 fits
 # best. The paper's rounding $q_c = -\mathrm{round}(r_c/2\pi)$ minimises the *decoupled* $\sum_c(r + 2\pi q)_c^2$ and
-# solves (IP) when $S$ is diagonal — but two fundamental cycles that share tree edges share their noise. A box
-# $|r_c + 2\pi q_c| \le \sqrt{J(q_{\rm round})S_{cc}}$ contains every optimum (Cauchy–Schwarz), so the search is
-# finite. As a cvxpy mixed-integer problem from named parts:
+# solves (IP) when $\Sigma_C$ (`data.S`; $K$ its Cholesky factor, not the $L$ of (G)) is diagonal — but two fundamental
+# cycles that share tree edges share their noise. A box $|r_c + 2\pi q_c| \le \sqrt{J(q_{\rm round})(\Sigma_C)_{cc}}$
+# contains every optimum (Cauchy–Schwarz), so the search is finite. As a cvxpy mixed-integer problem from named parts:
 
 # %%
 wi = lc.manhattan_world(100, seed=2, sigma_theta=0.4)
@@ -299,11 +301,10 @@ ti = lc.spanning_tree(gi, "bfs")
 data = cycle_data(gi, ti)
 lo, hi, _ = exact_box(data)
 q = cp.Variable(data.n_chords, integer=True, name="q")
-ip = cp.Problem(cp.Minimize(cp.sum_squares(cp.Constant(data.W, name="L⁻¹") @ (cp.Constant(data.r, name="r")
+ip = cp.Problem(cp.Minimize(cp.sum_squares(cp.Constant(data.W, name="K⁻¹") @ (cp.Constant(data.r, name="r")
                                                                                 + 2 * np.pi * q))),
                 [q >= cp.Constant(lo, name="q_lo"), q <= cp.Constant(hi, name="q_hi")])
-print(ip)
-print(f"{data.n_chords} cycle integers, {int(np.sum(hi > lo))} of them free inside the box")
+print(ip, f"{data.n_chords} cycle integers, {int(np.sum(hi > lo))} of them free inside the box", sep="\n")
 exact = integer_regularization(gi, ti, search=IntegerSearch(solver="enumerate"), data=data)
 if "SCIP" in cp.installed_solvers():
     ip.solve(solver="SCIP")
@@ -590,9 +591,9 @@ for rel, (c0, c1) in certs.items():
 # ## Exercise 1 — The failure probability of the rounding
 #
 # Derive (W) from Theorem 3's rounding: show that the rounding of chord $c$ is right iff the sum of the orientation
-# noises around its fundamental cycle lies in $(-\pi, \pi]$, and compute $\sigma_c$ from $C$ and $P_\delta$. Then predict,
-# without simulation, the expected number of wrong integers along the odometric and along the breadth-first tree
-# for the world of section 1, and check it with a Monte Carlo.
+# noises around its fundamental cycle lies in $(-\pi, \pi]$, and compute $\sigma_c$ from $C$ and $P_\delta$. Then
+# predict, without simulation, the expected number of wrong integers along the odometric and along the breadth-first
+# tree for the world of section 1, and check it with a Monte Carlo.
 #
 # **Hint.** The noise around cycle $c$ is Gaussian with variance $\sigma_c^2 = \sum_k C_{ck}^2 P_{\delta,k}$, and
 # $P(|\mathcal N(0,\sigma^2)| > \pi) = \operatorname{erfc}(\pi/(\sigma\sqrt2))$.
@@ -610,10 +611,10 @@ for rel, (c0, c1) in certs.items():
 # %% [markdown]
 # ## Exercise 2 — The relaxed lengths from the connection Laplacian
 #
-# Build the complex connection Laplacian $L$ of section 2 as a sparse matrix and verify (G) for two different
-# anchors. In the right panel of the figure of section 2 the length is constant over the last poses: find the
-# poses of the world that hang on a single chain of edges (no loop closure beyond them), show that along such a
-# chain every $\|r_i\|$ equals the length at the chain's attachment point, and explain why from (C).
+# Build the complex connection Laplacian $L$ of section 2 as a sparse matrix and verify (G) for two different anchors.
+# In the right panel of the figure of section 2 the length is constant over the last poses: find the poses of the world
+# that hang on a single chain of edges (no loop closure beyond them), show that along such a chain every $\|r_i\|$
+# equals the length at the chain's attachment point, and explain why from (C).
 #
 # **Hint.** Assemble $L$ with `scipy.sparse.coo_matrix` from the edge list; a pose on a chain has exactly two
 # neighbours.

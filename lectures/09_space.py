@@ -29,14 +29,18 @@
 # $\mathrm{Log}$ map between $\mathbb R^3$ and $SO(3)$. Pose 0 is the anchor, held at $R_0 = I$, $t_0 = 0$.
 
 # %%
-from pathlib import Path
+try:                                  # run alone (Colab, a fresh environment)? then install the package first
+    import lago_cvx  # noqa: F401
+except ImportError:
+    import subprocess, sys; subprocess.run([sys.executable, "-m", "pip", "install", "lago-cvx[course]"], check=True)
 
+# %%
 import matplotlib.pyplot as plt
 import numpy as np
 import scipy.sparse.linalg as spla
 
 import lago_cvx as lc
-from _lecture import ROOT, check, real, setup, show
+from lago_cvx.course import check, real, setup, show
 from lago_cvx.so3 import exp_so3, log_so3, project_so3
 from lago_cvx.solvers import LEAST_SQUARES, solve
 from lago_cvx.space import (chordal_closed_form, chordal_problem, lago3d, positions_closed_form,
@@ -93,8 +97,10 @@ check(np.median(err_lago) < 0.5 * np.median(err_drift),
 # $\varphi\,(1 + 2\pi/\|\varphi\|)$, a whole extra turn about the same axis, give the same matrix — so a residual
 # written with matrices needs no integer. The chordal distance between two rotations depends only on the angle
 # $\psi$ of $R_1^\top R_2$:
-# $$\|R_2 - R_1\|_F^2 = 2\operatorname{tr}(I - R_1^\top R_2) = 4\,(1 - \cos\psi) \;=\; \psi^2 + O(\psi^4),\tag{D}$$
-# smooth and $2\pi$-periodic in $\psi$. Keeping the residuals and dropping the constraint $R_i\in SO(3)$ gives
+# $$\|R_2 - R_1\|_F^2 = 2\operatorname{tr}(I - R_1^\top R_2) = 4\,(1 - \cos\psi) \;=\; 2\psi^2 - \tfrac{\psi^4}{6} + O(\psi^6),\tag{D}$$
+# smooth and $2\pi$-periodic in $\psi$. Near $\psi = 0$ it is *twice* the squared geodesic angle — the factor 2 of
+# (Q) below at $S_{ij} = I$ ($\operatorname{tr}(I)I - I = 2I$), and of lecture 8's planar $4(1-\cos) \approx 2(a-b)^2$ —
+# and it lies below $2\psi^2$ for every $\psi > 0$ (the figure). Keeping the residuals and dropping the constraint $R_i\in SO(3)$ gives
 # $$\min_{R_1,\dots,R_{n-1}\in\mathbb R^{3\times3}}\ \sum_{ij}\big\|(R_j - R_i\tilde R_{ij})\,S_{ij}\big\|_F^2,
 # \qquad R_0 = I,\tag{C}$$
 # with $S_{ij}$ a weight (section 3): a sum of squares of linear functions of $9(n-1)$ unknowns, i.e. a convex,
@@ -116,14 +122,19 @@ print(f"largest change of Exp(φ) under one extra turn about its axis: {np.abs(e
 check(np.linalg.norm(log_so3(exp_so3(a) @ exp_so3(b)) - (a + b)) > 0.1, "composition in 3-D is not addition of axis–angle vectors")
 check(np.abs(exp_so3(turned) - exp_so3(axis_angle)).max() < 1e-12, "a whole turn more about the axis: the same matrix")
 check(np.abs(chord - 4 * (1 - np.cos(psi))).max() < 1e-12, "(D): the chordal distance is 4(1 − cos ψ) on 500 random pairs")
+small_psi = np.linspace(0.01, 0.5, 50)
+series_gap = 8 * np.sin(small_psi / 2) ** 2 - (2 * small_psi ** 2 - small_psi ** 4 / 6)   # 4(1 − cos ψ) without cancellation
+check(np.all((0 <= series_gap) & (series_gap <= small_psi ** 6 / 180 * 1.0001)),
+      "(D): 4(1 − cos ψ) = 2ψ² − ψ⁴/6 + O(ψ⁶) for ψ ≤ 0.5 (remainder ≤ ψ⁶/180)")
+check(np.all(chord <= 2 * psi ** 2 + 1e-12), "4(1 − cos ψ) ≤ 2ψ²: the chordal cost lies below twice the squared angle")
 
 # %%
 fig, ax = plt.subplots(figsize=(6, 3.6))
 grid = np.linspace(0, 3 * np.pi, 300)
-ax.plot(grid, grid ** 2, "--", color="0.5", label="ψ² (the geodesic cost, a branch to pick beyond π)")
+ax.plot(grid, 2 * grid ** 2, "--", color="0.5", label="2ψ² (the geodesic cost, doubled; a branch to pick beyond π)")
 ax.plot(grid, 4 * (1 - np.cos(grid)), color="tab:blue", label="4(1 − cos ψ) = ‖R₂ − R₁‖²_F")
 ax.plot(psi, chord, ".", ms=2, color="tab:red", label="500 random pairs")
-ax.set(xlabel="angle ψ of R₁ᵀR₂ [rad]", ylabel="cost", ylim=(0, 12), title="the chordal distance does not wrap")
+ax.set(xlabel="angle ψ of R₁ᵀR₂ [rad]", ylabel="cost", ylim=(0, 12), title="the chordal distance does not wrap; near 0 it is ≈ 2ψ²")
 ax.legend(fontsize=8)
 show(fig, "chordal_distance")
 
@@ -189,8 +200,9 @@ show(fig, "normal_matrix")
 # * the **distance** of the relaxed matrices from SO(3), or their smallest singular value: how much the
 #   relaxation had to bend the matrices to fit inconsistent cycles;
 # * the **gap** of (C): the constrained minimum of (C) over rotations lies between (C) at $\hat R$ (a relaxation,
-#   so a lower bound) and (C) at $\Pi(\hat R)$ (a feasible point). The ratio (C)$(\Pi\hat R)$ / (C)$(\hat R)$ bounds how
-#   far the projected rotations can be from the best rotations for (C).
+#   so a lower bound) and (C) at $\Pi(\hat R)$ (a feasible point). The ratio (C)$(\Pi\hat R)$ / (C)$(\hat R)$ bounds the **cost
+#   suboptimality** of the projected rotations: (C) at $\Pi\hat R$ is at most that ratio times the best (C) over
+#   rotations. It says nothing directly about how *far* $\Pi\hat R$ is from those best rotations.
 #
 # `project_so3` computes $\Pi$ without an SVD wherever $\det \hat R_i > 0$: there $\Pi(\hat R_i)$ is the orthogonal
 # polar factor of $\hat R_i$, the limit of Newton's iteration $X \leftarrow \tfrac12(X + X^{-\top})$ from
@@ -306,33 +318,31 @@ check(all(rms[second, s, "anisotropic"] > rms[second, s, "isotropic"] for s in r
       "W floored: the isotropic weights are better in every draw")
 
 # %% [markdown]
-# On the benchmark graphs the two weightings differ little, and not always in the same direction — the χ² of the
-# two-step route in the two weightings, from the benchmark table `benchmarks/space.md` (read from the file):
+# On the real 3-D benchmark graphs the two weightings differ little, and not always in the same direction — the χ²
+# of the two-step route in the two weightings, beside the default route and the minimum of χ² reached from it
+# (Levenberg–Marquardt, `refine3d`), computed here. The files are read for GTSAM's cost (`cost="gtsam"`), the
+# Logmap error this lecture derives with and the cost `InitializePose3` is measured in; their own cost is g2o's
+# (`lago_cvx.conventions`: the rotational error is the vector part of the error's unit quaternion, ≈ φ/2), and
+# `python benchmarks/run.py space` reports both.
 
 # %%
-SPACE_MD = ROOT / "benchmarks" / "space.md"
-
-
-def benchmark_table(path=SPACE_MD):
-    """The first table of benchmarks/space.md as a list of {column: text}."""
-    lines = [ln for ln in Path(path).read_text(encoding="utf-8").splitlines() if ln.startswith("|")]
-    head = [c.strip() for c in lines[0].strip("|").split("|")]
-    body = []
-    for ln in lines[2:]:
-        cells = [c.strip().strip("*") for c in ln.strip("|").split("|")]
-        if len(cells) != len(head) or cells[0] == "graph":
-            break
-        body.append(dict(zip(head, cells)))
-    return body
-
-
-table = benchmark_table()
-TWO = "seed"                         # the benchmark's name of the two-step route
-print(f"{'graph':34s} {'two-step iso':>12s} {'two-step aniso':>14s} {'default iso':>11s} {'InitializePose3':>15s} "
-      f"{'minimum':>9s}")
-for r in table:
-    print(f"{r['graph']:34s} {r[f'{TWO} iso']:>12s} {r[f'{TWO} aniso']:>14s} {r['default iso']:>11s} "
-          f"{r['InitializePose3'][:15]:>15s} {r['minimum (ours / GTSAM LM)'].split()[0]:>9s}")
+GRAPHS_3D = ["se-sync-3d/tinyGrid3D.g2o", "se-sync-3d/smallGrid3D.g2o", "se-sync-3d/parking-garage.g2o",
+             "se-sync-3d/sphere2500.g2o"]
+TWO = "seed"                         # the package's name of the two-step route
+table = {}
+for rel in GRAPHS_3D:
+    gr = real(rel)
+    if gr is None:
+        continue
+    gr = gr.with_cost("gtsam")
+    two = {w: lago3d(gr, route=TWO, weighting=w) for w in ("isotropic", "anisotropic")}
+    dflt = lago3d(gr)
+    table[rel] = dict(graph=gr, two=two["isotropic"], two_aniso=two["anisotropic"], default=dflt,
+                      minimum=refine3d(gr, dflt.t, dflt.R))
+print(f"{'graph':32s} {'two-step iso':>12s} {'two-step aniso':>14s} {'default iso':>11s} {'minimum':>10s}")
+for rel, r in table.items():
+    print(f"{rel.split('/')[-1]:32s} {r['two'].chi2:12.6g} {r['two_aniso'].chi2:14.6g} {r['default'].chi2:11.6g} "
+          f"{r['minimum'].chi2:10.6g}")
 
 # %% [markdown]
 # ## 4. Positions, the joint step, and GTSAM on sphere2500
@@ -368,73 +378,74 @@ check(lc.chi2_3d(g, t_cf, two_small.R) < lc.chi2_3d(g, shift, two_small.R),
       "the positions minimize χ² at the two-step route's rotations (a random nudge raises it)")
 
 # %% [markdown]
-# **sphere2500** (2500 poses, 4949 edges), from the real file, read for GTSAM's cost (`cost="gtsam"`: the Logmap
-# error, the cost `InitializePose3` and its Levenberg–Marquardt are measured in; the file's own cost is g2o's, whose
-# rotational error is the quaternion's vector part, ≈ φ/2). GTSAM's `InitializePose3` runs in this process when the
-# Python package `gtsam` is installed, with a prior pinning the first pose as GTSAM requires; its χ² is GTSAM's
-# `2·error()`, which we check equals our χ² of its estimate.
+# **The real graphs of section 3** (sphere2500: 2500 poses, 4949 edges). GTSAM's `InitializePose3` runs in this
+# process when the Python package `gtsam` is installed, with a prior pinning the first pose as GTSAM requires; its χ²
+# is GTSAM's `2·error()`, which we check equals our χ² of its estimate.
 
 # %%
-sphere = real("se-sync-3d/sphere2500.g2o")
-if sphere is not None:
-    sphere = sphere.with_cost("gtsam")
-    ours = {name: lago3d(sphere, route=route) for name, route in (("two", TWO), ("default", "default"))}
-    minimum = refine3d(sphere, ours["default"].t, ours["default"].R)
-    print(f"sphere2500: χ² two-step {ours['two'].chi2:.2f}, default {ours['default'].chi2:.2f} "
-          f"({ours['default'].timings['total']:.2f} s), minimum from there {minimum.chi2:.2f}")
-    try:
-        import gtsam
-    except ImportError:
-        gtsam = None
-        print("gtsam is not installed (pip install gtsam): the comparison with InitializePose3 is skipped")
-    if gtsam is not None:
-        from lago_cvx.datasets import dataset
+def initialize_pose3(rel, graph):
+    """GTSAM's InitializePose3 on the file ``rel`` with the first pose pinned: (χ² = 2·error(), our χ² of it),
+    or None when GTSAM cannot solve it."""
+    from lago_cvx.datasets import dataset
 
-        factors, _ = gtsam.readG2o(str(dataset("se-sync-3d/sphere2500.g2o")), True)
-        pinned = gtsam.NonlinearFactorGraph(factors)
-        pinned.add(gtsam.PriorFactorPose3(int(sphere.ids[0]), gtsam.Pose3(),
-                                          gtsam.noiseModel.Diagonal.Variances(np.full(6, 1e-8))))
+    factors, _ = gtsam.readG2o(str(dataset(rel)), True)
+    pinned = gtsam.NonlinearFactorGraph(factors)
+    pinned.add(gtsam.PriorFactorPose3(int(graph.ids[0]), gtsam.Pose3(),
+                                      gtsam.noiseModel.Diagonal.Variances(np.full(6, 1e-8))))
+    try:
         init = gtsam.InitializePose3.initialize(pinned)
-        t_g = np.array([init.atPose3(int(k)).translation() for k in sphere.ids])
-        R_g = np.array([init.atPose3(int(k)).rotation().matrix() for k in sphere.ids])
-        chi2_gtsam, chi2_ours_of_gtsam = 2 * factors.error(init), lc.chi2_3d(sphere, t_g, R_g)
-        print(f"InitializePose3: χ² = {chi2_gtsam:.2f} (GTSAM's 2·error), {chi2_ours_of_gtsam:.2f} (ours); "
-              f"default / InitializePose3 = {ours['default'].chi2 / chi2_gtsam:.3f}, "
-              f"default / minimum = {ours['default'].chi2 / minimum.chi2:.4f}")
+    except RuntimeError:
+        return None
+    t_g = np.array([init.atPose3(int(k)).translation() for k in graph.ids])
+    R_g = np.array([init.atPose3(int(k)).rotation().matrix() for k in graph.ids])
+    return 2 * factors.error(init), lc.chi2_3d(graph, t_g, R_g)
+
+
+try:
+    import gtsam
+except ImportError:
+    gtsam = None
+    print("gtsam is not installed (pip install gtsam): the comparison with InitializePose3 is skipped")
+gtsam_chi2 = {rel: initialize_pose3(rel, r["graph"]) for rel, r in table.items()} if gtsam is not None else {}
+for rel, r in table.items():
+    theirs = gtsam_chi2.get(rel)
+    print(f"{rel.split('/')[-1]:20s} default / minimum = {r['default'].chi2 / r['minimum'].chi2:.4f}"
+          + (f"; InitializePose3 χ² = {theirs[0]:.2f} (GTSAM's 2·error), {theirs[1]:.2f} (ours), "
+             f"default / InitializePose3 = {r['default'].chi2 / theirs[0]:.3f}" if theirs else ""))
+sphere = table.get("se-sync-3d/sphere2500.g2o", {}).get("graph")
+if sphere is not None:
+    ours = {"two": table["se-sync-3d/sphere2500.g2o"]["two"], "default": table["se-sync-3d/sphere2500.g2o"]["default"]}
 
 # %% tags=["remove-input"]
-if sphere is not None:
-    if gtsam is not None:
-        check(abs(chi2_gtsam - chi2_ours_of_gtsam) <= 1e-9 * chi2_gtsam, "GTSAM's χ² and ours are the same function")
-        check(ours["default"].chi2 < chi2_gtsam, "LAGO's default route ends below InitializePose3 on sphere2500")
-    row = next(r for r in table if r["graph"].startswith("sphere2500"))
-    for column, value in ((f"{TWO} iso", ours["two"].chi2), ("default iso", ours["default"].chi2)):
-        printed = float(row[column])
-        check(abs(value - printed) <= 1e-5 * printed, f"{column}: {value:.2f} as benchmarks/space.md reports ({printed:g})")
-ratio_min = [float(r["default / min"]) for r in table if r["default / min"] not in ("–", "")]
-ratio_gtsam = [float(r["default / InitializePose3"]) for r in table if r["default / InitializePose3"] not in ("–", "")]
-check(max(ratio_min) < 1.01 and max(ratio_gtsam) < 1,
-      f"benchmarks/space.md: default within {100 * (max(ratio_min) - 1):.1f}% of the minimum on all "
-      f"{len(ratio_min)} graphs, below InitializePose3 on all {len(ratio_gtsam)} it solves")
+solved = {rel: v for rel, v in gtsam_chi2.items() if v is not None}
+check(all(abs(a - b) <= 1e-9 * a for a, b in solved.values()), "GTSAM's χ² and ours are the same function")
+check(all(table[rel]["default"].chi2 < a for rel, (a, _) in solved.items()),
+      f"LAGO's default route ends below InitializePose3 on all {len(solved)} graphs GTSAM solves")
+if table:
+    worst = max(r["default"].chi2 / r["minimum"].chi2 for r in table.values())
+    check(worst < 1.01, f"the default route is within {100 * (worst - 1):.2f}% of the minimum on all {len(table)} graphs")
 
 # %% [markdown]
 # The two-step route (the chordal relaxation and exact positions) already ends well below `InitializePose3`; the joint
-# step, re-solved and guarded, brings the estimate to within a fraction of a percent of the minimum (the table of
-# section 3 has every graph: the default route is within 1% of the minimum on each and below `InitializePose3`
-# wherever GTSAM succeeds). The difference with GTSAM is not the relaxation — both solve (C) — but what follows it.
+# step, re-solved and guarded, brings the estimate to within a fraction of a percent of the minimum (the checks
+# above: within 1% of the minimum on each graph of section 3 and below `InitializePose3` wherever GTSAM succeeds). The difference with GTSAM is not the relaxation — both solve (C) — but what follows it.
 #
 # ## 5. The certificate in 3-D
 #
 # χ² is not the only cost one can minimize; SE-Sync {cite}`rosen2019sesync` minimizes, with the isotropic
 # weights of section 3 and $\tau_{ij} = 3/\operatorname{tr}\Omega_{tt}^{-1}$,
 # $$f(t, R) = \sum_{ij}\kappa_{ij}\|R_j - R_i\tilde R_{ij}\|_F^2 + \tau_{ij}\|t_j - t_i - R_i\tilde t_{ij}\|^2 .\tag{S1}$$
-# In $Y = [t_1 \cdots t_n\,|\,R_1 \cdots R_n]$ ($3\times4n$) every residual is linear, so $f = \operatorname{tr}(YMY^\top)$ for a sparse
+# In $Y = [t_0 \cdots t_{n-1}\,|\,R_0 \cdots R_{n-1}]$ ($3\times4n$; the same poses $0,\dots,n-1$ as above, the anchor
+# included as column 0 and block 0, so $Y$ has $n$ blocks where (C) had $n-1$ unknowns) every residual is linear, so $f = \operatorname{tr}(YMY^\top)$ for a sparse
 # $4n\times4n$ matrix $M$. At a critical point the multipliers of $R_i^\top R_i = I$ are
 # $\Lambda_i = \operatorname{sym}(R_i^\top(YM)_{R_i})$, and $\sum_i\operatorname{tr}\Lambda_i = f$. If $S = M - \operatorname{blkdiag}(0, \Lambda_i)
 # \succeq 0$, $\Lambda$ is feasible for the dual of the semidefinite relaxation, so $f^\star \ge \sum_i \operatorname{tr}\Lambda_i = f$:
 # the point is a **global** minimum of (S1). `certify3d` first refines to a critical point of (S1), then counts the
-# negative pivots of one sparse $LDL^\top$ of $S$ (Sylvester's law of inertia), allowing a floor
-# $\eta = 10^{-12}\|M\|_\infty$ for rounding, and reports the proven bound $f^\star \ge \sum\operatorname{tr}\Lambda_i - 3n\mu$.
+# negative pivots of one sparse $LDL^\top$ of $S_g + \mu\hat I_R$ (Sylvester's law of inertia), where $S_g$ is $S$ with
+# the anchor's translation row and column removed and $\hat I_R$ the identity on the $3n$ rotation coordinates. The
+# shift $\mu$ allows for rounding: it starts at the floor $\eta = 10^{-12}\|M\|_\infty$ and, while a negative pivot
+# remains, is **multiplied by 4** ($\mu = 4^k\eta$, $k = 0, 1, \dots$, the first with no negative pivot; `cert.shift`).
+# $\Lambda_i - \mu I$ is then dual feasible, so the proven bound is $f^\star \ge \sum_i\operatorname{tr}\Lambda_i - 3n\mu$.
 #
 # What it proves: that no set of poses has a lower $f$ than the bound — a statement about (S1), with its
 # isotropic weights, not about χ². The minimum of χ² is a different point (its full $6\times 6$ information weighs
@@ -454,6 +465,9 @@ print(f"  {'certified':15s} f = {cert.cost:12.6f}   χ² = {lc.chi2_3d(g, cert.t
 
 # %% tags=["remove-input"]
 check(cert.certified and cert.lower_bound <= cert.cost, "the cube grid's estimate is certified (bound ≤ f)")
+k_shift = np.log(cert.shift / cert.eta) / np.log(4)
+check(abs(k_shift - round(k_shift)) < 1e-9 and cert.lower_bound == cert.dual_value - 3 * g.n_poses * cert.shift,
+      f"μ = 4^{round(k_shift)}·η = {cert.shift:.3g} and the bound is Σ tr Λ_i − 3nμ with n = {g.n_poses}")
 check(all(sesync_cost3d(g, tp, Rp) >= cert.lower_bound for tp, Rp in points.values()),
       "every other point, the truth included, costs at least the proven bound")
 check(sesync_cost3d(g, best_small.t, best_small.R) > cert.cost and lc.chi2_3d(g, cert.t, cert.R) > best_small.chi2,
@@ -477,6 +491,12 @@ if sphere is not None:
 # | positions | linear least squares, full $6\times6$ information | the exact χ² minimizer at fixed rotations |
 # | joint step | one Gauss–Newton system, guarded | most of the χ² excess removed |
 # | certificate | one sparse $LDL^\top$ of $S = M - \Lambda$ | a proof of global optimality for (S1), or a bound |
+
+# %% [markdown]
+# **Summary.** In 3-D the orientations need no $2k\pi$: the chordal relaxation (C) is a linear least-squares problem
+# in the rotation matrices (one factorization, three right-hand sides), projected onto SO(3); its near-0 cost is
+# $2\psi^2$ (D). The positions are then exact for those rotations, one guarded joint step removes most of the
+# remaining χ² excess, and SE-Sync's certificate proves global optimality of its own cost (S1), not of χ².
 
 # %% [markdown]
 # ## Exercise 1 — The chordal distance and its weights

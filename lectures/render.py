@@ -9,7 +9,7 @@ Each lecture ``NN_name.py`` (py:percent, the reviewed source) is executed top to
 outputs; the jupytext pairing (``jupytext.toml``) is kept, so ``jupytext --sync`` keeps the outputs too.
 The kernel runs with
 
-* ``LAGO_CVX_FIGURES=<project>/figures``: every ``_lecture.show`` also writes ``NN_*.png`` and ``.svg``
+* ``LAGO_CVX_FIGURES=<project>/figures``: every ``lago_cvx.course.show`` also writes ``NN_*.png`` and ``.svg``
   there (the lecture's old ``NN_*`` figure files are removed first, so none goes stale);
 * ``SOURCE_DATE_EPOCH=0`` and ``PYTHONHASHSEED=0``: no dates in the figure files, a fixed set order;
 * ``PYTHONPATH`` starting with the project root: this checkout's ``lago_cvx`` is the one executed;

@@ -249,7 +249,7 @@ OWN_WORLD_REASON = re.compile(r"#\s*own world:\s*\S.{8,}")
 @pytest.mark.parametrize("src", [s for s in SOURCES if s.name.split("_")[0] in RUNNING_LECTURES],
                          ids=lambda s: s.stem)
 def test_running_example_carries_through(src):
-    """Lectures 01–06 work on one running example (``_lecture.running_example()``, beside the intuition figure
+    """Lectures 01–06 work on one running example (``course.running_example()``, beside the intuition figure
     that draws it) and on INTEL; a section that needs a world of its own says why in an ``# own world: …``
     comment on the line that draws it or the line before."""
     code = [source for cell_type, source in _cells(src.stem) if cell_type == "code"]
@@ -267,10 +267,9 @@ def test_running_example_carries_through(src):
 
 
 def _lecture_helpers():
-    spec = importlib.util.spec_from_file_location("lectures_helpers", LECTURES / "_lecture.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    from lago_cvx import course
+
+    return course
 
 
 @pytest.mark.parametrize("noise", ["proportional", "isotropic"])
@@ -322,7 +321,7 @@ def _prose_of_code(text: str) -> list[str]:
 def _course_texts() -> list[tuple[str, str, str]]:
     """(file, kind, text) for every piece of the course: lectures, solutions, helpers, site pages."""
     texts = []
-    for path in sorted(LECTURES.glob("*.py")) + sorted(SOLUTIONS.glob("*.py")):
+    for path in sorted(LECTURES.glob("*.py")) + sorted(SOLUTIONS.glob("*.py")) + [ROOT / "lago_cvx" / "course.py"]:
         name = str(path.relative_to(ROOT))
         if path in SOURCES:
             for cell_type, source in _cells(path.stem):
@@ -346,7 +345,7 @@ def test_no_matplotlib_use_and_no_internal_wording():
     problems = []
     for name, kind, text in _course_texts():
         if MPL_USE.search(text):
-            problems.append(f"{name}: matplotlib.use (figures show inline; _lecture.show writes files)")
+            problems.append(f"{name}: matplotlib.use (figures show inline; course.show writes files)")
         if kind == "prose":
             for match in INTERNAL.finditer(CODE_SPAN.sub("", text)):
                 problems.append(f"{name}: internal wording {match.group(0)!r}")
@@ -535,3 +534,32 @@ def test_running_a_lecture_as_a_script_leaves_the_checkout_clean(tmp_path):
     assert run.returncode == 0, f"{src.name} as a script failed:\n{run.stdout[-2000:]}\n{run.stderr[-4000:]}"
     left = git_in_copy("status", "--porcelain", "--untracked-files=all")
     assert left == "", f"running {src.name} changed or left files:\n{left}"
+
+
+def test_a_notebook_runs_alone_in_an_empty_folder(tmp_path):
+    """The quickest lecture's notebook, copied alone into an empty folder, executes there with the installed
+    package (``PYTHONPATH`` naming the project root, as an installed ``lago_cvx`` would be found): the course's
+    helpers live in ``lago_cvx.course`` and no lecture reads a file of the checkout. Its install cell does not
+    run (``lago_cvx`` imports), and the folder holds nothing but the notebook afterwards."""
+    _jupytext()
+    nbformat = pytest.importorskip("nbformat")
+    nbclient = pytest.importorskip("nbclient")
+    src = next((s for s in SOURCES if s.name.startswith(SCRIPT_LECTURE)), None)
+    if src is None:
+        pytest.skip(f"no lecture {SCRIPT_LECTURE}")
+    alone = tmp_path / "alone"
+    alone.mkdir()
+    notebook = alone / src.with_suffix(".ipynb").name
+    shutil.copy2(src.with_suffix(".ipynb"), notebook)
+    nb = nbformat.read(notebook, as_version=4)
+    from conftest import DATASETS
+
+    env = _script_env(**({"LAGO_CVX_DATASETS": str(DATASETS)} if DATASETS.is_dir() else {}))
+    env.pop("MPLBACKEND", None)
+    nbclient.NotebookClient(nb, timeout=LECTURE_SECONDS_LIMIT, kernel_name="python3",
+                            resources={"metadata": {"path": str(alone)}}).execute(env=env)
+    errors = [o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", []) if o.output_type == "error"]
+    assert not errors, errors
+    text = "".join(o.get("text", "") for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", []))
+    assert "pip install" not in text and "Successfully installed" not in text, "the install cell ran"
+    assert sorted(p.name for p in alone.iterdir()) == [notebook.name], "the notebook left files in its folder"

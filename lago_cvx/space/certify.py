@@ -12,12 +12,13 @@ the cross terms ignored), whichever cost the graph means (``graph.cost``, :mod:`
 certificate and the optima SE-Sync publishes for these files do not depend on ``cost``. f is neither cost's χ²; the
 χ² reported beside it (``lago-cvx certify``) is the graph's cost at the certified point.
 
-In the variable Y = [t_1 … t_n | R_1 … R_n] (3 × 4n) every residual is linear, so f = tr(Y M Yᵀ) with M = CᵀC
-(4n × 4n, C stacking √κ [I at R_j, −R̃ᵀ at R_i] and √τ [1 at t_j, −1 at t_i, −t̃ᵀ at R_i] per edge).
+In the variable Y = [t_0 … t_{n−1} | R_0 … R_{n−1}] (3 × 4n, poses indexed from 0 as in the graph) every residual
+is linear, so f = tr(Y M Yᵀ) with M = CᵀC (4n × 4n, C stacking √κ [I at R_j, −R̃ᵀ at R_i] and
+√τ [1 at t_j, −1 at t_i, −t̃ᵀ at R_i] per edge).
 
 The certificate
 ===============
-Lagrange multipliers of R_iᵀR_i = I: Λ_i = sym(R_iᵀ (Y M)_{R_i}) (3 × 3), S = M − blkdiag(0, Λ_1, …, Λ_n). For any
+Lagrange multipliers of R_iᵀR_i = I: Λ_i = sym(R_iᵀ (Y M)_{R_i}) (3 × 3), S = M − blkdiag(0, Λ_0, …, Λ_{n−1}). For any
 symmetric Λ with S ⪰ 0, weak duality gives f* ≥ Σ tr Λ_i; at a critical point Σ tr Λ_i = f, so S ⪰ 0 proves Y
 globally optimal (SE-Sync's Theorem 7). S has the null vectors Yᵀ (3) and the translation shift [1; 0]; grounding
 the anchor's translation (after moving it to the origin) removes the latter, and by Haynsworth's inertia formula
@@ -26,9 +27,10 @@ LDLᵀ iff λ_min(S_Q) ≥ −η, S_Q = SE-Sync's translation-free certificate m
 factorization (SuperLU with diagonal pivots only: LU = L D Lᵀ, Sylvester's law of inertia).
 
 Honest bounds: η = ``NUMERICAL_TOL`` · ‖M‖_∞ (an upper bound of ‖M‖₂; the entries of S are known to rounding only).
-With zero negative pivots, Λ − ηI is dual feasible and f* ≥ Σ tr Λ_i − 3nη. Otherwise μ is doubled from η until
-S_g + μÎ_R has none, and f* ≥ Σ tr Λ_i − 3nμ (valid, usually weak). The point is *certified* when
-(f − f*_lower)/f ≤ ``tol`` (``conventions.CERTIFY_TOL``).
+With zero negative pivots, Λ − ηI is dual feasible and f* ≥ Σ tr Λ_i − 3nη. Otherwise μ is multiplied by 4, starting
+from η (μ = 4^k η, k = 1, 2, …, at most up to 10³‖M‖_∞), until S_g + μÎ_R has none, and f* ≥ Σ tr Λ_i − 3nμ (valid,
+usually weak); ``Certificate3D.shift`` is that μ (η itself when the first count finds no negative pivot). The
+point is *certified* when (f − f*_lower)/f ≤ ``tol`` (``conventions.CERTIFY_TOL``).
 
 The local solver
 ================
@@ -76,7 +78,7 @@ def sesync_cost3d(graph, t, R) -> float:
 
 
 def data_matrix3d(graph) -> sp.csr_matrix:
-    """C (4m × 4n) with f = ‖Y Cᵀ‖²_F and M = CᵀC; Y's columns: t_1 … t_n, then the columns of R_1 … R_n."""
+    """C (4m × 4n) with f = ‖Y Cᵀ‖²_F and M = CᵀC; Y's columns: t_0 … t_{n−1}, then the columns of R_0 … R_{n−1}."""
     kappa, tau = sesync_weights3d(graph)
     n, m = graph.n_poses, graph.n_edges
     i, j = graph.tails, graph.heads

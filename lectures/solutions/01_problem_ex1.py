@@ -4,14 +4,13 @@ At the true poses f = Σ eᵀP⁻¹e is a sum of 3m squared standard normals: E 
 A factor-½ cost has E[f/2] = 3m/2, so it sits (3m − 3m/2)/√(6m) = √(3m/8) standard deviations below 3m.
 √(3m/8) ≥ 3  ⟺  m ≥ 24: from 24 edges on, a wrong convention is a 3σ event on average.
 """
-import sys, pathlib; sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # lectures/
 
 import math
 
 import numpy as np
 
 import lago_cvx as lc
-from _lecture import check, setup
+from lago_cvx.course import check, setup
 from lago_cvx.synthetic import add_noise
 
 setup("01_problem")

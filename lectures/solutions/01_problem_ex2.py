@@ -5,13 +5,12 @@ deleted), A₂ = A ⊗ I₂ and R = blkdiag of the tails' rotations. It equals l
 angular residual already lies in [−π, π): the package wraps the angular residual, eq. (6) does not. Turn one
 pose by 2π and the two differ (the configuration is the same, so chi2 does not change; eq. (6) does).
 """
-import sys, pathlib; sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # lectures/
 
 import numpy as np
 import scipy.sparse as sp
 
 import lago_cvx as lc
-from _lecture import check, setup
+from lago_cvx.course import check, setup
 from lago_cvx.posegraph import rot2
 
 setup("01_problem")

@@ -5,12 +5,11 @@ headings uniform in [−π, π)) ends in several distinct local minima at every 
 not simply grow with the noise: with very certain headings the cost landscape is steep and the runs scatter
 most); LAGO's estimate, used as a start, reaches the best minimum found.
 """
-import sys, pathlib; sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # lectures/
 
 import numpy as np
 
 import lago_cvx as lc
-from _lecture import check, setup
+from lago_cvx.course import check, setup
 from lago_cvx.refinement import refine
 
 setup("01_problem")

@@ -5,12 +5,11 @@ has +1 in row k and −1 in row k−1. Then Aᵀθ = (θ_k − θ_{k−1})_k, so
 P_θ = (A P_δ⁻¹ Aᵀ)⁻¹ = A⁻ᵀ P_δ A⁻¹. A⁻ᵀ is the summation matrix (lower triangular ones: θ_i = Σ_{k≤i} δ_k),
 hence (P_θ)_ij = Σ_{k ≤ min(i,j)} σ_k²: the heading error is a random walk along the path.
 """
-import sys, pathlib; sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # lectures/
 
 import numpy as np
 
 import lago_cvx as lc
-from _lecture import check, setup
+from lago_cvx.course import check, setup
 
 setup("02_phase1")
 

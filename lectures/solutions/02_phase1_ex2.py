@@ -7,13 +7,12 @@ w = [1/P_δ, 1/σ_c²], θ⁺ = (D diag(w) Dᵀ)⁻¹ D diag(w) [δ_reg; c]. D d
 positive definite for a connected graph with at least one compass reading — Proposition 1 with a soft
 known orientation instead of a hard one.
 """
-import sys, pathlib; sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # lectures/
 
 import cvxpy as cp
 import numpy as np
 
 import lago_cvx as lc
-from _lecture import check, setup
+from lago_cvx.course import check, setup
 from lago_cvx.graph import spanning_tree
 from lago_cvx.regularization import regularize
 from lago_cvx.solvers import solve

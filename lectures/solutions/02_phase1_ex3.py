@@ -6,12 +6,11 @@ reduced coordinates) with variance σ² is a rank-one update of the information,
 For a chain eᵀP₀e = Σ σ_k² over the odometric edges between i and j: the cycle the edge closes. Long cycles
 help most — but not only length counts (‖P₀e‖² also grows with the distance from the anchor).
 """
-import sys, pathlib; sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # lectures/
 
 import numpy as np
 
 import lago_cvx as lc
-from _lecture import check, setup
+from lago_cvx.course import check, setup
 from lago_cvx.uncertainty import edge_uncertainty
 
 setup("02_phase1")

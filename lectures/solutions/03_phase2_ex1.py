@@ -5,12 +5,11 @@ edge k of RᵀJ is R(θ̂_i)ᵀ S R(θ̂_i) Δˡ_k = S Δˡ_k, whatever θ̂. So
     W = [[P_Δˡ^(−1/2) Rᵀ, −P_Δˡ^(−1/2) RᵀJ], [0, P_δ^(−1/2) Aᵀ]]
 only the first block column (P_Δˡ^(−1/2) Rᵀ) changes with θ̂.
 """
-import sys, pathlib; sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # lectures/
 
 import numpy as np
 
 import lago_cvx as lc
-from _lecture import S, check, setup
+from lago_cvx.course import S, check, setup
 from lago_cvx import phases
 from lago_cvx.posegraph import rot2
 from lago_cvx.uncertainty import edge_uncertainty

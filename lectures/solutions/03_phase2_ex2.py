@@ -4,13 +4,12 @@ P_z v = H diag(P_Δˡ, P_θ) Hᵀ v with H = [[R, J], [0, I]]: for v = [a; b],
     Hᵀv = [Rᵀa; Jᵀa + b],   then [P_Δˡ Rᵀa; P_θ(Jᵀa + b)] = [s₁; s₂],   then H[s₁; s₂] = [R s₁ + J s₂; s₂].
 P_θ x is one solve with phase 1's factorization of A P_δ⁻¹ Aᵀ: no dense matrix anywhere.
 """
-import sys, pathlib; sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # lectures/
 
 import numpy as np
 import scipy.sparse as sp
 
 import lago_cvx as lc
-from _lecture import check, paper_lago, real, setup
+from lago_cvx.course import check, paper_lago, real, setup
 from lago_cvx.posegraph import rot2
 
 setup("03_phase2")

@@ -1,11 +1,11 @@
 """Lecture 4a, Exercise 1 — the information matrix of phase 3, block by block.
 
-Derivation. Eq. (11) gives P_z = G blkdiag(P_Δl, P_θ) Gᵀ with G = [[R, J], [0, I_n]], so
-P_z⁻¹ = G⁻ᵀ blkdiag(P_Δl⁻¹, P_θ⁻¹) G⁻¹ with G⁻¹ = [[Rᵀ, −RᵀJ], [0, I_n]]. With Bᵀ = [[A₂ᵀ, 0], [0, I_n]]
+Derivation. Eq. (11) gives P_z = H blkdiag(P_Δl, P_θ) Hᵀ with H = (lecture 3's H) [[R, J], [0, I_n]], so
+P_z⁻¹ = H⁻ᵀ blkdiag(P_Δl⁻¹, P_θ⁻¹) H⁻¹ with H⁻¹ = [[Rᵀ, −RᵀJ], [0, I_n]]. With Bᵀ = [[A₂ᵀ, 0], [0, I_n]]
 (eq. (12)):
 
-    G⁻¹Bᵀ = [[RᵀA₂ᵀ, −RᵀJ], [0, I_n]],
-    B P_z⁻¹ Bᵀ = (G⁻¹Bᵀ)ᵀ blkdiag(P_Δl⁻¹, P_θ⁻¹) (G⁻¹Bᵀ)
+    H⁻¹Bᵀ = [[RᵀA₂ᵀ, −RᵀJ], [0, I_n]],
+    B P_z⁻¹ Bᵀ = (H⁻¹Bᵀ)ᵀ blkdiag(P_Δl⁻¹, P_θ⁻¹) (H⁻¹Bᵀ)
                = [[A₂ R P_Δl⁻¹ Rᵀ A₂ᵀ,   −A₂ R P_Δl⁻¹ Rᵀ J],
                   [−Jᵀ R P_Δl⁻¹ Rᵀ A₂ᵀ,  P_θ⁻¹ + Jᵀ R P_Δl⁻¹ Rᵀ J]],
 
@@ -13,14 +13,13 @@ and R P_Δl⁻¹ Rᵀ = (R P_Δl Rᵀ)⁻¹ = P_Δg⁻¹ because R is orthogonal
 block, P_θ⁻¹ + JᵀP_Δg⁻¹J − JᵀP_Δg⁻¹A₂ᵀ P_p̂ A₂P_Δg⁻¹J with P_p̂ = (A₂P_Δg⁻¹A₂ᵀ)⁻¹, is the inverse of the
 orientation block of P_ρ* = (B P_z⁻¹ Bᵀ)⁻¹ (block inversion) — the P_θ* of eqs. (16)–(17).
 """
-import sys, pathlib; sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # lectures/
 
 import numpy as np
 import scipy.linalg as sla
 
 import lago_cvx as lc
 from lago_cvx.posegraph import rot2
-from _lecture import check, paper_lago, setup
+from lago_cvx.course import check, paper_lago, setup
 
 setup("04a_phase3")
 

@@ -7,13 +7,12 @@ balance at pose k+1 reads f_k − f_{k+1} = 0: the same force runs through the w
 At pose 0 it holds too (the anchor feels no net force). So the whole loop is a single tensioned ring:
 the loop's misclosure is shared out among the edges in proportion to their compliance, d_k = P_Δg,k f.
 """
-import sys, pathlib; sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # lectures/
 
 import numpy as np
 
 import lago_cvx as lc
 from lago_cvx.posegraph import rot2
-from _lecture import S, check, paper_lago, setup
+from lago_cvx.course import S, check, paper_lago, setup
 
 setup("04a_phase3")
 

@@ -5,11 +5,10 @@ F(θ) = χ² with the positions re-solved exactly for the orientations θ (lago_
 keep θ̂ (α = 0). Compared with the package's polish on CSAIL, where phase 3 overshoots (a synthetic world
 when the datasets are absent).
 """
-import sys, pathlib; sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # lectures/
 
 import lago_cvx as lc
 from lago_cvx.positions import resolve_positions
-from _lecture import check, paper_lago, real, setup
+from lago_cvx.course import check, paper_lago, real, setup
 
 setup("04b_theorem1_real")
 

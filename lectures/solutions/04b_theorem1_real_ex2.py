@@ -12,7 +12,6 @@ isotropic information the culprit is the linearisation of R(θ)Δˡ (the weights
 anisotropic information it is mostly the frozen weights, the expansion (18) staying nearly accurate —
 the mechanism measured on INTEL, CSAIL and MIT. Re-solving the positions repairs both.
 """
-import sys, pathlib; sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # lectures/
 
 from dataclasses import replace
 
@@ -20,7 +19,7 @@ import numpy as np
 
 import lago_cvx as lc
 from lago_cvx.theorem1 import frozen_and_model, theorem1
-from _lecture import check, setup
+from lago_cvx.course import check, setup
 
 setup("04b_theorem1_real")
 

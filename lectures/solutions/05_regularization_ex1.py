@@ -10,10 +10,9 @@ space, and being independent (the identity block of C = [I_l B]) they are a basi
 
 Check: every fundamental circuit of the BFS tree is a cycle, so C_bfs = C_bfs[:, chords of T_odo] · C_odo.
 """
-import sys, pathlib; sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # lectures/
 
 import lago_cvx as lc
-from _lecture import check, real, setup
+from lago_cvx.course import check, real, setup
 
 setup("05_regularization")
 

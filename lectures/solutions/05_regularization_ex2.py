@@ -5,7 +5,6 @@ each chord's circuit sum (C δ)_c = δ_c − (θ_j − θ_i), round it to k_c so
 set δ_reg = δ + 2π k on the chords (the tree edges keep δ, eq. (23)). Compared with
 lago_cvx.regularization.regularize, and with Table I on INTEL (odometric tree: 198 chords with k ≠ 0).
 """
-import sys, pathlib; sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # lectures/
 
 from collections import deque
 
@@ -13,7 +12,7 @@ import numpy as np
 
 import lago_cvx as lc
 from lago_cvx.regularization import regularize
-from _lecture import check, real, setup
+from lago_cvx.course import check, real, setup
 
 setup("05_regularization")
 

@@ -1,4 +1,3 @@
-import sys, pathlib; sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # lectures/
 # Exercise 1 of lecture 6 — the relative-relations metric of Table II needs no alignment.
 #
 # Derivation. For a rigid motion T = (t, φ) of the plane, T ⊕ p_i = (t + R(φ)p_i, φ + θ_i) (eq. (1)), and
@@ -13,7 +12,7 @@ import sys, pathlib; sys.path.insert(0, str(pathlib.Path(__file__).resolve().par
 import numpy as np
 
 import lago_cvx as lc
-from _lecture import check, setup
+from lago_cvx.course import check, setup
 from lago_cvx.posegraph import between, compose, wrap_angle
 
 setup("06_experiment")

@@ -1,4 +1,3 @@
-import sys, pathlib; sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # lectures/
 # Exercise 2 of lecture 6 — Table I for every graph, with the odometric and the breadth-first tree.
 #
 # For every real graph present (and, always, a synthetic world): poses, odometric edges, loop closures, and
@@ -10,7 +9,7 @@ import sys, pathlib; sys.path.insert(0, str(pathlib.Path(__file__).resolve().par
 import numpy as np
 
 import lago_cvx as lc
-from _lecture import check, real, setup
+from lago_cvx.course import check, real, setup
 from lago_cvx.datasets import DATASET_FILES
 
 setup("06_experiment")

@@ -1,4 +1,3 @@
-import sys, pathlib; sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # lectures/
 # Exercise 1 of lecture 7 — the forces on the anchors balance.
 #
 # Phase 1: f(θ) = ‖W(Aᵀθ − δ_reg)‖², ∇f = 2 A W²(Aᵀθ − δ_reg). Every column of A has one −1 and one +1, so
@@ -13,7 +12,7 @@ import sys, pathlib; sys.path.insert(0, str(pathlib.Path(__file__).resolve().par
 import numpy as np
 
 import lago_cvx as lc
-from _lecture import check, setup
+from lago_cvx.course import check, setup
 
 setup("07_variants")
 w = lc.manhattan_world(300, seed=3)

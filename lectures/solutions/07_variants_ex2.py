@@ -1,4 +1,3 @@
-import sys, pathlib; sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # lectures/
 # Exercise 2 of lecture 7 — the strain statistic of an orientation anchor from its dual value.
 #
 # With M = W Bᵀ the whitened design of phase 1 and column a the anchored orientation, eliminating the free
@@ -9,7 +8,7 @@ import numpy as np
 import scipy.sparse.linalg as spla
 
 import lago_cvx as lc
-from _lecture import check, setup
+from lago_cvx.course import check, setup
 
 setup("07_variants")
 w = lc.manhattan_world(300, seed=3)

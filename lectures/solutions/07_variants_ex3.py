@@ -1,4 +1,3 @@
-import sys, pathlib; sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # lectures/
 # Exercise 3 of lecture 7 — the truncation c̄² of graduated non-convexity.
 #
 # An inlier's whitened residual r² = eᵀΩe is χ²-distributed with 3 degrees of freedom when the measurement
@@ -13,7 +12,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import lago_cvx as lc
-from _lecture import check, setup, show
+from lago_cvx.course import check, setup, show
 from lago_cvx import variants as V
 
 setup("07_variants")

@@ -1,4 +1,3 @@
-import sys, pathlib; sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # lectures/
 # Exercise 1 of lecture 8 — the failure probability of the tree rounding, eq. (W).
 #
 # Derivation. With true orientations θ, each measurement is δ_e = θ_j − θ_i + ε_e (mod 2π), ε_e ~ N(0, P_δ,e).
@@ -14,7 +13,7 @@ import numpy as np
 from scipy.special import erfc
 
 import lago_cvx as lc
-from _lecture import check, setup
+from lago_cvx.course import check, setup
 from lago_cvx.experiments import true_cycle_integers
 from lago_cvx.posegraph import wrap_angle
 

@@ -1,4 +1,3 @@
-import sys, pathlib; sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # lectures/
 # Exercise 2 of lecture 8 — the relaxed lengths from the connection Laplacian.
 #
 # (C) in complex form: z_i = cos θ_i + i sin θ_i relaxed to any complex number, and
@@ -13,7 +12,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 import lago_cvx as lc
-from _lecture import check, setup
+from lago_cvx.course import check, setup
 from lago_cvx.graph import prune_leaves
 from lago_cvx.regularization.chordal import chordal_closed_form
 from lago_cvx.uncertainty import edge_uncertainty

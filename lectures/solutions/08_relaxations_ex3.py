@@ -1,4 +1,3 @@
-import sys, pathlib; sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # lectures/
 # Exercise 3 of lecture 8 — how far does the certificate's bound (B) reach?
 #
 # At any rotations (translations optimal) the certificate computes Λ_i and λ_min(S_Q), and
@@ -11,7 +10,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import lago_cvx as lc
-from _lecture import check, setup, show
+from lago_cvx.course import check, setup, show
 from lago_cvx.certification import certify, optimal_translations, refine_sesync
 
 setup("08_relaxations")

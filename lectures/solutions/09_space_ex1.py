@@ -1,8 +1,8 @@
-import sys, pathlib; sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # lectures/
 # Exercise 1 of lecture 9 — the chordal distance (D) and the weights (Q).
 #
 # (D). ‖R₂ − R₁‖²_F = tr(R₂ᵀR₂) + tr(R₁ᵀR₁) − 2 tr(R₁ᵀR₂) = 6 − 2 tr(R₁ᵀR₂), and a rotation of angle ψ has trace
-# 1 + 2cos ψ (eigenvalues 1, e^{±iψ}), so ‖R₂ − R₁‖²_F = 6 − 2 − 4cos ψ = 4(1 − cos ψ) = ψ² − ψ⁴/12 + …
+# 1 + 2cos ψ (eigenvalues 1, e^{±iψ}), so ‖R₂ − R₁‖²_F = 6 − 2 − 4cos ψ = 4(1 − cos ψ) = 2ψ² − ψ⁴/6 + …
+# (twice the squared angle near 0, as (Q) says for S = I: tr(I)I − I = 2I).
 # (Q). ‖[φ]× S‖²_F = tr(S [φ]×ᵀ[φ]× S) = tr([φ]×ᵀ[φ]× W) with W = S², and [φ]×ᵀ[φ]× = ‖φ‖²I − φφᵀ, so
 # ‖[φ]× S‖²_F = ‖φ‖² tr W − φᵀWφ = φᵀ(tr(W) I − W)φ.
 # Second order. R Exp(φ) − R = R([φ]× + O(φ²)), and R is orthogonal, so ‖(R Exp(φ) − R) S‖²_F = ‖[φ]× S‖²_F + O(φ³).
@@ -12,7 +12,7 @@ import sys, pathlib; sys.path.insert(0, str(pathlib.Path(__file__).resolve().par
 # e.g. Ω = diag(1, 1, 10): W = diag(5, 5, −4). No weight of the form (C) reproduces such an Ω_rr.
 import numpy as np
 
-from _lecture import check, setup
+from lago_cvx.course import check, setup
 from lago_cvx.so3 import exp_so3, hat, log_so3
 
 setup("09_space")
@@ -22,6 +22,9 @@ psi = np.linalg.norm(log_so3(np.swapaxes(R1, 1, 2) @ R2), axis=1)
 check(np.allclose(np.trace(np.swapaxes(R1, 1, 2) @ R2, axis1=1, axis2=2), 1 + 2 * np.cos(psi), atol=1e-12),
       "tr(R₁ᵀR₂) = 1 + 2cos ψ on 200 random pairs")
 check(np.allclose(np.sum((R2 - R1) ** 2, axis=(1, 2)), 4 * (1 - np.cos(psi)), atol=1e-12), "(D) holds")
+x = np.linspace(0.01, 0.3, 30)
+check(np.allclose(8 * np.sin(x / 2) ** 2, 2 * x**2 - x**4 / 6, rtol=0, atol=x.max() ** 6 / 100),
+      "(D)'s series: 4(1 − cos ψ) = 2ψ² − ψ⁴/6 + O(ψ⁶)")
 
 errors = []
 for _ in range(100):

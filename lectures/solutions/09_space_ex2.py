@@ -1,4 +1,3 @@
-import sys, pathlib; sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # lectures/
 # Exercise 2 of lecture 9 — on a tree the chordal relaxation is exact.
 #
 # On a spanning tree every pose is reached from the anchor by exactly one path. Compose R₀ = I,
@@ -11,7 +10,7 @@ import sys, pathlib; sys.path.insert(0, str(pathlib.Path(__file__).resolve().par
 import numpy as np
 from scipy.stats import spearmanr
 
-from _lecture import check, setup
+from lago_cvx.course import check, setup
 from lago_cvx.so3 import log_so3
 from lago_cvx.space import chordal_closed_form
 from lago_cvx.synthetic.space import sphere_world

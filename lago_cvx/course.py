@@ -1,11 +1,12 @@
 """What every lecture shares: set-up, one-line checks, inline figures (written to disk, byte for byte
 reproducibly, only when asked), real benchmark graphs (or a clear skip), and the paper's procedure.
 
-Used as ``from _lecture import ...`` by the lectures (run from any working directory: Jupyter, a script,
-the tests) and by their exercise solutions in ``solutions/``::
+Used as ``from lago_cvx.course import ...`` by the lectures (run from any working directory, or alone: Jupyter,
+Colab, a script, the tests) and by their exercise solutions in ``lectures/solutions/``; it reads nothing from the
+project's checkout::
 
-    from _lecture import setup, check, show, real, FULL
-    setup("02_phase1")                   # quiet warnings, compact printing, figures named 02_phase1_*
+    from lago_cvx.course import setup, check, show, real, FULL
+    setup("02_phase1")                   # compact printing, figures named 02_phase1_*
     check(err < 1e-9, f"cvxpy = closed form ({err:.1e})")     # prints "✓ cvxpy = closed form (3.1e-16)"
     fig, ax = plt.subplots(); ...; show(fig, "laplacian")      # inline in Jupyter; saved only on request
 
@@ -19,6 +20,7 @@ bigger sweeps that are skipped by default to keep every lecture under a minute.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 import sys
@@ -30,11 +32,8 @@ import numpy as np
 import lago_cvx as lc
 from lago_cvx.datasets import DatasetNotFound, dataset
 
-__all__ = ["ROOT", "FULL", "S", "setup", "check", "show", "real", "paper_lago", "figure_dir", "section_v_world",
-           "running_example", "intuition_figure"]
-
-#: The project checkout.
-ROOT = Path(__file__).resolve().parents[1]
+__all__ = ["FULL", "S", "setup", "check", "show", "real", "paper_lago", "figure_dir", "section_v_world",
+           "running_example", "intuition_figure", "quiet"]
 
 #: Bigger sweeps (more seeds, sizes, noise levels) run only with ``LAGO_CVX_FULL=1``.
 FULL = os.environ.get("LAGO_CVX_FULL", "") not in ("", "0")
@@ -52,12 +51,24 @@ _PREFIX = ["lecture"]
 
 
 def setup(prefix: str) -> None:
-    """Start a lecture: figure files will be named ``<prefix>_<name>.{png,svg}``; the package's warnings
-    (e.g. ambiguous 2kπ roundings, which lectures count themselves) stay out of the output; NumPy prints
-    compactly."""
+    """Start a lecture: figure files will be named ``<prefix>_<name>.{png,svg}``; NumPy prints compactly.
+    The package's warnings are left alone: a reader's own calls show them (``quiet`` silences a block)."""
     _PREFIX[0] = prefix
-    logging.getLogger("lago_cvx").setLevel(logging.ERROR)
     np.set_printoptions(precision=4, suppress=True, linewidth=110)
+
+
+@contextlib.contextmanager
+def quiet():
+    """Within the block only, the package's warnings (e.g. ambiguous 2kπ roundings, which a lecture counts
+    itself) stay out of the output; the logger's level is restored afterwards. The helpers here that run the
+    package (``paper_lago``, ``real``) use it; a lecture's own calls do not."""
+    logger = logging.getLogger("lago_cvx")
+    level = logger.level
+    logger.setLevel(logging.ERROR)
+    try:
+        yield
+    finally:
+        logger.setLevel(level)
 
 
 def check(condition, claim: str) -> None:
@@ -119,14 +130,17 @@ def paper_lago(graph, **options):
     """LAGO with the paper's phases — the tree rounding of Theorem 3, phases 2–3 with blkdiag(P_Δ, P_δ)
     (eqs. (9)–(15)) and phase 3's poses — on the BFS tree unless ``spanning_tree`` says otherwise
     (``route="seed"`` also takes the odometric tree, which not every graph has)."""
-    return lc.lago(graph, **{"regularization": "tree", "information": "marginal", "positions": "phase3", **options})
+    with quiet():
+        return lc.lago(graph, **{"regularization": "tree", "information": "marginal", "positions": "phase3",
+                                 **options})
 
 
 def real(rel: str):
     """Read a real benchmark graph (``rel`` inside the datasets folder, e.g. ``"carlone/INTEL_P_toro.graph"``),
     or return None and say so when the datasets are absent: the lecture then runs its synthetic cells only."""
     try:
-        return lc.read_graph(dataset(rel))
+        with quiet():
+            return lc.read_graph(dataset(rel))
     except DatasetNotFound as exc:
         print(f"real datasets not found: skipping the {rel} cells ({exc})")
         return None
