@@ -23,8 +23,9 @@ of the later one): d²_k = e_kᵀ (J Π Jᵀ + Σ_k)⁻¹ e_k, O(1) per edge aft
 
 (b) Two loop closures k = (a → b), l = (c → d): the cycle a →(z_k) b →(chain) d →(z_l⁻¹) c →(chain) a,
 composed from X_a, returns to X̃_a; its error e_kl = [R_aᵀ(p̃_a − p_a); θ̃_a − θ_a] is zero when both agree
-with the odometry between their ends. Its covariance is the sum of the four independent rigid motions
-(z_k's, the chain b–d's, z_l's, the chain c–a's) carried to the cycle's coordinates, seen at p_a:
+with the odometry between their ends. Its covariance is the sum of the rigid motions of z_k, z_l and the
+chain edges (an edge in both stretches b–d and c–a moves the cycle through both, ±Ad_G1 B_m ± Ad_G2 B_m, signed
+by the direction the cycle runs it) carried to the cycle's coordinates, seen at p_a:
 K H(p_a) Σ_cycle H(p_a)ᵀ Kᵀ, K = blkdiag(R_aᵀ, 1); d²_kl = e_klᵀ (…)⁻¹ e_kl. The pair is consistent when
 d²_kl ≤ the χ²₃ quantile; the largest set of pairwise consistent loop closures (a maximum clique) is PCM's
 estimate of the inliers.
@@ -182,9 +183,16 @@ def pairwise_consistency(graph, chain: OdometryChain, k: np.ndarray, l: np.ndarr
     pos = chain.position
     Bk = _ad(Ra, pb)  # z_k's noise: R(θ_a) ε_t + ε_θ S(p − p̃_b), i.e. [[R_a, −S p̃_b], [0, 1]]
     Bl = _ad(Rc, pd)
+    # the two stretches share the chain edges of their overlap: there one ε_m moves the cycle through both
+    A1, A2 = _ad(R1, t1), _ad(R2, t2)
+    lo = np.maximum(np.minimum(pos[b], pos[d]), np.minimum(pos[c], pos[a]))
+    hi = np.maximum(np.minimum(np.maximum(pos[b], pos[d]), np.maximum(pos[c], pos[a])), lo)
+    both = _stretch(chain, lo, hi)
+    s1 = np.where(pos[d] > pos[b], 1.0, -1.0)[:, None, None]  # + where the cycle runs the chain forward
+    s2 = np.where(pos[a] > pos[c], 1.0, -1.0)[:, None, None]
     cyc = (_sandwich(Bk, np.linalg.inv(graph.information[k])) + _sandwich(Bl, np.linalg.inv(graph.information[l]))
-           + _sandwich(_ad(R1, t1), _stretch(chain, pos[b], pos[d]))
-           + _sandwich(_ad(R2, t2), _stretch(chain, pos[c], pos[a])))
+           + _sandwich(A1, _stretch(chain, pos[b], pos[d]) - both) + _sandwich(A2, _stretch(chain, pos[c], pos[a]) - both)
+           + _sandwich(s1 * A1 + s2 * A2, both))
     K = np.zeros((k.size, 3, 3))
     K[:, :2, :2] = np.swapaxes(Ra, -1, -2)
     K[:, 2, 2] = 1.0
