@@ -22,6 +22,10 @@ from lago_cvx.variants import (RobustResult, RobustSettings, gnc_threshold, gnc_
 
 from conftest import dataset_path
 
+#: GNC alone, without the local search after it (``RobustSettings.local_search``; tested on MIT below, where it
+#: pays): the tests of GNC's own behaviour, kept fast.
+GNC_ONLY = RobustSettings(local_search=0)
+
 
 def run(capsys, *argv):
     code = main([str(a) for a in argv])
@@ -124,7 +128,7 @@ def test_gnc_tls_rejects_every_false_loop_closure_on_synthetic_worlds(seed):
     w = manhattan_world(500, seed=seed)
     go, idx = add_false_loop_closures(w.graph, 0.1, seed=seed)
     plain = lc.lago(go)
-    res = lc.lago(go, robust=True)
+    res = lc.lago(go, robust=GNC_ONLY)
     precision, recall, wrong = scores(res.rejected_edges, idx)
     assert recall == 1.0 and wrong <= 0.01 * w.graph.n_edges
     assert isinstance(res, RobustResult) and res.weights.shape == (go.n_edges,)
@@ -138,7 +142,7 @@ def test_gnc_tls_rejects_every_false_loop_closure_on_synthetic_worlds(seed):
 def test_gnc_gm_rejects_the_false_loop_closures_too():
     w = manhattan_world(400, seed=3)
     go, idx = add_false_loop_closures(w.graph, 0.1, seed=3)
-    res = lc.lago(go, robust="gnc-gm")
+    res = lc.lago(go, robust=RobustSettings(loss="gm", local_search=0))
     _, recall, wrong = scores(res.rejected_edges, idx)
     assert res.settings.loss == "gm" and recall == 1.0 and wrong <= 0.02 * w.graph.n_edges
 
@@ -152,7 +156,7 @@ def test_without_trusted_odometry():
     res = lc.lago(go, robust=RobustSettings(trust_odometry=False))
     _, recall, wrong = scores(res.rejected_edges, idx)
     assert not res.known_inliers.any() and recall == 1.0 and wrong <= 0.01 * w.graph.n_edges
-    assert lc.lago(go, robust=True).known_inliers.sum() == go.n_odometric
+    assert lc.lago(go, robust=GNC_ONLY).known_inliers.sum() == go.n_odometric
 
 
 @pytest.mark.parametrize("seed", [0, 1])
@@ -167,14 +171,14 @@ def test_clean_graph_robust_matches_least_squares_after_refinement(seed):
 def test_anchor_keywords_pass_through_and_the_result_pickles():
     w = manhattan_world(200, seed=2)
     go, idx = add_false_loop_closures(w.graph, 0.1, seed=2)
-    res = lc.lago(go, robust=True, anchor=5, anchor_pose=(1.0, 2.0, 0.5))
+    res = lc.lago(go, robust=GNC_ONLY, anchor=5, anchor_pose=(1.0, 2.0, 0.5))
     np.testing.assert_allclose(res.poses[go.index_of(5)], [1.0, 2.0, 0.5], atol=1e-12)
     back = pickle.loads(pickle.dumps(res))
     np.testing.assert_array_equal(back.rejected_edges, res.rejected_edges)
     np.testing.assert_array_equal(back.poses, res.poses)
     assert "rejected" in repr(res) and res.summary()["n_rejected"] == res.rejected_edges.size
     known = {0: (0.0, 0.0, 0.0), 150: tuple(w.truth[150])}  # exact anchors: the variants engine inside
-    anchored = lc.lago(go, robust=True, anchors=known)
+    anchored = lc.lago(go, robust=GNC_ONLY, anchors=known)
     np.testing.assert_allclose(anchored.poses[150, :2], w.truth[150, :2], atol=1e-9)
     assert lc.posegraph.wrap_angle(anchored.poses[150, 2] - w.truth[150, 2]) == pytest.approx(0.0, abs=1e-9)
     assert scores(anchored.rejected_edges, idx)[1] == 1.0 and anchored.anchors
@@ -218,7 +222,7 @@ REAL = ["se-sync/intel.g2o", "carlone/input_M3500_g2o.g2o", "se-sync/CSAIL.g2o"]
 def test_real_graphs_with_ten_percent_false_loop_closures(rel):
     g = read_graph(dataset_path(rel))
     go, idx = add_false_loop_closures(g, 0.1, seed=0)
-    res = lc.lago(go, robust=True)
+    res = lc.lago(go, robust=GNC_ONLY)
     _, recall, wrong = scores(res.rejected_edges, idx)
     assert recall == 1.0 and wrong <= 0.01 * g.n_edges
     clean = refine(g, lc.lago(g).poses)
@@ -416,7 +420,7 @@ def test_consistent_starts_reject_nothing_on_clean_graphs_and_find_the_false_edg
     assert res.rejected_edges.size == 0
     w = manhattan_world(300, seed=6)
     go, idx = add_false_loop_closures(w.graph, 0.1, seed=6)
-    res = lc.lago(go, robust=RobustSettings(start=start))
+    res = lc.lago(go, robust=RobustSettings(start=start, local_search=0))
     _, recall, wrong = scores(res.rejected_edges, idx)
     assert recall == 1.0 and wrong <= 0.01 * w.graph.n_edges
     with pytest.raises(OptionError):
