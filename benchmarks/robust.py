@@ -202,7 +202,7 @@ def run(args) -> str:
         text += ["", "## The fraction at which robust LAGO first fails", "",
                  "Fractions 2 %, 5 %, 10 %, 20 %, 30 %, 40 %, 50 %, seeds 0–2, c̄² = 11.34, start LAGO (the default); "
                  "a run passes when every false edge is rejected, at most 1 % of the true edges are, and χ² of the "
-                 "clean edges after the refinement is within 0.1 % of the clean refined χ². The sweep stops at the "
+                 "clean edges after the refinement is within 0.1 % of the clean refined χ². The sweep ends at the "
                  "first fraction where a run fails.", "", sweep(files)]
     return "\n".join(text)
 

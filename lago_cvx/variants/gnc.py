@@ -31,7 +31,7 @@ Known inliers. Odometric edges (between consecutive ids) are never false loop cl
 protocol; ``trust_odometry=None`` holds their weight at 1 whenever the odometric chain 0–1–…–(n−1) is
 complete (as robust front ends tell GNC, e.g. Kimera-RPGO), ``True`` always, ``False`` never.
 
-Where GNC stops at a local minimum. GNC minimizes the TLS cost Σ_k min(r_k², c̄²) only locally: on MIT (20 true
+Where GNC ends at a local minimum. GNC minimizes the TLS cost Σ_k min(r_k², c̄²) only locally: on MIT (20 true
 loop closures, 807 odometric edges, 82 false ones) it rejects about half the true loop closures, at a truncated
 cost above the clean classification's. Two aids, ``RobustSettings``:
 
