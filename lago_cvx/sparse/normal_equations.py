@@ -44,7 +44,7 @@ from .threads import Ahead, cores, engine_threads, in_engine_threads, spawn, thr
 from .upper_pattern import BlockUpperPattern, PoseLaplacian, PoseUpperPattern, QdldlFactor, matrix_blocks
 from . import wide as wide_policy
 
-__all__ = ["plan_from_pattern", "matrix_blocks", "EdgeSystem", "EdgeOperator", "GraphElimination", "PoseFactor", "BlockUpperPattern", "PoseUpperPattern", "QdldlFactor", "RenumberedFactor", "CompiledPoseFactor", "ENGINE_MIN", "COMPILED_MIN"]
+__all__ = ["plan_from_pattern", "matrix_blocks", "EdgeSystem", "EdgeOperator", "GraphElimination", "PoseFactor", "BlockUpperPattern", "PoseUpperPattern", "QdldlFactor", "RenumberedFactor", "CompiledPoseFactor", "ENGINE_MIN", "COMPILED_MIN", "COMPILED_FLOPS"]
 
 log = logging.getLogger(__name__)
 
@@ -77,6 +77,15 @@ ENGINE_MIN = 1_200_000
 #: From here the compiled engine, its start included, beats QDLDL clear of the noise (phase 3 alone, fresh
 #: processes, 90 000 – 900 000 unknowns: ``benchmarks/million.md``).
 COMPILED_MIN = 300_000
+
+#: Below ``COMPILED_MIN`` unknowns, a system whose factorization costs at least this many multiply–adds
+#: (``EliminationPlan.flops(b)``, the Cholesky count Σ colcount²) is factored by the compiled engine too when its C
+#: kernels are built (``compiled.native()``): QDLDL's scalar up-looking loop runs at about 1.3 GFlop/s where the
+#: compiled engine's dense fronts run at 4–6. Long edges across a graph (false loop closures joining random poses)
+#: fill the factor: on se-sync/city10000.g2o with 10 % of them phase 3 costs 4.8·10¹⁰ multiply–adds (1.75·10⁸
+#: clean), 37 s by QDLDL, 8.7 s compiled; on M3500 with 30 %, 5.4·10⁹: 3.6 s and 1.6 s (``benchmarks/robust.md``).
+#: Every clean planar file of the datasets stays far below (city10000: 1.75·10⁸ at b = 3), on its route as before.
+COMPILED_FLOPS = 2e9
 
 #: Below this many free poses the engine works in the caller's thread alone: no worker builds the
 #: elimination, and QDLDL runs no handed-over work beside its factorizations (they run when asked for).
@@ -425,8 +434,8 @@ class GraphElimination:
         """Factor the normal matrix (N) of ``system``. ``engine`` None (the default) picks: the weighted
         Laplacian's factorization when (N) is it (class docstring); else by size the compiled multifrontal
         engine (a ``CompiledPoseFactor``, ``lago_cvx.sparse.compiled``) from ``COMPILED_MIN`` unknowns when
-        it can run, the NumPy multifrontal engine (a ``PoseFactor``) from ``ENGINE_MIN``, QDLDL (a
-        ``QdldlFactor``) below; ``"compiled"``, True (the NumPy engine) or False (QDLDL) force one. Raises
+        it can run, or from ``COMPILED_FLOPS`` multiply–adds with its C kernels; the NumPy multifrontal engine
+        (a ``PoseFactor``) from ``ENGINE_MIN``, QDLDL (a ``QdldlFactor``) below; ``"compiled"``, True (the NumPy engine) or False (QDLDL) force one. Raises
         ``multifrontal.NotPositiveDefinite`` (or QDLDL's error) if N is not numerically SPD. The systems
         announced after this one are prepared once it is factored (``solving``: once ``solve`` is done
         with it, so that their preparation does not compete with its solves)."""
@@ -438,7 +447,8 @@ class GraphElimination:
         if job is not None:
             job.result()
         compiled_route = engine == "compiled" or (engine is None and system.d * b >= COMPILED_MIN
-                                                  and compiled.available())
+                                                  and compiled.available()) or (
+            engine is None and system.d == self.d and self.plan.flops(b) >= COMPILED_FLOPS and compiled.native())
         if compiled_route or (engine if engine is not None else system.d * b >= ENGINE_MIN):
             self._drop_internal(("pattern", b))  # QDLDL's pattern for b will not be needed
         try:
