@@ -19,7 +19,7 @@ import numpy as np
 
 from .sparse import row_blocks
 from .errors import OptionError
-from .posegraph import PoseGraph, rot2, se2_v_inverse, wrap_angle
+from .posegraph import PoseGraph, logmap_translation, rot2, wrap_angle
 
 __all__ = ["edge_errors", "chi2", "chi2_parts", "whitened_errors", "alignment_angle", "alignment", "ate",
            "rotation_error", "relative_difference"]
@@ -51,11 +51,8 @@ def _errors(graph: PoseGraph, poses: np.ndarray, k: slice) -> np.ndarray:
     e[:, 0] = c * dx + s * dy - graph.delta_l[k, 0]
     e[:, 1] = -s * dx + c * dy - graph.delta_l[k, 1]
     e[:, 2] = wrap_angle(pj[:, 2] - pi[:, 2] - graph.delta[k])
-    if graph.cost == "gtsam":  # GTSAM's Logmap: ẽ_t = V(ε)⁻¹ e_t = α e_t + β J e_t, J = [[0, 1], [−1, 0]]
-        alpha, beta, _ = se2_v_inverse(e[:, 2])
-        ex, ey = e[:, 0].copy(), e[:, 1].copy()
-        e[:, 0] = alpha * ex + beta * ey
-        e[:, 1] = alpha * ey - beta * ex
+    if graph.cost == "gtsam":  # GTSAM's Logmap: ẽ_t = V(ε)⁻¹ e_t
+        logmap_translation(e)
     return e
 
 

@@ -89,6 +89,14 @@ def gtsam_lago(graph: PoseGraph, *, odometric_path: bool = True, anchor=None, re
 
 
 # ------------------------------------------------------------------------------ the cost a file means, by its owners
+def _is_3d(path) -> bool:
+    """Whether the file's first record is a 3-D one, decided as ``lago_cvx.io.read_graph`` decides it."""
+    from .io.careful import read_bytes
+    from .io.space import first_tag, is_3d_tag
+
+    return is_3d_tag(first_tag(read_bytes(path)) or "")
+
+
 def have_g2o() -> bool:
     """True when g2o's own Python bindings (``pip install g2opy``, extra ``peers``) import."""
     try:
@@ -106,8 +114,7 @@ def g2o_chi2(path, *, iterations: int = 0) -> dict:
         import g2opy as g
     except ImportError as exc:
         raise MissingSolverError("g2o comparisons need the optional extra: pip install 'lago-cvx[peers]'") from exc
-    text = open(path, encoding="utf-8", errors="replace").read()
-    threed = "VERTEX_SE3" in text or "EDGE_SE3" in text
+    threed = _is_3d(path)
     opt = g.SparseOptimizer()
     block = (g.BlockSolverSE3(g.LinearSolverEigenSE3()) if threed
              else g.BlockSolverSE2(g.LinearSolverEigenSE2()))
@@ -129,8 +136,7 @@ def gtsam_chi2(path, *, iterations: int = 0) -> dict:
     first pose fixed, ``chi2_at`` = 2·``error()`` at the vertices as written and ``chi2_lm`` = 2·``error()`` after
     ``iterations`` of GTSAM's Levenberg–Marquardt from there (``chi2_at`` when 0)."""
     gtsam = _gtsam()
-    text = open(path, encoding="utf-8", errors="replace").read()
-    threed = "VERTEX_SE3" in text or "EDGE_SE3" in text
+    threed = _is_3d(path)
     fg, values = gtsam.readG2o(str(path), threed)
     first = min(values.keys())
     at = 2.0 * fg.error(values)

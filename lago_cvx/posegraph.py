@@ -46,7 +46,7 @@ from .errors import GraphError, OptionError
 from .posegraph_base import PoseGraphBase, pose_ids, readonly
 
 __all__ = ["PoseGraph", "wrap_angle", "rot2", "compose", "between", "is_spd", "to_tail_frame",
-           "to_measurement_frame", "se2_v_inverse", "COST_FRAME"]
+           "to_measurement_frame", "se2_v_inverse", "logmap_translation", "COST_FRAME"]
 
 #: The frame of the translational residual each cost's information is written in.
 COST_FRAME = {"paper": "tail", "g2o": "measurement", "gtsam": "measurement"}
@@ -132,6 +132,17 @@ def se2_v_inverse(eps):
     dalpha = np.where(small, -eps / 6.0 - eps ** 3 / 180.0 - eps ** 5 / 5040.0,
                       0.5 * cot - 0.25 * e / np.sin(h) ** 2)
     return alpha, 0.5 * eps, dalpha
+
+
+def logmap_translation(e: np.ndarray):
+    """GTSAM's translational error in place: e[:, :2] ← V(ε)⁻¹ e[:, :2], ε = e[:, 2], for errors e (m, 3) of
+    eq. (3) (module docstring). Returns (α, β, α′, e_x, e_y), each (m,), what the Jacobian of the result needs
+    (``lago_cvx.refinement``)."""
+    alpha, beta, dalpha = se2_v_inverse(e[:, 2])
+    ex, ey = e[:, 0].copy(), e[:, 1].copy()
+    e[:, 0] = alpha * ex + beta * ey
+    e[:, 1] = alpha * ey - beta * ex
+    return alpha, beta, dalpha, ex, ey
 
 
 @dataclass(frozen=True, eq=False, repr=False)

@@ -83,7 +83,7 @@ from .reports import refine_repr, refine_summary
 from .errors import OptionError, check_choice
 from .graph import accumulate_to_root, check_connected, spanning_tree as build_tree
 from .sparse import SOLVER_BACKENDS, factorize
-from .posegraph import PoseGraph, rot2, se2_v_inverse, wrap_angle
+from .posegraph import PoseGraph, logmap_translation, rot2, wrap_angle
 from .rounding import TWO_PI
 
 __all__ = ["RefineResult", "refine", "REFINE_METHODS", "odometry_guess", "jacobian", "whitened_residuals",
@@ -218,12 +218,8 @@ class _Problem:
         return e, u, c, s
 
     def _logmap(self, e: np.ndarray) -> None:
-        """GTSAM's translational error in place: e_t ← V(ε)⁻¹ e_t; keeps (e_t, α′) for the Jacobian."""
-        alpha, beta, dalpha = se2_v_inverse(e[:, 2])
-        ex, ey = e[:, 0].copy(), e[:, 1].copy()
-        e[:, 0] = alpha * ex + beta * ey
-        e[:, 1] = alpha * ey - beta * ex
-        self._v = (alpha, beta, dalpha, ex, ey)
+        """GTSAM's translational error in place (``posegraph.logmap_translation``); keeps what the Jacobian needs."""
+        self._v = logmap_translation(e)
 
     def residuals(self, poses: np.ndarray) -> np.ndarray:
         """Whitened residuals r = U e, shape (m, 3)."""
