@@ -3,8 +3,8 @@
 #
 # The paper {cite}`carlone2011rss` validates LAGO on one real graph, the Intel Research Lab data set, with two tables
 # (Table I, Table II) and three figures (Fig. 1–3). This lecture re-runs that experiment with `lago_cvx` on
-# `carlone/INTEL_P_toro.graph`, the Intel graph in TORO format; runs Table II's two covariance scenarios on a world
-# with known truth; and then asks the question the abstract answers — is the linear estimate accurate enough that
+# `carlone/INTEL_P_toro.graph`, the Intel graph in TORO format; runs Table II's two covariance scenarios on INTEL and on
+# worlds with known truth; and asks the question the abstract answers — is the linear estimate accurate enough that
 # refinement is often unnecessary? — on every graph at hand.
 #
 # **The idea in one paragraph.** A robot drives around an office floor; odometry corrected by scan matching gives a
@@ -19,16 +19,15 @@
 # 1. run the three steps of Section V (constraints → regularization → three phases) on a real graph and
 #    reproduce Table I, knowing which of its numbers depend on the spanning tree;
 # 2. draw Fig. 1 and Fig. 2(a), and say what Fig. 2(b) needs that the graph files do not contain;
-# 3. compute the relative-relations metric of Table II (ε_t, ε_θ) on a world with ground truth, and compare
-#    the closed-form estimate with an iterative solver iteration by iteration (Table II, Fig. 3);
-# 4. test the abstract's claim "refinement is often unnecessary" on every real graph, and explain with
-#    Theorem 1 why it fails on INTEL.
+# 3. compute the relative-relations metric of Table II (ε_t, ε_θ) in both of its scenarios, on INTEL and over
+#    several worlds with ground truth, and compare LAGO with an iterative solver over 0–1000 iterations (Fig. 3);
+# 4. test the abstract's claim "refinement is often unnecessary" on every real graph, and read INTEL's failure
+#    in χ² edge by edge (Theorem 1, the per-edge χ², the distance to the minimum).
 #
 # **What cannot be reproduced here, and what replaces it.** The graph files hold no laser scans, so the occupancy grid
 # of Fig. 2(b) cannot be drawn (section 4 draws the grid the robot's footprint swept instead). TORO, the iterative
-# solver of Table II and Fig. 3, is not part of this package, and the benchmark's ground-truth relations are not
-# available: sections 5–6 compute the same metric on a synthetic world with known truth and the paper's proportional
-# uncertainty, Gauss–Newton standing in for TORO, beside the paper's values.
+# solver of Table II and Fig. 3, is not part of this package (Gauss–Newton stands in), and INTEL's benchmark relations
+# are not available: sections 5–6 score INTEL against its minimum of χ² and generated worlds against their truth.
 #
 # **Notation.** χ² is the cost of eq. (3), $\sum_{ij} e_{ij}^\top \Omega_{ij} e_{ij}$, no factor ½
 # (`lago_cvx.metrics.chi2`); $n+1$ poses, $m$ edges, $A$ the $(n+1)\times m$ incidence matrix, $\delta$ the
@@ -42,12 +41,12 @@ except ImportError:
 import cvxpy as cp
 import matplotlib.pyplot as plt
 import numpy as np
-from dataclasses import replace
 import lago_cvx as lc
-from lago_cvx.course import FULL, check, intuition_figure, real, running_example, section_v_world, setup, show
-from lago_cvx import phases, plotting
+from lago_cvx.course import FULL, check, intuition_figure, quiet, real, running_example, section_v_world, setup, show
+from lago_cvx import phases, plotting, section_v
+from lago_cvx.section_v import PAPER_FIG3, PAPER_TABLE_II, relation_errors, swept_grid
 from lago_cvx.datasets import DATASET_FILES, REFERENCE_CHI2
-from lago_cvx.posegraph import between, wrap_angle
+from lago_cvx.posegraph import wrap_angle
 from lago_cvx.solvers import solve
 from lago_cvx.positions import resolve_positions
 from lago_cvx.theorem1 import frozen_and_model, theorem1
@@ -232,22 +231,6 @@ if INTEL is not None:
 # shrinks; walls and rooms the robot never entered cannot be recovered without the scans.
 
 # %%
-def swept_grid(poses, resolution=0.2, radius=0.3):
-    """Boolean grid of the cells within ``radius`` of the trajectory (straight segments between poses),
-    its origin, and the swept area [m²]."""
-    xy = poses[:, :2]
-    s = np.linspace(0.0, 1.0, 8)[:, None, None]
-    pts = (xy[:-1] * (1 - s) + xy[1:] * s).reshape(-1, 2)
-    r = int(np.ceil(radius / resolution))
-    lo = pts.min(0) - (r + 1) * resolution                  # a margin: every cell index is ≥ 0
-    idx = np.floor((pts - lo) / resolution).astype(int)
-    disk = np.array([(i, j) for i in range(-r, r + 1) for j in range(-r, r + 1)
-                     if (i * i + j * j) * resolution**2 <= radius**2])
-    cells = (idx[:, None, :] + disk[None]).reshape(-1, 2)
-    grid = np.zeros(cells.max(0) + 1, bool)
-    grid[cells[:, 0], cells[:, 1]] = True
-    return grid, lo, grid.sum() * resolution**2
-
 if INTEL is not None:
     default = lc.lago(g)
     optimum = lc.refine(g, default.poses)
@@ -284,194 +267,167 @@ if INTEL is not None:
           "well below odometry's")
 
 # %% [markdown]
-# At the scale of the map the paper's estimate is hard to tell from the minimum, and its swept area is the
-# minimum's. The χ² in the titles says otherwise; section 7 comes back to it.
+# At the scale of the map the paper's estimate is hard to tell from the minimum, and its swept area is the minimum's.
+# The χ² in the titles says otherwise; sections 5 and 8 come back to it.
 #
-# ## 5. Table II — the paper's two scenarios on a world with ground truth
+# ## 5. Table II — the paper's two scenarios, on INTEL and on worlds with ground truth
 #
-# Table II scores estimates with the SLAM benchmark metric of Kümmerle et al. {cite}`kummerle2009measuring`: over a set of
-# relations $(i,j)$ with known true relative pose $\delta^*_{ij}$, the estimate's relative pose
-# $\hat\delta_{ij} = \hat p_j \ominus \hat p_i$ (eq. (1)) is compared with it,
+# Table II scores estimates with the SLAM benchmark metric of Kümmerle et al. {cite}`kummerle2009measuring`: over a set
+# of relations $(i,j)$ with known true relative pose $\delta^*_{ij}$, the estimate's $\hat\delta_{ij} = \hat p_j \ominus \hat p_i$ (eq. (1)) is compared with it,
 # $$\varepsilon_t = \frac1N\sum_{(i,j)}\big\|\mathrm{trans}(\hat\delta_{ij}\ominus\delta^*_{ij})\big\|^2\ [\mathrm m^2],
-# \qquad \varepsilon_\theta = \frac1N\sum_{(i,j)}\mathrm{rot}(\hat\delta_{ij}\ominus\delta^*_{ij})^2\ [\mathrm{rad}^2].$$
+# \qquad \varepsilon_\theta = \frac1N\sum_{(i,j)}\mathrm{rot}(\hat\delta_{ij}\ominus\delta^*_{ij})^2\ [\mathrm{rad}^2]$$
+# (`section_v.relation_errors`).
 #
-# **The paper's two scenarios.** In one, $P_{ij} = I_3$ for every edge. In the other, $P_{ij} =
-# \mathrm{diag}(P_{\Delta l,ij}, P_{\delta,ij})$ with "the corresponding uncertainties […] assumed to be proportional
-# to the respective measurements, e.g. bigger displacements correspond to higher uncertainty". The paper gives no
-# constants; we take, per component of the measured relative pose, $\sigma = 0.1\,|\Delta l_x| + 1\,\mathrm{mm}$ (and
-# the same for $y$) and $\sigma_\delta = 0.05\,|\delta| + 10^{-3}$ rad (`course.section_v_world`): a floor keeps the
-# information finite on edges that do not move along an axis, as INTEL's file does (lecture 4b, section 2).
+# **The paper's two scenarios.** In one, $P_{ij} = \mathrm{diag}(P_{\Delta l,ij}, P_{\delta,ij})$ with "the
+# corresponding uncertainties […] assumed to be proportional to the respective measurements, e.g. bigger displacements
+# correspond to higher uncertainty"; in the other, $P_{ij} = I_3$ for every edge. TORO runs 100 and 1000 iterations in
+# both, the three phases once. INTEL's file already carries a proportional information: across the direction of motion
+# $\sigma = 0.1\lVert\Delta^l\rVert$ with a floor of 0.1 mm (lecture 4b, section 2) — so on INTEL the first scenario is
+# the file as it is, the second the file with $\Omega_{ij} = I_3$ (`section_v.scenario_graph`).
 #
-# **What replaces what is missing.** INTEL's benchmark relations (hand-checked scan alignments) are not available: the
-# world is a 500-pose Manhattan world of its own (the running example's information is the same on every edge, not
-# proportional), the relations its edges with their true relative poses. TORO is not available either. **Gauss–Newton
-# on eq. (3), started from odometry, stands in for it** — the "direct (iterative) method" of Remark 1, the package's
-# own (`lc.refine`). It is not TORO: TORO does stochastic gradient descent on a tree parametrization of the poses,
-# takes hundreds of cheap steps, and is built to survive a poor initial guess; Gauss–Newton takes a few expensive
-# steps and can stop in a local minimum. The minimum of χ² (Gauss–Newton from LAGO) is the best any iterative solver
-# can reach.
+# **What replaces what is missing.** INTEL's benchmark relations (hand-checked scan alignments) cannot be matched to
+# the graph's poses (no published correspondence), and TORO is not part of the package. **Gauss–Newton on eq. (3),
+# started from odometry, stands in for TORO** (`lc.refine`, one iteration at a time). TORO does stochastic gradient
+# descent on a tree parametrization, hundreds of cheap steps built to survive a poor initial guess; Gauss–Newton takes
+# a few expensive steps and can stop in a local minimum. So the table is built twice:
 #
-# **Two worlds.** The paper's scenario as it is stated has noise that really is proportional to the
-# displacement; then the proportional $P$ is the *true* covariance (world A). But on real data nobody
-# knows the noise; the proportional $P$ may be only an assumption. World B draws isotropic noise
-# ($\sigma_{xy} = 2$ cm, $\sigma_\theta = 0.01$ rad) and keeps the same proportional rule for $P$.
+# * **on INTEL itself**, without truth, each estimate is scored against the minimum of χ² *of the same scenario* —
+#   χ²/min, the relations' $\varepsilon$ against the minimum's, and the rigidly aligned absolute trajectory error (ATE);
+# * **on generated worlds with truth**, $\varepsilon$ against the true relations, over eight random worlds of 500
+#   poses for each of two noise models (median and range). In world A the noise really is proportional to the
+#   displacement — $\sigma = 0.1\,|\Delta l_x| + 1$ mm per axis, $\sigma_\delta = 0.05\,|\delta| + 10^{-3}$ rad
+#   (`course.section_v_world`) — so the proportional $P$ is the *true* covariance. In world B the noise is isotropic
+#   ($\sigma_{xy} = 2$ cm, $\sigma_\theta = 0.01$ rad) and the same proportional rule is only *assumed*.
 
 # %%
-def relation_errors(graph, poses, truth):
-    """(ε_t [m²], ε_θ [rad²]): mean squared translation and rotation error of the estimated relative poses
-    over the edges of ``graph``, against the true relative poses."""
-    est = between(poses[graph.tails], poses[graph.heads])
-    ref = between(truth[graph.tails], truth[graph.heads])
-    d = between(ref, est)                                   # δ̂ ⊖ δ*, in the frame of δ*
-    return float(np.mean(np.sum(d[:, :2] ** 2, 1))), float(np.mean(wrap_angle(d[:, 2]) ** 2))
-
-#: The paper's Table II (INTEL; ε_t [m²], ε_θ [rad²]) as far as its scan can be read: the scan prints one
-#: line of exponents (−3, −4, −4, −4) between the two TORO rows, read here as applying to both.
-PAPER_TABLE_II = {"TORO, 100 iterations": {"proportional": (2.60e-3, 2.30e-4), "P = I₃": (6.16e-4, 1.62e-4)},
-                  "TORO, 1000 iterations": {"proportional": (1.90e-3, 2.18e-4), "P = I₃": (5.83e-4, 1.62e-4)},
-                  "LAGO": {"proportional": (0.91e-2, 2.25e-4), "P = I₃": (3.36e-4, 2.00e-4)}}
-STOPS = (1, 10, 100)
-
-def table_ii(graph, truth):
-    """The rows of Table II for both scenarios of ``graph`` (its own P, then P = I₃)."""
-    table, runs = {}, {}
-    identity = np.broadcast_to(np.eye(3), graph.information.shape).copy()
-    for scenario, gs in (("proportional", graph), ("P = I₃", replace(graph, information=identity))):
-        start = lc.odometry_guess(gs)
-        rows = {"odometry": start}
-        for stop in STOPS:
-            rows[f"Gauss–Newton, {stop} it."] = lc.refine(gs, start, max_iterations=stop).poses
-        runs[scenario] = lc.refine(gs, start, max_iterations=1000)
-        rows["Gauss–Newton, converged"] = runs[scenario].poses
-        default = lc.lago(gs)
-        rows["minimum of χ² (from LAGO)"] = lc.refine(gs, default.poses).poses
-        rows["LAGO, the paper's procedure"] = lc.lago(gs, route="seed").poses
-        rows["LAGO, default route"] = default.poses
-        table[scenario] = {row: relation_errors(graph, p, truth) for row, p in rows.items()}
-    return table, runs
-
-def print_table(title, table, runs):
-    print(f"{title}\n{'':36s}{'proportional P':>26s}{'P = I₃':>26s}\n{'':36s}" + f"{'ε_t [m²]':>13s}{'ε_θ [rad²]':>13s}" * 2)
-    for row in PAPER_TABLE_II:
-        print(f"{'paper: ' + row:36s}" + "".join(f"{v[0]:13.2e}{v[1]:13.2e}" for v in PAPER_TABLE_II[row].values()))
-    for row in table["proportional"]:
-        print(f"{row:36s}" + "".join(f"{table[s][row][0]:13.2e}{table[s][row][1]:13.2e}" for s in table))
-    print("Gauss–Newton converged after " + ", ".join(f"{r.iterations} iterations ({s})" for s, r in runs.items()))
-
-def compare(table):
-    """The paper's findings, each a ratio of two entries (row, scenario, column), in the paper and here; a
-    finding agrees when both ratios lie on the same side of 1 (within 2 % of 1: no difference)."""
-    it, lago, prop, iden = "Gauss–Newton, converged", "LAGO, the paper's procedure", "proportional", "P = I₃"
-    paper_row = {lago: "LAGO", it: "TORO, 1000 iterations"}
-    findings = [("P = I₃ lowers LAGO's ε_θ", (lago, prop, 1), (lago, iden, 1)),
-                ("P = I₃ lowers the iterative solver's ε_θ", (it, prop, 1), (it, iden, 1)),
-                ("LAGO's ε_t, proportional P / P = I₃", (lago, prop, 0), (lago, iden, 0)),
-                ("the iterative solver's ε_t, proportional P / P = I₃", (it, prop, 0), (it, iden, 0)),
-                ("proportional P: LAGO's ε_t / the iterative solver's", (lago, prop, 0), (it, prop, 0)),
-                ("P = I₃: LAGO's ε_t / the iterative solver's", (lago, iden, 0), (it, iden, 0))]
-    agree = {}
-    print(f"{'finding (iterative: TORO 1000 it. in the paper, converged Gauss–Newton here)':70s} {'paper':>7s} {'here':>7s}")
-    for name, (row, scn, col), (row2, scn2, col2) in findings:
-        p = PAPER_TABLE_II[paper_row[row]][scn][col] / PAPER_TABLE_II[paper_row[row2]][scn2][col2]
-        o = table[scn][row][col] / table[scn2][row2][col2]
-        side = [0 if abs(np.log(r)) < np.log(1.02) else np.sign(np.log(r)) for r in (p, o)]
-        agree[name] = side[0] == side[1]
-        print(f"{name:70s} {p:7.2f} {o:7.2f}  {'agrees' if agree[name] else 'DISAGREES'}{'' if side[1] else ' (≈ 1)'}")
-    return agree
-
-world_a, truth_a = section_v_world(noise="proportional")   # own world: Table II needs truth and the proportional P
-world_b, truth_b = section_v_world(noise="isotropic")
-print(f"{world_a.n_poses} poses, {world_a.n_edges} relations (the edges, {world_a.n_loop_closures} loop closures)")
-table_a, runs_a = table_ii(world_a, truth_a)
-table_b, runs_b = table_ii(world_b, truth_b)
-print_table("\nWorld A — noise proportional to the displacement (the proportional P is true)", table_a, runs_a)
-agree_a = compare(table_a)
-print_table("\nWorld B — isotropic noise, the proportional P assumed", table_b, runs_b)
-agree_b = compare(table_b)
+intel_table, intel_paths = section_v.table_ii_intel(g) if INTEL is not None else ({}, {})
+print(section_v.format_table_ii_intel(intel_table, intel_paths))
 
 # %% tags=["remove-input"]
-a, b, L, G = table_a, table_b, "LAGO, the paper's procedure", "Gauss–Newton, converged"
-check(all(a["proportional"][r][c] < a["P = I₃"][r][c] for r in (L, G) for c in (0, 1)),
-      "world A: the true (proportional) P gives both methods a lower ε_t and ε_θ than P = I₃ — the paper found the opposite")
-check(all(agree_b[f] for f in list(agree_b)[:4]), "world B: P = I₃ lowers ε_t and ε_θ of both methods, as in the paper")
-check(all(abs(t[s][L][0] / t[s][G][0] - 1) < 0.05 for t in (a, b) for s in t),
-      "LAGO's ε_t is within 5 % of the converged iterative solver's in both worlds and both scenarios")
-up = {r: 100 * (np.array(a["proportional"][r]) / a["proportional"]["minimum of χ² (from LAGO)"] - 1) for r in (L, "LAGO, default route")}
-check(all(5 < up[r][1] < 20 for r in up) and up[L][0] < 5 < 15 < up["LAGO, default route"][0] < 40, "world A, proportional P, "
-      "above the minimum's: " + "; ".join(f"{r[6:]} ε_t {up[r][0]:+.0f} %, ε_θ {up[r][1]:+.0f} %" for r in up))
-
-# %% [markdown]
-# **World A, the scenario as stated.** Here the proportional $P$ is the true covariance, and it helps: with it, both
-# methods' $\varepsilon_\theta$ *and* $\varepsilon_t$ are lower than with $P = I_3$ — the **opposite** of the paper on
-# its four scenario findings, where $P = I_3$ did better. Gauss–Newton from odometry reaches the minimum of χ²; LAGO's
-# relations stay above the minimum's (the last check above): about 10 % in $\varepsilon_\theta$ on either route; in
-# $\varepsilon_t$ a few per cent with the paper's procedure but over 20 % with the default route, whose joint step
-# lowers χ², not these errors.
-#
-# **World B, the proportional $P$ assumed but not true.** Now the paper's pattern across the scenarios appears (the
-# first four findings agree): $P = I_3$ lowers $\varepsilon_\theta$ of both methods about ten times and
-# $\varepsilon_t$ about three times. What does not appear is the paper's gap between the methods: there LAGO loses
-# $27\times$ in $\varepsilon_t$ to the proportional $P$ and TORO $3\times$; here LAGO and the converged iterative
-# solver end within 3 % of each other in every case (≈ 1: within 2 %). So Table II's scenarios look like an *assumed*
-# proportional $P$ — its $P = I_3$ doing better already suggests that INTEL's real errors were not proportional to the
-# displacements — but its large LAGO penalty is not reproduced by these worlds, and where it comes from (TORO's 100 or
-# 1000 iterations are not a converged solver; INTEL's own information, lecture 4b) cannot be told from them.
-#
-# ## 6. Fig. 3 — errors versus iterations
-#
-# Fig. 3 of the paper plots, for the proportional scenario, (a) $\varepsilon_t$ and (b) $\varepsilon_\theta$ of TORO
-# over 0–1000 iterations (solid) against the level of the three-phase procedure (dashed); TORO ends below LAGO's line
-# in $\varepsilon_t$. Here the solid line is Gauss–Newton from odometry, the stand-in of section 5, run one iteration
-# at a time until it converges (Gauss–Newton keeps no state between iterations, so this is the same run — checked
-# against the χ² log of the uninterrupted run), on both worlds. Gauss–Newton converges in well under 100 iterations:
-# beyond that its line is flat, so 100 iterations show whether it crosses LAGO's line or not.
+if INTEL is not None:
+    prop, iden = intel_table["proportional"], intel_table["P = I₃"]
+    LP, GN = "LAGO, the paper's procedure", "Gauss–Newton, 1000 it."
+    smallest = min(v[s][0] for v in PAPER_TABLE_II.values() for s in v)     # the smallest ε_t in Table II
+    check(all(intel_table[s][GN]["chi2_ratio"] < 1 + 1e-6 for s in intel_table), "INTEL: Gauss–Newton from odometry "
+          f"reaches the minimum in both scenarios ({', '.join(str(len(p.poses) - 1) for p, _ in intel_paths.values())} iterations)")
+    check(prop[LP]["chi2_ratio"] > 50 and iden[LP]["chi2_ratio"] < 1.03, f"INTEL, the paper's procedure: "
+          f"{prop[LP]['chi2_ratio']:.1f}× the minimum with the file's information, {iden[LP]['chi2_ratio']:.3f}× with P = I₃")
+    check(max(r[LP]["eps_t"] for r in (prop, iden)) < 0.1 * smallest, "…yet its relations differ from the minimum's by "
+          f"ε_t = {prop[LP]['eps_t']:.1e} m² (P = I₃: {iden[LP]['eps_t']:.1e}), {smallest / prop[LP]['eps_t']:.0f} times below "
+          f"the smallest ε_t in Table II; ATE to the minimum {100 * prop[LP]['ate']:.1f} cm")
 
 # %%
-HORIZON = 100
-curves, stepwise = {}, {}
-for label, (world, truth, runs) in {"world A (proportional noise)": (world_a, truth_a, runs_a),
-                                    "world B (isotropic noise)": (world_b, truth_b, runs_b)}.items():
-    poses = lc.odometry_guess(world)
-    chis, errs = [lc.chi2(world, poses)], [relation_errors(world, poses, truth)]
-    for _ in range(runs["proportional"].iterations):
-        poses = lc.refine(world, poses, max_iterations=1).poses
-        chis.append(lc.chi2(world, poses))
-        errs.append(relation_errors(world, poses, truth))
-    stepwise[label] = (chis, runs)
-    curves[label] = np.array(errs)
+DRAWS = range(1, 9)                                         # eight worlds per noise model
+with quiet():                                               # own world: Table II needs the truth
+    sweeps = {noise: section_v.table_ii_sweep(lambda d: section_v_world(seed=d, noise=noise), DRAWS)
+              for noise in ("proportional", "isotropic")}
+for (noise, (tables, _)), name in zip(sweeps.items(), ("A — noise proportional to the displacement (P true)",
+                                                        "B — isotropic noise, the proportional P assumed")):
+    print(section_v.format_table_ii(section_v.spread(tables), title=f"\nWorld {name}: median [min, max] over "
+                                    f"{len(tables)} worlds"))
+    print(section_v.format_findings(section_v.findings(tables)))
 
-fig, axs = plt.subplots(2, 2, figsize=(11, 7.5))
-for row, (label, errs) in enumerate(curves.items()):
-    table = table_a if row == 0 else table_b
-    for col, name in enumerate(("ε_t [m²]", "ε_θ [rad²]")):
+# %% tags=["remove-input"]
+M, L, G = "minimum of χ² (from LAGO)", "LAGO, the paper's procedure", "Gauss–Newton, 1000 it."
+(ta, ca), (tb, cb) = sweeps["proportional"], sweeps["isotropic"]
+lower = lambda t, row, a, b: all(t[a][row][c] < t[b][row][c] for c in (0, 1))
+check(all(lower(t, M, "proportional", "P = I₃") for t in ta.values()), f"world A, all {len(ta)} worlds: "
+      "the true (proportional) P gives the minimum of χ² a lower ε_t and ε_θ than P = I₃ — the paper found the opposite")
+check(all(lower(t, r, "P = I₃", "proportional") for t in tb.values() for r in (M, L)), f"world B, all {len(tb)} "
+      "worlds: P = I₃ lowers ε_t and ε_θ of LAGO and of the minimum, as in the paper")
+gap = {w: np.array([t["proportional"][L][0] / t["proportional"][M][0] for t in ts.values()]) for w, ts in (("A", ta), ("B", tb))}
+check(all(np.median(v) < 1.5 for v in gap.values()), "proportional P, LAGO's ε_t over the minimum's: median "
+      + ", ".join(f"{np.median(v):.2f} (range {v.min():.2f}–{v.max():.2f}) in world {w}" for w, v in gap.items())
+      + f"; the paper's LAGO over TORO's: {PAPER_TABLE_II['LAGO']['proportional'][0] / PAPER_TABLE_II['TORO, 1000 iterations']['proportional'][0]:.1f}")
+check(all(t["P = I₃"][L][0] < 1.01 * t["P = I₃"][M][0] for t in tb.values()),
+      "world B, P = I₃: LAGO's ε_t within 1 % of the minimum's in every world")
+trapped = {w: [d for d, t in ts.items() if t["proportional"][G][0] > 1.5 * t["proportional"][M][0]] for w, ts in
+           (("A", ta), ("B", tb))}
+check(len(trapped["A"]) < len(ta) and not trapped["B"], "proportional P: Gauss–Newton from odometry stops in a local "
+      f"minimum (ε_t > 1.5× the minimum's) in {len(trapped['A'])} of {len(ta)} worlds A, in none of world B")
+
+# %% [markdown]
+# **INTEL.** With the file's information the paper's procedure leaves tens of times the minimum of χ², with $P = I_3$
+# a couple of per cent (the second check) — and in both scenarios its relations differ from the minimum's by an
+# $\varepsilon_t$ more than twenty times below the smallest in Table II, its trajectory by centimetres. Whatever
+# separates LAGO from TORO in Table II, it is not the distance from LAGO to the minimum; section 8 takes the factor apart.
+#
+# **World A, the scenario as stated.** Here the proportional $P$ is the true covariance, and it helps: with it the
+# minimum of χ² has lower $\varepsilon_t$ *and* $\varepsilon_\theta$ than with $P = I_3$ in every world — the
+# **opposite** of the paper's four scenario findings (the first four rows of the findings). Gauss–Newton from odometry
+# can stop in a local minimum here (the last check counts the worlds); LAGO stays near the minimum.
+#
+# **World B, the proportional $P$ assumed but not true.** Now the paper's pattern across the scenarios appears in every
+# world: $P = I_3$ lowers $\varepsilon_\theta$ and $\varepsilon_t$ of LAGO and of the iterative solver (by the factors
+# the findings print). What appears in neither world is the paper's gap between the methods: its LAGO has almost five
+# times TORO's $\varepsilon_t$ with the proportional $P$; here LAGO's median is within a few tens of per cent of the
+# minimum's (the third check), and with $P = I_3$ within 1 %. So Table II looks like an *assumed* proportional $P$ —
+# $P = I_3$ doing better suggests that INTEL's real errors were not proportional to the displacements — but its large
+# LAGO penalty is reproduced neither by these worlds nor, measured against the minimum, by INTEL itself.
+#
+# ## 6. Fig. 3 — errors versus iterations, 0–1000
+#
+# Fig. 3 of the paper plots, for the proportional scenario, (a) $\varepsilon_t$ and (b) $\varepsilon_\theta$ of TORO
+# over 0–1000 iterations (solid) against the level of the three-phase procedure (dashed). The stored text of the paper
+# gives the figure's axes — tick labels 0 … 0.03 m² in (a), 0 … 14·10⁻⁴ rad² in (b), 0 … 1000 iterations — but not
+# its curves: what is drawn of the paper below (black) are Table II's values, TORO at 100 and 1000 iterations (markers)
+# and the three phases (dash-dotted), exact to the three printed digits (`section_v.PAPER_FIG3`). Here, Gauss–Newton
+# from odometry one iteration at a time, each world a thin line, their median thick, LAGO's median level dashed; a third
+# column draws INTEL's χ²/min in both scenarios. Gauss–Newton stops by its convergence test long before 1000
+# iterations; after that the iterate does not move (checked), so its line is continued flat to 1000. The iteration axis
+# is linear up to 1 and logarithmic beyond, so the first steps and the paper's 100 and 1000 are both visible.
+
+# %%
+fig, axs = plt.subplots(2, 3, figsize=(16, 8.5))
+for row, (noise, (tables, curves)) in enumerate(sweeps.items()):
+    for col, name in enumerate(("(a) ε_t [m²]", "(b) ε_θ [rad²]")):
         ax = axs[row, col]
-        k = np.arange(errs.shape[0])
-        ax.semilogy(k, errs[:, col], "-o", ms=3, color="tab:blue", label="Gauss–Newton from odometry")
-        ax.semilogy([k[-1], HORIZON], [errs[-1, col]] * 2, ":", color="tab:blue", label="(converged: no change)")
-        for route, style in (("LAGO, the paper's procedure", "--"), ("LAGO, default route", "-.")):
-            ax.axhline(table["proportional"][route][col], color="k", linestyle=style, linewidth=1.0, label=route)
-        ax.set(xlabel="iterations", ylabel=name, title=f"{label}: {'(a)' if col == 0 else '(b)'} {name}",
-               xlim=(0, HORIZON))
+        section_v.plot_iterations(ax, curves, col, color="tab:blue", label="Gauss–Newton from odometry (median)")
+        ax.axhline(np.median([t["proportional"][L][col] for t in tables.values()]), color="tab:blue", linestyle="--",
+                   label="LAGO, the paper's procedure (median)")
+        ax.plot(list(PAPER_FIG3["TORO"]), [v[col] for v in PAPER_FIG3["TORO"].values()], "ks", clip_on=False, zorder=4,
+                label="paper: TORO, 100 and 1000 it.")
+        ax.axhline(PAPER_FIG3["LAGO"][col], color="k", linestyle="-.", label="paper: LAGO")
+        ax.set(xscale="symlog", yscale="log", xlim=PAPER_FIG3["xlim"], xlabel="iterations", ylabel=name,
+               title=f"world {'AB'[row]} ({noise} noise): {name}")
         ax.grid(True, which="both", alpha=0.3)
+for row, scenario in enumerate(section_v.SCENARIOS):
+    ax = axs[row, 2]
+    if INTEL is not None:
+        path, low = intel_paths[scenario]
+        ax.plot(np.arange(1001), path.chi2[np.minimum(np.arange(1001), len(path.chi2) - 1)] / low, color="tab:green",
+                linewidth=2, label="Gauss–Newton from odometry")
+        for route, style in ((L, "--"), ("LAGO, default route", ":")):
+            ax.axhline(intel_table[scenario][route]["chi2_ratio"], color="tab:green", linestyle=style, label=route)
+    ax.set(xscale="symlog", yscale="log", xlim=PAPER_FIG3["xlim"], xlabel="iterations", ylabel="χ² / minimum",
+           title=f"INTEL, {scenario}: χ² over its minimum")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
 axs[0, 0].legend(fontsize=8)
-fig.suptitle("Fig. 3 — errors versus iterations, proportional P (Gauss–Newton standing in for TORO)")
+fig.suptitle("Fig. 3 — errors versus iterations, proportional P (Gauss–Newton standing in for TORO; black: the paper)")
 fig.tight_layout()
 show(fig, "fig3")
 
 # %% tags=["remove-input"]
-for label, (chis, runs) in stepwise.items():
-    check(np.allclose(chis, [e["chi2"] for e in runs["proportional"].log], rtol=1e-9),
-          f"{label}: one iteration at a time = the uninterrupted Gauss–Newton run")
-for (label, errs), table in zip(curves.items(), (table_a, table_b)):
-    lago = table["proportional"]["LAGO, the paper's procedure"][0]
-    reach = next((i for i, v in enumerate(errs[:, 0]) if v <= lago), None)
-    check(reach is not None and reach >= 2 and errs[-1, 0] > 0.9 * lago, f"{label}: Gauss–Newton from odometry first "
-          f"reaches LAGO's ε_t after {reach} iterations, and ends at {errs[-1, 0] / lago:.3f} of it")
+for noise, (tables, curves) in sweeps.items():
+    K = [len(c[s]) - 1 for c in curves.values() for s in c]
+    check(max(K) < 100, f"world {'A' if noise == 'proportional' else 'B'}: Gauss–Newton stops by its convergence test "
+          f"after {min(K)}–{max(K)} iterations in every world and scenario: flat from there to 1000")
+    first = [t["proportional"]["Gauss–Newton, 1 it."][0] / t["proportional"][L][0] for t in tables.values()]
+    final = [c["proportional"][-1, 0] / t["proportional"][L][0] for t, c in zip(tables.values(), curves.values())]
+    check(min(first) > 2 and 0.5 < np.median(final) < 2, f"…one iteration leaves at least {min(first):.1f}× LAGO's ε_t; "
+          f"the last ends at a median {np.median(final):.2f}× it (the paper's TORO at 1000: "
+          f"{PAPER_FIG3['TORO'][1000][0] / PAPER_FIG3['LAGO'][0]:.2f}×)")
+if INTEL is not None:
+    path = intel_paths["proportional"][0]
+    check(np.allclose(path.chi2, [e["chi2"] for e in path.run.log], rtol=1e-9)
+          and lc.refine(g, path.poses[-1]).chi2 >= path.chi2[-1] * (1 - 1e-9),
+          "INTEL: one iteration at a time = the uninterrupted run, and restarting from its end lowers χ² no further")
 
 # %% [markdown]
-# In both worlds the solid line crosses LAGO's dashed line in $\varepsilon_t$ and ends just below it (the
-# ratios are printed above), where TORO in the paper ends almost five times below. In both, an iterative
-# solver needs iterations where LAGO needs none: one Gauss–Newton iteration from odometry is far worse.
+# Gauss–Newton takes a handful of iterations where TORO takes hundreds and ends at LAGO's dashed line (the checks print
+# the median factor), where the paper's TORO ends almost five times below its LAGO in $\varepsilon_t$. On INTEL, in
+# the file's information, LAGO starts at its factor in χ²; with $P = I_3$ within a few per cent of where Gauss–Newton ends.
 #
 # ## 7. The abstract's claim on every real graph
 #
@@ -494,25 +450,9 @@ for rel in ["running example"] + FILES:
     gr = running_example().graph if rel == "running example" else INTEL if "INTEL_P" in rel else real(rel)
     if gr is None:
         continue
-    seed_route = lc.lago(gr, route="seed")                   # the paper's procedure
-    t1r = theorem1(gr, seed_route)                           # ρ̂ of Theorem 1 for it
-    default_route = lc.lago(gr)
-    from_lago = lc.refine(gr, default_route.poses)
-    low = from_lago.chi2
-    rows[rel] = {"poses": gr.n_poses, "min": low, "paper": seed_route.chi2 / low, "default": default_route.chi2 / low,
-                 "ambiguous": seed_route.regularization.ambiguous.size, "rho_hat": t1r.chi2_suboptimal / low,
-                 "it_lago": from_lago.iterations, "odo": float("nan"), "it_odo": -1,
-                 "ok": from_lago.converged and abs(low - REFERENCE_CHI2.get(rel, low)) <= 1e-5 * low}
-    if FULL or gr.n_poses <= 2000:                           # from odometry: slow on the 3500-pose graphs
-        from_odo = lc.refine(gr, lc.odometry_guess(gr), max_iterations=100)
-        rows[rel].update(odo=from_odo.chi2 / low, it_odo=from_odo.iterations)
-print(f"{'':48s} {'χ² / min':^34s} {'Gauss–Newton iterations':^30s}")
-print(f"{'file':30s} {'poses':>6s} {'min χ²':>9s}  {'paper':>8s} {'default':>8s} {'ρ̂':>7s} {'ambig.':>7s}  "
-      f"{'from LAGO':>10s} {'from odometry (→ /min)':>24s}")
-for rel, r in rows.items():
-    odo = f"{r['it_odo']:12d} (→ {r['odo']:.3g})" if r["it_odo"] >= 0 else f"{'(LAGO_CVX_FULL=1)':>20s}"
-    print(f"{rel:30s} {r['poses']:6d} {r['min']:9.6g}  {r['paper']:8.5g} {r['default']:8.4f} {r['rho_hat']:7.3f} "
-          f"{r['ambiguous']:7d}  {r['it_lago']:10d} {odo}")
+    rows[rel] = section_v.claim_row(gr, REFERENCE_CHI2.get(rel),   # from odometry: slow on the 3500-pose graphs
+                                    from_odometry=FULL or gr.n_poses <= 2000)
+print(section_v.format_claim_rows(rows))
 files = {rel: r for rel, r in rows.items() if rel in REFERENCE_CHI2}   # the real graphs
 if files:
     holds = sorted(rel for rel, r in files.items() if r["paper"] < 1.03)
@@ -542,14 +482,15 @@ if files:
     check(max(r["it_lago"] for r in rows.values()) <= 40 and set(slow) <= {"carlone/input_INTEL_g2o.g2o"},
           f"from LAGO Gauss–Newton reaches the minimum on every file within 10 iterations but {slow or 'none'}")
 if "carlone/INTEL_P_toro.graph" in rows:
-    check(rows["carlone/INTEL_P_toro.graph"]["paper"] > 50,
-          f"INTEL: the paper's procedure leaves {rows['carlone/INTEL_P_toro.graph']['paper']:.1f}× the minimum")
+    check(rows["carlone/INTEL_P_toro.graph"]["paper"] > 1.03, f"INTEL: the paper's procedure leaves "
+          f"{rows['carlone/INTEL_P_toro.graph']['paper']:.1f}× the minimum of the file's χ² (section 8 takes it apart)")
 
 # %% [markdown]
 # So the claim needs its qualifier. With the paper's procedure it holds — within a few per cent of the minimum — on the
 # running example and on some of these graphs (the list is printed) and fails on the others, by large factors on most
 # (the M3500 world with Olson's anisotropic information only by about 5 %): on INTEL itself, the graph of Section V, the
-# paper's procedure leaves more than 50× the minimum χ² (the factor is printed above). The failures have two causes,
+# paper's procedure leaves tens of times the minimum of the file's χ² (printed above; section 8 reads what that factor
+# is made of, and how far the map is from the minimum's). The failures have two causes,
 # which the two diagnostic columns tell apart. Where chords are ambiguous, the rounding of Theorem 3 along the odometric
 # tree picks wrong integers and already $\hat\rho$ is far off (lecture 8 takes this up). Where no chord is ambiguous —
 # INTEL among them — $\hat\rho$ is within a few per cent of the minimum and phase 3 itself makes it worse; the next
@@ -605,6 +546,65 @@ if INTEL is not None:
 # %% [markdown]
 # On the running example (isotropic translational information) frozen weights are the true ones and the step lowers
 # χ². Re-solving the positions for phase 3's orientations, as the default route does, brings INTEL within 1 % of it.
+#
+# **The verdict on INTEL: what the factor in χ² is made of.** χ² is a sum of one term $e_{ij}^\top\Omega_{ij}e_{ij}$
+# per edge (eq. (3)). Sort the terms of the paper's estimate, largest first, and add them up; beside it, plot each
+# edge's term against the smallest standard deviation the file claims for it (the minor axis of its translational
+# covariance).
+
+# %%
+if INTEL is not None:
+    conc = {name: section_v.chi2_concentration(g, p) for name, p in (("the paper's procedure", paper.poses),
+                                                                     ("minimum of χ²", optimum.poses))}
+    c, top = conc["the paper's procedure"], conc["the paper's procedure"].order[:13]
+    fig, axs = plt.subplots(1, 2, figsize=(12.5, 4.6))
+    for (name, cc), color in zip(conc.items(), ("tab:blue", "0.5")):
+        axs[0].semilogx(np.arange(1, g.n_edges + 1), 100 * cc.share, color=color, label=name)
+    for k in (13, 50):
+        axs[0].plot(k, 100 * c.top(k), "o", color="tab:red")
+        axs[0].annotate(f" top {k}: {100 * c.top(k):.0f} %", (k, 100 * c.top(k)), va="top", fontsize=9)
+    axs[0].set(xlabel="edges, largest χ² term first", ylabel="share of χ² [%]", ylim=(0, 102),
+               title="INTEL: cumulative share of χ²")
+    axs[0].legend(fontsize=9, loc="lower right")
+    axs[1].loglog(1e3 * c.sigma_minor, c.terms, ".", markersize=3, color="tab:blue", label="an edge")
+    axs[1].loglog(1e3 * c.sigma_minor[top], c.terms[top], "o", mfc="none", color="tab:red", label="the 13 largest terms")
+    axs[1].set(xlabel="σ across the motion (minor axis) [mm]", ylabel="eᵀΩe at the paper's estimate", ylim=(1e-6, 1e4),
+               title="the largest terms sit on edges claiming σ < 1 mm")
+    axs[1].legend(fontsize=9)
+    show(fig, "chi2_concentration")
+    at_min = conc["minimum of χ²"].terms[top].sum() / conc["minimum of χ²"].terms.sum()
+    rest = np.setdiff1d(np.arange(g.n_edges), c.order[:50])
+    extent = np.linalg.norm(np.ptp(optimum.poses[:, :2], axis=0))
+    print(f"paper's procedure: χ² {paper.chi2:.1f} = {paper.chi2 / optimum.chi2:.1f}× the minimum {optimum.chi2:.1f}; "
+          f"top 13 {c.top(13):.1%}, top 50 {c.top(50):.1%}; the same 13 at the minimum {at_min:.1%}")
+    print(f"aligned ATE to the minimum {100 * lc.ate(paper.poses, optimum.poses):.1f} cm (default route "
+          f"{100 * lc.ate(default.poses, optimum.poses):.1f} cm) on a map {extent:.0f} m across")
+
+# %% tags=["remove-input"]
+if INTEL is not None:
+    check(c.top(13) > 0.5 and c.top(50) > 0.85 and at_min < 0.1, f"the 13 largest of {g.n_edges} terms carry "
+          f"{c.top(13):.0%} of the paper's χ², the 50 largest {c.top(50):.0%}; at the minimum the same 13 carry {at_min:.0%}")
+    check(c.sigma_minor[top].max() < 1e-3 < np.median(c.sigma_minor) and g.is_odometric[top].all(),
+          f"all 13 are odometric edges claiming σ ≤ {1e3 * c.sigma_minor[top].max():.2f} mm across the motion "
+          f"(the median edge: {100 * np.median(c.sigma_minor):.1f} cm) — steps of a few millimetres, 0.1 of the step")
+    ate_paper = lc.ate(paper.poses, optimum.poses)
+    rest_ratio = c.terms[rest].sum() / conc["minimum of χ²"].terms[rest].sum()
+    check(ate_paper < 0.05 and ate_paper < 1e-3 * extent and 1 < rest_ratio < paper.chi2 / optimum.chi2 / 5,
+          f"the paper's estimate is {100 * ate_paper:.1f} cm (aligned ATE) from the minimum on a map {extent:.0f} m "
+          f"across; the other {rest.size} edges carry {rest_ratio:.1f}× the minimum's terms on them")
+    ratio_identity = intel_table["P = I₃"]["LAGO, the paper's procedure"]["chi2_ratio"]
+    check(abs(ratio_identity - 1) < 0.03, f"with the paper's own scenario P = I₃ the paper's procedure is "
+          f"{ratio_identity:.3f}× the minimum (section 5); with the file's information {paper.chi2 / optimum.chi2:.1f}×")
+
+# %% [markdown]
+# So "the paper's procedure fails on INTEL" needs its numbers. It leaves 67.6× the minimum of the file's χ², but that
+# factor is mostly thirteen terms: 61 % of χ² sits on 13 of 1505 edges, 91 % on 50, each an odometric step of a few
+# millimetres for which the file claims a standard deviation of a tenth of the step (under 0.7 mm) across the motion —
+# at the minimum the same 13 edges carry 4 %; the other 1455 edges together carry 6.9× the minimum's terms on them. The map itself is 3.0 cm (aligned ATE) from the minimum's, on a floor
+# 38 m across, and with the paper's own second scenario, $P = I_3$, the paper's procedure is 1.023× the minimum. What
+# fails is phase 3's positions on edges that claim sub-millimetre certainty (the frozen weights above); the estimate is
+# as good a map as the minimum at the scale of Fig. 2, and the iterative refinement the abstract calls often
+# unnecessary is, on INTEL, a refinement of χ² on a few dozen stiff edges.
 
 # %% [markdown]
 # ## Exercise 1 — The metric needs no alignment
