@@ -208,6 +208,38 @@ def _xy(ax, poses, style, label, **kw):
     ax.plot(poses[:, 0], poses[:, 1], style, label=label, markersize=3, linewidth=1.2, **kw)
 
 
+def _intuition_04b(intel, fig, axes) -> None:
+    """Lecture 4b's opening figure: INTEL at phase 3's ρ* (Theorem 1) and with θ* kept and the positions re-solved
+    (eq. (14) at θ*). At the scale of the map the two look alike; what differs is where χ² (eq. (3)) sits, so every
+    edge whose term e_ijᵀΩ_ij e_ij exceeds 1 is marked at its midpoint, coloured and sized by the term."""
+    from matplotlib.colors import LogNorm
+
+    from lago_cvx.positions import resolve_positions
+    from lago_cvx.theorem1 import theorem1
+
+    t = theorem1(intel, regularization="tree", information="marginal", positions="phase3")
+    star = t.poses(t.x_star)
+    again = resolve_positions(intel, star[:, 2], t.result.uncertainty).poses
+    norm = LogNorm(1.0, 2e3)
+    fig.set_size_inches(13, 5.6)
+    for ax, (poses, name) in zip(axes, ((star, "phase 3's ρ*"), (again, "θ* kept, positions re-solved"))):
+        terms = lc.whitened_errors(intel, poses) ** 2
+        hot = np.flatnonzero(terms > 1.0)
+        hot = hot[np.argsort(terms[hot])]                              # the largest drawn last, on top
+        mid = 0.5 * (poses[intel.tails[hot], :2] + poses[intel.heads[hot], :2])
+        _xy(ax, poses, "-", "estimate", color="0.55")
+        points = ax.scatter(mid[:, 0], mid[:, 1], c=np.clip(terms[hot], 1.0, None), s=8 + 12 * np.log10(terms[hot] + 1),
+                            cmap="inferno_r", norm=norm, zorder=3, label="edge with eᵀΩe > 1")
+        top = terms.argsort()[::-1][:13]
+        share = terms[top].sum() / terms.sum()
+        ax.set(title=f"{name}: χ² = {terms.sum():.1f}\n{hot.size} edges with eᵀΩe > 1, the 13 largest carry "
+                     f"{100 * share:.0f} % of χ²", xlabel="x [m]", ylabel="y [m]", aspect="equal")
+        ax.title.set_fontsize(10)
+        ax.legend(fontsize=8, loc="lower left")
+    fig.colorbar(points, ax=axes, shrink=0.8, label="eᵀΩe of the edge (eq. (3))")
+    fig.suptitle("INTEL: the same orientations, two ways to place the positions — where χ² sits")
+
+
 def intuition_figure(lecture: str):
     """The figure a lecture opens with, on the running example (and INTEL for 04b, 06); returns the figure.
 
@@ -269,24 +301,19 @@ def intuition_figure(lecture: str):
                 ax.set(xlabel="x [m]", ylabel="y [m]", title="INTEL not available")
             return fig
         if lecture == "04b":
-            t = theorem1(intel, regularization="tree", information="marginal", positions="phase3")
-            best = lc.refine(intel, t.result.poses).poses
-            star = t.poses(t.x_star)
-            from lago_cvx.positions import resolve_positions
-            again = resolve_positions(intel, star[:, 2], t.result.uncertainty).poses
-            panels = ((star, f"phase 3's ρ*: χ² = {lc.chi2(intel, star):.0f}"),
-                      (again, f"θ* kept, positions re-solved: χ² = {lc.chi2(intel, again):.1f}"))
+            _intuition_04b(intel, fig, axes)
         else:
             best = lc.refine(intel, lc.lago(intel).poses).poses
             panels = ((lc.odometry_guess(intel), "odometry composed (dead reckoning)"),
                       (lc.lago(intel, route="seed").poses, "LAGO, the paper's procedure"))
-        for ax, (poses, title) in zip(axes, panels):
-            _xy(ax, best, "-", "minimum of χ²", color="0.6")
-            _xy(ax, poses, "-", "estimate", color="tab:blue")
-            ax.set(title=title, xlabel="x [m]", ylabel="y [m]", aspect="equal")
-            ax.legend(fontsize=8, loc="lower left")
-        fig.suptitle("INTEL" + (": the same orientations, two ways to place the positions" if lecture == "04b" else ""))
+            for ax, (poses, title) in zip(axes, panels):
+                _xy(ax, best, "-", "minimum of χ²", color="0.6")
+                _xy(ax, poses, "-", "estimate", color="tab:blue")
+                ax.set(title=title, xlabel="x [m]", ylabel="y [m]", aspect="equal")
+                ax.legend(fontsize=8, loc="lower left")
+            fig.suptitle("INTEL")
     else:
         raise ValueError(f"no intuition figure for lecture {lecture!r}")
-    fig.tight_layout()
+    if lecture != "04b":
+        fig.tight_layout()
     return fig
