@@ -66,7 +66,9 @@ PAPER_TABLE_II = {"TORO, 100 iterations": {"proportional": (2.60e-3, 2.30e-4), "
 #: What the paper's text gives of Fig. 3 (the proportional scenario). The curves themselves cannot be read
 #: from the stored text; Table II gives TORO's values at 100 and 1000 iterations and the level of the three
 #: phases (dashed). The axis ranges are read from the figure's tick labels: (a) ε_t 0 … 0.03 m² in steps of
-#: 0.005; (b) ε_θ 0 … 14·10⁻⁴ rad² in steps of 2·10⁻⁴; iterations 0 … 1000 in steps of 200 on both.
+#: 0.005; (b) ε_θ 0 … 14·10⁻⁴ rad² in steps of 2·10⁻⁴; iterations 0 … 1000 in steps of 200 on both. The stored
+#: text is a character recognition of the scan, which prints the two axis tops as "003" and "x10*": read as 0.03
+#: and ×10⁻⁴ (the only reading that puts Table II's values inside the axes; ``ylim``).
 PAPER_FIG3 = {"TORO": {100: PAPER_TABLE_II["TORO, 100 iterations"]["proportional"],
                        1000: PAPER_TABLE_II["TORO, 1000 iterations"]["proportional"]},
               "LAGO": PAPER_TABLE_II["LAGO"]["proportional"],
