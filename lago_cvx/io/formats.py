@@ -72,7 +72,7 @@ import numpy as np
 
 from ..errors import OptionError
 
-__all__ = ["FORMATS", "FORMAT_LABEL", "Spec", "SPECS", "FORMAT_SPECS", "TAGS_OF", "FIX", "EQUIV", "G2O_INFO_INDEX",
+__all__ = ["FORMATS", "FORMAT_LABEL", "Spec", "SPECS", "FORMAT_SPECS", "TAGS_OF", "TAGS_3D", "FIX", "EQUIV", "G2O_INFO_INDEX",
            "TORO_INFO_INDEX", "EDGE2_ORDERS", "NON_POSE_TAGS", "non_pose_problem",
            "check_format", "check_edge2_order"]
 
@@ -102,6 +102,7 @@ SPECS = {spec.tag: spec for spec in [
 FORMAT_SPECS = {"g2o": (SPECS["VERTEX_SE2"], SPECS["EDGE_SE2"]),   # (vertex, edge) per format
                 "toro": (SPECS["VERTEX2"], SPECS["EDGE2"])}
 TAGS_OF = {"g2o": "VERTEX_SE2/EDGE_SE2", "toro": "VERTEX2/EDGE2"}
+TAGS_3D = "VERTEX_SE3:QUAT/EDGE_SE3:QUAT"  # the records of a 3-D file (io/space.py)
 FIX = "FIX"
 EQUIV = "EQUIV"
 #: How the six information entries of an ``EDGE2`` line are read: "toro" (the documented TORO order and
