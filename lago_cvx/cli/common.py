@@ -197,10 +197,11 @@ def check_regularization(graph, regularization: str | None) -> None:
 
 
 # ----------------------------------------------------------------------------------- output
-def output_target(args, *, flag: str = "-o") -> str | None:
+def output_target(args, *, flag: str = "-o", what: str = "the estimate") -> str | None:
     """Check ``-o`` before any work is done. Returns None (no output), ``"-"`` (standard output) or the
     path. An empty name, ``-o -`` together with ``--json`` (both on standard output), and the input file
-    itself (also through a link, unless ``--overwrite-input``) are refused with exit 2; so is a target
+    itself or ``args.estimate`` (also through a link, unless the command has ``--overwrite-input`` and it is given;
+    the message names ``what`` is written) are refused with exit 2; so is a target
     that cannot be written (missing directory, a directory, …) — checked again when writing."""
     out = getattr(args, "output", None)
     if out is None:
@@ -212,10 +213,11 @@ def output_target(args, *, flag: str = "-o") -> str | None:
             raise UsageError(f"{flag} - writes the estimate to standard output, where --json prints too: "
                              "choose one")
         return "-"
-    src = getattr(args, "file", None)
-    if src is not None and not getattr(args, "overwrite_input", False) and _same_file(out, src):
-        raise UsageError(f"refusing to overwrite the input file {src} with the estimate "
-                         "(pass --overwrite-input to allow it)")
+    overridable = hasattr(args, "overwrite_input")  # the command offers --overwrite-input
+    for src in (getattr(args, "file", None), getattr(args, "estimate", None)):
+        if src is not None and not getattr(args, "overwrite_input", False) and _same_file(out, src):
+            raise UsageError(f"refusing to overwrite the input file {src} with {what} "
+                             + ("(pass --overwrite-input to allow it)" if overridable else "(name another file)"))
     _check_writable(out, flag)
     return out
 

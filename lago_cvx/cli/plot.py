@@ -42,7 +42,7 @@ def cmd_plot(args) -> int:
 
     from ..plotting import aligned, plot_covariances, plot_edges, plot_trajectory, set_title
 
-    out = output_target(args)
+    out = output_target(args, what="the figure")
     if out == "-":
         raise UsageError("-o -: a figure needs a file name (.png, .svg or .pdf)")
     fmt = Path(out).suffix.lower().lstrip(".")
