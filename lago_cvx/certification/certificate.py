@@ -333,7 +333,7 @@ def certify(graph: PoseGraph, poses, *, tol: float = CERTIFY_TOL, abs_tol: float
     kind = ("not a critical point" if residual_rel > np.sqrt(NUMERICAL_TOL) else "approximately a critical point")
     if absolute is not None:
         verdict = (f"globally optimal within the absolute tolerance {abs_tol:.3g} (certified): {absolute}; "
-                   f"f − f* ≤ {sub_bound:.3g} ({rel:.2g} relative, above tol {tol:.2g})")
+                   f"relative bound {rel:.2g} > tol {tol:.2g}")
     elif certified:
         verdict = (f"globally optimal (certified): f − f* ≤ {sub_bound:.3g} ({rel:.2g} relative ≤ tol {tol:.2g}); "
                    f"λ_min(S_Q) = {lambda_min:.3g} ≥ −η = {-eta:.3g}")

@@ -30,10 +30,10 @@ _PLANAR_ONLY = (
 )
 
 
-def refuse_planar_options(args, *, extra=()) -> None:
-    """``UsageError`` (exit 2) naming the first option given that a 3-D graph cannot honour (``_PLANAR_ONLY`` and
-    the command's ``extra`` entries of the same form), so that none is silently ignored."""
-    for attr, flag, unset, why in (*_PLANAR_ONLY, *extra):
+def refuse_planar_options(args) -> None:
+    """``UsageError`` (exit 2) naming the first option given that a 3-D graph cannot honour (``_PLANAR_ONLY``), so
+    that none is silently ignored."""
+    for attr, flag, unset, why in _PLANAR_ONLY:
         value = getattr(args, attr, unset)
         if value != unset:
             shown = flag if isinstance(value, bool) else f"{flag} {value}".replace("_", "-")
@@ -50,8 +50,10 @@ def _components(graph) -> int:
 
 
 def info3d(args, graph) -> int:
-    refuse_planar_options(args, extra=[("route", "--route", "default", "info reports the route's 2kπ "
-                                        "regularization of a planar graph; a 3-D graph needs none")])
+    refuse_planar_options(args)
+    if args.route != "default":
+        raise UsageError(f"info --route {args.route}: info reports the route's 2kπ regularization of a planar graph; "
+                         f"{args.file} is 3-D and needs none (solve and certify take --route on 3-D files)")
     k = _components(graph)
     payload = {"file": str(args.file), "format": "g2o", "dim": 3, "cost": graph.cost, "n_poses": graph.n_poses,
                "n_edges": graph.n_edges,
@@ -249,11 +251,13 @@ def certify3d_cmd(args, graph, out) -> int:
     return status
 
 
-def world3d(kind: str, poses: int, seed: int, sigma_xy, sigma_theta):
-    """A 3-D world of about ``poses`` poses (``lago_cvx.synthetic.space``); the sigmas as translation and rotation."""
+def world3d(kind: str, poses: int, seed: int, sigma_xy, sigma_theta, info=(None, None)):
+    """A 3-D world of about ``poses`` poses (``lago_cvx.synthetic.space``); the sigmas as translation and rotation,
+    ``info`` those of the information (None: the noise's)."""
     from ..synthetic import space
 
-    kw = sigma_keywords(sigma_xy, sigma_theta, names=("sigma_t", "sigma_r"))
+    kw = {**sigma_keywords(sigma_xy, sigma_theta, names=("sigma_t", "sigma_r")),
+          **sigma_keywords(*info, names=("info_sigma_t", "info_sigma_r"))}
     if kind == "grid3d":
         return space.cube_grid_world(max(2, round(poses ** (1 / 3))), seed=seed, **kw)
     rings = max(2, round((poses / 2) ** 0.5))
@@ -264,42 +268,62 @@ def world3d(kind: str, poses: int, seed: int, sigma_xy, sigma_theta):
 
 
 def plot3d(args, graph, out: str, fmt: str) -> int:
-    """``plot`` on a 3-D graph: the estimate (ESTIMATE's vertices, else LAGO's) and the file's initial guess in
-    three projections (x–y, x–z, y–z). ``--covariances`` is planar-only."""
+    """``plot`` on a 3-D graph, in three projections (x–y, x–z, y–z): the estimate (ESTIMATE's vertices, else LAGO's),
+    its loop closures, the file's initial guess rigidly aligned to it (``plotting.aligned3d``) and, with
+    ``--covariances``, the projections of the position-uncertainty ellipsoids (JᵀΩJ)⁻¹ at the estimate drawn
+    (``space.covariance.pose_covariances3d``, the smallest id held: zero there)."""
     import io as _io
     from pathlib import Path
 
     from matplotlib.figure import Figure
 
-    from ..plotting import plot_trajectory3d
+    from ..plotting import aligned3d, plot_covariances3d, plot_edges3d, plot_trajectory3d
     from .common import read_input, write_bytes
 
-    if args.covariances:
-        raise UsageError("--covariances draws planar ellipses; it does not apply to 3-D graphs")
+    refuse_planar_options(args)
     if args.estimate:
         est = read_input(args, args.estimate)
         if getattr(est, "dim", 2) != 3 or est.initial is None or not np.array_equal(est.ids, graph.ids):
             raise UsageError(f"{args.estimate}: needs VERTEX_SE3:QUAT lines for every pose id of the graph")
-        t, label = est.initial_t, f"estimate ({Path(args.estimate).name})"
+        t, R, label = est.initial_t, est.initial_R, f"estimate ({Path(args.estimate).name})"
     else:
         from ..space import lago3d
 
         res = lago3d(graph, route=args.route)
-        t, label = res.t, f"LAGO ({res.route} route)"
+        t, R, label = res.t, res.R, f"LAGO ({res.route} route)"
+    covs = None
+    if args.covariances:
+        from ..space.covariance import pose_covariances3d
+
+        covs = pose_covariances3d(graph, t, R)
+    guess = None
+    if graph.initial is not None and not args.no_guess:  # in the estimate's frame: best rigid fit to it
+        guess = aligned3d(graph.initial_t, None, t)[0]
     fig = Figure(figsize=(args.size * 1.5, args.size / 2), layout="constrained")
+    thin = 0.8 if graph.n_poses <= 2000 else 0.5
     for ax, plane in zip(fig.subplots(1, 3), ("xy", "xz", "yz")):
-        if graph.initial is not None and not args.no_guess:
-            plot_trajectory3d(ax, graph.initial_t, plane=plane, color="0.7", linewidth=0.6,
-                              label="the file's initial guess")
-        plot_trajectory3d(ax, t, plane=plane, color="k", linewidth=0.8, label=label)
-    fig.suptitle(args.title or f"{Path(args.file).name}: {graph.n_poses} poses, {graph.n_edges} edges (projections)")
-    fig.axes[0].legend(loc="best", fontsize=8)
+        if guess is not None:
+            plot_trajectory3d(ax, guess, plane=plane, color="0.65", linewidth=thin,
+                              label="the file's initial guess (rigidly aligned to the estimate)")
+        plot_trajectory3d(ax, t, plane=plane, color="k", linewidth=thin, label=label)
+        plot_edges3d(ax, graph, t, plane=plane, label=f"loop closures ({graph.n_loop_closures})")
+        if covs is not None:
+            plot_covariances3d(ax, t, covs, R=R, plane=plane, every=args.every, n_sigma=args.sigma)
+    n_ellipses = len(range(0, graph.n_poses, args.every)) if covs is not None else 0
+    fig.suptitle(args.title or f"{Path(args.file).name}: {graph.n_poses} poses, {graph.n_edges} edges (projections)"
+                 + (f"; {args.sigma:g}σ ellipsoids' projections, every {args.every} poses" if covs is not None
+                    else ""))
+    leg = fig.axes[0].legend(loc="best", fontsize=8)
+    for line in leg.get_lines():
+        line.set_linewidth(1.5)
+        line.set_alpha(1.0)
     buf = _io.BytesIO()
     fig.savefig(buf, format=fmt, dpi=args.dpi, metadata={"png": {"Software": None}, "svg": {"Date": None},
                                                           "pdf": {"CreationDate": None}}[fmt])
     write_bytes(out, buf.getvalue())
     payload = {"file": str(args.file), "estimate": args.estimate, "output": str(out), "format": fmt, "dim": 3,
-               "n_poses": graph.n_poses, "n_edges": graph.n_edges, "n_ellipses": 0}
-    emit(args, payload, [f"figure written to {out} ({graph.n_poses} poses, {graph.n_loop_closures} loop closures; "
-                         "x-y, x-z and y-z projections)"])
+               "n_poses": graph.n_poses, "n_edges": graph.n_edges, "n_ellipses": n_ellipses}
+    emit(args, payload, [f"figure written to {out} ({graph.n_poses} poses, {graph.n_loop_closures} loop closures"
+                         + (f", {n_ellipses} covariance ellipsoids" if n_ellipses else "")
+                         + "; x-y, x-z and y-z projections)"])
     return EXIT_OK
