@@ -63,6 +63,8 @@ REFUSED = [
     ("solve", ["--max-shift", "1"], "--max-shift"),
     ("solve", ["--time-limit", "1"], "--time-limit"),
     ("solve", ["--edge2-order", "g2o"], "--edge2-order"),
+    ("solve", ["--robust"], "--robust"),
+    ("solve", ["--robust-loss", "gm"], "--robust"),
     ("info", ["--route", "seed"], "--route seed"),
     ("info", ["--regularization", "tree"], "--regularization"),
     ("info", ["--spanning-tree", "mst"], "--spanning-tree"),

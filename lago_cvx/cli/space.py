@@ -113,6 +113,8 @@ def solve3d(args, graph, out) -> int:
     from ..space import compare_methods3d, lago3d, refine3d
 
     refuse_planar_options(args)
+    if args.robust or args.robust_loss:  # graduated non-convexity runs weighted planar LAGO
+        raise UsageError(f"--robust applies to planar graphs only: {args.file} is 3-D")
     anchor, fixed = _anchors3d(args.anchor, graph)
     if fixed:  # poses known exactly (space.fixed): closed form, and refinement can hold one of them only
         for given, flag in ((args.check, "--check"), (args.method != "closed_form", "--method cvxpy"),
