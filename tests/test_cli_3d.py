@@ -223,6 +223,7 @@ def test_generate_a_nearly_noise_free_world_and_certify_it_with_abs_tol(tmp_path
     capsys.readouterr()
     rel = _json(capsys, ["certify", str(path), "--json"], status=3)
     assert rel["f"] < 1e-3 and rel["relative_suboptimality_bound"] > 0.1
+    assert main(["certify", str(path)]) == 3 and "--abs-tol ABS certifies it" in capsys.readouterr().out
     out = _json(capsys, ["certify", str(path), "--abs-tol", "1e-3", "--json"])
     assert out["certified"] and out["f"] - out["lower_bound"] <= 1e-3
 

@@ -27,6 +27,16 @@ from .common import (
 )
 
 
+def abs_tol_hint(cert, args) -> str:
+    """A hint at ``--abs-tol`` when the certificate proved S ⪰ −ηI but the bound is too weak by far (relative gap
+    above 0.1: the floor's share of the gap dwarfs f, as on a graph with almost no noise) and no ``--abs-tol`` was
+    given; "" otherwise."""
+    if args.abs_tol or "bound too weak" not in cert.verdict or not cert.relative_suboptimality_bound > 0.1:
+        return ""
+    return (f"f = {cert.cost:.3g} is too small for a relative test (a graph with almost no noise): --abs-tol ABS "
+            "certifies it when the proven gap f − f* ≤ ABS")
+
+
 def _tol_arg(value: str) -> float:
     try:
         tol = float(value)
@@ -150,7 +160,8 @@ def cmd_certify(args) -> int:
     status = EXIT_OK if cert.certified else EXIT_NOT_CERTIFIED
     if status != EXIT_OK:
         lines.append(f"  exit status {status}: not certified (a local minimum, an unconverged refinement, a "
-                     "relaxation that is not tight, or a bound too weak for the cost's scale)")
+                     "relaxation that is not tight, or a bound too weak for the cost's scale)"
+                     + (f"; {abs_tol_hint(cert, args)}" if abs_tol_hint(cert, args) else ""))
     payload["exit_status"] = status
     emit(args, payload, lines, stdout_taken=out == "-")
     return status

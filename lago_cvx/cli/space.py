@@ -248,6 +248,10 @@ def certify3d_cmd(args, graph, out) -> int:
         payload["output"] = "<stdout>" if out == "-" else str(out)
         lines.append("  estimate written to " + ("standard output" if out == "-" else str(out)))
     status = EXIT_OK if cert.certified else EXIT_NOT_CERTIFIED
+    from .certify import abs_tol_hint
+
+    if abs_tol_hint(cert, args):
+        lines.append(f"  {abs_tol_hint(cert, args)}")
     payload["exit_status"] = status
     emit(args, payload, lines, stdout_taken=out == "-")
     return status
