@@ -14,6 +14,7 @@ from .common import (
     EXIT_OK,
     EXIT_RESOURCE,
     UsageError,
+    abs_tol_hint,
     add_input_options,
     add_route_options,
     check_regularization,
@@ -25,16 +26,6 @@ from .common import (
     read_input,
     write_estimate,
 )
-
-
-def abs_tol_hint(cert, args) -> str:
-    """A hint at ``--abs-tol`` when the certificate proved S ⪰ −ηI but the bound is too weak by far (relative gap
-    above 0.1: the floor's share of the gap dwarfs f, as on a graph with almost no noise) and no ``--abs-tol`` was
-    given; "" otherwise."""
-    if args.abs_tol or "bound too weak" not in cert.verdict or not cert.relative_suboptimality_bound > 0.1:
-        return ""
-    return (f"f = {cert.cost:.3g} is too small for a relative test (a graph with almost no noise): --abs-tol ABS "
-            "certifies it when the proven gap f − f* ≤ ABS")
 
 
 def _tol_arg(value: str) -> float:

@@ -274,6 +274,16 @@ def sigma_keywords(sigma_xy, sigma_theta, *, names: tuple[str, str] = ("sigma_xy
     return {name: value for name, value in zip(names, (sigma_xy, sigma_theta)) if value is not None}
 
 
+def abs_tol_hint(cert, args) -> str:
+    """A hint at ``--abs-tol`` when the certificate proved S ⪰ −ηI but the bound is too weak by far (relative gap
+    above 0.1: the floor's share of the gap dwarfs f, as on a graph with almost no noise) and no ``--abs-tol`` was
+    given; "" otherwise."""
+    if args.abs_tol or "bound too weak" not in cert.verdict or not cert.relative_suboptimality_bound > 0.1:
+        return ""
+    return (f"f = {cert.cost:.3g} is too small for a relative test (a graph with almost no noise): --abs-tol ABS "
+            "certifies it when the proven gap f − f* ≤ ABS")
+
+
 # ---------------------------------------------------------------------------------- printing
 def graph_lines(graph, components: int, cyclomatic_number: int) -> list[str]:
     """``info``'s human lines on the graph's size, planar and 3-D alike: poses, edges, odometric edges, loop

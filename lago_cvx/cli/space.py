@@ -10,8 +10,8 @@ from dataclasses import replace
 import numpy as np
 
 from ..conventions import CHI2_CONVENTION, COST_DESCRIPTION
-from .common import (EXIT_NOT_CERTIFIED, EXIT_OK, UsageError, check_finite, emit, graph_lines, sigma_keywords,
-                     write_estimate)
+from .common import (EXIT_NOT_CERTIFIED, EXIT_OK, UsageError, abs_tol_hint, check_finite, emit, graph_lines,
+                     sigma_keywords, write_estimate)
 
 WORLDS3D = ("sphere3d", "torus3d", "grid3d")
 
@@ -248,8 +248,6 @@ def certify3d_cmd(args, graph, out) -> int:
         payload["output"] = "<stdout>" if out == "-" else str(out)
         lines.append("  estimate written to " + ("standard output" if out == "-" else str(out)))
     status = EXIT_OK if cert.certified else EXIT_NOT_CERTIFIED
-    from .certify import abs_tol_hint
-
     if abs_tol_hint(cert, args):
         lines.append(f"  {abs_tol_hint(cert, args)}")
     payload["exit_status"] = status
