@@ -150,6 +150,12 @@ def test_an_option_of_another_command_is_named(world3d, capsys):
     assert "usage: lago-cvx info" in err and "--refine belongs to `solve`" in err
     assert "--abs-tol belongs to `certify`" in _usage_error(capsys, ["info", world3d, "--abs-tol=1e-3"])
     assert "info takes one FILE" in _usage_error(capsys, ["info", world3d, "other.g2o"])
+    err = _usage_error(capsys, ["solve", world3d, "--refien"])  # a typo
+    assert "did you mean --refine?" in err
+    err = _usage_error(capsys, ["solve", world3d, "--max-iteratoins", "3"])
+    assert "did you mean --max-iterations?" in err and "-o 3" not in err  # 3 is the unknown option's value
+    err = _usage_error(capsys, ["solve", world3d, "--bogus", "3"])
+    assert err.rstrip().endswith("unrecognized arguments: --bogus 3")  # no hint rather than a wrong one
 
 
 def test_plot_over_its_input_names_the_figure_and_no_missing_option(world3d, tmp_path, capsys):

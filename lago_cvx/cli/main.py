@@ -43,17 +43,25 @@ def _subcommands(parser: argparse.ArgumentParser) -> dict:
 
 
 def unrecognized_hint(parser: argparse.ArgumentParser, command: str, extra: list[str]) -> str:
-    """A hint for arguments ``command`` does not take: a stray file name where the command writes one with
-    ``-o`` ("did you mean -o OUT?"), or an option that belongs to other commands (named). "" when there is none."""
+    """A hint for arguments ``command`` does not take: an option that belongs to other commands (named) or is
+    close to one of its own (difflib), or a stray file name where the command writes one with ``-o`` ("did you mean
+    -o OUT?"; not a value following an unknown option). "" when there is none."""
+    import difflib
+
     commands = _subcommands(parser)
     own = commands[command]._option_string_actions
-    for arg in extra:
+    for k, arg in enumerate(extra):
         if arg.startswith("-") and arg != "-":
             name = arg.split("=", 1)[0]
             owners = [c for c, p in commands.items() if c != command and name in p._option_string_actions]
             if owners:
                 return (f" ({name} belongs to `{'`, `'.join(owners)}`, e.g. lago-cvx {owners[0]} FILE {name} …; "
                         f"`lago-cvx {command} --help` lists {command}'s options)")
+            close = difflib.get_close_matches(name, [o for o in own if o.startswith("--")], n=1, cutoff=0.8)
+            if close:
+                return f" (did you mean {close[0]}?)"
+        elif k > 0 and extra[k - 1].startswith("-"):
+            continue  # the value of an unknown option
         elif "-o" in own:
             return f" (did you mean -o {arg}? {command} writes its output only where -o names it)"
         else:
