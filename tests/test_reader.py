@@ -217,7 +217,7 @@ def test_toro_file_with_equiv_lines_reads(caplog):
 
 
 # ============================================================================ records of other kinds
-PLANAR = "lago_cvx reads planar pose graphs (VERTEX_SE2/EDGE_SE2 or VERTEX2/EDGE2)"
+PLANAR = "lago_cvx reads pose graphs (VERTEX_SE2/EDGE_SE2 or VERTEX2/EDGE2, planar; VERTEX_SE3:QUAT/EDGE_SE3:QUAT, 3-D)"
 OTHER_3D = ("a 3-D record of a kind lago_cvx does not read (it reads 3-D graphs as VERTEX_SE3:QUAT/EDGE_SE3:QUAT, "
             "planar ones as VERTEX_SE2/EDGE_SE2 or VERTEX2/EDGE2)")
 # VERTEX_SE3:QUAT / EDGE_SE3:QUAT are 3-D graphs (tests/test_space_io.py), and a mix with planar records there.

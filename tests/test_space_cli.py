@@ -48,7 +48,7 @@ def test_solve_check_refine_output(world, tmp_path, capsys):
     # of one gauge is no rotation in the other), so the seed χ² moves by ~1e-6 relative (0.9e-6 in GTSAM's cost,
     # 1.2e-6 in g2o's on this world)
     assert seed["route"] == "seed" and seed["chi2"] == pytest.approx(res["chi2_seed"], rel=1e-5)
-    assert main(["solve", str(world), "--anchor", "5:1,2,3"]) == 2  # a pose value is planar-only
+    assert main(["solve", str(world), "--anchor", "5:1,2,3"]) == 2  # a 3-D pose is ID:X,Y,Z,QX,QY,QZ,QW
 
 
 def test_certify_exit_status(world, capsys):
@@ -67,7 +67,8 @@ def test_plot_projections(world, tmp_path, capsys):
     fig = tmp_path / "w.svg"
     status, res = _run(capsys, ["plot", str(world), "-o", str(fig), "--json"])
     assert status == 0 and res["dim"] == 3 and fig.read_bytes().startswith(b"<?xml")
-    assert main(["plot", str(world), "-o", str(fig), "--covariances"]) == 2  # planar ellipses only
+    status, res = _run(capsys, ["plot", str(world), "-o", str(fig), "--covariances", "--every", "8", "--json"])
+    assert status == 0 and res["n_ellipses"] == 8  # the ellipsoids' projections, one every 8 of 64 poses
 
 
 def test_certify_3d_honours_the_anchor(capsys, tmp_path):

@@ -65,7 +65,7 @@ import scipy.sparse.linalg as spla
 from ..conventions import CERTIFY_TOL
 from ..errors import GraphError, OptionError, SolverError
 from ..graph import check_connected
-from ..optimality import ProvenBound, relative_suboptimality
+from ..optimality import ProvenBound, absolute_test, check_abs_tol, relative_suboptimality
 from ..posegraph import PoseGraph
 from ..reports import Summary, fmt_timings, short_repr
 from .sesync import (data_matrix, grounded_index, lambda_hat, multipliers, optimal_translations, sesync_cost,
@@ -176,7 +176,8 @@ class Certificate(ProvenBound):
     ``certified`` — True iff the proven relative suboptimality ``relative_suboptimality_bound`` =
     (f − ``lower_bound``)/f is at most ``tol`` (and f is not above ``known_cost``);
     ``verdict`` — one line saying so or why not ("not certified: bound too weak" when S_Q passes the
-    PSD test but the bound it proves is larger than ``tol``). ``tol`` the relative tolerance used.
+    PSD test but the bound it proves is larger than ``tol``). ``tol`` the relative tolerance used, ``abs_tol`` the
+    absolute one (0: none; ``optimality.absolute_test``).
     ``cost`` f at the certified point (translations re-optimised for the given rotations when
     ``optimize_translations``; ``cost_input`` at the poses as given); ``poses`` that point (n, 3).
     ``dual_value`` Σ tr Λ_i (= ``cost`` when translations are optimal); ``multipliers`` Λ (n, 2, 2).
@@ -200,6 +201,7 @@ class Certificate(ProvenBound):
     poses: np.ndarray
     multipliers: np.ndarray
     tol: float = CERTIFY_TOL
+    abs_tol: float = 0.0
     times: dict = field(default_factory=dict)
 
     def __repr__(self) -> str:
@@ -237,13 +239,17 @@ def _norm2(M: sp.spmatrix) -> float:
     return float(spla.eigsh(M, k=1, which="LA", v0=v0, tol=1e-6, return_eigenvectors=False)[0])
 
 
-def certify(graph: PoseGraph, poses, *, tol: float = CERTIFY_TOL, optimize_translations: bool = True,
-            anchor=None, n_eigenvalues: int = 3, full: bool = True, known_cost: float | None = None) -> Certificate:
+def certify(graph: PoseGraph, poses, *, tol: float = CERTIFY_TOL, abs_tol: float = 0.0,
+            optimize_translations: bool = True, anchor=None, n_eigenvalues: int = 3, full: bool = True,
+            known_cost: float | None = None) -> Certificate:
     """SE-Sync's verification (Rosen et al. 2019, §4.2) of ``poses`` (n, 3) for the cost of eq. (S1).
 
     Keyword-only: ``tol`` the largest relative suboptimality bound (f − f*_lower)/f accepted as certified
     (0 < tol ≤ ``CERTIFY_TOL`` = 1e-3; the PSD test itself uses the floor η = ``NUMERICAL_TOL``·‖M‖₂, see
-    the module docstring); ``known_cost`` a cost known to be reachable (e.g. of a refined estimate): a
+    the module docstring); ``abs_tol`` ≥ 0 an absolute threshold, as SE-Sync's (0, the default: none): the point
+    is also certified when the proven gap f − f*_lower ≤ ``abs_tol`` or λ_min(S_Q) ≥ −``abs_tol`` (proven by an
+    inertia count; ``absolute_test``), which is what a nearly noise-free graph, whose f is tiny next to ‖M‖, can
+    pass; ``known_cost`` a cost known to be reachable (e.g. of a refined estimate): a
     point above it is never certified; ``optimize_translations`` replace the translations by the optimal
     ones for the given rotations first (exact linear solve; then Σ tr Λ_i = f and the certificate is on
     the rotations, as in SE-Sync); ``anchor`` pose id whose translation is grounded (default the
@@ -254,6 +260,7 @@ def certify(graph: PoseGraph, poses, *, tol: float = CERTIFY_TOL, optimize_trans
     the spectrum; city10000 (30 000 × 30 000) takes about a second."""
     if not (0 < tol <= CERTIFY_TOL):
         raise OptionError(f"tol must be in (0, {CERTIFY_TOL:g}] (a relative suboptimality bound), got {tol}")
+    check_abs_tol(abs_tol)
     if graph.n_edges == 0:
         raise GraphError(f"the graph has {graph.n_poses} pose(s) and no edges: nothing to certify")
     times = {}
@@ -320,9 +327,14 @@ def certify(graph: PoseGraph, poses, *, tol: float = CERTIFY_TOL, optimize_trans
     residual_rel = residual / max(norm_M * np.sqrt(2 * n), np.finfo(float).tiny)
     rel = relative_suboptimality(cost, lower_bound)
     above_known = known_cost is not None and cost > known_cost * (1 + 1e-9) + np.finfo(float).tiny
-    certified = bool(rel <= tol and not above_known)
+    absolute = None if above_known or rel <= tol else absolute_test(
+        sub_bound, abs_tol, eta, lambda: ldl.inertia(-abs_tol) == 0)
+    certified = bool((rel <= tol or absolute is not None) and not above_known)
     kind = ("not a critical point" if residual_rel > np.sqrt(NUMERICAL_TOL) else "approximately a critical point")
-    if certified:
+    if absolute is not None:
+        verdict = (f"globally optimal within the absolute tolerance {abs_tol:.3g} (certified): {absolute}; "
+                   f"relative bound {rel:.2g} > tol {tol:.2g}")
+    elif certified:
         verdict = (f"globally optimal (certified): f − f* ≤ {sub_bound:.3g} ({rel:.2g} relative ≤ tol {tol:.2g}); "
                    f"λ_min(S_Q) = {lambda_min:.3g} ≥ −η = {-eta:.3g}")
     elif above_known:
@@ -340,7 +352,8 @@ def certify(graph: PoseGraph, poses, *, tol: float = CERTIFY_TOL, optimize_trans
                        lambda_min=lambda_min, eigenvalues=eigs, lambda_min_full=lambda_min_full, eta=eta,
                        norm_M=norm_M, n_negative=n_negative, residual=residual, residual_rel=residual_rel,
                        lower_bound=lower_bound, shift=shift, suboptimality_bound=sub_bound,
-                       suboptimality_estimate=sub_est, poses=x, multipliers=lam, tol=tol, times=times)
+                       suboptimality_estimate=sub_est, poses=x, multipliers=lam, tol=tol, abs_tol=abs_tol,
+                       times=times)
 
 
 def dual_lower_bound(graph: PoseGraph, lam: np.ndarray, a: int) -> float:

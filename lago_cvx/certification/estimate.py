@@ -98,14 +98,15 @@ def certificate_fields(cert: Certificate) -> dict:
 
 
 def certify_estimate(graph: PoseGraph, *, route: str = "default", spanning_tree: str | None = None,
-                     regularization: str | None = None, tol: float = CERTIFY_TOL,
+                     regularization: str | None = None, tol: float = CERTIFY_TOL, abs_tol: float = 0.0,
                      max_iterations: int = 50, integer_search=None, compare_lago: bool = False,
                      anchors: dict | None = None) -> tuple[dict, Certificate]:
     """The certified route on ``graph``: LAGO → χ² Gauss–Newton (``refine``) → Newton (GN where Newton does
     not descend) on the SE-Sync cost f (``refine_sesync``) → SE-Sync's optimality certificate
     (``certify``) of the refined estimate and, with ``compare_lago=True``, of the raw LAGO estimate for
     comparison (never certified: its cost is above the refined one; it costs as much again or more, so it
-    is opt-in). ``tol`` is the largest relative suboptimality bound accepted as certified (≤ 1e-3).
+    is opt-in). ``tol`` is the largest relative suboptimality bound accepted as certified (≤ 1e-3); ``abs_tol`` ≥ 0
+    SE-Sync's absolute threshold (0: none; ``certify``).
 
     ``anchors`` ``{id: (x, y, θ)}`` (None fields allowed) — at most one pose, a choice of frame: the
     certified poses are moved rigidly to put it there (``gauge_anchor``; f and the verdict are invariant);
@@ -140,19 +141,19 @@ def certify_estimate(graph: PoseGraph, *, route: str = "default", spanning_tree:
     # a point above a cost already reached is never certified (the refinement only descends, so the
     # refined point is below both LAGO's and the χ²-refined one's; if it is not, something went wrong)
     # full=False: λ_min of the full S (structurally ≤ 0) is not reported, and its bisection costs a third
-    cert = certify(graph, ses.poses, tol=tol, known_cost=min(f_lago, ses.cost_initial), full=False)
+    cert = certify(graph, ses.poses, tol=tol, abs_tol=abs_tol, known_cost=min(f_lago, ses.cost_initial), full=False)
     times["certify"] = time.perf_counter() - t
     cert_lago = None
     if compare_lago:
         t = time.perf_counter()
-        cert_lago = certify(graph, res.poses, tol=tol, known_cost=cert.cost, full=False)
+        cert_lago = certify(graph, res.poses, tol=tol, abs_tol=abs_tol, known_cost=cert.cost, full=False)
         times["certify_lago"] = time.perf_counter() - t
     cert.poses = gauge_anchor(graph, cert.poses, anchors)[0]
     reg = res.regularization
     report = {
         "n_poses": graph.n_poses, "n_edges": graph.n_edges, "route": res.route, "spanning_tree": res.tree.kind,
         "regularization": reg.regularization, "n_regularized": reg.n_regularized,
-        "n_ambiguous": int(reg.ambiguous.size), "tol": tol, "cost_convention": SESYNC_COST_CONVENTION,
+        "n_ambiguous": int(reg.ambiguous.size), "tol": tol, "abs_tol": abs_tol, "cost_convention": SESYNC_COST_CONVENTION,
         "chi2_lago": res.chi2, "chi2_refined": ref.chi2, "refine_iterations": ref.iterations,
         "refine_converged": bool(ref.converged),
         "f_lago": f_lago, "f_chi2_refined": ses.cost_initial,

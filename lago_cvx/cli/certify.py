@@ -14,11 +14,13 @@ from .common import (
     EXIT_OK,
     EXIT_RESOURCE,
     UsageError,
+    abs_tol_hint,
     add_input_options,
     add_route_options,
     check_regularization,
     emit,
     integer_search,
+    nonneg_float,
     nonneg_int,
     output_target,
     read_input,
@@ -73,7 +75,8 @@ def _certify_lines(file, payload: dict) -> list[str]:
         f"    λ_min(S_Q) = {p['lambda_min']:.3g}; numerical floor η = {p['eta']:.3g} (1e-12 × ‖M‖₂ "
         f"{p['norm_M']:.4g})",
         f"    proven lower bound f* ≥ {_bound_text(p['lower_bound'], 12)}; relative suboptimality (f − bound)/f ≤ "
-        f"{p['relative_suboptimality_bound']:.3g}; certified iff ≤ tol {p['tol']:.3g}",
+        f"{p['relative_suboptimality_bound']:.3g}; certified iff ≤ tol {p['tol']:.3g}"
+        + (f", or by the absolute test (abs-tol {p['abs_tol']:.3g})" if p.get("abs_tol") else ""),
         f"    verdict: {p['verdict']}",
     ]
     if lc is None:
@@ -136,7 +139,7 @@ def cmd_certify(args) -> int:
     check_regularization(graph, args.regularization)
     payload, cert = certify_estimate(graph, route=args.route, spanning_tree=args.spanning_tree,
                                      regularization=args.regularization, integer_search=integer_search(args),
-                                     tol=args.tol, max_iterations=args.max_iterations,
+                                     tol=args.tol, abs_tol=args.abs_tol, max_iterations=args.max_iterations,
                                      compare_lago=args.compare_lago, anchors=anchors)
     payload = {"file": str(args.file), "cost": graph.cost, **payload}
     lines = _certify_lines(args.file, payload)
@@ -148,7 +151,8 @@ def cmd_certify(args) -> int:
     status = EXIT_OK if cert.certified else EXIT_NOT_CERTIFIED
     if status != EXIT_OK:
         lines.append(f"  exit status {status}: not certified (a local minimum, an unconverged refinement, a "
-                     "relaxation that is not tight, or a bound too weak for the cost's scale)")
+                     "relaxation that is not tight, or a bound too weak for the cost's scale)"
+                     + (f"; {abs_tol_hint(cert, args)}" if abs_tol_hint(cert, args) else ""))
     payload["exit_status"] = status
     emit(args, payload, lines, stdout_taken=out == "-")
     return status
@@ -175,16 +179,22 @@ def add_parser(sub) -> None:
                                                          "certificate is about) as g2o to OUT (- for standard output)")
     add_route_options(s)
     s.add_argument("--tol", type=_tol_arg, default=CERTIFY_TOL, metavar="TOL",
-                   help="certified iff the proven relative suboptimality (f − f*_lower)/f ≤ TOL "
+                   help="certified when the proven relative suboptimality (f − f*_lower)/f ≤ TOL "
                         f"(0 < TOL ≤ {CERTIFY_TOL:g}, the default)")
+    s.add_argument("--abs-tol", type=nonneg_float, default=0.0, metavar="ABS",
+                   help="also certified when the proven gap f − f*_lower ≤ ABS or λ_min(S) ≥ −ABS (SE-Sync's "
+                        "absolute test, in units of f; for nearly noise-free graphs, whose f is too small for any "
+                        "relative test; default 0: none)")
     s.add_argument("--max-iterations", type=nonneg_int, default=50,
-                   help="iterations of each refinement, chi2 and SE-Sync (default 50)")
+                   help="iterations of each refinement, chi2 and SE-Sync (default 50; 3-D: the SE-Sync refinement, "
+                        "the only one)")
     s.add_argument("--compare-lago", action="store_true",
                    help="also certify the raw LAGO estimate, for comparison (never certified; its time is reported "
                         "apart)")
     s.add_argument("--anchor", action="append", metavar="ID[:X,Y,THETA]",
                    help="at most one: the pose ID (at the origin) or ID:X,Y,THETA (empty fields keep the estimate's "
-                        "own) fixes the frame of the written estimate; several poses are refused")
+                        "own; 3-D: ID:X,Y,Z,QX,QY,QZ,QW) fixes the frame of the written estimate; several poses are "
+                        "refused")
     s.add_argument("--overwrite-input", action="store_true", help="allow -o to name the input file")
     s.add_argument("--json", action="store_true", help="print one JSON object")
     s.set_defaults(func=cmd_certify)

@@ -197,10 +197,11 @@ def check_regularization(graph, regularization: str | None) -> None:
 
 
 # ----------------------------------------------------------------------------------- output
-def output_target(args, *, flag: str = "-o") -> str | None:
+def output_target(args, *, flag: str = "-o", what: str = "the estimate") -> str | None:
     """Check ``-o`` before any work is done. Returns None (no output), ``"-"`` (standard output) or the
     path. An empty name, ``-o -`` together with ``--json`` (both on standard output), and the input file
-    itself (also through a link, unless ``--overwrite-input``) are refused with exit 2; so is a target
+    itself or ``args.estimate`` (also through a link, unless the command has ``--overwrite-input`` and it is given;
+    the message names ``what`` is written) are refused with exit 2; so is a target
     that cannot be written (missing directory, a directory, …) — checked again when writing."""
     out = getattr(args, "output", None)
     if out is None:
@@ -212,10 +213,11 @@ def output_target(args, *, flag: str = "-o") -> str | None:
             raise UsageError(f"{flag} - writes the estimate to standard output, where --json prints too: "
                              "choose one")
         return "-"
-    src = getattr(args, "file", None)
-    if src is not None and not getattr(args, "overwrite_input", False) and _same_file(out, src):
-        raise UsageError(f"refusing to overwrite the input file {src} with the estimate "
-                         "(pass --overwrite-input to allow it)")
+    overridable = hasattr(args, "overwrite_input")  # the command offers --overwrite-input
+    for src in (getattr(args, "file", None), getattr(args, "estimate", None)):
+        if src is not None and not getattr(args, "overwrite_input", False) and _same_file(out, src):
+            raise UsageError(f"refusing to overwrite the input file {src} with {what} "
+                             + ("(pass --overwrite-input to allow it)" if overridable else "(name another file)"))
     _check_writable(out, flag)
     return out
 
@@ -270,6 +272,16 @@ def sigma_keywords(sigma_xy, sigma_theta, *, names: tuple[str, str] = ("sigma_xy
     """The noise keywords of a synthetic world that ``generate`` was given (``--sigma-xy``, ``--sigma-theta``;
     None keeps the world's default), under the world's own ``names`` (translation, rotation)."""
     return {name: value for name, value in zip(names, (sigma_xy, sigma_theta)) if value is not None}
+
+
+def abs_tol_hint(cert, args) -> str:
+    """A hint at ``--abs-tol`` when the certificate proved S ⪰ −ηI but the bound is too weak by far (relative gap
+    above 0.1: the floor's share of the gap dwarfs f, as on a graph with almost no noise) and no ``--abs-tol`` was
+    given; "" otherwise."""
+    if args.abs_tol or "bound too weak" not in cert.verdict or not cert.relative_suboptimality_bound > 0.1:
+        return ""
+    return (f"f = {cert.cost:.3g} is too small for a relative test (a graph with almost no noise): --abs-tol ABS "
+            "certifies it when the proven gap f − f* ≤ ABS")
 
 
 # ---------------------------------------------------------------------------------- printing

@@ -34,6 +34,41 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _subcommands(parser: argparse.ArgumentParser) -> dict:
+    """{command name: its parser}."""
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            return action.choices
+    return {}
+
+
+def unrecognized_hint(parser: argparse.ArgumentParser, command: str, extra: list[str]) -> str:
+    """A hint for arguments ``command`` does not take: an option that belongs to other commands (named) or is
+    close to one of its own (difflib), or a stray file name where the command writes one with ``-o`` ("did you mean
+    -o OUT?"; not a value following an unknown option). "" when there is none."""
+    import difflib
+
+    commands = _subcommands(parser)
+    own = commands[command]._option_string_actions
+    for k, arg in enumerate(extra):
+        if arg.startswith("-") and arg != "-":
+            name = arg.split("=", 1)[0]
+            owners = [c for c, p in commands.items() if c != command and name in p._option_string_actions]
+            if owners:
+                return (f" ({name} belongs to `{'`, `'.join(owners)}`, e.g. lago-cvx {owners[0]} FILE {name} …; "
+                        f"`lago-cvx {command} --help` lists {command}'s options)")
+            close = difflib.get_close_matches(name, [o for o in own if o.startswith("--")], n=1, cutoff=0.8)
+            if close:
+                return f" (did you mean {close[0]}?)"
+        elif k > 0 and extra[k - 1].startswith("-"):
+            continue  # the value of an unknown option
+        elif "-o" in own:
+            return f" (did you mean -o {arg}? {command} writes its output only where -o names it)"
+        else:
+            return f" ({command} takes one FILE)"
+    return ""
+
+
 class _CliMessages(logging.Filter):
     """Log records as a CLI user reads them: library keywords become options (``speak_cli``), and each
     distinct warning is said once per run (library loops may repeat one)."""
@@ -98,7 +133,10 @@ def main(argv=None) -> int:
     if argv is None:
         defer_unused_numpy_modules()
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args, extra = parser.parse_known_args(argv)
+    if extra:  # the command's own usage, with a hint (unrecognized_hint), instead of the top level's
+        command = _subcommands(parser)[args.command]
+        command.error(f"unrecognized arguments: {' '.join(extra)}{unrecognized_hint(parser, args.command, extra)}")
     _configure_logging(args.verbose + getattr(args, "verbose_after", 0))
     try:
         import numpy as np

@@ -42,7 +42,7 @@ def cmd_plot(args) -> int:
 
     from ..plotting import aligned, plot_covariances, plot_edges, plot_trajectory, set_title
 
-    out = output_target(args)
+    out = output_target(args, what="the figure")
     if out == "-":
         raise UsageError("-o -: a figure needs a file name (.png, .svg or .pdf)")
     fmt = Path(out).suffix.lower().lstrip(".")
@@ -102,7 +102,9 @@ def add_parser(sub) -> None:
                        description="Draw FILE's loop closures on an estimate: ESTIMATE's vertices (a g2o/TORO file "
                                    "with the same pose ids, e.g. written by `lago-cvx solve -o`) or, without it, "
                                    "LAGO's estimate. --covariances adds the ellipses of LAGO's first-order pose "
-                                   "covariances (eq. (15)), centred on the poses drawn.")
+                                   "covariances (eq. (15)), centred on the poses drawn. A 3-D file is drawn in "
+                                   "three projections (x-y, x-z, y-z), its covariances as the projections of "
+                                   "the ellipsoids of (J'ΩJ)^-1 at the estimate drawn.")
     s.add_argument("file")
     add_input_options(s)
     s.add_argument("estimate", nargs="?", help="a file whose vertices are the estimate to draw")

@@ -261,7 +261,8 @@ def add_parsers(sub) -> None:
     add_route_options(s, phases=True)
     s.add_argument("--anchor", action="append", metavar="ID[:X,Y,THETA]",
                    help="ID alone: the pose held at the origin (default: smallest id); ID:X,Y,THETA "
-                        "(repeatable; leave fields empty for partial anchors, e.g. 7:,,1.57): poses known exactly")
+                        "(repeatable; leave fields empty for partial anchors, e.g. 7:,,1.57): poses known exactly; "
+                        "on a 3-D file ID:X,Y,Z,QX,QY,QZ,QW (all seven fields)")
     s.add_argument("--check", action="store_true", help="solve both ways and report the largest relative "
                                                         "difference per phase")
     s.add_argument("--robust", action="store_true",

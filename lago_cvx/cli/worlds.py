@@ -11,10 +11,11 @@ from .common import (EXIT_OK, UsageError, emit, nonneg_float, nonneg_int, output
 from .space import WORLDS3D
 
 
-def _world(kind: str, poses: int, seed: int, sigma_xy: float | None, sigma_theta: float | None, laps: float):
+def _world(kind: str, poses: int, seed: int, sigma_xy: float | None, sigma_theta: float | None, laps: float,
+           info=(None, None)):
     from .. import synthetic
 
-    kw = sigma_keywords(sigma_xy, sigma_theta)
+    kw = {**sigma_keywords(sigma_xy, sigma_theta), **sigma_keywords(*info, names=("info_sigma_xy", "info_sigma_theta"))}
     if kind == "manhattan":
         return synthetic.manhattan_world(poses, seed=seed, **kw)
     return synthetic.circle_world(poses, seed=seed, laps=laps, **kw)
@@ -35,12 +36,16 @@ def cmd_generate(args) -> int:
         raise UsageError("--truth and -o name the same file")
     if args.world in WORLDS3D:
         if args.outliers:
-            raise UsageError("--outliers: planar worlds only")
+            raise UsageError(f"--outliers applies to planar worlds only (--world {args.world} is 3-D)")
+        if args.laps != 3.0:
+            raise UsageError(f"--laps applies to the circle world only (--world {args.world} is 3-D)")
         from .space import world3d
 
-        world = world3d(args.world, args.poses, args.seed, args.sigma_xy, args.sigma_theta)
+        world = world3d(args.world, args.poses, args.seed, args.sigma_xy, args.sigma_theta,
+                        info=(args.info_sigma_xy, args.info_sigma_theta))
     else:
-        world = _world(args.world, args.poses, args.seed, args.sigma_xy, args.sigma_theta, args.laps)
+        world = _world(args.world, args.poses, args.seed, args.sigma_xy, args.sigma_theta, args.laps,
+                       info=(args.info_sigma_xy, args.info_sigma_theta))
     g, outliers = world.graph, None
     if args.outliers:  # false loop closures appended after the world's edges (lago_cvx.synthetic.outliers)
         from ..synthetic import add_false_loop_closures
@@ -144,6 +149,11 @@ def add_parsers(sub) -> None:
     s.add_argument("--seed", type=nonneg_int, default=0)
     s.add_argument("--sigma-xy", type=nonneg_float, default=None, help="position noise std [m]")
     s.add_argument("--sigma-theta", type=nonneg_float, default=None, help="orientation noise std [rad]")
+    s.add_argument("--info-sigma-xy", type=positive_float, default=None, metavar="SIGMA",
+                   help="the position sigma the information is written with (default: --sigma-xy's, or 0.05 when "
+                        "it is 0); a tiny --sigma-xy with a realistic one gives a nearly noise-free graph")
+    s.add_argument("--info-sigma-theta", type=positive_float, default=None, metavar="SIGMA",
+                   help="the same for the orientation (default: --sigma-theta's, or 0.02 when it is 0)")
     s.add_argument("--laps", type=positive_float, default=3.0, help="circle world: number of turns")
     s.add_argument("-o", "--output", required=True, metavar="OUT",
                    help="graph file (vertices = dead-reckoning guess); - for standard output (then give --truth)")

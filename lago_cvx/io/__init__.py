@@ -1,5 +1,5 @@
 """Reading and writing planar pose graphs in the g2o (``VERTEX_SE2`` / ``EDGE_SE2``) and TORO
-(``VERTEX2`` / ``EDGE2``) text formats.
+(``VERTEX2`` / ``EDGE2``) text formats, and 3-D ones in g2o's (``VERTEX_SE3:QUAT`` / ``EDGE_SE3:QUAT``, ``space.py``).
 
 * ``formats.py`` — the record types (and the landmark / 3-D ones recognized only to name them), the
   information-matrix orders (``edge2_order``) and the TORO ↔ g2o conversion of the information (with

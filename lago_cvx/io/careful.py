@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ParseError
-from .formats import EQUIV, FIX, FORMAT_LABEL, FORMAT_SPECS, SPECS, TAGS_OF, Spec, non_pose_problem
+from .formats import EQUIV, FIX, FORMAT_LABEL, FORMAT_SPECS, SPECS, TAGS_3D, TAGS_OF, Spec, non_pose_problem
 
 __all__ = ["Parsed", "Notes", "parse_careful", "read_bytes", "decode", "int_token_problem", "unknown_tag"]
 
@@ -142,8 +142,10 @@ def _bad_whitespace(line: str) -> str | None:
     return None
 
 
-def unknown_tag(tag: str, fmt_forced: str | None) -> str:
-    """The message for a first token that is no tag of the format(s) read."""
+def unknown_tag(tag: str, fmt_forced: str | None, *, first: bool = False) -> str:
+    """The message for a first token that is no tag of the format(s) read. On the ``first`` data line of a file
+    whose format is detected, the 3-D tags are named too: the first record is what makes a file 3-D, so a
+    corrupted one reads as an unknown planar tag otherwise."""
     if _has_undecodable(tag):
         return f"undecodable bytes {_show(tag)} in the tag (the file is not valid UTF-8)"
     targeted = non_pose_problem(tag)
@@ -151,6 +153,9 @@ def unknown_tag(tag: str, fmt_forced: str | None) -> str:
         return targeted
     if fmt_forced:
         return f"unknown tag {_show(tag)} (expected {TAGS_OF[fmt_forced]} for {fmt_forced})"
+    if first:
+        return (f"unknown tag {_show(tag)} (expected {TAGS_OF['g2o']} or {TAGS_OF['toro']} for a planar file, "
+                f"{TAGS_3D} for a 3-D one)")
     return f"unknown tag {_show(tag)} (expected {TAGS_OF['g2o']} or {TAGS_OF['toro']})"
 
 
@@ -240,7 +245,7 @@ def _scan(text: str, fmt_forced: str | None) -> _Scan:
                         if error:
                             break
                         continue
-                    error = (lineno, unknown_tag(tag, fmt_forced))
+                    error = (lineno, unknown_tag(tag, fmt_forced, first=fmt is None))
                     break
                 if fmt is None:  # auto-detection: the first data tag decides
                     fmt, fmt_line = spec.fmt, lineno

@@ -72,7 +72,7 @@ import numpy as np
 
 from ..errors import OptionError
 
-__all__ = ["FORMATS", "FORMAT_LABEL", "Spec", "SPECS", "FORMAT_SPECS", "TAGS_OF", "FIX", "EQUIV", "G2O_INFO_INDEX",
+__all__ = ["FORMATS", "FORMAT_LABEL", "Spec", "SPECS", "FORMAT_SPECS", "TAGS_OF", "TAGS_3D", "FIX", "EQUIV", "G2O_INFO_INDEX",
            "TORO_INFO_INDEX", "EDGE2_ORDERS", "NON_POSE_TAGS", "non_pose_problem",
            "check_format", "check_edge2_order"]
 
@@ -102,13 +102,14 @@ SPECS = {spec.tag: spec for spec in [
 FORMAT_SPECS = {"g2o": (SPECS["VERTEX_SE2"], SPECS["EDGE_SE2"]),   # (vertex, edge) per format
                 "toro": (SPECS["VERTEX2"], SPECS["EDGE2"])}
 TAGS_OF = {"g2o": "VERTEX_SE2/EDGE_SE2", "toro": "VERTEX2/EDGE2"}
+TAGS_3D = "VERTEX_SE3:QUAT/EDGE_SE3:QUAT"  # the records of a 3-D file (io/space.py)
 FIX = "FIX"
 EQUIV = "EQUIV"
 #: How the six information entries of an ``EDGE2`` line are read: "toro" (the documented TORO order and
 #: frame, the default) or "g2o" (exactly like ``EDGE_SE2``).
 EDGE2_ORDERS = ("toro", "g2o")
 
-_PLANAR = "lago_cvx reads planar pose graphs (VERTEX_SE2/EDGE_SE2 or VERTEX2/EDGE2)"
+_WHAT_IS_READ = "lago_cvx reads pose graphs (VERTEX_SE2/EDGE_SE2 or VERTEX2/EDGE2, planar; VERTEX_SE3:QUAT/EDGE_SE3:QUAT, 3-D)"
 #: Tags of records that are not planar pose-graph records, by kind ("landmark" measurement,
 #: "landmark position", "3-D").
 NON_POSE_TAGS = {
@@ -129,9 +130,9 @@ def non_pose_problem(tag: str) -> str | None:
     """The message for a recognized non-pose-graph tag, or None."""
     kind = NON_POSE_TAGS.get(tag)
     if kind == "landmark":
-        return f"{tag!r} is a landmark measurement, not a pose–pose constraint: {_PLANAR}"
+        return f"{tag!r} is a landmark measurement, not a pose–pose constraint: {_WHAT_IS_READ}"
     if kind == "landmark position":
-        return f"{tag!r} is a landmark position, not a pose: {_PLANAR}"
+        return f"{tag!r} is a landmark position, not a pose: {_WHAT_IS_READ}"
     if kind == "3-D" and tag in _SE3_QUAT:
         return (f"{tag!r} is a 3-D record in a file of planar records: a file cannot mix planar and 3-D records "
                 "(3-D files start with VERTEX_SE3:QUAT/EDGE_SE3:QUAT records)")

@@ -30,7 +30,9 @@ Honest bounds: η = ``NUMERICAL_TOL`` · ‖M‖_∞ (an upper bound of ‖M‖�
 With zero negative pivots, Λ − ηI is dual feasible and f* ≥ Σ tr Λ_i − 3nη. Otherwise μ is multiplied by 4, starting
 from η (μ = 4^k η, k = 1, 2, …, at most up to 10³‖M‖_∞), until S_g + μÎ_R has none, and f* ≥ Σ tr Λ_i − 3nμ (valid,
 usually weak); ``Certificate3D.shift`` is that μ (η itself when the first count finds no negative pivot). The
-point is *certified* when (f − f*_lower)/f ≤ ``tol`` (``conventions.CERTIFY_TOL``).
+point is *certified* when (f − f*_lower)/f ≤ ``tol`` (``conventions.CERTIFY_TOL``) or, with ``abs_tol`` > 0, by
+SE-Sync's absolute test (``optimality.absolute_test``: f − f*_lower ≤ abs_tol, or no negative pivot of
+S_g + abs_tol·Î_R, i.e. λ_min(S_Q) ≥ −abs_tol).
 
 The local solver
 ================
@@ -48,7 +50,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..conventions import CERTIFY_TOL
-from ..optimality import ProvenBound, relative_suboptimality
+from ..optimality import ProvenBound, absolute_test, check_abs_tol, relative_suboptimality
 from ..sparse import factorize
 from ..so3 import exp_so3, hat
 from .blocks import block_diagonal, edge_matrix, free_index
@@ -190,6 +192,7 @@ class Certificate3D(ProvenBound):
     t: np.ndarray
     R: np.ndarray
     tol: float = CERTIFY_TOL
+    abs_tol: float = 0.0
     times: dict = field(default_factory=dict)
 
 
@@ -207,13 +210,15 @@ def _negative_pivots(A: sp.csc_matrix) -> int | None:
     return int((lu.U.diagonal() < 0).sum())
 
 
-def certify3d(graph, t, R, *, tol: float = CERTIFY_TOL, anchor_index: int = 0, local: bool = True) -> Certificate3D:
-    """SE-Sync's certificate for (S1) at (t, R) — after ``refine_sesync3d`` from there when ``local`` (module
-    docstring)."""
+def certify3d(graph, t, R, *, tol: float = CERTIFY_TOL, abs_tol: float = 0.0, anchor_index: int = 0,
+              local: bool = True, max_iterations: int = 30) -> Certificate3D:
+    """SE-Sync's certificate for (S1) at (t, R) — after ``refine_sesync3d`` from there (at most ``max_iterations``)
+    when ``local`` (module docstring); ``tol`` relative, ``abs_tol`` absolute (0: none)."""
+    check_abs_tol(abs_tol)
     times = {}
     start = time.perf_counter()
     if local:
-        t, R, _, _ = refine_sesync3d(graph, t, R, anchor_index=anchor_index)
+        t, R, _, _ = refine_sesync3d(graph, t, R, anchor_index=anchor_index, max_iterations=max_iterations)
     t = np.asarray(t, float) - np.asarray(t, float)[anchor_index]  # the anchor at the origin: Yᵀ stays null in S_g
     times["local"] = time.perf_counter() - start
     n = graph.n_poses
@@ -250,8 +255,13 @@ def certify3d(graph, t, R, *, tol: float = CERTIFY_TOL, anchor_index: int = 0, l
         lmin = float("nan")
     times["eigenvalue"] = time.perf_counter() - t0
     bound = relative_suboptimality(cost, lower)
-    certified = neg == 0 and bound <= tol
-    if neg is None:
+    absolute = None if neg is None or bound <= tol else absolute_test(
+        cost - lower, abs_tol, eta, lambda: _negative_pivots((Sg + abs_tol * IR).tocsc()) == 0)
+    certified = (neg == 0 and bound <= tol) or absolute is not None
+    if absolute is not None:
+        verdict = (f"certified: globally optimal for the SE-Sync cost within the absolute tolerance {abs_tol:.3g} "
+                   f"({absolute}; relative bound {bound:.3g} > {tol:g})")
+    elif neg is None:
         verdict = "not certified: the inertia of S could not be counted (singular or pivoted factorization)"
     elif certified:
         verdict = f"certified: globally optimal for the SE-Sync cost within a relative {bound:.3g}"
@@ -266,4 +276,5 @@ def certify3d(graph, t, R, *, tol: float = CERTIFY_TOL, anchor_index: int = 0, l
     return Certificate3D(certified=bool(certified), verdict=verdict, cost=cost, dual_value=dual,
                          lower_bound=float(lower), shift=float(mu), eta=float(eta),
                          n_negative=-1 if first_neg is None else int(first_neg), lambda_min=lmin,
-                         residual_rel=residual, t=t, R=np.asarray(R), tol=tol, times=times)
+                         residual_rel=residual, t=t, R=np.asarray(R), tol=tol, abs_tol=abs_tol,
+                         times=times)

@@ -16,6 +16,9 @@ written to a g2o file means what g2o computes of it.
   e_ij = Log(T̃_ij⁻¹T_i⁻¹T_j) = −n_ij at the truth exactly.
 
 Both information matrices weigh the Log error alike to first order (``posegraph3d.information_in_log_coordinates``).
+The information is that of ``info_sigma_t`` / ``info_sigma_r`` (default: the noise's; with zero noise the planar
+worlds' reference sigmas ``REFERENCE_SIGMA_XY`` / ``REFERENCE_SIGMA_THETA``, since a noise-free world still needs
+finite information): a tiny noise measured with a realistic information gives a nearly noise-free graph (χ² ≪ 6m).
 ``graph.initial`` is the dead reckoning (the odometry composed from the true first pose). All randomness comes from
 ``np.random.default_rng(seed)``.
 """
@@ -30,6 +33,7 @@ from ..conventions import check_cost
 from ..errors import OptionError
 from ..posegraph3d import PoseGraph3D
 from ..so3 import exp_so3, quat_to_rot, v_inverse
+from .noise import resolve_sigmas
 
 __all__ = ["SyntheticWorld3D", "sphere_world", "cube_grid_world", "torus_world"]
 
@@ -77,8 +81,10 @@ def _g2o_noise(rng, m: int, sigma_t: float, sigma_r: float):
     return quat_to_rot(np.column_stack([nq, w])), noise[:, :3]
 
 
-def _world(name, t, R, lc_tails, lc_heads, *, sigma_t, sigma_r, seed, cost, params) -> SyntheticWorld3D:
+def _world(name, t, R, lc_tails, lc_heads, *, sigma_t, sigma_r, seed, cost, params, info_sigma_t=None,
+           info_sigma_r=None) -> SyntheticWorld3D:
     cost = check_cost(cost, dim=3)
+    sigma_t, sigma_r, info_t, info_r = resolve_sigmas(sigma_t, sigma_r, info_sigma_t, info_sigma_r)
     n = t.shape[0]
     rng = np.random.default_rng(seed)
     tails = np.concatenate([np.arange(n - 1), lc_tails]).astype(np.int64)
@@ -90,13 +96,13 @@ def _world(name, t, R, lc_tails, lc_heads, *, sigma_t, sigma_r, seed, cost, para
     if cost == "g2o":  # T̃ = T_i⁻¹T_j E⁻¹, E⁻¹ = (R(q)ᵀ, −R(q)ᵀ n_t)
         Rq, nt = _g2o_noise(rng, m, sigma_t, sigma_r)
         En, et = np.swapaxes(Rq, 1, 2), -np.einsum("kji,kj->ki", Rq, nt)
-        sigma_rot = 0.5 * sigma_r
+        info_rot = 0.5 * info_r
     else:
         noise = rng.standard_normal((m, 6)) * np.r_[np.full(3, sigma_t), np.full(3, sigma_r)]
         En, et = _exp_se3(noise)
-        sigma_rot = sigma_r
+        info_rot = info_r
     dR, dt = Rij @ En, tij + np.einsum("kij,kj->ki", Rij, et)
-    info = np.broadcast_to(np.diag(np.r_[np.full(3, sigma_t ** -2), np.full(3, sigma_rot ** -2)]), (m, 6, 6))
+    info = np.broadcast_to(np.diag(np.r_[np.full(3, info_t ** -2), np.full(3, info_rot ** -2)]), (m, 6, 6))
     it, iR = np.empty((n, 3)), np.empty((n, 3, 3))
     it[0], iR[0] = t[0], R[0]
     for k in range(n - 1):  # dead reckoning along the odometry
@@ -104,11 +110,12 @@ def _world(name, t, R, lc_tails, lc_heads, *, sigma_t, sigma_r, seed, cost, para
         it[k + 1] = it[k] + iR[k] @ dt[k]
     g = PoseGraph3D(n, tails, heads, dt, dR, info, initial_t=it, initial_R=iR, name=name, cost=cost)
     return SyntheticWorld3D(g, t, R, {"generator": name, "seed": seed, "sigma_t": sigma_t, "sigma_r": sigma_r,
-                                      "cost": cost, **params})
+                                      "info_sigma_t": info_t, "info_sigma_r": info_r, "cost": cost, **params})
 
 
 def sphere_world(n_rings: int = 10, per_ring: int = 20, *, radius: float = 10.0, seed: int = 0,
-                 sigma_t: float = 0.05, sigma_r: float = 0.01, cost: str = "g2o") -> SyntheticWorld3D:
+                 sigma_t: float = 0.05, sigma_r: float = 0.01, cost: str = "g2o", info_sigma_t: float | None = None,
+                info_sigma_r: float | None = None) -> SyntheticWorld3D:
     """Poses on a sphere, ring after ring (as in sphere2500): each ring's poses are joined by odometry, and each pose
     to the pose of the ring above at the same longitude by a loop closure. n = n_rings · per_ring. ``cost``: the
     graph's, its noise drawn in that cost's coordinates (module docstring)."""
@@ -121,12 +128,14 @@ def sphere_world(n_rings: int = 10, per_ring: int = 20, *, radius: float = 10.0,
     t = radius * np.column_stack([np.sin(polar) * np.cos(lon), np.sin(polar) * np.sin(lon), np.cos(polar)])
     R = _frames(t, t / radius)
     lc = k[per_ring:]
-    return _world("sphere_world", t, R, lc - per_ring, lc, sigma_t=sigma_t, sigma_r=sigma_r, seed=seed,
-                  cost=cost, params={"n_rings": n_rings, "per_ring": per_ring, "radius": radius})
+    return _world("sphere_world", t, R, lc - per_ring, lc, sigma_t=sigma_t, sigma_r=sigma_r, seed=seed, cost=cost,
+                  info_sigma_t=info_sigma_t, info_sigma_r=info_sigma_r,
+                  params={"n_rings": n_rings, "per_ring": per_ring, "radius": radius})
 
 
 def torus_world(n_loops: int = 10, per_loop: int = 20, *, major: float = 10.0, minor: float = 3.0, seed: int = 0,
-                sigma_t: float = 0.05, sigma_r: float = 0.01, cost: str = "g2o") -> SyntheticWorld3D:
+                sigma_t: float = 0.05, sigma_r: float = 0.01, cost: str = "g2o", info_sigma_t: float | None = None,
+                info_sigma_r: float | None = None) -> SyntheticWorld3D:
     """Poses on a torus, one small loop (around the tube) after another; each pose is joined to the pose at the
     same place of the previous loop. n = n_loops · per_loop. ``cost``: the graph's, its noise drawn in
     that cost's coordinates (module docstring)."""
@@ -141,12 +150,14 @@ def torus_world(n_loops: int = 10, per_loop: int = 20, *, major: float = 10.0, m
     centre = np.column_stack([major * np.cos(u), major * np.sin(u), np.zeros_like(u)])
     R = _frames(t, t - centre)
     lc = k[per_loop:]
-    return _world("torus_world", t, R, lc - per_loop, lc, sigma_t=sigma_t, sigma_r=sigma_r, seed=seed,
-                  cost=cost, params={"n_loops": n_loops, "per_loop": per_loop, "major": major, "minor": minor})
+    return _world("torus_world", t, R, lc - per_loop, lc, sigma_t=sigma_t, sigma_r=sigma_r, seed=seed, cost=cost,
+                  info_sigma_t=info_sigma_t, info_sigma_r=info_sigma_r,
+                  params={"n_loops": n_loops, "per_loop": per_loop, "major": major, "minor": minor})
 
 
 def cube_grid_world(side: int = 5, *, spacing: float = 1.0, seed: int = 0, sigma_t: float = 0.05,
-                    sigma_r: float = 0.01, cost: str = "g2o") -> SyntheticWorld3D:
+                    sigma_r: float = 0.01, cost: str = "g2o", info_sigma_t: float | None = None,
+                    info_sigma_r: float | None = None) -> SyntheticWorld3D:
     """A side³ lattice visited in a snake order (as smallGrid3D), each pose with a random orientation; every pair
     of lattice neighbours not consecutive along the path is a loop closure. ``cost``: the graph's, its noise drawn in
     that cost's coordinates (module docstring)."""
@@ -172,4 +183,5 @@ def cube_grid_world(side: int = 5, *, spacing: float = 1.0, seed: int = 0, sigma
                 lt.append(min(i, j))
                 lh.append(max(i, j))
     return _world("cube_grid_world", t, R, np.array(lt, np.int64), np.array(lh, np.int64), sigma_t=sigma_t,
-                  sigma_r=sigma_r, seed=seed, cost=cost, params={"side": side, "spacing": spacing})
+                  sigma_r=sigma_r, seed=seed, cost=cost,
+                  info_sigma_t=info_sigma_t, info_sigma_r=info_sigma_r, params={"side": side, "spacing": spacing})
