@@ -39,7 +39,8 @@ import lago_cvx as lc
 from lago_cvx.datasets import DatasetNotFound, dataset
 
 __all__ = ["FULL", "S", "CLAIMS", "setup", "check", "show", "real", "paper_lago", "figure_dir", "section_v_world",
-           "running_example", "intuition_figure", "quiet"]
+           "running_example", "intuition_figure", "quiet", "compounding_figure", "incidence_figure",
+           "two_minima_figure"]
 
 #: Bigger sweeps (more seeds, sizes, noise levels) run only with ``LAGO_CVX_FULL=1``.
 FULL = os.environ.get("LAGO_CVX_FULL", "") not in ("", "0")
@@ -317,4 +318,79 @@ def intuition_figure(lecture: str):
     else:
         raise ValueError(f"no intuition figure for lecture {lecture!r}")
     fig.tight_layout()
+    return fig
+
+
+# ----------------------------------------------------------------------------- lecture 01's figures
+def compounding_figure(p_i, p_j):
+    """Eq. (1) drawn: pose j (red) seen from pose i (blue), each pose (3,) with its axes; returns the figure."""
+    import matplotlib.pyplot as plt
+
+    from lago_cvx.posegraph import between, rot2
+
+    rel = between(p_i, p_j)
+    fig, ax = plt.subplots(figsize=(6, 4.6))
+    for pose, color, name in [(p_i, "tab:blue", "i"), (p_j, "tab:red", "j")]:
+        R = rot2(pose[2])
+        for axis, style in [(R[:, 0], "-"), (R[:, 1], "--")]:
+            ax.annotate("", pose[:2] + 0.9 * axis, pose[:2],
+                        arrowprops=dict(arrowstyle="->", color=color, ls=style, lw=1.6))
+        ax.plot(*pose[:2], "o", color=color)
+        ax.annotate(f"pose {name}, θ$_{name}$ = {np.rad2deg(pose[2]):.0f}°", pose[:2], xytext=(10, -18),
+                    textcoords="offset points", color=color)
+    ax.annotate("", p_j[:2], p_i[:2], arrowprops=dict(arrowstyle="->", color="k", lw=1.2))
+    ax.text(-0.3, 3.2, f"$p_j - p_i$ (black) written in the axes of i:\n"
+            f"$\\Delta^l_{{ij}}$ = ({rel[0]:.2f}, {rel[1]:.2f}),  $\\delta_{{ij}}$ = {np.rad2deg(rel[2]):.0f}°")
+    ax.set_aspect("equal")
+    ax.set_xlim(-0.5, 4.8)
+    ax.set_ylim(-0.3, 3.8)
+    ax.set_title("Eq. (1): pose j seen from pose i (solid: x axis, dashed: y axis)")
+    return fig
+
+
+def incidence_figure(graph, truth, A):
+    """A small graph drawn at its true poses (n + 1, 3) beside its incidence matrix A ((n + 1) × m, dense)."""
+    import matplotlib.pyplot as plt
+
+    from lago_cvx import plotting
+
+    fig, axs = plt.subplots(1, 2, figsize=(11, 4.6), gridspec_kw={"width_ratios": [1, 1.25]})
+    plotting.plot_trajectory(axs[0], truth, label="odometric edges", color="tab:blue", linewidth=1.5, style="-o",
+                             markersize=4)
+    plotting.plot_edges(axs[0], graph, truth, which="loop_closures", color="tab:red", linewidth=1.5, alpha=0.8,
+                        label="loop closures")
+    for i, (px, py) in enumerate(truth[:, :2]):
+        axs[0].annotate(f"{i}" + (" (reference)" if i == 0 else ""), (px, py), textcoords="offset points",
+                        xytext=(5, 5))
+    axs[0].legend(loc="center", fontsize=8)
+    axs[0].set_title(f"{graph.n_poses} poses, {graph.n_edges} edges (true positions)")
+    axs[1].imshow(A, cmap="coolwarm", vmin=-1.5, vmax=1.5)
+    axs[1].set_xticks(range(graph.n_edges), [f"{t}→{h}" for t, h in zip(graph.tails, graph.heads)], rotation=60,
+                      fontsize=8)
+    axs[1].set_yticks(range(graph.n_poses))
+    axs[1].set(xlabel="edge (i → j)", ylabel="pose")
+    axs[1].axhline(0.5, color="k", lw=1)
+    axs[1].set_title("incidence matrix A (blue −1 at i, red +1 at j);\nthe reduced A drops row 0")
+    return fig
+
+
+def two_minima_figure(truth, from_dr, from_lago, t, segment, chord):
+    """Two Gauss–Newton runs (refinement results) that end in two minima, and the cost on the segment between
+    them (``segment`` at the parameters ``t``) against the ``chord``."""
+    import matplotlib.pyplot as plt
+
+    from lago_cvx import plotting
+
+    fig, axs = plt.subplots(1, 2, figsize=(12, 4.8))
+    plotting.plot_trajectory(axs[0], truth, color="0.7", linewidth=3, label="truth")
+    plotting.plot_trajectory(axs[0], from_dr.poses, color="tab:red",
+                             label=f"from dead reckoning, cost {from_dr.chi2:.0f}")
+    plotting.plot_trajectory(axs[0], from_lago.poses, color="tab:blue", label=f"from LAGO, cost {from_lago.chi2:.1f}")
+    axs[0].set_title("Gauss–Newton: two starts, two local minima")
+    axs[0].legend(fontsize=8)
+    axs[1].plot(t, segment, label="cost on the segment")
+    axs[1].plot(t, chord, "k--", linewidth=1, label="chord")
+    axs[1].set(yscale="log", xlabel="t (configuration (1 − t)·[from dead reckoning] + t·[from LAGO])",
+               ylabel="cost eq. (3)", title="between the two minima the cost rises above the chord")
+    axs[1].legend(fontsize=8)
     return fig
