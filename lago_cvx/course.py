@@ -40,7 +40,7 @@ from lago_cvx.datasets import DatasetNotFound, dataset
 
 __all__ = ["FULL", "S", "CLAIMS", "setup", "check", "show", "real", "paper_lago", "figure_dir", "section_v_world",
            "running_example", "intuition_figure", "quiet", "compounding_figure", "incidence_figure",
-           "two_minima_figure"]
+           "two_minima_figure", "structure_figure", "remark1_figure"]
 
 #: Bigger sweeps (more seeds, sizes, noise levels) run only with ``LAGO_CVX_FULL=1``.
 FULL = os.environ.get("LAGO_CVX_FULL", "") not in ("", "0")
@@ -393,4 +393,51 @@ def two_minima_figure(truth, from_dr, from_lago, t, segment, chord):
     axs[1].set(yscale="log", xlabel="t (configuration (1 − t)·[from dead reckoning] + t·[from LAGO])",
                ylabel="cost eq. (3)", title="between the two minima the cost rises above the chord")
     axs[1].legend(fontsize=8)
+    return fig
+
+
+# ----------------------------------------------------------------------------- lecture 04a's figures
+def structure_figure(matrices, graph, positions, force):
+    """The sparsity of phase 3's matrices (``matrices``: [(dense array, title)], three of them) beside the edges
+    of ``graph`` drawn at ``positions`` (n + 1, 2), coloured by the spring tension ‖f_k‖ (``force`` (m, 2))."""
+    import matplotlib.pyplot as plt
+    from matplotlib.collections import LineCollection
+
+    fig, axes = plt.subplots(1, 4, figsize=(16, 4.2))
+    for ax, (M, title) in zip(axes, matrices):
+        nonzero = np.abs(M) > 1e-12 * np.abs(M).max()
+        ax.spy(nonzero, markersize=1.2)
+        ax.set(xlabel="column", ylabel="row")
+        ax.set_title(f"{title}\n{M.shape[0]}×{M.shape[1]}, {np.mean(nonzero):.0%} non-zero", fontsize=9)
+    segments = np.stack([positions[graph.tails], positions[graph.heads]], axis=1)
+    lines = LineCollection(segments, array=np.linalg.norm(force, axis=1), cmap="viridis", linewidths=2)
+    axes[3].add_collection(lines)
+    axes[3].plot(positions[1:, 0], positions[1:, 1], "k.", markersize=4)
+    axes[3].plot(0, 0, "r^", markersize=9, label="pose 0 (anchor)")
+    axes[3].autoscale_view()
+    axes[3].set_aspect("equal")
+    axes[3].legend(fontsize=8, loc="lower left")
+    fig.colorbar(lines, ax=axes[3], label="spring tension ‖f_k‖")
+    axes[3].set(title="edges at p*, by tension", xlabel="x [m]", ylabel="y [m]")
+    fig.tight_layout()
+    return fig
+
+
+def remark1_figure(runs):
+    """χ² / minimum against the linear systems of size 3n solved: Gauss–Newton from dead reckoning, and LAGO
+    then Gauss–Newton; ``runs`` is {label: (LAGO result, run from dead reckoning, run from LAGO)}."""
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, len(runs), figsize=(5.4 * len(runs), 4.2), squeeze=False)
+    for ax, (label, (r, gn_dr, gn_lago)) in zip(axes[0], runs.items()):
+        best = min(gn_dr.chi2, gn_lago.chi2)
+        c_dr = np.array([entry["chi2"] for entry in gn_dr.log]) / best
+        c_lago = np.array([entry["chi2"] for entry in gn_lago.log]) / best
+        ax.semilogy(np.arange(c_dr.size), c_dr, "o-", label="Gauss–Newton from dead reckoning")
+        ax.semilogy(1 + np.arange(c_lago.size), c_lago, "s-", label="LAGO (phase 3 = 1 step), then Gauss–Newton")
+        ax.semilogy([1], [r.chi2 / best], "r*", markersize=14, label="LAGO: one n-size + one 3n-size solve")
+        ax.set(xlabel="linear systems of size 3n solved", ylabel="χ² / minimum", title=label)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.tight_layout()
     return fig
