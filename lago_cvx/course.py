@@ -40,7 +40,8 @@ from lago_cvx.datasets import DatasetNotFound, dataset
 
 __all__ = ["FULL", "S", "CLAIMS", "setup", "check", "show", "real", "paper_lago", "figure_dir", "section_v_world",
            "running_example", "intuition_figure", "quiet", "compounding_figure", "incidence_figure",
-           "two_minima_figure", "structure_figure", "remark1_figure"]
+           "two_minima_figure", "structure_figure", "remark1_figure", "wraparound_figure", "circuits_figure",
+           "circuit_sums_figure", "noise_margin_figure"]
 
 #: Bigger sweeps (more seeds, sizes, noise levels) run only with ``LAGO_CVX_FULL=1``.
 FULL = os.environ.get("LAGO_CVX_FULL", "") not in ("", "0")
@@ -438,6 +439,95 @@ def remark1_figure(runs):
         ax.semilogy([1], [r.chi2 / best], "r*", markersize=14, label="LAGO: one n-size + one 3n-size solve")
         ax.set(xlabel="linear systems of size 3n solved", ylabel="χ² / minimum", title=label)
         ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+# ----------------------------------------------------------------------------- lecture 05's figures
+def wraparound_figure(truth, raw, regularized):
+    """Phases 1–3 on a noiseless four-lap circle: on the raw, wrapped δ (``raw`` poses) and on δ_reg."""
+    import matplotlib.pyplot as plt
+
+    from lago_cvx.plotting import plot_trajectory
+
+    fig, axes = plt.subplots(1, 2, figsize=(12, 5.4))
+    for ax, poses, title in [(axes[0], raw, "phases 1–3 on the raw, wrapped δ"),
+                             (axes[1], regularized, "phases 1–3 on the regularized δ_reg")]:
+        plot_trajectory(ax, truth, label="ground truth (4 laps)", color="k", linewidth=3.0, alpha=0.25)
+        plot_trajectory(ax, poses, label="estimate", color="tab:red", linewidth=1.0, style=".-", markersize=3)
+        ax.set_title(f"circle world, {truth.shape[0]} poses, noiseless:\n{title}")
+        ax.legend(fontsize=8, loc="upper right")
+    inset = axes[0].inset_axes([0.3, 0.3, 0.4, 0.4])
+    plot_trajectory(inset, raw, color="tab:red", linewidth=0.8, style=".-", markersize=2)
+    inset.set_title("the estimate, enlarged", fontsize=8)
+    inset.tick_params(labelsize=7)
+    inset.set(xlabel="", ylabel="")
+    fig.tight_layout()
+    return fig
+
+
+def circuits_figure(graph, truth, cycle, C, chords):
+    """A cycle (edge vector (m,)) of a small graph and the fundamental circuits ``C`` (l × m) of its chords."""
+    import matplotlib.pyplot as plt
+
+    from lago_cvx.plotting import plot_edges
+
+    fig, axes = plt.subplots(1, 1 + C.shape[0], figsize=(3.3 * (1 + C.shape[0]), 3.6))
+    panels = [(axes[0], cycle, "a cycle (not a circuit)")] + [
+        (ax, row, f"fundamental circuit of chord {graph.tails[k]}→{graph.heads[k]}") for ax, row, k in zip(axes[1:], C, chords)]
+    for ax, c, title in panels:
+        plot_edges(ax, graph, truth, which="all", color="0.8", linewidth=1.0, alpha=1.0)
+        plot_edges(ax, graph.subgraph_edges(c != 0), truth, which="all", color="tab:red", linewidth=2.5, alpha=1.0)
+        ax.plot(truth[:, 0], truth[:, 1], "ko", markersize=4)
+        for i, (x, y) in enumerate(truth[:, :2]):
+            ax.annotate(str(i), (x, y), textcoords="offset points", xytext=(4, 4), fontsize=9)
+        ax.set_title(title, fontsize=9)
+        ax.set_xticks([])
+        ax.set_yticks([])
+        ax.margins(0.2)
+    fig.tight_layout()
+    return fig
+
+
+def circuit_sums_figure(raw, regularized):
+    """Histograms of the circuit sums C δ and C δ_reg (each (l,)), in turns."""
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(12, 3.8))
+    axes[0].hist(raw / (2 * np.pi), bins=30, color="tab:red")
+    axes[0].set_title("C δ / 2π on the raw measurements: near integers")
+    axes[1].hist(regularized / (2 * np.pi), bins=30, color="tab:blue")
+    axes[1].set_title("C δ_reg / 2π after the rounding of eq. (23): near 0")
+    for ax in axes:
+        ax.set(xlabel="circuit sum / 2π", ylabel="fundamental circuits")
+        ax.yaxis.get_major_locator().set_params(integer=True)
+    fig.suptitle(f"the running example: {raw.size} fundamental circuits of the odometric tree")
+    fig.tight_layout()
+    return fig
+
+
+def noise_margin_figure(sigmas, wrong, ambiguous, n_seeds):
+    """Wrong and ambiguous corrections per world against the rotation noise: ``wrong`` {kind: counts} for the
+    odometric and BFS trees and the chordal regularizer, ``ambiguous`` {kind: counts} for the trees."""
+    import matplotlib.pyplot as plt
+
+    from lago_cvx.rounding import AMBIGUITY_MARGIN
+
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.4))
+    styles = {"odometry": ("tab:red", "odometric tree (the paper's)"), "bfs": ("tab:blue", "BFS tree"),
+              "chordal": ("tab:green", "chordal regularizer")}
+    for kind, counts in wrong.items():
+        axes[0].plot(sigmas, counts, "o-", color=styles[kind][0], label=styles[kind][1])
+    for kind, counts in ambiguous.items():
+        axes[1].plot(sigmas, counts, "o-", color=styles[kind][0], label=styles[kind][1])
+    axes[0].set(ylabel="fundamental circuits with a wrong 2kπ (per world)",
+                title=f"wrong corrections vs rotation noise\nManhattan worlds, 1000 poses, {n_seeds} seeds")
+    axes[1].set(ylabel="chords reported ambiguous (per world)",
+                title=f"the `ambiguous` warning (|C δ_reg| within {AMBIGUITY_MARGIN} rad of ±π)")
+    for ax in axes:
+        ax.set_xlabel("rotation noise σ_θ per measurement [rad]")
+        ax.grid(True, alpha=0.3)
         ax.legend(fontsize=8)
     fig.tight_layout()
     return fig
