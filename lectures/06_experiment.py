@@ -77,14 +77,12 @@ show(intuition_figure("06"), "intuition")
 # %%
 TABLE_I = {"nodes": 1228, "odometric constraints": 1227, "loop closing constraints": 278,
            "chords needing regularization": 198}            # the paper's Table I
-
 def table_i(graph):
     """Table I's four numbers for ``graph``, the chords counted by hand; the odometric tree, Cδ and k."""
     tree = lc.spanning_tree(graph, "odometry")              # Proposition 2: the odometric edges
     r = lc.cycle_basis(graph, tree) @ graph.delta           # eq. (19), one row per chord: cycle residuals Cδ
     k = -np.rint(r / (2 * np.pi)).astype(int)               # eq. (23), rounded to 2kπ
     return dict(zip(TABLE_I, (graph.n_poses, graph.n_odometric, graph.n_loop_closures, np.count_nonzero(k)))), tree, r, k
-
 run_row, _, _, run_k = table_i(running_example().graph)
 run_paper = lc.lago(running_example().graph, route="seed")
 ours = table_i(INTEL)[0] if INTEL is not None else {key: "–" for key in TABLE_I}
@@ -98,7 +96,6 @@ if INTEL is not None:
     bfs = lc.lago(g, route="seed", spanning_tree="bfs")
     print(f"the count depends on the tree: with a breadth-first tree only {bfs.regularization.n_regularized} "
           f"of {bfs.tree.n_chords} chords need k ≠ 0")
-
     fig, ax = plt.subplots(figsize=(7, 3.2))
     ax.hist(r / (2 * np.pi), bins=np.arange(r.min() / (2 * np.pi) - 0.5, r.max() / (2 * np.pi) + 0.5, 0.05),
             color="tab:blue")
@@ -148,7 +145,6 @@ if INTEL is not None:
     reference = theta[0] == 0
     phase1 = cp.Problem(cp.Minimize(cp.sum_squares(cp.multiply(w, At @ theta - delta))), [reference])
     print(phase1)                                           # (cvxpy writes sum_squares(x) as quad_over_lin(x, 1))
-
     delta.value = paper.regularization.delta_reg            # regularized: δ + v
     status = solve(phase1)
     theta_reg, cost_reg = theta.value.copy(), phase1.value
@@ -173,7 +169,6 @@ if INTEL is not None:
     ph2 = phases.phase2(g, theta_raw, unc, information="marginal", delta_reg=g.delta)
     raw_poses = phases.phase3_closed_form(g, ph2).poses    # phases 2–3 on the unregularized orientations
     print(f"χ² of the three phases: regularized {paper.chi2:.4g}, raw {lc.chi2(g, raw_poses):.4g}")
-
     fig, axs = plt.subplots(1, 2, figsize=(11, 5))
     for ax, poses, title in ((axs[0], paper.poses, "with the 2kπ corrections (Theorem 3)"),
                              (axs[1], raw_poses, "without them (raw δ)")):
@@ -247,7 +242,6 @@ def swept_grid(poses, resolution=0.2, radius=0.3):
     grid = np.zeros(cells.max(0) + 1, bool)
     grid[cells[:, 0], cells[:, 1]] = True
     return grid, lo, grid.sum() * resolution**2
-
 if INTEL is not None:
     default = lc.lago(g)
     optimum = lc.refine(g, default.poses)
@@ -261,7 +255,6 @@ if INTEL is not None:
     axs[0].legend(loc="lower left", fontsize=8)
     fig.suptitle("Fig. 2(a) — INTEL: estimated node configuration")
     show(fig, "fig2a")
-
     areas = {}
     fig, axs = plt.subplots(1, 2, figsize=(12, 5.8))
     for ax, (name, poses) in zip(axs, (("odometric trajectory", odo), ("the paper's procedure", paper.poses))):
@@ -324,7 +317,6 @@ def relation_errors(graph, poses, truth):
     ref = between(truth[graph.tails], truth[graph.heads])
     d = between(ref, est)                                   # δ̂ ⊖ δ*, in the frame of δ*
     return float(np.mean(np.sum(d[:, :2] ** 2, 1))), float(np.mean(wrap_angle(d[:, 2]) ** 2))
-
 #: The paper's Table II (INTEL; ε_t [m²], ε_θ [rad²]) as far as its scan can be read: the scan prints one
 #: line of exponents (−3, −4, −4, −4) between the two TORO rows, read here as applying to both.
 PAPER_TABLE_II = {"TORO, 100 iterations": {"proportional": (2.60e-3, 2.30e-4), "P = I₃": (6.16e-4, 1.62e-4)},
@@ -607,44 +599,52 @@ if INTEL is not None:
 # χ². Re-solving the positions for phase 3's orientations, as the default route does, brings INTEL within 1 % of it.
 
 # %% [markdown]
-# ## Exercise 1 — The metric needs no alignment
-#
-# Absolute trajectory errors need the estimate rigidly aligned to the truth first (the estimate lives in the frame of
-# its reference pose). Show that $\varepsilon_t$ and $\varepsilon_\theta$ of section 5 do not: for any rigid motion
-# $T$ of the plane, $(T\oplus\hat p_i)^{-1}\oplus(T\oplus\hat p_j) = \hat p_i^{-1}\oplus \hat p_j$. Check it
-# numerically on a LAGO estimate of a synthetic Manhattan world with a random $T$, and show that the ATE (`lc.ate(...,
-# align=False)`) does change.
-#
-# **Hint.** Apply $T$ with `lc.compose(np.broadcast_to(T, poses.shape), poses)`; `relation_errors` of
-# section 5 takes the graph, the estimate and the truth.
-
-# %%
-# your solution here
+# **Summary.** Section V re-run: Table I, Figs. 1–3 and Table II's metric, the abstract's claim on every real graph.
 
 # %% [markdown]
-# ````{dropdown} Solution
-# ```{literalinclude} solutions/06_experiment_ex1.py
-# :language: python
-# ```
-# ````
+# ## Exercise 1 — The metric needs no alignment
+#
+# Write `relation_errors(graph, poses, truth)`, the $(\varepsilon_t, \varepsilon_\theta)$ of section 5, and show that,
+# unlike the ATE, it needs no alignment: $(T\oplus\hat p_i)^{-1}\oplus(T\oplus\hat p_j) = \hat p_i^{-1}\oplus \hat p_j$ for
+# any rigid motion $T$. The check moves a LAGO estimate by a random $T$. **Hint.** Compare the estimated and the true relative poses with `between`; wrap the angle.
+
+# %%
+# your solution here: fill in the body, then run the cell (check_relation_errors tests it)
+from lago_cvx.exercises import check_relation_errors
+def relation_errors(graph, poses, truth):  # (ε_t [m²], ε_θ [rad²])
+    raise NotImplementedError
+check_relation_errors(relation_errors)
+
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false}
+# Solution and Discussion. For a rigid motion T = (t, φ), (T ⊕ p_j) ⊖ (T ⊕ p_i) = (R(θ_i)ᵀ(p_j − p_i), θ_j − θ_i) since
+# R(φ + θ_i)ᵀR(φ) = R(θ_i)ᵀ: relative poses, hence ε_t and ε_θ, do not see T; the ATE must align the frames first.
+import numpy as np
+from lago_cvx.exercises import check_relation_errors
+from lago_cvx.posegraph import between, wrap_angle
+def relation_errors(graph, poses, truth):
+    d = between(between(truth[graph.tails], truth[graph.heads]), between(poses[graph.tails], poses[graph.heads]))
+    return float(np.mean(np.sum(d[:, :2] ** 2, 1))), float(np.mean(wrap_angle(d[:, 2]) ** 2))
+check_relation_errors(relation_errors).require()
 
 # %% [markdown]
 # ## Exercise 2 — Table I for every graph
 #
-# Write the Table I row (poses, odometric edges, loop closures, chords needing regularization) of every
-# real graph, once with the odometric and once with the breadth-first tree. Check Corollary 3 (with the
-# odometric tree the chords are exactly the loop closures) on every file. Which tree needs fewer
-# corrections, why would you expect it, and is it a theorem?
-#
-# **Hint.** Section 1 does it for INTEL: `lc.spanning_tree(graph, "odometry")`, `lc.cycle_basis`, and
-# $k = -\mathrm{round}(C\delta / 2\pi)$; `lago_cvx.datasets.DATASET_FILES` lists the files.
+# Write `table_one_row(graph, kind)` — poses, odometric edges, loop closures, chords with $k \ne 0$ along the tree
+# `kind` ("odometry" or "bfs") — and run it on every real graph. Which tree needs fewer corrections, and is it a theorem? **Hint.** Section 1: `lc.spanning_tree(graph, kind)`, `lc.regularize`; Corollary 3 for the chords.
 
 # %%
-# your solution here
+# your solution here: fill in the body, then run the cell (check_table_one tests it)
+from lago_cvx.exercises import check_table_one
+def table_one_row(graph, kind):  # (poses, odometric, loop closures, k ≠ 0)
+    raise NotImplementedError
+check_table_one(table_one_row)
 
-# %% [markdown]
-# ````{dropdown} Solution
-# ```{literalinclude} solutions/06_experiment_ex2.py
-# :language: python
-# ```
-# ````
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false}
+# Solution and Discussion. With the odometric tree the chords are the loop closures (Corollary 3). The BFS tree needs
+# no more corrections on these graphs — its paths to the root are shortest, so a cycle sums fewer turns — not a theorem.
+import lago_cvx as lc
+from lago_cvx.exercises import check_table_one
+def table_one_row(graph, kind):
+    k = lc.regularize(graph, lc.spanning_tree(graph, kind)).k
+    return graph.n_poses, graph.n_odometric, graph.n_loop_closures, int((k != 0).sum())
+check_table_one(table_one_row).require()
