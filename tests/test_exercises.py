@@ -117,6 +117,13 @@ def _regularize_per_chord(graph, tree_edges):
     return pkg.k[tree.chords], pkg.delta_reg
 
 
+def _polish_without_fallback(F, theta_hat, theta_star):
+    f_hat, alpha = F(theta_hat), 1.0
+    while F(theta_hat + alpha * (theta_star - theta_hat)) >= f_hat and alpha > 1e-3:
+        alpha /= 2                                     # halves on and on instead of at most three times
+    return alpha, F(theta_hat + alpha * (theta_star - theta_hat))
+
+
 def _absolute_errors(graph, poses, truth):
     d = poses - truth
     return float(np.mean(np.sum(d[:, :2] ** 2, 1))), float(np.mean(d[:, 2] ** 2))
@@ -150,7 +157,8 @@ WRONG = {
     "check_pz_times": [(lambda res, g, v: v, "differs from v")],
     "check_phase3_information": [(_phase3_without_prior, "orientation block")],
     "check_spring_forces": [(_forces_unweighted, "spring forces")],
-    "check_guarded_polish": [(lambda F, th, ts: (1.0, F(ts)), "α = 1.0")],
+    "check_guarded_polish": [(lambda F, th, ts: (1.0, F(ts)), "keeps α = 0.5"),
+                             (_polish_without_fallback, "keeps α = 0.0")],
     "check_scale_information": [(_scale_everything, "information")],
     "check_fundamental_coordinates": [(lambda C, chords: C[:, chords].T, "not the coordinates")],
     "check_regularize": [(_regularize_wrong_sign, "outside [−π, π]")],

@@ -288,8 +288,9 @@ def polish_case():
 
 @exercise("04b, exercise 1 (the guarded polish)")
 def check_guarded_polish(answer) -> str:
-    """``answer(F, theta_hat, theta_star) -> (alpha, chi2)``: the guarded polish. Compared with the package's
-    (``positions="resolve"``) on ``polish_case()``."""
+    """``answer(F, theta_hat, theta_star) -> (alpha, chi2)``: the guarded polish. Tested on four functions F along
+    the step, one per outcome (α = 1, ½, ⅛, 0), then compared with the package's (``positions="resolve"``) on
+    ``polish_case()``."""
     from lago_cvx.positions import resolve_positions
 
     graph, res = polish_case()
@@ -297,7 +298,18 @@ def check_guarded_polish(answer) -> str:
     def F(theta):
         return lc.chi2(graph, resolve_positions(graph, theta, res.uncertainty).poses)
 
-    out = call(answer, "guarded_polish", F, res.phase1.theta, res.phase3.poses[:, 2])
+    theta_hat, theta_star = res.phase1.theta, res.phase3.poses[:, 2]
+    step = theta_star - theta_hat
+    for s0, expected in ((0.7, 1.0), (0.3, 0.5), (0.1, 0.125), (0.01, 0.0)):   # F along the step: (s − s0)²
+        def along(theta, s0=s0):
+            return float((step @ (theta - theta_hat) / (step @ step) - s0) ** 2)
+
+        out = call(answer, "guarded_polish", along, theta_hat, theta_star)
+        alpha, value = (float(v) for v in array(out, (2,), "(alpha, chi2)"))
+        if alpha != expected or abs(value - (expected - s0) ** 2) > 1e-12:
+            raise Wrong(f"with F(θ̂ + s(θ* − θ̂)) = (s − {s0})² the guarded polish keeps α = {expected} "
+                        f"(F = {(expected - s0) ** 2:.4g}); yours returned α = {alpha}, F = {value:.4g}")
+    out = call(answer, "guarded_polish", F, theta_hat, theta_star)
     alpha, chi2 = (float(v) for v in array(out, (2,), "(alpha, chi2)"))
     pkg = paper_lago(graph, positions="resolve")
     if alpha != pkg.polish.alpha:
