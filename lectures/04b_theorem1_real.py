@@ -604,7 +604,7 @@ def scale_information(graph, pick, factor, mode):
         info[pick, 0, 0] *= factor
     return replace(graph, information=info)
 
-g = lc.manhattan_world(500, seed=0, sigma_xy=0.02, sigma_theta=0.02).graph
+g = lc.manhattan_world(500, seed=0, sigma_xy=0.02, sigma_theta=0.02).graph   # own world: information scaled at will
 pick = np.random.default_rng(0).random(g.n_edges) < 0.1
 for mode in ("isotropic", "x only"):
     for factor in (1.0, 1e6):

@@ -30,9 +30,12 @@
 # available: sections 5–6 compute the same metric on a synthetic world with known truth and the paper's proportional
 # uncertainty, Gauss–Newton standing in for TORO, beside the paper's values.
 #
-# **Notation.** χ² is the cost of eq. (3), $\sum_{ij} e_{ij}^\top \Omega_{ij} e_{ij}$, no factor ½
-# (`lago_cvx.metrics.chi2`); $n+1$ poses, $m$ edges, $A$ the $(n+1)\times m$ incidence matrix, $\delta$ the
-# relative orientations, $P_\delta$ their variances.
+# **Notation** (lectures 1–5's, and):
+#
+# | symbol | meaning | in the package |
+# |---|---|---|
+# | χ² | the cost of eq. (3), $\sum_{ij} e_{ij}^\top \Omega_{ij} e_{ij}$, no factor ½ | `lago_cvx.metrics.chi2` |
+# | $\varepsilon_t$, $\varepsilon_\theta$ | Table II's mean squared errors of the relative translations [m²] and rotations [rad²] | `relation_errors` (section 5) |
 
 # %%
 try:                                  # run alone (Colab, a fresh environment)? then install the package first
@@ -604,9 +607,9 @@ if INTEL is not None:
 # %% [markdown]
 # ## Exercise 1 — The metric needs no alignment
 #
-# Write `relation_errors(graph, poses, truth)`, the $(\varepsilon_t, \varepsilon_\theta)$ of section 5, and show that,
-# unlike the ATE, it needs no alignment: $(T\oplus\hat p_i)^{-1}\oplus(T\oplus\hat p_j) = \hat p_i^{-1}\oplus \hat p_j$ for
-# any rigid motion $T$. The check moves a LAGO estimate by a random $T$. **Hint.** Compare the estimated and the true relative poses with `between`; wrap the angle.
+# Write `relation_errors(graph, poses, truth)`, the $(\varepsilon_t, \varepsilon_\theta)$ of section 5: unlike the ATE it
+# needs no alignment, $(T\oplus\hat p_i)^{-1}\oplus(T\oplus\hat p_j) = \hat p_i^{-1}\oplus \hat p_j$ for a rigid motion $T$
+# (the check moves a LAGO estimate). **Hint.** Compare the estimated and true relative poses (`between`); wrap the angle.
 
 # %%
 # your solution here: fill in the body, then run the cell (check_relation_errors tests it)
@@ -616,21 +619,19 @@ def relation_errors(graph, poses, truth):  # (ε_t [m²], ε_θ [rad²])
 check_relation_errors(relation_errors)
 
 # %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false}
-# Solution and Discussion. For a rigid motion T = (t, φ), (T ⊕ p_j) ⊖ (T ⊕ p_i) = (R(θ_i)ᵀ(p_j − p_i), θ_j − θ_i) since
-# R(φ + θ_i)ᵀR(φ) = R(θ_i)ᵀ: relative poses, hence ε_t and ε_θ, do not see T; the ATE must align the frames first.
-import numpy as np
+# Solution and Discussion. R(φ + θ_i)ᵀR(φ) = R(θ_i)ᵀ: relative poses, hence ε_t, ε_θ, do not see T; the ATE aligns first.
 from lago_cvx.exercises import check_relation_errors
 from lago_cvx.posegraph import between, wrap_angle
 def relation_errors(graph, poses, truth):
     d = between(between(truth[graph.tails], truth[graph.heads]), between(poses[graph.tails], poses[graph.heads]))
-    return float(np.mean(np.sum(d[:, :2] ** 2, 1))), float(np.mean(wrap_angle(d[:, 2]) ** 2))
+    return float((d[:, :2] ** 2).sum(1).mean()), float((wrap_angle(d[:, 2]) ** 2).mean())
 check_relation_errors(relation_errors).require()
 
 # %% [markdown]
 # ## Exercise 2 — Table I for every graph
 #
-# Write `table_one_row(graph, kind)` — poses, odometric edges, loop closures, chords with $k \ne 0$ along the tree
-# `kind` ("odometry" or "bfs") — and run it on every real graph. Which tree needs fewer corrections, and is it a theorem? **Hint.** Section 1: `lc.spanning_tree(graph, kind)`, `lc.regularize`; Corollary 3 for the chords.
+# Write `table_one_row(graph, kind)` (poses, odometric edges, loop closures, chords with $k \ne 0$ along the tree `kind`)
+# for every real graph: which tree needs fewer corrections, and is it a theorem? **Hint.** Section 1; `lc.regularize`.
 
 # %%
 # your solution here: fill in the body, then run the cell (check_table_one tests it)
@@ -640,8 +641,7 @@ def table_one_row(graph, kind):  # (poses, odometric, loop closures, k ≠ 0)
 check_table_one(table_one_row)
 
 # %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false}
-# Solution and Discussion. With the odometric tree the chords are the loop closures (Corollary 3). The BFS tree needs
-# no more corrections on these graphs — its paths to the root are shortest, so a cycle sums fewer turns — not a theorem.
+# Solution and Discussion. The BFS tree's paths are shortest, so its cycles sum fewer turns: fewer k ≠ 0 (not a theorem).
 import lago_cvx as lc
 from lago_cvx.exercises import check_table_one
 def table_one_row(graph, kind):
