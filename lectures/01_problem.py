@@ -229,7 +229,7 @@ def half_offset(m):
 
 check_half_offset(half_offset)
 
-# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false}
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
 # Solution and Discussion. At the true poses f is a sum of 3m squared standard normals: mean 3m, variance 6m.
 # A cost with a factor ½ has mean 3m/2, so it sits (3m − 3m/2)/√(6m) = √(3m/8) standard deviations below 3m;
 # √(3m/8) ≥ 3 ⟺ m ≥ 24: from 24 edges on, a wrong convention is a 3σ event on average.
@@ -440,7 +440,7 @@ def cost_eq6(graph, poses):
 
 check_cost_eq6(cost_eq6)
 
-# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false}
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
 # Solution and Discussion. Eq. (6) with sparse matrices: position residual A₂ᵀp − RΔˡ weighted by (R P_Δˡ Rᵀ)⁻¹,
 # orientation residual Aᵀθ − δ by P_δ⁻¹. It equals lc.chi2 while every angular residual lies in [−π, π); the
 # package wraps that residual, eq. (6) does not: turn a pose by 2π and eq. (6) jumps, χ² does not.
@@ -628,7 +628,7 @@ def gauss_newton_minima(graph, n_starts, rng):
 
 check_minima(gauss_newton_minima)
 
-# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false}
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
 # Solution and Discussion. Random starts (positions in the box of the graph's dead reckoning, headings uniform)
 # end in several local minima; their number does not simply grow with the noise (with very certain headings
 # the landscape is steep and the runs scatter most). LAGO's estimate, used as a start, reaches the best found.

@@ -367,7 +367,7 @@ def chain_covariance(sigma):
 
 check_chain_covariance(chain_covariance)
 
-# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false}
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
 # Solution and Discussion. On the chain the reduced A is n × n upper bidiagonal, Aᵀθ = (θ_k − θ_{k−1})_k, so
 # P_θ = (A P_δ⁻¹ Aᵀ)⁻¹ = A⁻ᵀ P_δ A⁻¹ with A⁻ᵀ the summation matrix (θ_i = Σ_{k≤i} δ_k, dead reckoning):
 # (P_θ)_ij = Σ_{k ≤ min(i,j)} σ_k² — the heading error is a random walk along the path.
@@ -599,7 +599,7 @@ def compass_orientations(graph, delta_reg, info_delta, K, c, sigma_c):
 
 check_compass(compass_orientations)
 
-# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false}
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
 # Solution and Discussion. Unknowns: all n + 1 orientations. With D = [A, E_K] (E_K the columns e_k, k ∈ K) and
 # weights w = [P_δ⁻¹, 1/σ_c²], θ⁺ = (D diag(w) Dᵀ)⁻¹ D diag(w) [δ_reg; c]. D diag(w) Dᵀ is the graph's Laplacian
 # plus Σ_k e_k e_kᵀ/σ_c²: positive definite for a connected graph with one reading or more — Proposition 1 with
@@ -636,7 +636,7 @@ def trace_drop(P0, e, variance):
 
 check_trace_drop(trace_drop)
 
-# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false}
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
 # Solution and Discussion. Adding an edge e = e_j − e_i with variance σ² is a rank-one update of the information,
 # so by Sherman–Morrison tr P_new = tr P₀ − ‖P₀e‖² / (σ² + eᵀP₀e). On a chain eᵀP₀e = Σ σ_k² over the
 # odometric edges between i and j: long cycles help most — but ‖P₀e‖² also grows with the distance from the anchor.

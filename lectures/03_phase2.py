@@ -381,7 +381,7 @@ def theta_columns(graph):
 
 check_theta_columns(theta_columns)
 
-# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false}
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
 # Solution and Discussion. R(θ)ᵀ S R(θ) = S: plane rotations commute. The block of edge k of RᵀJ is
 # R(θ̂_i)ᵀ S R(θ̂_i) Δˡ_k = S Δˡ_k whatever θ̂, so in W = [[P_Δˡ^(−½)Rᵀ, −P_Δˡ^(−½)RᵀJ], [0, P_δ^(−½)Aᵀ]] only
 # the first block column changes with θ̂ — except the blocks of the edges leaving pose 0, whose θ̂₀ = 0 is fixed.
@@ -528,7 +528,7 @@ def pz_times(result, graph, v):
 
 check_pz_times(pz_times)
 
-# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false}
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
 # Solution and Discussion. P_z = H blkdiag(P_Δˡ, P_θ) Hᵀ with H = [[R, J], [0, I]]. For v = [a; b]: Hᵀv =
 # [Rᵀa; Jᵀa + b], then [P_Δˡ Rᵀa; P_θ(Jᵀa + b)] = [s₁; s₂], then H[s₁; s₂] = [R s₁ + J s₂; s₂]. P_θ x is one solve
 # with phase 1's factorization of A P_δ⁻¹ Aᵀ: no dense matrix anywhere (on INTEL P_z would have 10⁷ entries).

@@ -584,7 +584,7 @@ def phase3_information(result, graph):
 
 check_phase3_information(phase3_information)
 
-# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false}
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
 # Solution and Discussion. P_z⁻¹ = H⁻ᵀ blkdiag(P_Δl⁻¹, P_θ⁻¹) H⁻¹, H⁻¹Bᵀ = [[RᵀA₂ᵀ, −RᵀJ], [0, I]] and R P_Δl⁻¹ Rᵀ =
 # P_Δg⁻¹ (R orthogonal) give the blocks. By block inversion the Schur complement of the position block is the
 # inverse of P_θ*, the orientation block of P_ρ* (eqs. (16)–(17)).
@@ -627,7 +627,7 @@ def spring_forces(result, graph):
 
 check_spring_forces(spring_forces)
 
-# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false}
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
 # Solution and Discussion. On one loop every pose has two edges, oriented along the loop; the balance
 # A₂λ_Δ = 0 at pose k+1 reads f_k − f_{k+1} = 0: one force runs through the whole ring, and the misclosure is
 # shared out in proportion to the compliances, d_k = P_Δg,k f — the soft springs stretch most.

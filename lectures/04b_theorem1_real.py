@@ -543,7 +543,7 @@ def guarded_polish(F, theta_hat, theta_star):
 
 check_guarded_polish(guarded_polish)
 
-# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false}
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
 # Solution and Discussion. Keep θ* when F(θ*) ≤ F(θ̂); otherwise halve α from 1, at most three times, until
 # F(θ̂ + α(θ* − θ̂)) < F(θ̂); else keep θ̂ (α = 0). Never above phase 3's χ² nor F(θ̂): a guard, not a search.
 from lago_cvx.exercises import check_guarded_polish
@@ -586,7 +586,7 @@ def scale_information(graph, pick, factor, mode):
 
 check_scale_information(scale_information)
 
-# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false}
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
 # Solution and Discussion. Scaling 10 % of the edges' translational information by F (measurements unchanged):
 # at F = 1 phase 3 lowers χ² as Theorem 1 says; at F = 10⁶ it overshoots, and re-solving the positions repairs
 # it. Isotropically the culprit is the linearised R(θ)Δˡ; along x only, mostly the frozen weights — the

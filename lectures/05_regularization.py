@@ -585,7 +585,7 @@ def coordinates(C, basis_chords):
 
 check_fundamental_coordinates(coordinates)
 
-# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false}
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
 # Solution and Discussion. For a cycle vector c (Ac = 0) put c' = c − Σ_k c_k c⁽ᵏ⁾ over the chords k. Then Ac' = 0
 # and c' is zero on every chord: it lives on the tree, where a non-zero vector always has a leaf of its support
 # with (Ac')_v = ±c'_e ≠ 0; so c' = 0 and c = Σ_k c_k c⁽ᵏ⁾. The coordinates are the chord entries: the
@@ -619,7 +619,7 @@ def my_regularize(graph, tree_edges):
 
 check_regularize(my_regularize)
 
-# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false}
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
 # Solution and Discussion. Integrate δ along the tree from pose 0 in breadth-first order (θ_child = θ_parent ±
 # δ_edge); each chord's circuit sum is (Cδ)_c = δ_c − (θ_j − θ_i); round it to k_c so that (Cδ)_c + 2πk_c lies
 # in (−π, π]; δ_reg = δ + 2πk on the chords, the tree edges keep δ (eq. (23)). With the odometric tree of INTEL,

@@ -618,7 +618,7 @@ def relation_errors(graph, poses, truth):  # (ε_t [m²], ε_θ [rad²])
     raise NotImplementedError
 check_relation_errors(relation_errors)
 
-# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false}
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
 # Solution and Discussion. R(φ + θ_i)ᵀR(φ) = R(θ_i)ᵀ: relative poses, hence ε_t, ε_θ, do not see T; the ATE aligns first.
 from lago_cvx.exercises import check_relation_errors
 from lago_cvx.posegraph import between, wrap_angle
@@ -640,7 +640,7 @@ def table_one_row(graph, kind):  # (poses, odometric, loop closures, k ≠ 0)
     raise NotImplementedError
 check_table_one(table_one_row)
 
-# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false}
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
 # Solution and Discussion. The BFS tree's paths are shortest, so its cycles sum fewer turns: fewer k ≠ 0 (not a theorem).
 import lago_cvx as lc
 from lago_cvx.exercises import check_table_one

@@ -221,7 +221,7 @@ def anchor_torques(graph, anchors):
 
 check_anchor_torques(anchor_torques)
 
-# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false}
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
 # Solution and Discussion. Phase 1's gradient is ∇f = 2AW²(Aᵀθ − δ_reg), and 1ᵀA = 0 (one −1, one +1 per
 # column), so 1ᵀ∇f = 0 for every θ. At the optimum ∇_U f = 0 on the free poses and ∇_K f + ν = 0 on the anchors:
 # Σ_a ν_a = −1ᵀ∇f = 0. With one anchor ν = 0: a single reference only fixes the gauge. (The position forces
@@ -322,7 +322,7 @@ def strain_statistic(graph, anchors, anchor_id):
 
 check_strain(strain_statistic)
 
-# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false}
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
 # Solution and Discussion. With M the whitened design of phase 1 and a the anchored orientation, eliminating the
 # free coordinates leaves F(θ̄_a) = F(0) + gφ + Sφ², S = M_aᵀM_a − M_aᵀM_U(M_UᵀM_U)⁻¹M_UᵀM_a (a Schur complement)
 # and g = −ν_a. Releasing the anchor minimizes over φ: the cost drops by ν_a²/(4S), the Lagrange-multiplier test.
@@ -602,7 +602,7 @@ def truncation(confidence):
 
 check_truncation(truncation)
 
-# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false}
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
 # Solution and Discussion. An inlier's whitened squared residual is χ²₃ when the model is right, so truncating at
 # the χ²₃ quantile at 0.99 (11.34) rejects about 1 % of the true edges at most. A tiny c̄² rejects true edges by the
 # hundred; a huge one accepts the false loop closures, and GNC is least squares again (the sweep below).

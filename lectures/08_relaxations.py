@@ -122,7 +122,7 @@ def wrong_integer_probability(graph, tree):
     raise NotImplementedError
 check_wrong_integers(wrong_integer_probability)
 
-# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false}
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
 # Solution and Discussion. (Cδ)_c = 2πK_c + e_c (K_c the true turns), e_c = Σ_{e∈c} ±ε_e ~ N(0, σ_c²), σ_c² = (|C|P_δ)_c;
 # the rounding is right iff e_c ∈ (−π, π]: P[wrong] = erfc(π/(√2 σ_c)) — eq. (W), as section 1's Monte Carlo shows.
 import numpy as np
@@ -251,7 +251,7 @@ def chordal_from_laplacian(graph, omega, anchor_index):
     raise NotImplementedError
 check_connection_laplacian(chordal_from_laplacian)
 
-# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false}
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
 # Solution and Discussion. Σ_e ω_e|z_j − e^{iδ_e}z_i|² = ‖Dz‖² = z^H L z, D = √ω (U_heads − diag(e^{iδ}) U_tails), L = D^H D;
 # with z_a = 1 the minimizer solves (Lz)_U = 0: z ∝ L⁻¹u_a — eq. (G). A pose on a dangling chain has one edge towards
 # the rest, whose term can be made zero: along the chain every ‖z_i‖ keeps its attachment point's length.
@@ -639,7 +639,7 @@ def lower_bound_b(graph, poses):
     raise NotImplementedError
 check_bound_b(lower_bound_b)
 
-# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false}
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
 # Solution and Discussion. f* ≥ Σ tr Λ_i + 2(n+1)·min(0, λ_min(S_Q)) holds everywhere and is tight at a global minimum
 # (S_Q ⪰ 0); along the segment from raw LAGO the proven gap stays within a factor of about 2 of the true one.
 from lago_cvx.certification import certify

@@ -370,7 +370,7 @@ def chordal_weight(Omega):
 
 check_chordal_weight(chordal_weight)
 
-# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false}
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
 # Solution and Discussion. (D): ‖R₂ − R₁‖²_F = 6 − 2tr(R₁ᵀR₂) = 4(1 − cos ψ) = 2ψ² − ψ⁴/6 + …, twice the squared
 # angle near 0. (Q): ‖[φ]×S‖²_F = tr([φ]×ᵀ[φ]× W) = φᵀ(tr(W)I − W)φ with W = S². Taking traces, tr(W)I − W = Ω
 # forces tr W = ½tr Ω, so W = ½tr(Ω)I − Ω is the only solution; its eigenvalues ½(λ₁+λ₂+λ₃) − λ_k are negative
@@ -559,7 +559,7 @@ def tree_rotations(graph):
 
 check_tree_rotations(tree_rotations)
 
-# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false}
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
 # Solution and Discussion. On a tree every pose is reached from the anchor by one path; composing R_{k+1} =
 # R_k R̃_{k,k+1} makes every residual R_j − R_i R̃_ij of (C) zero, so (C) = 0 there: these rotations are its
 # minimizer (unique: the tree's normal matrix is nonsingular), and the projection onto SO(3) changes nothing. A

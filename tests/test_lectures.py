@@ -149,6 +149,8 @@ def test_lecture_executes(src, tmp_path):
 #: The metadata of a solution cell: collapsed in Jupyter (output shown), hidden behind a toggle in the site.
 SOLUTION_TAGS = {"solution", "hide-cell"}
 SOLUTION_JUPYTER = {"source_hidden": True, "outputs_hidden": False}
+#: The site's toggle of a solution cell says what it hides (myst-nb's cell-level ``code_prompt_show``).
+SOLUTION_PROMPT = "Solution and Discussion"
 
 
 def _notebook_cells(stem: str):
@@ -188,6 +190,8 @@ def test_every_exercise_has_a_hint_a_checked_stub_and_a_hidden_solution(src):
         assert solution.cell_type == "code" and SOLUTION_TAGS <= set(solution.metadata.get("tags", [])), \
             f"{where}: the cell after the stub is not tagged {sorted(SOLUTION_TAGS)}"
         assert solution.metadata.get("jupyter") == SOLUTION_JUPYTER, f"{where}: the solution is not collapsed in Jupyter"
+        assert solution.metadata.get("mystnb", {}).get("code_prompt_show") == SOLUTION_PROMPT, \
+            f"{where}: the site's toggle does not say '{SOLUTION_PROMPT}'"
         assert solution.source.startswith("# Solution and Discussion."), f"{where}: the solution starts otherwise"
         assert re.search(rf"^def {name}\(", solution.source, re.MULTILINE) and f"{check}({name}).require()" in solution.source, \
             f"{where}: the solution does not define {name} and call {check}({name}).require()"
