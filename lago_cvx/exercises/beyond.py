@@ -257,10 +257,10 @@ def check_chordal_weight(answer) -> str:
         Omega = Q @ np.diag(rng.uniform(1, 10, 3)) @ Q.T
         W = array(call(answer, "chordal_weight", Omega), (3, 3), "W")
         close(np.trace(W) * np.eye(3) - W, Omega, "tr(W) I − W against Ω", rtol=1e-9)
-    bad = W_bad = np.diag([1.0, 1.0, 10.0])
-    W_bad = array(call(answer, "chordal_weight", bad), (3, 3), "W for Ω = diag(1, 1, 10)")
-    return (f"tr(W) I − W = Ω; for Ω = diag(1, 1, 10) W = diag{tuple(np.round(np.diag(W_bad), 3))}, not positive "
-            "semidefinite: no S with S² = W")
+    W_bad = array(call(answer, "chordal_weight", np.diag([1.0, 1.0, 10.0])), (3, 3), "W for Ω = diag(1, 1, 10)")
+    diagonal = ", ".join(f"{w:g}" for w in np.diag(W_bad))
+    return (f"tr(W) I − W = Ω; for Ω = diag(1, 1, 10) W = diag({diagonal}), not positive semidefinite: no S with "
+            "S² = W")
 
 
 @exercise("09, exercise 2 (exact on a tree)")
