@@ -33,10 +33,11 @@ myst_enable_extensions = ["dollarmath", "amsmath", "colon_fence"]
 myst_heading_anchors = 3
 
 root_doc = "index"
-# The course's notebooks are its pages; their paired .py files, the exercise solutions, the benchmark
-# scripts and everything Jupyter or a build leaves behind are not.
+# The course's notebooks are its pages; their paired .py files, the benchmark scripts and everything Jupyter
+# or a build leaves behind are not. An exercise's "Solution and Discussion" cell is tagged ``hide-cell``: myst-nb
+# shows it folded behind a toggle, as Jupyter shows it collapsed.
 exclude_patterns = [
-    "_build", "course/_build", "course/solutions", "**/.ipynb_checkpoints", "**/*.nbconvert.ipynb",
+    "_build", "course/_build", "**/.ipynb_checkpoints", "**/*.nbconvert.ipynb",
     "**/.jupyter_cache", "**/jupyter_execute", "**/.virtual_documents",
 ]
 suppress_warnings = ["myst.header"]   # lectures may jump from the title (#) to a sub-section (###)

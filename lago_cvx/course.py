@@ -2,12 +2,12 @@
 reproducibly, only when asked), real benchmark graphs (or a clear skip), and the paper's procedure.
 
 Used as ``from lago_cvx.course import ...`` by the lectures (run from any working directory, or alone: Jupyter,
-Colab, a script, the tests) and by their exercise solutions in ``lectures/solutions/``; it reads nothing from the
+Colab, a script, the tests) and by the exercises' checks (``lago_cvx.exercises``); it reads nothing from the
 project's checkout::
 
     from lago_cvx.course import setup, check, show, real, FULL
-    setup("02_phase1")                   # compact printing, figures named 02_phase1_*
-    check(err < 1e-9, f"cvxpy = closed form ({err:.1e})")     # prints "✓ cvxpy = closed form (3.1e-16)"
+    setup("02_phase1")                   # compact printing, figures named 02_phase1_*, claims shown
+    check(err < 1e-9, f"cvxpy = closed form ({err:.1e})")     # shows "✓ cvxpy = closed form (3.1e-16)"
     fig, ax = plt.subplots(); ...; show(fig, "laplacian")      # inline in Jupyter; saved only on request
 
 Running a lecture changes no file: figures are displayed — inline in Jupyter, in a window when a lecture
@@ -16,6 +16,12 @@ window to go on) — and written to a folder only when the environment variable 
 (``LAGO_CVX_FIGURES=/tmp/figs python 02_phase1.py``; ``python lectures/render.py`` sets it to the project's
 ``figures/``; the tests set it to a temporary folder). ``LAGO_CVX_FULL=1`` turns on the
 bigger sweeps that are skipped by default to keep every lecture under a minute.
+
+Nothing here prints (library code logs): ``check`` logs its ``✓ claim`` on the logger ``lago_cvx.course`` at
+level INFO, and ``setup`` — called by the lecture, the application — attaches the one handler that shows these
+records as lines of the cell's output (the current ``sys.stdout``, which is the notebook cell's stream in
+Jupyter). Code that does not call ``setup`` sees nothing unless it configures logging itself. The exercises'
+checks (``lago_cvx.exercises``) return what they find instead: a ``Feedback`` the notebook displays.
 """
 
 from __future__ import annotations
@@ -30,10 +36,12 @@ import matplotlib as mpl
 import numpy as np
 
 import lago_cvx as lc
+from lago_cvx import course_figures as _figures
+from lago_cvx.course_figures import *  # noqa: F401,F403 — the lectures' figures, named here for them
 from lago_cvx.datasets import DatasetNotFound, dataset
 
-__all__ = ["FULL", "S", "setup", "check", "show", "real", "paper_lago", "figure_dir", "section_v_world",
-           "running_example", "intuition_figure", "quiet"]
+__all__ = ["FULL", "S", "CLAIMS", "setup", "check", "show", "real", "paper_lago", "figure_dir", "section_v_world",
+           "running_example", "intuition_figure", "quiet", *_figures.__all__]
 
 #: Bigger sweeps (more seeds, sizes, noise levels) run only with ``LAGO_CVX_FULL=1``.
 FULL = os.environ.get("LAGO_CVX_FULL", "") not in ("", "0")
@@ -49,12 +57,33 @@ _INLINE_DPI = 100  # the resolution of the figures shown inline (and stored in t
 
 _PREFIX = ["lecture"]
 
+#: The logger of the lectures' verified claims (``check``).
+CLAIMS = logging.getLogger("lago_cvx.course")
+
+
+class _CellOutput(logging.Handler):
+    """Shows a claim as one line of the running cell's output: the ``sys.stdout`` of the moment of the record
+    (Jupyter swaps it per cell), not the one of the handler's creation."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        try:
+            sys.stdout.write(self.format(record) + "\n")
+        except Exception:  # a closed stream: logging's own policy
+            self.handleError(record)
+
 
 def setup(prefix: str) -> None:
-    """Start a lecture: figure files will be named ``<prefix>_<name>.{png,svg}``; NumPy prints compactly.
+    """Start a lecture: figure files will be named ``<prefix>_<name>.{png,svg}``; NumPy prints compactly; the
+    claims ``check`` verifies are shown in the output (one handler on ``CLAIMS``, installed once).
     The package's warnings are left alone: a reader's own calls show them (``quiet`` silences a block)."""
     _PREFIX[0] = prefix
     np.set_printoptions(precision=4, suppress=True, linewidth=110)
+    if not any(isinstance(h, _CellOutput) for h in CLAIMS.handlers):
+        handler = _CellOutput()
+        handler.setFormatter(logging.Formatter("%(message)s"))
+        CLAIMS.addHandler(handler)
+    CLAIMS.setLevel(logging.INFO)
+    CLAIMS.propagate = False
 
 
 @contextlib.contextmanager
@@ -72,10 +101,11 @@ def quiet():
 
 
 def check(condition, claim: str) -> None:
-    """One quiet line per verified claim: prints ``✓ claim``, or raises ``AssertionError('✗ claim')``."""
+    """One quiet line per verified claim: logs ``✓ claim`` on ``CLAIMS`` (shown in the lecture's output after
+    ``setup``), or raises ``AssertionError('✗ claim')``."""
     if not bool(condition):
         raise AssertionError(f"✗ {claim}")
-    print(f"✓ {claim}")
+    CLAIMS.info("✓ %s", claim)
 
 
 def figure_dir() -> Path | None:
@@ -142,7 +172,7 @@ def real(rel: str):
         with quiet():
             return lc.read_graph(dataset(rel))
     except DatasetNotFound as exc:
-        print(f"real datasets not found: skipping the {rel} cells ({exc})")
+        CLAIMS.warning("real datasets not found: skipping the %s cells (%s)", rel, exc)
         return None
 
 
@@ -317,3 +347,4 @@ def intuition_figure(lecture: str):
     if lecture != "04b":
         fig.tight_layout()
     return fig
+

@@ -29,14 +29,18 @@
 # * show that the cost is non-convex and that a local solver lands in different minima from different
 #   starts.
 #
-# **Notation (the paper's, used in every lecture).** $n + 1$ poses $p_0, \dots, p_n$,
-# $p_i = [p_i^\top\ \theta_i]^\top$ with $p_i \in \mathbb R^2$; pose $0$ is the reference,
-# $p_0 = [0\ 0\ 0]^\top$. The graph has $m$ edges; edge $k = (i, j)$ carries the measurement
-# $\xi_{ij} = [\Delta^{l\top}_{ij}\ \delta_{ij}]^\top$: $\Delta^l_{ij}$ the position of $j$ seen from $i$
-# (superscript $l$: in the *local* frame of $i$), $\delta_{ij}$ the relative orientation; $\Delta^l$ and
-# $\delta$ stack them over the edges. In the package a graph has `n_poses` $= n + 1$ poses, stored as
-# arrays `tails`, `heads`, `delta_l` ($\Delta^l$), `delta` ($\delta$) and `information` ($P_{ij}^{-1}$,
-# $3\times3$ per edge).
+# **Notation (the paper's, used in every lecture).**
+#
+# | symbol | meaning | in the package |
+# |---|---|---|
+# | $n + 1$, $m$ | poses $p_0, \dots, p_n$ (pose 0 the reference, $p_0 = [0\ 0\ 0]^\top$); edges | `graph.n_poses`, `graph.n_edges` |
+# | $p_i = [p_i^\top\ \theta_i]^\top$ | pose $i$: position $p_i \in \mathbb R^2$, heading $\theta_i$ | row $i$ of `poses`, $(n+1)\times3$ |
+# | $(i, j)$, $k$ | edge $k$ from its tail $i$ to its head $j$ | `graph.tails[k]`, `graph.heads[k]` |
+# | $\xi_{ij} = [\Delta^{l\top}_{ij}\ \delta_{ij}]^\top$ | its measurement: $j$'s position in the *local* frame of $i$, the relative orientation | `graph.delta_l[k]`, `graph.delta[k]` |
+# | $\Delta^l$, $\delta$ | the measurements stacked over the edges | `graph.delta_l` $(m, 2)$, `graph.delta` $(m,)$ |
+# | $P_{ij}$, $P_{ij}^{-1}$ | the edge's covariance and information, $3\times3$ | `graph.covariance`, `graph.information` |
+# | $R(\theta)$; $A$, $A_2 = A\otimes I_2$ | a rotation; the incidence matrices (section 3) | `rot2`; `lc.incidence_matrix`, `lc.reduced_incidence` |
+# | $f$ | the cost eq. (3), χ² without a factor ½ | `lc.chi2` |
 
 # %%
 try:                                  # run alone (Colab, a fresh environment)? then install the package first
@@ -51,8 +55,8 @@ from scipy.stats import chi2 as chi2_law
 from scipy.stats import multivariate_normal
 
 import lago_cvx as lc
-from lago_cvx.course import S, check, intuition_figure, real, running_example, setup, show
-from lago_cvx import plotting
+from lago_cvx.course import (S, check, compounding_figure, incidence_figure, intuition_figure, real,
+                             running_example, setup, show, two_minima_figure)
 from lago_cvx.datasets import REFERENCE_CHI2
 from lago_cvx.errors import GraphError
 from lago_cvx.phases import design_matrix
@@ -91,10 +95,8 @@ show(intuition_figure("01"), "intuition")
 # %%
 N = 10_000
 
-
 def random_poses(k):
     return np.column_stack([rng.uniform(-50, 50, (k, 2)), rng.uniform(-3 * np.pi, 3 * np.pi, k)])
-
 
 pi_, pj_, pk_, t_ = random_poses(N), random_poses(N), random_poses(N), random_poses(N)
 eq1 = np.column_stack([np.einsum("kba,kb->ka", rot2(pi_[:, 2]), pj_[:, :2] - pi_[:, :2]), pj_[:, 2] - pi_[:, 2]])
@@ -116,22 +118,7 @@ for claim, err in errors.items():
 # %%
 p_i, p_j = np.array([1.0, 0.5, np.deg2rad(35)]), np.array([3.2, 2.4, np.deg2rad(110)])
 rel = between(p_i, p_j)
-fig, ax = plt.subplots(figsize=(6, 4.6))
-for pose, color, name in [(p_i, "tab:blue", "i"), (p_j, "tab:red", "j")]:
-    R = rot2(pose[2])
-    for axis, style in [(R[:, 0], "-"), (R[:, 1], "--")]:
-        ax.annotate("", pose[:2] + 0.9 * axis, pose[:2], arrowprops=dict(arrowstyle="->", color=color, ls=style, lw=1.6))
-    ax.plot(*pose[:2], "o", color=color)
-    ax.annotate(f"pose {name}, θ$_{name}$ = {np.rad2deg(pose[2]):.0f}°", pose[:2], xytext=(10, -18),
-                textcoords="offset points", color=color)
-ax.annotate("", p_j[:2], p_i[:2], arrowprops=dict(arrowstyle="->", color="k", lw=1.2))
-ax.text(-0.3, 3.2, f"$p_j - p_i$ (black) written in the axes of i:\n"
-        f"$\\Delta^l_{{ij}}$ = ({rel[0]:.2f}, {rel[1]:.2f}),  $\\delta_{{ij}}$ = {np.rad2deg(rel[2]):.0f}°")
-ax.set_aspect("equal")
-ax.set_xlim(-0.5, 4.8)
-ax.set_ylim(-0.3, 3.8)
-ax.set_title("Eq. (1): pose j seen from pose i (solid: x axis, dashed: y axis)")
-show(fig, "compounding")
+show(compounding_figure(p_i, p_j), "compounding")
 
 # %% tags=["remove-input"]
 check(abs(np.linalg.norm(rel[:2]) - np.linalg.norm(p_j[:2] - p_i[:2])) < 1e-12,
@@ -223,6 +210,38 @@ check(z_half < -4 and abs(z_half + sigmas_half) < 1.5,
       f"a factor-½ convention would miss by about √(3m/8) σ ({z_half:+.2f}σ; −√(3m/8) = {-sigmas_half:.2f}σ)")
 
 # %% [markdown]
+# ## Exercise 1 — How far off is a factor ½?
+#
+# *Derive.* At the true poses $f$ follows a χ² law with $3m$ degrees of freedom. Show that a cost with a
+# factor ½ sits $\sqrt{3m/8}$ standard deviations below $3m$ on average, and find the smallest number of
+# edges $m$ for which that offset reaches 3σ. Write it as `half_offset(m)`; the check tries many $m$.
+#
+# **Hint.** At the true poses $f$ has mean $3m$ and variance $6m$; the cost with a factor ½ has mean $3m/2$. Divide
+# the offset by the standard deviation.
+
+# %%
+# your solution here: fill in the body of half_offset, then run the cell (check_half_offset tests it)
+from lago_cvx.exercises import check_half_offset
+
+def half_offset(m):
+    """The offset of a factor-½ cost below 3m, in standard deviations √(6m) (a float)."""
+    raise NotImplementedError
+
+check_half_offset(half_offset)
+
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
+# Solution and Discussion. At the true poses f is a sum of 3m squared standard normals: mean 3m, variance 6m.
+# A cost with a factor ½ has mean 3m/2, so it sits (3m − 3m/2)/√(6m) = √(3m/8) standard deviations below 3m;
+# √(3m/8) ≥ 3 ⟺ m ≥ 24: from 24 edges on, a wrong convention is a 3σ event on average.
+import numpy as np
+from lago_cvx.exercises import check_half_offset
+
+def half_offset(m):
+    return (3 * m - 3 * m / 2) / np.sqrt(6 * m)
+
+check_half_offset(half_offset).require()
+
+# %% [markdown]
 # ## 3. The split residual, eq. (4), and block-diagonal noise, eq. (5)
 #
 # A measurement has two parts of different nature: a relative position $\Delta^l_{ij}$ (a vector) and a
@@ -309,11 +328,10 @@ if intel_full is not None:
     lateral, forward = np.median(np.abs(corr[:, 1])), np.median(np.abs(corr[:, 0]))
 
     fig, ax = plt.subplots(figsize=(7, 3.6))
-    ax.hist(corr[:, 0], bins=40, alpha=0.6, label="corr(x, θ)")
-    ax.hist(corr[:, 1], bins=40, alpha=0.6, label="corr(y, θ)")
-    ax.set_xlabel("correlation coefficient of the measurement noise, per edge")
-    ax.set_ylabel("edges")
-    ax.set_title("Remark 2 on real data: se-sync/intel.g2o is not block-diagonal")
+    for c, name in ((0, "x"), (1, "y")):
+        ax.hist(corr[:, c], bins=40, alpha=0.6, label=f"corr({name}, θ)")
+    ax.set(xlabel="correlation coefficient of the measurement noise, per edge", ylabel="edges",
+           title="Remark 2 on real data: se-sync/intel.g2o is not block-diagonal")
     ax.legend()
     show(fig, "remark2_correlations")
 
@@ -395,25 +413,54 @@ p_lin = residual_7(2 * p_rand, t1) - 2 * residual_7(p_rand, t1) + residual_7(0 *
 check(np.abs(p_lin).max() < 1e-12, "for fixed θ the first equation of eq. (7) is affine in p")
 
 # %%
-fig, axs = plt.subplots(1, 2, figsize=(11, 4.6), gridspec_kw={"width_ratios": [1, 1.25]})
-plotting.plot_trajectory(axs[0], truth8, label="odometric edges", color="tab:blue", linewidth=1.5, style="-o", markersize=4)
-plotting.plot_edges(axs[0], square, truth8, which="loop_closures", color="tab:red", linewidth=1.5, alpha=0.8,
-                    label="loop closures")
-for i, (px, py) in enumerate(truth8[:, :2]):
-    axs[0].annotate(f"{i}" + (" (reference)" if i == 0 else ""), (px, py), textcoords="offset points", xytext=(5, 5))
-axs[0].legend(loc="center", fontsize=8)
-axs[0].set_title("8 poses, 11 edges (true positions)")
-axs[1].imshow(A8, cmap="coolwarm", vmin=-1.5, vmax=1.5)
-axs[1].set_xticks(range(m8), [f"{t}→{h}" for t, h in zip(tails8, heads8)], rotation=60, fontsize=8)
-axs[1].set_yticks(range(8))
-axs[1].set_xlabel("edge (i → j)")
-axs[1].set_ylabel("pose")
-axs[1].axhline(0.5, color="k", lw=1)
-axs[1].set_title("incidence matrix A (blue −1 at i, red +1 at j);\nthe reduced A drops row 0")
-show(fig, "incidence")
+show(incidence_figure(square, truth8, A8), "incidence")
 
 # %% tags=["remove-input"]
 check(np.abs(superposition).max() > 0.1, f"but not in θ: superposition fails by {np.abs(superposition).max():.2f}")
+
+# %% [markdown]
+# ## Exercise 2 — The reduced cost of eq. (6) in code
+#
+# *Implement.* Write `cost_eq6(graph, poses)`: eq. (6) for a graph with block-diagonal information, from the
+# reduced $A$, the reduced $A_2 = A \otimes I_2$ and $R(\theta)$ as sparse matrices, for any configuration with
+# pose 0 at the origin. The check compares it with `lago_cvx.chi2` on the running example near the truth
+# (`eq6_case()`), then turns one pose by $2\pi$: explain why the two then differ.
+#
+# **Hint.** Eq. (6) takes the angular residual $A^\top\theta - \delta$ as it is; `lc.chi2` wraps every angular
+# residual into $[-\pi, \pi)$.
+
+# %%
+# your solution here: fill in the body of cost_eq6, then run the cell (check_cost_eq6 tests it)
+from lago_cvx.exercises import check_cost_eq6, eq6_case
+graph, poses = eq6_case()          # the data the check uses
+
+def cost_eq6(graph, poses):
+    """Eq. (6) at poses (n + 1, 3), pose 0 at the origin (a float)."""
+    raise NotImplementedError
+
+check_cost_eq6(cost_eq6)
+
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
+# Solution and Discussion. Eq. (6) with sparse matrices: position residual A₂ᵀp − RΔˡ weighted by (R P_Δˡ Rᵀ)⁻¹,
+# orientation residual Aᵀθ − δ by P_δ⁻¹. It equals lc.chi2 while every angular residual lies in [−π, π); the
+# package wraps that residual, eq. (6) does not: turn a pose by 2π and eq. (6) jumps, χ² does not.
+import numpy as np
+import scipy.sparse as sp
+import lago_cvx as lc
+from lago_cvx.exercises import check_cost_eq6
+from lago_cvx.posegraph import rot2
+
+def cost_eq6(graph, poses):
+    A = lc.reduced_incidence(graph)
+    A2 = sp.kron(A, sp.identity(2)).tocsr()
+    theta, cov = poses[:, 2], graph.covariance
+    R = sp.block_diag(rot2(theta[graph.tails]), format="csr")
+    r_pos = A2.T @ poses[1:, :2].ravel() - R @ graph.delta_l.ravel()
+    weight = (R @ sp.block_diag(cov[:, :2, :2]) @ R.T).tocsc()
+    r_rot = A.T @ theta[1:] - graph.delta
+    return float(r_pos @ sp.linalg.spsolve(weight, r_pos) + np.sum(r_rot**2 / cov[:, 2, 2]))
+
+check_cost_eq6(cost_eq6).require()
 
 # %% [markdown]
 # ## 5. Lemma 1 — the pose graph is connected
@@ -540,20 +587,7 @@ if mit is not None:
     print(f"MIT: from dead reckoning cost {mit_dr.chi2:.2f}; from LAGO {mit_lago.chi2:.4f} "
           f"(reference minimum {REFERENCE_CHI2['se-sync/MIT.g2o']})")
 
-fig, axs = plt.subplots(1, 2, figsize=(12, 4.8))
-plotting.plot_trajectory(axs[0], mw.truth, color="0.7", linewidth=3, label="truth")
-plotting.plot_trajectory(axs[0], from_dr.poses, color="tab:red", label=f"from dead reckoning, cost {from_dr.chi2:.0f}")
-plotting.plot_trajectory(axs[0], from_lago.poses, color="tab:blue", label=f"from LAGO, cost {from_lago.chi2:.1f}")
-axs[0].set_title("Gauss–Newton: two starts, two local minima")
-axs[0].legend(fontsize=8)
-axs[1].plot(tt, segment, label="cost on the segment")
-axs[1].plot(tt, chord, "k--", linewidth=1, label="chord")
-axs[1].set_yscale("log")
-axs[1].set_xlabel("t (configuration (1 − t)·[from dead reckoning] + t·[from LAGO])")
-axs[1].set_ylabel("cost eq. (3)")
-axs[1].set_title("between the two minima the cost rises above the chord")
-axs[1].legend(fontsize=8)
-show(fig, "local_minima")
+show(two_minima_figure(mw.truth, from_dr, from_lago, tt, segment, chord), "local_minima")
 
 # %% tags=["remove-input"]
 if mit is not None:
@@ -574,64 +608,43 @@ check(np.max(segment - chord) > 0, f"the cost rises {np.max(segment - chord):.0f
 # then the positions (lectures 3–4).
 
 # %% [markdown]
-# ## Exercise 1 — How far off is a factor ½?
-#
-# *Derive.* At the true poses $f$ follows a χ² law with $3m$ degrees of freedom. Show that a cost with a
-# factor ½ sits $\sqrt{3m/8}$ standard deviations below $3m$ on average, and find the smallest number of
-# edges $m$ for which that offset reaches 3σ. Check your formula by simulation on worlds of different
-# sizes.
-#
-# **Hint.** At the true poses $f$ has mean $3m$ and variance $6m$; the cost with a factor ½ has mean $3m/2$. Divide
-# the offset by the standard deviation.
-
-# %%
-# your solution here
-
-# %% [markdown]
-# ````{dropdown} Solution
-# ```{literalinclude} solutions/01_problem_ex1.py
-# :language: python
-# ```
-# ````
-
-# %% [markdown]
-# ## Exercise 2 — The reduced cost of eq. (6) in code
-#
-# *Implement.* Write a function that evaluates eq. (6) for a graph with block-diagonal information, from
-# the reduced $A$, the reduced $A_2 = A \otimes I_2$ and $R(\theta)$ as sparse matrices, for any
-# configuration with pose 0 at the origin. Compare it with `lago_cvx.chi2` on a few hundred poses, and
-# find a configuration where the two differ — and explain why (hint: what does the package do to an
-# angular residual of $3\pi$?).
-#
-# **Hint.** Eq. (6) takes the angular residual $A^\top\theta - \delta$ as it is; `lc.chi2` wraps every angular
-# residual into $[-\pi, \pi)$.
-
-# %%
-# your solution here
-
-# %% [markdown]
-# ````{dropdown} Solution
-# ```{literalinclude} solutions/01_problem_ex2.py
-# :language: python
-# ```
-# ````
-
-# %% [markdown]
 # ## Exercise 3 — How many minima does Gauss–Newton find?
 #
-# *Explore.* On a small synthetic world, start Gauss–Newton from 30 random configurations (positions
-# and headings drawn at random) and count the distinct minima it reaches, for increasing heading noise.
-# Does LAGO's start reach the best of them?
+# *Explore.* Write `gauss_newton_minima(graph, n_starts, rng)`: start Gauss–Newton (`lc.refine`) from
+# `n_starts` random configurations (positions and headings drawn at random) and return the distinct local
+# minima it reaches, one pose array each. The check runs it on a 16-pose circle world (`minima_case()`).
+# Does LAGO's start reach the best of them? Rerun with more heading noise: does the count grow?
 #
-# **Hint.** Run `lc.refine(graph, start)` from each random start and count the distinct χ² values it ends at
-# (rounded to a few significant digits).
+# **Hint.** Keep a run's poses when it converged and its χ² (rounded to a few significant digits) is new.
 
 # %%
-# your solution here
+# your solution here: fill in the body of gauss_newton_minima, then run the cell (check_minima tests it)
+from lago_cvx.exercises import check_minima, minima_case
+graph = minima_case()              # the world the check uses
 
-# %% [markdown]
-# ````{dropdown} Solution
-# ```{literalinclude} solutions/01_problem_ex3.py
-# :language: python
-# ```
-# ````
+def gauss_newton_minima(graph, n_starts, rng):
+    """The distinct local minima reached from n_starts random starts: a list of (n + 1, 3) arrays."""
+    raise NotImplementedError
+
+check_minima(gauss_newton_minima)
+
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
+# Solution and Discussion. Random starts (positions in the box of the graph's dead reckoning, headings uniform)
+# end in several local minima; their number does not simply grow with the noise (with very certain headings
+# the landscape is steep and the runs scatter most). LAGO's estimate, used as a start, reaches the best found.
+import numpy as np
+import lago_cvx as lc
+from lago_cvx.exercises import check_minima
+
+def gauss_newton_minima(graph, n_starts, rng):
+    guess = lc.odometry_guess(graph)
+    lo, hi = guess[:, :2].min(axis=0), guess[:, :2].max(axis=0)
+    minima = {}
+    for _ in range(n_starts):
+        start = np.column_stack([rng.uniform(lo, hi, (graph.n_poses, 2)), rng.uniform(-np.pi, np.pi, graph.n_poses)])
+        run = lc.refine(graph, start, max_iterations=100)
+        if run.converged:
+            minima.setdefault(round(float(np.log10(run.chi2)), 4), run.poses)
+    return list(minima.values())
+
+check_minima(gauss_newton_minima).require()

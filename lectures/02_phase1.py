@@ -26,10 +26,15 @@
 # * interpret the dual variable of an anchor constraint as a force;
 # * verify by Monte Carlo that $\hat\theta$ is unbiased with covariance $P_\theta$.
 #
-# Notation as in lecture 1: $n + 1$ poses, pose 0 the reference ($\theta_0 = 0$), $m$ edges, $A$ the
-# **reduced** incidence matrix ($n \times m$, the row of pose 0 deleted; `lc.reduced_incidence(graph)` in
-# the package, which some package docstrings call "A2"), $P_\delta = \mathrm{diag}(P_{\delta,ij})$ the
-# variances of the relative orientations.
+# **Notation** (lecture 1's, and):
+#
+# | symbol | meaning | in the package |
+# |---|---|---|
+# | $A$ | the **reduced** incidence matrix, $n \times m$ (the row of pose 0 deleted) | `lc.reduced_incidence(graph)` (some docstrings: "A2") |
+# | $\theta$ | the $n$ unknown orientations; $\theta_0 = 0$ (pose 0 the reference) | `result.phase1.theta` (with $\theta_0$) |
+# | $\delta_{\rm reg}$ | the relative orientations after the $2k\pi$ regularization (lecture 5) | `regularize(...).delta_reg` |
+# | $P_\delta$ | $\mathrm{diag}(P_{\delta,ij})$, the variances of the relative orientations | `edge_uncertainty(graph).var_delta` |
+# | $P_\theta$ | the covariance of the estimate $\hat\theta$, eq. (13) | the inverse of `result.phase1.info` |
 
 # %%
 try:                                  # run alone (Colab, a fresh environment)? then install the package first
@@ -342,6 +347,41 @@ w_δ.value = np.sqrt(1.0 / unc.var_delta)
 check(abs(last[0] - dead_reckoning) < 1e-2 * abs(dead_reckoning) + 0.01, "with s → 0 phase 1 is dead reckoning")
 
 # %% [markdown]
+# ## Exercise 1 — $P_\theta$ of a chain
+#
+# *Derive.* For a path $0 \to 1 \to \dots \to n$ (odometry only, variances $\sigma_1^2, \dots, \sigma_n^2$)
+# anchored at pose 0, derive $P_\theta$ in closed form: show that $(P_\theta)_{ij} = \sum_{k \le
+# \min(i, j)} \sigma_k^2$ (the orientation error is a random walk). Write your closed form as
+# `chain_covariance(sigma)`; the check compares it with the inverse of $A P_\delta^{-1} A^\top$ on two chains.
+#
+# **Hint.** With pose 0 anchored, the reduced $A$ of a chain is bidiagonal and its inverse is triangular, full of
+# ones.
+
+# %%
+# your solution here: fill in the body of chain_covariance, then run the cell (check_chain_covariance tests it)
+from lago_cvx.exercises import check_chain_covariance
+
+def chain_covariance(sigma):
+    """P_θ (n, n) of the chain 0 → … → n whose edge k has standard deviation sigma[k]."""
+    raise NotImplementedError
+
+check_chain_covariance(chain_covariance)
+
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
+# Solution and Discussion. On the chain the reduced A is n × n upper bidiagonal, Aᵀθ = (θ_k − θ_{k−1})_k, so
+# P_θ = (A P_δ⁻¹ Aᵀ)⁻¹ = A⁻ᵀ P_δ A⁻¹ with A⁻ᵀ the summation matrix (θ_i = Σ_{k≤i} δ_k, dead reckoning):
+# (P_θ)_ij = Σ_{k ≤ min(i,j)} σ_k² — the heading error is a random walk along the path.
+import numpy as np
+from lago_cvx.exercises import check_chain_covariance
+
+def chain_covariance(sigma):
+    n = len(sigma)
+    cum = np.cumsum(np.asarray(sigma) ** 2)
+    return cum[np.minimum.outer(np.arange(n), np.arange(n))]
+
+check_chain_covariance(chain_covariance).require()
+
+# %% [markdown]
 # ## 4. The information matrix is a weighted graph Laplacian
 #
 # $(A P_\delta^{-1} A^\top)_{uv} = \sum_k A_{uk}A_{vk}/P_{\delta,k}$: on the diagonal, the summed weights
@@ -537,64 +577,74 @@ check(rel < 3 * expected, f"sample covariance = P_θ: ‖S − P_θ‖/‖P_θ�
 # $P_\theta$ to bring the positions into the global frame.
 
 # %% [markdown]
-# ## Exercise 1 — $P_\theta$ of a chain
-#
-# *Derive.* For a path $0 \to 1 \to \dots \to n$ (odometry only, variances $\sigma_1^2, \dots, \sigma_n^2$)
-# anchored at pose 0, derive $P_\theta$ in closed form: show that $(P_\theta)_{ij} = \sum_{k \le
-# \min(i, j)} \sigma_k^2$ (the orientation error is a random walk). Check it against the inverse of
-# $A P_\delta^{-1} A^\top$.
-#
-# **Hint.** With pose 0 anchored, the reduced $A$ of a chain is bidiagonal and its inverse is triangular, full of
-# ones.
-
-# %%
-# your solution here
-
-# %% [markdown]
-# ````{dropdown} Solution
-# ```{literalinclude} solutions/02_phase1_ex1.py
-# :language: python
-# ```
-# ````
-
-# %% [markdown]
 # ## Exercise 2 — A compass instead of an anchor
 #
-# *Implement.* Replace the anchor by absolute heading measurements (a compass) on a few poses, with
-# variance $\sigma_c^2$: keep all $n + 1$ orientations as unknowns, write the problem in cvxpy with a
-# parameter for the compass readings, and derive the closed form with an augmented design matrix.
-# Verify that both agree, that one compass reading is enough for a unique solution (Proposition 1 in
-# another guise), and that re-solving with new readings needs no rebuild.
+# *Implement.* Replace the anchor by absolute heading measurements (a compass) $c$ on the poses $K$, with
+# variance $\sigma_c^2$: keep all $n + 1$ orientations as unknowns and minimize
+# $\|P_\delta^{-1/2}(A^\top\theta^+ - \delta_{\rm reg})\|^2 + \|(\theta^+_K - c)/\sigma_c\|^2$ ($A$ the full incidence
+# matrix here). Write `compass_orientations(...)` (closed form with an augmented design matrix, or cvxpy with a
+# parameter for $c$); the check tests the optimality condition with one and with three readings. Why is one
+# reading enough for a unique solution (Proposition 1 in another guise)?
 #
-# **Hint.** Each compass reading adds one row $e_i^\top$ to the design matrix, with weight $1/\sigma_c$; with a
-# `cp.Parameter` for the readings the problem is built once.
+# **Hint.** Each compass reading adds one row $e_i^\top$ to the design matrix, with weight $1/\sigma_c$.
 
 # %%
-# your solution here
+# your solution here: fill in the body of compass_orientations, then run the cell (check_compass tests it)
+from lago_cvx.exercises import check_compass, compass_case
+graph, delta_reg, info_delta = compass_case()      # the data the check uses
 
-# %% [markdown]
-# ````{dropdown} Solution
-# ```{literalinclude} solutions/02_phase1_ex2.py
-# :language: python
-# ```
-# ````
+def compass_orientations(graph, delta_reg, info_delta, K, c, sigma_c):
+    """θ⁺ (n + 1,) minimizing the cost above; K a list of pose indices, c (len(K),) the readings."""
+    raise NotImplementedError
+
+check_compass(compass_orientations)
+
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
+# Solution and Discussion. Unknowns: all n + 1 orientations. With D = [A, E_K] (E_K the columns e_k, k ∈ K) and
+# weights w = [P_δ⁻¹, 1/σ_c²], θ⁺ = (D diag(w) Dᵀ)⁻¹ D diag(w) [δ_reg; c]. D diag(w) Dᵀ is the graph's Laplacian
+# plus Σ_k e_k e_kᵀ/σ_c²: positive definite for a connected graph with one reading or more — Proposition 1 with
+# a soft known orientation instead of a hard anchor.
+import numpy as np
+import lago_cvx as lc
+from lago_cvx.exercises import check_compass
+
+def compass_orientations(graph, delta_reg, info_delta, K, c, sigma_c):
+    D = np.hstack([lc.incidence_matrix(graph).toarray(), np.eye(graph.n_poses)[:, K]])
+    w = np.concatenate([info_delta, np.full(len(K), 1 / sigma_c**2)])
+    return np.linalg.solve((D * w) @ D.T, D @ (w * np.concatenate([delta_reg, c])))
+
+check_compass(compass_orientations).require()
 
 # %% [markdown]
 # ## Exercise 3 — Which loop closure helps most?
 #
-# *Explore.* On a Manhattan world, start from the odometry alone and add one loop closure at a time:
-# which single loop closure reduces $\operatorname{tr} P_\theta$ the most? Relate your answer to the
-# length of the cycle it closes.
+# *Explore.* Start from the odometry alone and add one loop closure at a time: by how much does it reduce
+# $\operatorname{tr} P_\theta$? Write `trace_drop(P0, e, variance)` — the drop when an edge with reduced incidence
+# column $e$ and variance $\sigma^2$ is added to the information $P_0^{-1}$ — without inverting a new matrix; the
+# check compares it with the exact drop for 15 loop closures of a 200-pose Manhattan world. Which loop
+# closure helps most, and how does that relate to the length of the cycle it closes?
 #
-# **Hint.** Build the graph of odometry plus one loop closure with `lc.PoseGraph`, and compute
-# $\operatorname{tr}P_\theta$ from phase 1's information (`result.phase1.info`).
+# **Hint.** Adding the edge is a rank-one update of the information: Sherman–Morrison.
 
 # %%
-# your solution here
+# your solution here: fill in the body of trace_drop, then run the cell (check_trace_drop tests it)
+from lago_cvx.exercises import check_trace_drop
 
-# %% [markdown]
-# ````{dropdown} Solution
-# ```{literalinclude} solutions/02_phase1_ex3.py
-# :language: python
-# ```
-# ````
+def trace_drop(P0, e, variance):
+    """tr P0 − tr (P0⁻¹ + e eᵀ / variance)⁻¹ (a float)."""
+    raise NotImplementedError
+
+check_trace_drop(trace_drop)
+
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
+# Solution and Discussion. Adding an edge e = e_j − e_i with variance σ² is a rank-one update of the information,
+# so by Sherman–Morrison tr P_new = tr P₀ − ‖P₀e‖² / (σ² + eᵀP₀e). On a chain eᵀP₀e = Σ σ_k² over the
+# odometric edges between i and j: long cycles help most — but ‖P₀e‖² also grows with the distance from the anchor.
+import numpy as np
+from lago_cvx.exercises import check_trace_drop
+
+def trace_drop(P0, e, variance):
+    Pe = P0 @ e
+    return float(Pe @ Pe / (variance + e @ Pe))
+
+check_trace_drop(trace_drop).require()

@@ -26,12 +26,19 @@
 #   hands to phase 3;
 # * test a first-order covariance by Monte Carlo, and see where first order stops being exact.
 #
-# Notation: $n + 1$ poses, pose 0 the reference, $m$ edges, $A$ the reduced incidence matrix
-# (`lc.reduced_incidence`), $A_2 = A \otimes I_2$, $P_{\Delta^l} = \mathrm{blkdiag}_k P_{\Delta^l,k}$
-# ($2\times2$ blocks, in the tail's frame), $P_\delta = \mathrm{diag}_k P_{\delta,k}$,
-# $R = R(\hat\theta)$ the block-diagonal matrix of the tails' rotations, and
-# $S = \begin{bmatrix}0&-1\\1&0\end{bmatrix}$, so that $\tfrac{d}{d\theta}R(\theta) = S R(\theta)$ and
-# $S$ commutes with every rotation. The paper's phase 2 is `lago_cvx.phases.phase2(..., information=
+# **Notation** (lecture 1's and 2's, and):
+#
+# | symbol | meaning | in the package |
+# |---|---|---|
+# | $A$, $A_2 = A \otimes I_2$ | the reduced incidence matrices ($n\times m$, $2n\times 2m$) | `lc.reduced_incidence` |
+# | $P_{\Delta^l}$, $P_\delta$ | $\mathrm{blkdiag}_k P_{\Delta^l,k}$ ($2\times2$, in the tail's frame), $\mathrm{diag}_k P_{\delta,k}$ | `result.uncertainty.cov_delta_l`, `.var_delta` |
+# | $R = R(\hat\theta)$ | block-diagonal, the rotations of the edges' tails | `rot2(theta[graph.tails])` |
+# | $S$ | $\begin{bmatrix}0&-1\\1&0\end{bmatrix}$: $\tfrac{d}{d\theta}R(\theta) = S R(\theta)$, commutes with every rotation | `lago_cvx.course.S` |
+# | $z$, $P_z$ | the phase-2 vector $[\Delta^g; \hat\theta]$ and its covariance, eqs. (9)–(10) | `result.phase2` |
+# | $H$, $J$ | the Jacobian of eq. (11) and its block $\partial(R\Delta^l)/\partial\theta$ | `result.phase2.jac` ($J$) |
+# | $W$ | the sparse square root of $P_z^{-1}$ (section 5) | `result.phase2.W` |
+#
+# The paper's phase 2 is `lago_cvx.phases.phase2(..., information=
 # "marginal")`; the package's default (`"full"`) goes beyond the paper and is not used here.
 
 # %%
@@ -355,6 +362,39 @@ if intel is not None:
     check(W_i.nnz <= 8 * intel.n_edges and WtW_i.nnz < 1e-3 * size_i**2, "INTEL: nnz(W) ≤ 8m, and WᵀW is sparser than 0.1 %")
 
 # %% [markdown]
+# ## Exercise 1 — Why $W$ hardly depends on $\hat\theta$
+#
+# *Derive.* Show that $R(\theta)^\top S R(\theta) = S$ for every $\theta$, and conclude that the block
+# $-P_{\Delta^l}^{-1/2} R^\top J$ of $W$ does not depend on $\hat\theta$: only the rotations in its first block
+# column do. Write `theta_columns(graph)`, the mask of the columns of $W$ that change with $\hat\theta$; the check
+# runs phase 2 at several orientation vectors and compares. (Careful with the edges that leave pose 0.)
+#
+# **Hint.** Write $R(\theta) = \cos\theta\, I + \sin\theta\, S$: $S$ commutes with every rotation.
+
+# %%
+# your solution here: fill in the body of theta_columns, then run the cell (check_theta_columns tests it)
+from lago_cvx.exercises import check_theta_columns
+
+def theta_columns(graph):
+    """A bool mask (2m + n,): True for the columns of W that change with θ̂."""
+    raise NotImplementedError
+
+check_theta_columns(theta_columns)
+
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
+# Solution and Discussion. R(θ)ᵀ S R(θ) = S: plane rotations commute. The block of edge k of RᵀJ is
+# R(θ̂_i)ᵀ S R(θ̂_i) Δˡ_k = S Δˡ_k whatever θ̂, so in W = [[P_Δˡ^(−½)Rᵀ, −P_Δˡ^(−½)RᵀJ], [0, P_δ^(−½)Aᵀ]] only
+# the first block column changes with θ̂ — except the blocks of the edges leaving pose 0, whose θ̂₀ = 0 is fixed.
+import numpy as np
+from lago_cvx.exercises import check_theta_columns
+
+def theta_columns(graph):
+    n = graph.n_poses - 1
+    return np.concatenate([np.repeat(graph.tails != 0, 2), np.zeros(n, bool)])
+
+check_theta_columns(theta_columns).require()
+
+# %% [markdown]
 # ## 6. Monte Carlo: the first-order covariance, and where first order stops being exact
 #
 # Phase 1 is linear in $\delta$, phase 2 is not: $\Delta^g = R(\hat\theta_i)\Delta^l$ is non-linear in
@@ -468,42 +508,41 @@ check(large["nonlin"] > 0.5 * large["floor"], "at σ_θ = 0.3 rad the non-linear
 # First order is exact as the noise vanishes; at $\sigma_\theta = 0.3$ rad its error is already visible.
 
 # %% [markdown]
-# ## Exercise 1 — Why $W$ hardly depends on $\hat\theta$
-#
-# *Derive.* Show that $R(\theta)^\top S R(\theta) = S$ for every $\theta$, and conclude that the block
-# $-P_{\Delta^l}^{-1/2} R^\top J$ of $W$ does not depend on $\hat\theta$, and that $W^\top W$ depends on
-# $\hat\theta$ only through the rotations in its first block column. Verify it on a graph by running
-# phase 2 at two different orientation vectors.
-#
-# **Hint.** Write $R(\theta) = \cos\theta\, I + \sin\theta\, S$: $S$ commutes with every rotation.
-
-# %%
-# your solution here
-
-# %% [markdown]
-# ````{dropdown} Solution
-# ```{literalinclude} solutions/03_phase2_ex1.py
-# :language: python
-# ```
-# ````
-
-# %% [markdown]
 # ## Exercise 2 — $P_z$ times a vector, without $P_z$
 #
-# *Implement.* On a graph of a thousand poses $P_z$ has millions of entries. Write a function that
-# applies $P_z = H\,\mathrm{diag}(P_{\Delta^l}, P_\theta)\,H^\top$ to a vector with sparse matrices only
-# (use phase 1's factorization of $A P_\delta^{-1} A^\top$ for $P_\theta x$), and verify
+# *Implement.* On a graph of a thousand poses $P_z$ has millions of entries. Write `pz_times(result, graph, v)`,
+# which applies $P_z = H\,\mathrm{diag}(P_{\Delta^l}, P_\theta)\,H^\top$ to a vector with sparse matrices only
+# (use phase 1's factorization of $A P_\delta^{-1} A^\top$ for $P_\theta x$); the check verifies
 # $W^\top W (P_z v) = v$ for random vectors $v$.
 #
-# **Hint.** Apply $H^\top$, then the blocks ($P_\theta x$ is a solve with phase 1's factor), then $H$ — each a
-# sparse product.
+# **Hint.** Apply $H^\top$, then the blocks ($P_\theta x$ is a solve with phase 1's factor,
+# `result.phase1.factor.solve`), then $H$ — each a sparse product.
 
 # %%
-# your solution here
+# your solution here: fill in the body of pz_times, then run the cell (check_pz_times tests it)
+from lago_cvx.exercises import check_pz_times
 
-# %% [markdown]
-# ````{dropdown} Solution
-# ```{literalinclude} solutions/03_phase2_ex2.py
-# :language: python
-# ```
-# ````
+def pz_times(result, graph, v):
+    """P_z v (2m + n,) for the paper's LAGO result on graph, without forming P_z."""
+    raise NotImplementedError
+
+check_pz_times(pz_times)
+
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
+# Solution and Discussion. P_z = H blkdiag(P_Δˡ, P_θ) Hᵀ with H = [[R, J], [0, I]]. For v = [a; b]: Hᵀv =
+# [Rᵀa; Jᵀa + b], then [P_Δˡ Rᵀa; P_θ(Jᵀa + b)] = [s₁; s₂], then H[s₁; s₂] = [R s₁ + J s₂; s₂]. P_θ x is one solve
+# with phase 1's factorization of A P_δ⁻¹ Aᵀ: no dense matrix anywhere (on INTEL P_z would have 10⁷ entries).
+import numpy as np
+import scipy.sparse as sp
+from lago_cvx.exercises import check_pz_times
+from lago_cvx.posegraph import rot2
+
+def pz_times(result, graph, v):
+    m = graph.n_edges
+    R = sp.block_diag(rot2(result.phase1.theta[graph.tails]), format="csr")
+    P_dl = sp.block_diag(result.uncertainty.cov_delta_l, format="csr")
+    J, a, b = result.phase2.jac, v[:2 * m], v[2 * m:]
+    s1, s2 = P_dl @ (R.T @ a), result.phase1.factor.solve(J.T @ a + b)
+    return np.concatenate([R @ s1 + J @ s2, s2])
+
+check_pz_times(pz_times).require()

@@ -30,15 +30,16 @@
 #    expansion (18);
 # 4. say what Remark 1 claims about the cost of the method, and measure it.
 #
-# **Notation.** $n+1$ poses $p_0,\dots,p_n$, pose 0 the reference (package: `graph.n_poses` $= n+1$);
-# $m$ edges; $A$ the *reduced* incidence matrix ($n\times m$, row of pose 0 deleted) — the package's
-# `lc.reduced_incidence(graph)`, which some package docstrings call "A2"; $A_2 = A\otimes I_2$
-# ($2n\times 2m$) the paper's incidence matrix of the positions; $\rho = [p;\ \theta]\in\mathbb R^{3n}$
-# with the positions interleaved ($x_1, y_1, x_2, \dots$), the package's `x` / `x_star`;
-# $R = \mathrm{blkdiag}_k R(\hat\theta_{i_k})$ (tail $i_k$ of edge $k$); $J = \partial(R\Delta^l)/\partial\theta$
-# ($2m\times n$, eq. (11), `phase2.jac`); $P_{\Delta g} = R P_{\Delta l} R^\top$, the covariance of
-# $\Delta^g$ for known orientations. The paper uses the letter $B$ twice: here for the matrix of
-# eq. (12), in lecture 5 for the tree block of the cycle basis $C = [I_l\ B]$; the two are unrelated.
+# **Notation** (lectures 1–3's, and):
+#
+# | symbol | meaning | in the package |
+# |---|---|---|
+# | $A$, $A_2 = A\otimes I_2$ | the *reduced* incidence matrix ($n\times m$) and the paper's one of the positions ($2n\times 2m$) | `lc.reduced_incidence(graph)` (some docstrings: "A2") |
+# | $\rho = [p;\ \theta] \in \mathbb R^{3n}$ | positions interleaved ($x_1, y_1, x_2, \dots$), then orientations | `x`, `x_star` |
+# | $\hat\rho$, $\rho^*$ | the sub-optimal estimate of eq. (14); phase 3's, eq. (15) | `result.phase3.x_star` ($\rho^*$) |
+# | $R$, $J$, $H$ | $\mathrm{blkdiag}_k R(\hat\theta_{i_k})$; $\partial(R\Delta^l)/\partial\theta$ ($2m\times n$); lecture 3's Jacobian $\begin{bmatrix}R & J\\ 0 & I_n\end{bmatrix}$ | `result.phase2.jac` ($J$) |
+# | $P_{\Delta g}$ | $R P_{\Delta l} R^\top$, the covariance of $\Delta^g$ for known orientations | — |
+# | $B$ | the matrix of eq. (12) — not the tree block of $C = [I_l\ B]$ (lecture 5) | `result.phase3` |
 
 # %%
 try:                                  # run alone (Colab, a fresh environment)? then install the package first
@@ -53,7 +54,6 @@ import cvxpy as cp
 import matplotlib.pyplot as plt
 import numpy as np
 import scipy.linalg as sla
-from matplotlib.collections import LineCollection
 
 import lago_cvx as lc
 from lago_cvx import phases as P
@@ -63,10 +63,10 @@ from lago_cvx.positions import resolve_positions
 from lago_cvx.refinement import jacobian, odometry_guess
 from lago_cvx.solvers import LEAST_SQUARES, ClarabelSettings
 from lago_cvx.theorem1 import theorem1
-from lago_cvx.course import S, check, intuition_figure, paper_lago, real, running_example, setup, show
+from lago_cvx.course import (S, check, intuition_figure, paper_lago, real, remark1_figure, running_example,
+                             setup, show, structure_figure)
 
 setup("04a_phase3")
-
 
 def solve_qp(problem):
     """Clarabel with static regularization 1e-7 (its default, 1e-8, fails on the running example's dense
@@ -220,26 +220,8 @@ check(np.abs(lam_th).max() < 1e-6 * np.abs(lam).max() and e_torque < 1e-6 * np.a
 # $p^*$, coloured by the tension $\lVert f_k\rVert$: the loops that disagree most pull hardest.
 
 # %%
-fig, axes = plt.subplots(1, 4, figsize=(16, 4.2))
-for ax, M, title in [(axes[0], P_z, "P_z (dense)"), (axes[1], W.value, "W, WᵀW = P_z⁻¹"),
-                     (axes[2], info15, "B P_z⁻¹ Bᵀ (information of ρ*)")]:
-    ax.spy(np.abs(M) > 1e-12 * np.abs(M).max(), markersize=1.2)
-    ax.set(xlabel="column", ylabel="row")
-    ax.set_title(f"{title}\n{M.shape[0]}×{M.shape[1]}, {np.mean(np.abs(M) > 1e-12 * np.abs(M).max()):.0%} non-zero",
-                 fontsize=9)
-tension = np.linalg.norm(force, axis=1)
-segments = np.stack([p_s[g.tails], p_s[g.heads]], axis=1)
-lines = LineCollection(segments, array=tension, cmap="viridis", linewidths=2)
-axes[3].add_collection(lines)
-axes[3].plot(p_s[1:, 0], p_s[1:, 1], "k.", markersize=4)
-axes[3].plot(0, 0, "r^", markersize=9, label="pose 0 (anchor)")
-axes[3].autoscale_view()
-axes[3].set_aspect("equal")
-axes[3].legend(fontsize=8, loc="lower left")
-fig.colorbar(lines, ax=axes[3], label="spring tension ‖f_k‖")
-axes[3].set(title="edges at p*, by tension", xlabel="x [m]", ylabel="y [m]")
-fig.tight_layout()
-show(fig, "structure_and_forces")
+show(structure_figure([(P_z, "P_z (dense)"), (W.value, "W, WᵀW = P_z⁻¹"), (info15, "B P_z⁻¹ Bᵀ (information of ρ*)")],
+                      g, p_s, force), "structure_and_forces")
 
 # %% [markdown]
 # The same cross-check on a real graph, with the package's own cvxpy problem (`phases.phase3_problem`,
@@ -551,21 +533,7 @@ for label, (r, gn_dr, gn_lago) in runs.items():
           "to the same χ²")
 
 # %%
-fig, axes = plt.subplots(1, len(runs), figsize=(5.4 * len(runs), 4.2), squeeze=False)
-for ax, (label, (r, gn_dr, gn_lago)) in zip(axes[0], runs.items()):
-    best = min(gn_dr.chi2, gn_lago.chi2)
-    c_dr = np.array([entry["chi2"] for entry in gn_dr.log]) / best
-    c_lago = np.array([entry["chi2"] for entry in gn_lago.log]) / best
-    ax.semilogy(np.arange(c_dr.size), c_dr, "o-", label="Gauss–Newton from dead reckoning")
-    ax.semilogy(1 + np.arange(c_lago.size), c_lago, "s-", label="LAGO (phase 3 = 1 step), then Gauss–Newton")
-    ax.semilogy([1], [r.chi2 / best], "r*", markersize=14, label="LAGO: one n-size + one 3n-size solve")
-    ax.set_xlabel("linear systems of size 3n solved")
-    ax.set_ylabel("χ² / minimum")
-    ax.set_title(label)
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
-fig.tight_layout()
-show(fig, "remark1_cost")
+show(remark1_figure(runs), "remark1_cost")
 
 # %% tags=["remove-input"]
 for label in ("running example", "Manhattan world, 2000 poses"):
@@ -600,39 +568,83 @@ if intel is not None:
 # $H = \begin{bmatrix} R & J\\ 0 & I_n\end{bmatrix}$, lecture 3's Jacobian), show that
 # $BP_z^{-1}B^\top = \begin{bmatrix} A_2 P_{\Delta g}^{-1} A_2^\top & -A_2 P_{\Delta g}^{-1} J\\ -J^\top P_{\Delta g}^{-1} A_2^\top & P_\theta^{-1} + J^\top P_{\Delta g}^{-1} J\end{bmatrix}$
 # (the matrix the paper inverts blockwise to obtain eqs. (16)–(17)), and that the Schur complement of its
-# position block is $P_{\theta^*}^{-1}$. Check both numerically on a small graph against `phase3.info`.
+# position block is $P_{\theta^*}^{-1}$. Write `phase3_information(result, graph)` from the blocks; the check
+# compares it block by block with `phase3.info`.
 #
 # **Hint.** $H$ is block upper triangular, so $H^{-1} = \begin{bmatrix} R^\top & -R^\top J\\ 0 & I_n\end{bmatrix}$;
 # form $H^{-1}B^\top$ first, and remember that $R$ is orthogonal.
 
 # %%
-# your solution here
+# your solution here: fill in the body of phase3_information, then run the cell (check_phase3_information tests it)
+from lago_cvx.exercises import check_phase3_information
 
-# %% [markdown]
-# ````{dropdown} Solution
-# ```{literalinclude} solutions/04a_phase3_ex1.py
-# :language: python
-# ```
-# ````
+def phase3_information(result, graph):
+    """B P_z⁻¹ Bᵀ (3n, 3n), dense, from the blocks above (result: the paper's LAGO on graph)."""
+    raise NotImplementedError
+
+check_phase3_information(phase3_information)
+
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
+# Solution and Discussion. P_z⁻¹ = H⁻ᵀ blkdiag(P_Δl⁻¹, P_θ⁻¹) H⁻¹, H⁻¹Bᵀ = [[RᵀA₂ᵀ, −RᵀJ], [0, I]] and R P_Δl⁻¹ Rᵀ =
+# P_Δg⁻¹ (R orthogonal) give the blocks. By block inversion the Schur complement of the position block is the
+# inverse of P_θ*, the orientation block of P_ρ* (eqs. (16)–(17)).
+import numpy as np
+import scipy.linalg as sla
+import lago_cvx as lc
+from lago_cvx.exercises import check_phase3_information
+from lago_cvx.posegraph import rot2
+
+def phase3_information(result, graph):
+    A2 = np.kron(lc.reduced_incidence(graph).toarray(), np.eye(2))
+    R = sla.block_diag(*rot2(result.phase1.theta[graph.tails]))
+    J = result.phase2.jac.toarray()
+    Pdg_inv = np.linalg.inv(R @ sla.block_diag(*result.uncertainty.cov_delta_l) @ R.T)
+    return np.block([[A2 @ Pdg_inv @ A2.T, -A2 @ Pdg_inv @ J],
+                     [-J.T @ Pdg_inv @ A2.T, result.phase1.info.toarray() + J.T @ Pdg_inv @ J]])
+
+check_phase3_information(phase3_information).require()
 
 # %% [markdown]
 # ## Exercise 2 — The springs of a single loop
 #
 # *Derive, then check.* Take a graph that is one cycle — poses $0,\dots,N-1$ on a circle, edge $k$ from pose
 # $k$ to pose $k+1$ and the last one back to pose 0 — with noisy measurements and *unequal* information per
-# edge. Using the force balance of section 1 ($A_2\lambda_\Delta = 0$), show that every edge of the loop
-# carries the same spring force $f$, and check it on phase 3's solution. Do the springs also stretch by the
-# same amount? Why not?
+# edge (`single_loop()`). Using the force balance of section 1 ($A_2\lambda_\Delta = 0$), show that every edge
+# carries the same spring force $f$. Write `spring_forces(result, graph)`; the check compares your forces with
+# phase 3's. Do the springs also stretch by the same amount? Why not?
 #
 # **Hint.** Write the balance at pose $k+1$: exactly two edges touch it. Compute $f_k = P_{\Delta g,k}^{-1} d_k$ as
-# in section 1 from `res.phase3.x_star`, `res.phase2.delta_g` and `res.uncertainty.cov_delta_l`.
+# in section 1 from `result.phase3.x_star`, `result.phase2.delta_g` and `result.uncertainty.cov_delta_l`.
 
 # %%
-# your solution here
+# your solution here: fill in the body of spring_forces, then run the cell (check_spring_forces tests it)
+from lago_cvx.exercises import check_spring_forces, single_loop
+graph = single_loop()              # the data the check uses
 
-# %% [markdown]
-# ````{dropdown} Solution
-# ```{literalinclude} solutions/04a_phase3_ex2.py
-# :language: python
-# ```
-# ````
+def spring_forces(result, graph):
+    """The spring force f_k (m, 2) of every edge at phase 3's optimum."""
+    raise NotImplementedError
+
+check_spring_forces(spring_forces)
+
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
+# Solution and Discussion. On one loop every pose has two edges, oriented along the loop; the balance
+# A₂λ_Δ = 0 at pose k+1 reads f_k − f_{k+1} = 0: one force runs through the whole ring, and the misclosure is
+# shared out in proportion to the compliances, d_k = P_Δg,k f — the soft springs stretch most.
+import numpy as np
+from lago_cvx.course import S
+from lago_cvx.exercises import check_spring_forces
+from lago_cvx.posegraph import rot2
+
+def spring_forces(result, graph):
+    n = graph.n_poses - 1
+    x = result.phase3.x_star
+    p = np.vstack([[0.0, 0.0], x[:2 * n].reshape(n, 2)])
+    th_star, th_hat = np.concatenate([[0.0], x[2 * n:]]), result.phase1.theta
+    dg = result.phase2.delta_g
+    d = p[graph.heads] - p[graph.tails] - dg - (dg @ S.T) * (th_star - th_hat)[graph.tails, None]
+    Rk = rot2(th_hat[graph.tails])
+    P_dg_inv = Rk @ np.linalg.inv(result.uncertainty.cov_delta_l) @ np.swapaxes(Rk, 1, 2)
+    return np.einsum("kab,kb->ka", P_dg_inv, d)
+
+check_spring_forces(spring_forces).require()

@@ -29,11 +29,15 @@
 #    (Remark 2);
 # 5. compute the covariances of $\rho^*$ without a dense inverse.
 #
-# **Notation** as in lecture 4a: $\rho = [p;\ \theta]$, $\hat\rho = [\hat p;\ \hat\theta]$ (eq. (14)), phase 3's
-# $\rho^* = [p^*;\ \theta^*]$ (eq. (15)); $\theta_{\rm opt}$ the orientations of the minimum of χ² (eq. (3)),
-# found by Gauss–Newton. $F(\theta)$ is χ² with the positions re-solved exactly for the orientations
-# $\theta$ (`lago_cvx.positions.resolve_positions`): χ² is quadratic in the positions once the orientations
-# are fixed.
+# **Notation** (lecture 4a's, and):
+#
+# | symbol | meaning | in the package |
+# |---|---|---|
+# | $\hat\rho = [\hat p;\ \hat\theta]$ | the sub-optimal estimate of eq. (14) | `theorem1(...).x_hat` |
+# | $\rho^* = [p^*;\ \theta^*]$ | phase 3's estimate, eq. (15) | `theorem1(...).x_star` |
+# | $\theta_{\rm opt}$ | the orientations of the minimum of χ² (eq. (3)), found by Gauss–Newton | `lc.refine(...).poses[:, 2]` |
+# | $F(\theta)$ | χ² with the positions re-solved exactly for the orientations $\theta$ (χ² is quadratic in the positions once they are fixed) | `lago_cvx.positions.resolve_positions` |
+# | $\alpha$ | the guarded polish's step from $\hat\theta$ towards $\theta^*$ (section 3) | `result.polish.alpha` |
 
 # %%
 try:                                  # run alone (Colab, a fresh environment)? then install the package first
@@ -531,46 +535,93 @@ if intel is not None and peers.have_gtsam():
 # %% [markdown]
 # ## Exercise 1 — The guarded polish, by hand
 #
-# *Implement.* Write $F(\theta)$ (χ² with the positions re-solved by `resolve_positions`) and the guarded
-# step of section 3: keep $\theta^*$ if $F(\theta^*)\le F(\hat\theta)$, else halve $\alpha$ from 1 (at most
-# three times) until $F(\hat\theta + \alpha(\theta^* - \hat\theta)) < F(\hat\theta)$, falling back to
-# $\hat\theta$. Check that your $\alpha$ and χ² equal `paper_lago(graph, positions="resolve").polish` on CSAIL
-# (or, without the datasets, on a synthetic world).
+# *Implement.* Write the guarded step of section 3 as `guarded_polish(F, theta_hat, theta_star)`, where `F(θ)` is
+# χ² with the positions re-solved for the orientations θ: keep $\theta^*$ if $F(\theta^*)\le F(\hat\theta)$, else
+# halve $\alpha$ from 1 (at most three times) until $F(\hat\theta + \alpha(\theta^* - \hat\theta)) < F(\hat\theta)$,
+# falling back to $\hat\theta$. The check compares your $\alpha$ and χ² with
+# `paper_lago(graph, positions="resolve").polish` on CSAIL (or, without the datasets, on a synthetic world).
 #
-# **Hint.** `theorem1(graph, regularization="tree", information="marginal", positions="phase3")` gives
-# $\hat\theta$ (`.result.phase1.theta`) and $\theta^*$ (`.poses(.x_star)[:, 2]`); `resolve_positions(graph, θ,
-# result.uncertainty).poses` are the re-solved poses.
+# **Hint.** Return the pair `(alpha, F(the orientations kept))`; evaluate $F$ as few times as you can.
 
 # %%
-# your solution here
+# your solution here: fill in the body of guarded_polish, then run the cell (check_guarded_polish tests it)
+from lago_cvx.exercises import check_guarded_polish, polish_case
+graph, result = polish_case()      # CSAIL (or a synthetic world) and the paper's LAGO on it
 
-# %% [markdown]
-# ````{dropdown} Solution
-# ```{literalinclude} solutions/04b_theorem1_real_ex1.py
-# :language: python
-# ```
-# ````
+def guarded_polish(F, theta_hat, theta_star):
+    """(alpha, chi2): the step kept and F there."""
+    raise NotImplementedError
+
+check_guarded_polish(guarded_polish)
+
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
+# Solution and Discussion. Keep θ* when F(θ*) ≤ F(θ̂); otherwise halve α from 1, at most three times, until
+# F(θ̂ + α(θ* − θ̂)) < F(θ̂); else keep θ̂ (α = 0). Never above phase 3's χ² nor F(θ̂): a guard, not a search.
+from lago_cvx.exercises import check_guarded_polish
+
+def guarded_polish(F, theta_hat, theta_star, max_halvings=3):
+    f_star, f_hat = F(theta_star), F(theta_hat)
+    if f_star <= f_hat:
+        return 1.0, f_star
+    alpha = 1.0
+    for _ in range(max_halvings):
+        alpha /= 2
+        f_alpha = F(theta_hat + alpha * (theta_star - theta_hat))
+        if f_alpha < f_hat:
+            return alpha, f_alpha
+    return 0.0, f_hat
+
+check_guarded_polish(guarded_polish).require()
 
 # %% [markdown]
 # ## Exercise 2 — Over-confident translational information
 #
 # *Explore.* Section 2 blamed large, anisotropic translational information. Reproduce the failure on a
-# synthetic Manhattan world: multiply the translational information of a random 10 % of the edges by
-# $F = 1, 10^2, 10^4, 10^6$ (same measurements), once isotropically ($\Omega_{tt}\to F\Omega_{tt}$) and once
-# along $x$ only, and record $\chi^2(\rho^*)/\chi^2(\hat\rho)$ and $\chi^2(\text{re-solved})/\chi^2(\hat\rho)$ from
-# `theorem1`. From which $F$ does phase 3 move away from the minimum? Which of the two effects of section 2
-# — frozen weights or linearised residuals — is at work in each case? Does re-solving the positions repair
-# it?
+# synthetic Manhattan world: write `scale_information(graph, pick, factor, mode)`, which multiplies the
+# translational information of the edges `pick` by $F$ (same measurements), isotropically
+# ($\Omega_{tt}\to F\Omega_{tt}$, `mode="isotropic"`) or along $x$ only (`mode="x only"`); the check tests it. Then
+# record $\chi^2(\rho^*)/\chi^2(\hat\rho)$ and $\chi^2(\text{re-solved})/\chi^2(\hat\rho)$ from `theorem1` for
+# $F = 1, \dots, 10^6$ on a random 10 % of the edges. From which $F$ does phase 3 move away from the minimum? Which
+# effect of section 2 — frozen weights or linearised residuals — is at work in each case? Does re-solving repair it?
 #
 # **Hint.** `dataclasses.replace(graph, information=Ω)` gives the same measurements with new information;
 # isotropic scaling leaves $R\,\Omega_{tt}R^\top$ unchanged under a turn, scaling $x$ only does not.
 
 # %%
-# your solution here
+# your solution here: fill in the body of scale_information, then run the cell (check_scale_information tests it)
+from lago_cvx.exercises import check_scale_information
 
-# %% [markdown]
-# ````{dropdown} Solution
-# ```{literalinclude} solutions/04b_theorem1_real_ex2.py
-# :language: python
-# ```
-# ````
+def scale_information(graph, pick, factor, mode):
+    """The graph with the translational information of the edges pick (bool (m,)) scaled."""
+    raise NotImplementedError
+
+check_scale_information(scale_information)
+
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
+# Solution and Discussion. Scaling 10 % of the edges' translational information by F (measurements unchanged):
+# at F = 1 phase 3 lowers χ² as Theorem 1 says; at F = 10⁶ it overshoots, and re-solving the positions repairs
+# it. Isotropically the culprit is the linearised R(θ)Δˡ; along x only, mostly the frozen weights — the
+# mechanism measured on INTEL, CSAIL and MIT.
+from dataclasses import replace
+import numpy as np
+import lago_cvx as lc
+from lago_cvx.exercises import check_scale_information
+from lago_cvx.theorem1 import theorem1
+
+def scale_information(graph, pick, factor, mode):
+    info = np.array(graph.information)
+    if mode == "isotropic":
+        info[pick, :2, :2] *= factor
+    else:
+        info[pick, 0, 0] *= factor
+    return replace(graph, information=info)
+
+g = lc.manhattan_world(500, seed=0, sigma_xy=0.02, sigma_theta=0.02).graph   # own world: information scaled at will
+pick = np.random.default_rng(0).random(g.n_edges) < 0.1
+for mode in ("isotropic", "x only"):
+    for factor in (1.0, 1e6):
+        t = theorem1(scale_information(g, pick, factor, mode), regularization="tree", information="marginal",
+                     positions="phase3")
+        print(f"{mode:9s} F = {factor:5.0e}: χ²(ρ*)/χ²(ρ̂) = {t.chi2_phase3 / t.chi2_suboptimal:7.3f}, "
+              f"re-solved/χ²(ρ̂) = {t.chi2_resolved / t.chi2_suboptimal:.3f}")
+check_scale_information(scale_information).require()

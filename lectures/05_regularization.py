@@ -18,11 +18,14 @@
 # 3. use Proposition 2 and Corollary 3 to see why the paper corrects only loop closures, and reproduce Table I;
 # 4. measure when the rounding finds the true $k$, and how the chordal regularizer (beyond the paper) helps.
 #
-# **Notation.** $n+1$ poses $p_0,\dots,p_n$, pose 0 the reference (package: `graph.n_poses` $= n+1$); $m$
-# edges; the incidence matrix $A$ ($(n+1)\times m$, column of edge $(i,j)$: $-1$ at $i$, $+1$ at $j$;
-# `lc.incidence_matrix`) and its reduced form without pose 0's row ($n\times m$, `lc.reduced_incidence`);
-# $\delta$ the measured relative orientations, $\delta_{\rm reg} = \delta + 2\pi k$ the regularized ones; $l$ the number of chords.
-# The letter $B$ in $C = [I_l\ B]$ is unrelated to the $B$ of phase 3 (lecture 4a).
+# **Notation** (lecture 1's, and):
+#
+# | symbol | meaning | in the package |
+# |---|---|---|
+# | $A$ | the incidence matrix, $(n+1)\times m$ (column of edge $(i,j)$: $-1$ at $i$, $+1$ at $j$); reduced: without pose 0's row | `lc.incidence_matrix`, `lc.reduced_incidence` |
+# | $T$, $l = m - n$ | a spanning tree and the number of its chords | `lc.spanning_tree(graph, kind)`, `tree.chords` |
+# | $c^{(k)}$, $C = [I_l\ B]$ | the fundamental circuit of chord $k$; the cycle basis matrix, one row per chord (eq. (19)); this $B$ is not phase 3's (lecture 4a) | `lc.cycle_basis(graph, tree)` |
+# | $\delta$, $k$, $\delta_{\rm reg}$ | the measured relative orientations; the integers; $\delta + 2\pi k$ (eq. (23)) | `regularize(...).k`, `.delta_reg` |
 
 # %%
 try:                                  # run alone (Colab, a fresh environment)? then install the package first
@@ -37,11 +40,11 @@ import scipy.sparse as sp
 import lago_cvx as lc
 from lago_cvx import phases as P
 from lago_cvx.datasets import REFERENCE_CHI2
-from lago_cvx.plotting import plot_edges, plot_trajectory
+from lago_cvx.plotting import plot_trajectory
 from lago_cvx.regularization import regularize
-from lago_cvx.rounding import AMBIGUITY_MARGIN
 from lago_cvx.uncertainty import edge_uncertainty
-from lago_cvx.course import FULL, check, intuition_figure, paper_lago, quiet, real, running_example, setup, show, solve_qp
+from lago_cvx.course import (FULL, check, circuit_sums_figure, circuits_figure, intuition_figure, noise_margin_figure,
+                             paper_lago, quiet, real, running_example, setup, show, solve_qp, wraparound_figure)
 
 setup("05_regularization")
 TWO_PI = 2 * np.pi
@@ -114,21 +117,7 @@ err_reg = np.abs(res4.poses[:, :2] - w4.truth[:, :2]).max()
 wrapped = np.count_nonzero(np.rint((w4.truth[g4.heads, 2] - w4.truth[g4.tails, 2] - g4.delta) / TWO_PI))
 print(f"{g4!r}: {wrapped} measurements differ from the true orientation change by a multiple of 2π")
 
-fig, axes = plt.subplots(1, 2, figsize=(12, 5.4))
-for ax, poses, title in [(axes[0], raw3.poses, "phases 1–3 on the raw, wrapped δ"),
-                         (axes[1], res4.poses, "phases 1–3 on the regularized δ_reg")]:
-    plot_trajectory(ax, w4.truth, label="ground truth (4 laps)", color="k", linewidth=3.0, alpha=0.25)
-    plot_trajectory(ax, poses, label="estimate", color="tab:red", linewidth=1.0, style=".-", markersize=3)
-    ax.set_title(f"circle world, 120 poses, noiseless:\n{title}")
-    ax.legend(fontsize=8, loc="upper right")
-inset = axes[0].inset_axes([0.3, 0.3, 0.4, 0.4])
-plot_trajectory(inset, raw3.poses, color="tab:red", linewidth=0.8, style=".-", markersize=2)
-inset.set_title("the estimate, enlarged", fontsize=8)
-inset.tick_params(labelsize=7)
-inset.set_xlabel("")
-inset.set_ylabel("")
-fig.tight_layout()
-show(fig, "wraparound")
+show(wraparound_figure(w4.truth, raw3.poses, res4.poses), "wraparound")
 
 # %% tags=["remove-input"]
 check(err_raw > 1.0, f"without regularization: max position error {err_raw:.2f} m")
@@ -210,21 +199,7 @@ C8 = lc.cycle_basis(eight, tree8).toarray().astype(int)
 print("odometric tree edges:", tree8.tree_edges, " chords:", tree8.chords)
 print("fundamental circuits, one row per chord (graph edge order):\n", C8)
 coef = eight_cycle[tree8.chords]
-fig, axes = plt.subplots(1, 1 + C8.shape[0], figsize=(3.3 * (1 + C8.shape[0]), 3.6))
-for ax, c, title in [(axes[0], eight_cycle, "a cycle (not a circuit)")] + \
-        [(ax, row, f"fundamental circuit of chord {tails8[k]}→{heads8[k]}") for ax, row, k in zip(axes[1:], C8, tree8.chords)]:
-    plot_edges(ax, eight, truth8, which="all", color="0.8", linewidth=1.0, alpha=1.0)
-    used = eight.subgraph_edges(c != 0)
-    plot_edges(ax, used, truth8, which="all", color="tab:red", linewidth=2.5, alpha=1.0)
-    ax.plot(pos8[:, 0], pos8[:, 1], "ko", markersize=4)
-    for i, (x, y) in enumerate(pos8):
-        ax.annotate(str(i), (x, y), textcoords="offset points", xytext=(4, 4), fontsize=9)
-    ax.set_title(title, fontsize=9)
-    ax.set_xticks([])
-    ax.set_yticks([])
-    ax.margins(0.2)
-fig.tight_layout()
-show(fig, "circuits")
+show(circuits_figure(eight, truth8, eight_cycle, C8, tree8.chords), "circuits")
 
 # %% tags=["remove-input"]
 for row, k in zip(C8, tree8.chords):
@@ -379,18 +354,7 @@ ph1 = P.phase1_closed_form(gq, regq.delta_reg, uq)
 diffs = lc.reduced_incidence(gq).T @ ph1.theta_free
 e_ph1 = np.abs(regq.delta_reg + v_reg - diffs).max()
 nu_formula = 2 * np.linalg.solve(Cq @ np.diag(uq.var_delta) @ Cq.T, Cq @ regq.delta_reg)
-fig, axes = plt.subplots(1, 2, figsize=(12, 3.8))
-axes[0].hist(Cq @ gq.delta / TWO_PI, bins=30, color="tab:red")
-axes[0].set_title("C δ / 2π on the raw measurements: near integers")
-axes[1].hist(Cq @ regq.delta_reg / TWO_PI, bins=30, color="tab:blue")
-axes[1].set_title("C δ_reg / 2π after the rounding of eq. (23): near 0")
-for ax in axes:
-    ax.set_xlabel("circuit sum / 2π")
-    ax.set_ylabel("fundamental circuits")
-    ax.yaxis.get_major_locator().set_params(integer=True)
-fig.suptitle(f"the running example: {Cq.shape[0]} fundamental circuits of the odometric tree")
-fig.tight_layout()
-show(fig, "circuit_sums")
+show(circuit_sums_figure(Cq @ gq.delta, Cq @ regq.delta_reg), "circuit_sums")
 
 # %% tags=["remove-input"]
 check(np.allclose(np.abs(nu_reg), np.abs(nu_formula), rtol=1e-6, atol=1e-9 * np.abs(nu_formula).max()),
@@ -501,23 +465,7 @@ check(first_bad["odometry"] <= first_bad["bfs"] < first_bad["chordal"] < np.inf,
       f"chordal {first_bad['chordal']}")
 
 # %%
-fig, axes = plt.subplots(1, 2, figsize=(12, 4.4))
-styles = {"odometry": ("tab:red", "odometric tree (the paper's)"), "bfs": ("tab:blue", "BFS tree"),
-          "chordal": ("tab:green", "chordal regularizer")}
-for kind, (color, label) in styles.items():
-    axes[0].plot(SIGMAS, wrong[kind], "o-", color=color, label=label)
-for kind in TREES:
-    axes[1].plot(SIGMAS, ambiguous[kind], "o-", color=styles[kind][0], label=styles[kind][1])
-axes[0].set_ylabel("fundamental circuits with a wrong 2kπ (per world)")
-axes[0].set_title(f"wrong corrections vs rotation noise\nManhattan worlds, 1000 poses, {len(SEEDS)} seeds")
-axes[1].set_ylabel("chords reported ambiguous (per world)")
-axes[1].set_title(f"the `ambiguous` warning (|C δ_reg| within {AMBIGUITY_MARGIN} rad of ±π)")
-for ax in axes:
-    ax.set_xlabel("rotation noise σ_θ per measurement [rad]")
-    ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=8)
-fig.tight_layout()
-show(fig, "noise_margin")
+show(noise_margin_figure(SIGMAS, wrong, ambiguous, len(SEEDS)), "noise_margin")
 
 # %% [markdown]
 # ## 8. Ambiguous roundings, and the chordal regularizer
@@ -608,43 +556,95 @@ if intel is not None:
           "the regularized graph does not")
 
 # %% [markdown]
+# **Summary.** Measured angles are known only modulo $2\pi$, and phase 1 needs them on one branch: around every cycle
+# the true relative orientations sum to a whole number of turns. A spanning tree gives a basis of the cycles, its
+# fundamental circuits (Definition 1, Theorem 2, Corollaries 1–2), collected in $C = [I_l\ B]$ (eq. (19)); Theorem 3
+# rounds each circuit sum to the nearest $2k\pi$ and puts the correction on the chord (eqs. (20)–(23)), so that with
+# the odometric tree only loop closures change (Proposition 2, Corollary 3) — Table I's count on INTEL. The rounding
+# is right while the noise around a circuit stays below $\pi$; the chordal regularizer (lecture 8) helps beyond.
+
+# %% [markdown]
 # ## Exercise 1 — Coordinates in the fundamental basis
 #
 # *Derive.* Show that a cycle vector $c$ ($Ac = 0$) equals $\sum_k c_k\,c^{(k)}$, the sum over the chords $k$ of $T$ of
 # its chord entries times the fundamental circuits — hence that the fundamental circuits span the cycle space (Theorem
-# 2). Then check it: express every fundamental circuit of the BFS tree of a Manhattan world in the basis of the
-# odometric tree, i.e. verify $C_{\rm bfs} = C_{\rm bfs}[:, \text{odometric chords}]\; C_{\rm odo}$.
+# 2). Then write `coordinates(C, basis_chords)`: the coordinates $X$ of the rows of $C$ in the fundamental basis of a
+# tree with chords `basis_chords`, so that $X\,C_{\rm basis} = C$; the check goes both ways between the odometric and
+# the BFS basis of two worlds.
 #
 # **Hint.** Subtract from $c$ the combination of fundamental circuits weighted by its chord entries: what is left
 # lives on the tree and has $Ac = 0$.
 
 # %%
-# your solution here
+# your solution here: fill in the body of coordinates, then run the cell (check_fundamental_coordinates tests it)
+from lago_cvx.exercises import check_fundamental_coordinates
 
-# %% [markdown]
-# ````{dropdown} Solution
-# ```{literalinclude} solutions/05_regularization_ex1.py
-# :language: python
-# ```
-# ````
+def coordinates(C, basis_chords):
+    """X (l, l) with X · C_basis = C; C (l, m) holds cycle vectors as rows."""
+    raise NotImplementedError
+
+check_fundamental_coordinates(coordinates)
+
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
+# Solution and Discussion. For a cycle vector c (Ac = 0) put c' = c − Σ_k c_k c⁽ᵏ⁾ over the chords k. Then Ac' = 0
+# and c' is zero on every chord: it lives on the tree, where a non-zero vector always has a leaf of its support
+# with (Ac')_v = ±c'_e ≠ 0; so c' = 0 and c = Σ_k c_k c⁽ᵏ⁾. The coordinates are the chord entries: the
+# fundamental circuits span the cycle space and, independent (C = [I_l B]), are a basis — Theorem 2.
+from lago_cvx.exercises import check_fundamental_coordinates
+
+def coordinates(C, basis_chords):
+    return C[:, basis_chords]
+
+check_fundamental_coordinates(coordinates).require()
 
 # %% [markdown]
 # ## Exercise 2 — The paper's regularization from scratch
 #
-# *Implement.* Without `regularize`: integrate $\delta$ along a spanning tree from pose 0 (walk the tree in
-# breadth-first order), compute each chord's circuit sum $(C\delta)_c = \delta_c - (\theta_j - \theta_i)$, round to
-# $k_c$ with residuals in $(-\pi, \pi]$, and form $\delta_{\rm reg}$. Check that your $k$ equals the package's on a
-# synthetic world and, with the datasets, that the odometric tree of INTEL gives Table I's count.
+# *Implement.* Without `regularize`, write `my_regularize(graph, tree_edges)`: integrate $\delta$ along the spanning
+# tree made of the edges `tree_edges` from pose 0 (walk it in breadth-first order), compute each chord's circuit sum
+# $(C\delta)_c = \delta_c - (\theta_j - \theta_i)$, round to $k_c$ with residuals in $(-\pi, \pi]$, and return $k$ (per
+# edge, or per chord in increasing edge order) and $\delta_{\rm reg}$. The check tests the properties of Theorem 3 on
+# two worlds and both trees; with the datasets, count the corrections on INTEL's odometric tree (Table I).
 #
 # **Hint.** In breadth-first order a tree edge $i\to j$ is reached from one end: $\theta_j = \theta_i + \delta_k$
 # (or $\theta_i = \theta_j - \delta_k$ when reversed).
 
 # %%
-# your solution here
+# your solution here: fill in the body of my_regularize, then run the cell (check_regularize tests it)
+from lago_cvx.exercises import check_regularize
 
-# %% [markdown]
-# ````{dropdown} Solution
-# ```{literalinclude} solutions/05_regularization_ex2.py
-# :language: python
-# ```
-# ````
+def my_regularize(graph, tree_edges):
+    """(k, delta_reg): the integers (m,) or (l,) and δ + 2πk (m,)."""
+    raise NotImplementedError
+
+check_regularize(my_regularize)
+
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
+# Solution and Discussion. Integrate δ along the tree from pose 0 in breadth-first order (θ_child = θ_parent ±
+# δ_edge); each chord's circuit sum is (Cδ)_c = δ_c − (θ_j − θ_i); round it to k_c so that (Cδ)_c + 2πk_c lies
+# in (−π, π]; δ_reg = δ + 2πk on the chords, the tree edges keep δ (eq. (23)). With the odometric tree of INTEL,
+# 198 chords need a correction (Table I).
+from collections import deque
+import numpy as np
+from lago_cvx.exercises import check_regularize
+
+def my_regularize(graph, tree_edges):
+    adjacency = [[] for _ in range(graph.n_poses)]
+    for e in tree_edges:
+        adjacency[graph.tails[e]].append((e, graph.heads[e], +1.0))
+        adjacency[graph.heads[e]].append((e, graph.tails[e], -1.0))
+    theta = np.full(graph.n_poses, np.nan)
+    theta[0], queue = 0.0, deque([0])
+    while queue:
+        u = queue.popleft()
+        for e, v, sign in adjacency[u]:
+            if np.isnan(theta[v]):
+                theta[v] = theta[u] + sign * graph.delta[e]
+                queue.append(v)
+    chords = np.setdiff1d(np.arange(graph.n_edges), tree_edges)
+    circuit = graph.delta[chords] - (theta[graph.heads[chords]] - theta[graph.tails[chords]])
+    k = np.zeros(graph.n_edges, dtype=int)
+    k[chords] = -np.ceil(circuit / (2 * np.pi) - 0.5).astype(int)
+    return k, graph.delta + 2 * np.pi * k
+
+check_regularize(my_regularize).require()

@@ -29,9 +29,12 @@
 # solver of Table II and Fig. 3, is not part of this package (Gauss–Newton stands in), and INTEL's benchmark relations
 # are not available: sections 5–6 score INTEL against its minimum of χ² and generated worlds against their truth.
 #
-# **Notation.** χ² is the cost of eq. (3), $\sum_{ij} e_{ij}^\top \Omega_{ij} e_{ij}$, no factor ½
-# (`lago_cvx.metrics.chi2`); $n+1$ poses, $m$ edges, $A$ the $(n+1)\times m$ incidence matrix, $\delta$ the
-# relative orientations, $P_\delta$ their variances.
+# **Notation** (lectures 1–5's, and):
+#
+# | symbol | meaning | in the package |
+# |---|---|---|
+# | χ² | the cost of eq. (3), $\sum_{ij} e_{ij}^\top \Omega_{ij} e_{ij}$, no factor ½ | `lago_cvx.metrics.chi2` |
+# | $\varepsilon_t$, $\varepsilon_\theta$ | Table II's mean squared errors of the relative translations [m²] and rotations [rad²] | `relation_errors` (section 5) |
 
 # %%
 try:                                  # run alone (Colab, a fresh environment)? then install the package first
@@ -76,14 +79,12 @@ show(intuition_figure("06"), "intuition")
 # %%
 TABLE_I = {"nodes": 1228, "odometric constraints": 1227, "loop closing constraints": 278,
            "chords needing regularization": 198}            # the paper's Table I
-
 def table_i(graph):
     """Table I's four numbers for ``graph``, the chords counted by hand; the odometric tree, Cδ and k."""
     tree = lc.spanning_tree(graph, "odometry")              # Proposition 2: the odometric edges
     r = lc.cycle_basis(graph, tree) @ graph.delta           # eq. (19), one row per chord: cycle residuals Cδ
     k = -np.rint(r / (2 * np.pi)).astype(int)               # eq. (23), rounded to 2kπ
     return dict(zip(TABLE_I, (graph.n_poses, graph.n_odometric, graph.n_loop_closures, np.count_nonzero(k)))), tree, r, k
-
 run_row, _, _, run_k = table_i(running_example().graph)
 run_paper = lc.lago(running_example().graph, route="seed")
 ours = table_i(INTEL)[0] if INTEL is not None else {key: "–" for key in TABLE_I}
@@ -97,7 +98,6 @@ if INTEL is not None:
     bfs = lc.lago(g, route="seed", spanning_tree="bfs")
     print(f"the count depends on the tree: with a breadth-first tree only {bfs.regularization.n_regularized} "
           f"of {bfs.tree.n_chords} chords need k ≠ 0")
-
     fig, ax = plt.subplots(figsize=(7, 3.2))
     ax.hist(r / (2 * np.pi), bins=np.arange(r.min() / (2 * np.pi) - 0.5, r.max() / (2 * np.pi) + 0.5, 0.05),
             color="tab:blue")
@@ -147,7 +147,6 @@ if INTEL is not None:
     reference = theta[0] == 0
     phase1 = cp.Problem(cp.Minimize(cp.sum_squares(cp.multiply(w, At @ theta - delta))), [reference])
     print(phase1)                                           # (cvxpy writes sum_squares(x) as quad_over_lin(x, 1))
-
     delta.value = paper.regularization.delta_reg            # regularized: δ + v
     status = solve(phase1)
     theta_reg, cost_reg = theta.value.copy(), phase1.value
@@ -172,7 +171,6 @@ if INTEL is not None:
     ph2 = phases.phase2(g, theta_raw, unc, information="marginal", delta_reg=g.delta)
     raw_poses = phases.phase3_closed_form(g, ph2).poses    # phases 2–3 on the unregularized orientations
     print(f"χ² of the three phases: regularized {paper.chi2:.4g}, raw {lc.chi2(g, raw_poses):.4g}")
-
     fig, axs = plt.subplots(1, 2, figsize=(11, 5))
     for ax, poses, title in ((axs[0], paper.poses, "with the 2kπ corrections (Theorem 3)"),
                              (axs[1], raw_poses, "without them (raw δ)")):
@@ -244,7 +242,6 @@ if INTEL is not None:
     axs[0].legend(loc="lower left", fontsize=8)
     fig.suptitle("Fig. 2(a) — INTEL: estimated node configuration")
     show(fig, "fig2a")
-
     areas = {}
     fig, axs = plt.subplots(1, 2, figsize=(12, 5.8))
     for ax, (name, poses) in zip(axs, (("odometric trajectory", odo), ("the paper's procedure", paper.poses))):
@@ -275,8 +272,7 @@ if INTEL is not None:
 # Table II scores estimates with the SLAM benchmark metric of Kümmerle et al. {cite}`kummerle2009measuring`: over a set
 # of relations $(i,j)$ with known true relative pose $\delta^*_{ij}$, the estimate's $\hat\delta_{ij} = \hat p_j \ominus \hat p_i$ (eq. (1)) is compared with it,
 # $$\varepsilon_t = \frac1N\sum_{(i,j)}\big\|\mathrm{trans}(\hat\delta_{ij}\ominus\delta^*_{ij})\big\|^2\ [\mathrm m^2],
-# \qquad \varepsilon_\theta = \frac1N\sum_{(i,j)}\mathrm{rot}(\hat\delta_{ij}\ominus\delta^*_{ij})^2\ [\mathrm{rad}^2]$$
-# (`section_v.relation_errors`).
+# \qquad \varepsilon_\theta = \frac1N\sum_{(i,j)}\mathrm{rot}(\hat\delta_{ij}\ominus\delta^*_{ij})^2\ [\mathrm{rad}^2]$$ (`section_v.relation_errors`).
 #
 # **The paper's two scenarios.** In one, $P_{ij} = \mathrm{diag}(P_{\Delta l,ij}, P_{\delta,ij})$ with "the
 # corresponding uncertainties […] assumed to be proportional to the respective measurements, e.g. bigger displacements
@@ -288,8 +284,7 @@ if INTEL is not None:
 # **What replaces what is missing.** INTEL's benchmark relations (hand-checked scan alignments) cannot be matched to
 # the graph's poses (no published correspondence), and TORO is not part of the package. **Gauss–Newton on eq. (3),
 # started from odometry, stands in for TORO** (`lc.refine`, one iteration at a time). TORO does stochastic gradient
-# descent on a tree parametrization, hundreds of cheap steps built to survive a poor initial guess; Gauss–Newton takes
-# a few expensive steps and can stop in a local minimum. So the table is built twice:
+# descent on a tree parametrization, hundreds of cheap steps built to survive a poor initial guess; Gauss–Newton takes a few expensive steps and can stop in a local minimum. So the table is built twice:
 #
 # * **on INTEL itself**, without truth, each estimate is scored against the minimum of χ² *of the same scenario* —
 #   χ²/min, the relations' $\varepsilon$ against the minimum's, and the rigidly aligned absolute trajectory error (ATE);
@@ -600,51 +595,56 @@ if INTEL is not None:
 # So "the paper's procedure fails on INTEL" needs its numbers. It leaves 67.6× the minimum of the file's χ², but that
 # factor is mostly thirteen terms: 61 % of χ² sits on 13 of 1505 edges, 91 % on 50, each an odometric step of a few
 # millimetres for which the file claims a standard deviation of a tenth of the step (under 0.7 mm) across the motion —
-# at the minimum the same 13 edges carry 4 %; the other 1455 edges together carry 6.9× the minimum's terms on them. The map itself is 3.0 cm (aligned ATE) from the minimum's, on a floor
-# 38 m across, and with the paper's own second scenario, $P = I_3$, the paper's procedure is 1.023× the minimum. What
-# fails is phase 3's positions on edges that claim sub-millimetre certainty (the frozen weights above); the estimate is
-# as good a map as the minimum at the scale of Fig. 2, and the iterative refinement the abstract calls often
-# unnecessary is, on INTEL, a refinement of χ² on a few dozen stiff edges.
+# at the minimum the same 13 edges carry 4 %; the other 1455 edges together carry 6.9× the minimum's terms on them. The
+# map itself is 3.0 cm (aligned ATE) from the minimum's, on a floor 38 m across, and with the paper's own second
+# scenario, $P = I_3$, the paper's procedure is 1.023× the minimum. What fails is phase 3's positions on edges that
+# claim sub-millimetre certainty (the frozen weights above); the estimate is as good a map as the minimum at the scale
+# of Fig. 2, and the iterative refinement the abstract calls often unnecessary is, on INTEL, a refinement of χ² on a few
+# dozen stiff edges.
+#
+# **Summary.** Section V re-run: Table I; Figs. 1–2; Table II's two scenarios on INTEL and over generated worlds; Fig. 3 to 1000 iterations; the abstract's claim on every real graph; INTEL's 67.6× read edge by edge.
 
 # %% [markdown]
 # ## Exercise 1 — The metric needs no alignment
 #
-# Absolute trajectory errors need the estimate rigidly aligned to the truth first (the estimate lives in the frame of
-# its reference pose). Show that $\varepsilon_t$ and $\varepsilon_\theta$ of section 5 do not: for any rigid motion
-# $T$ of the plane, $(T\oplus\hat p_i)^{-1}\oplus(T\oplus\hat p_j) = \hat p_i^{-1}\oplus \hat p_j$. Check it
-# numerically on a LAGO estimate of a synthetic Manhattan world with a random $T$, and show that the ATE (`lc.ate(...,
-# align=False)`) does change.
-#
-# **Hint.** Apply $T$ with `lc.compose(np.broadcast_to(T, poses.shape), poses)`; `relation_errors` of
-# section 5 takes the graph, the estimate and the truth.
+# Write `relation_errors(graph, poses, truth)`, the $(\varepsilon_t, \varepsilon_\theta)$ of section 5: unlike the ATE it
+# needs no alignment, $(T\oplus\hat p_i)^{-1}\oplus(T\oplus\hat p_j) = \hat p_i^{-1}\oplus \hat p_j$ for a rigid motion $T$
+# (the check moves a LAGO estimate). **Hint.** Compare the estimated and true relative poses (`between`); wrap the angle.
 
 # %%
-# your solution here
+# your solution here: fill in the body, then run the cell (check_relation_errors tests it)
+from lago_cvx.exercises import check_relation_errors
+def relation_errors(graph, poses, truth):  # (ε_t [m²], ε_θ [rad²])
+    raise NotImplementedError
+check_relation_errors(relation_errors)
 
-# %% [markdown]
-# ````{dropdown} Solution
-# ```{literalinclude} solutions/06_experiment_ex1.py
-# :language: python
-# ```
-# ````
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
+# Solution and Discussion. R(φ + θ_i)ᵀR(φ) = R(θ_i)ᵀ: relative poses, hence ε_t, ε_θ, do not see T; the ATE aligns first.
+from lago_cvx.exercises import check_relation_errors
+from lago_cvx.posegraph import between, wrap_angle
+def relation_errors(graph, poses, truth):
+    d = between(between(truth[graph.tails], truth[graph.heads]), between(poses[graph.tails], poses[graph.heads]))
+    return float((d[:, :2] ** 2).sum(1).mean()), float((wrap_angle(d[:, 2]) ** 2).mean())
+check_relation_errors(relation_errors).require()
 
 # %% [markdown]
 # ## Exercise 2 — Table I for every graph
 #
-# Write the Table I row (poses, odometric edges, loop closures, chords needing regularization) of every
-# real graph, once with the odometric and once with the breadth-first tree. Check Corollary 3 (with the
-# odometric tree the chords are exactly the loop closures) on every file. Which tree needs fewer
-# corrections, why would you expect it, and is it a theorem?
-#
-# **Hint.** Section 1 does it for INTEL: `lc.spanning_tree(graph, "odometry")`, `lc.cycle_basis`, and
-# $k = -\mathrm{round}(C\delta / 2\pi)$; `lago_cvx.datasets.DATASET_FILES` lists the files.
+# Write `table_one_row(graph, kind)` (poses, odometric edges, loop closures, chords with $k \ne 0$ along the tree `kind`)
+# for every real graph: which tree needs fewer corrections, and is it a theorem? **Hint.** Section 1; `lc.regularize`.
 
 # %%
-# your solution here
+# your solution here: fill in the body, then run the cell (check_table_one tests it)
+from lago_cvx.exercises import check_table_one
+def table_one_row(graph, kind):  # (poses, odometric, loop closures, k ≠ 0)
+    raise NotImplementedError
+check_table_one(table_one_row)
 
-# %% [markdown]
-# ````{dropdown} Solution
-# ```{literalinclude} solutions/06_experiment_ex2.py
-# :language: python
-# ```
-# ````
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
+# Solution and Discussion. The BFS tree's paths are shortest, so its cycles sum fewer turns: fewer k ≠ 0 (not a theorem).
+import lago_cvx as lc
+from lago_cvx.exercises import check_table_one
+def table_one_row(graph, kind):
+    k = lc.regularize(graph, lc.spanning_tree(graph, kind)).k
+    return graph.n_poses, graph.n_odometric, graph.n_loop_closures, int((k != 0).sum())
+check_table_one(table_one_row).require()

@@ -18,9 +18,16 @@
 # 5. say what convex robust losses do against false loop closures and what they do not, and reject them by
 #    graduated non-convexity around weighted LAGO runs.
 #
-# **Notation.** $n+1$ poses, $m$ edges, $A$ the $(n+1)\times m$ incidence matrix; phase 1 is eq. (13)'s
-# weighted least squares over the orientations $\theta$, phase 3 is eq. (15)'s over $x = [p; \theta]$.
-# Below a phase is written over **all** $n+1$ poses and a set $K$ of its coordinates is known, $U$ the rest.
+# **Notation** (lectures 1–4a's, and):
+#
+# | symbol | meaning | in the package |
+# |---|---|---|
+# | $A$ | the full incidence matrix, $(n+1)\times m$: below a phase is written over **all** $n+1$ poses | `lc.incidence_matrix` |
+# | $K$, $U$ | the known (anchored) coordinates of a phase and the rest | `result.phase1.system.known` |
+# | $\nu$ | the multipliers of the anchor constraints: forces (phase 3) and torques (phase 1) | the cvxpy constraints' `dual_value` |
+# | $M = WB^\top$ | the whitened design of a phase (phase 1: eq. (13), over $\theta$; phase 3: eq. (15), over $x = [p; \theta]$) | `system.design()` |
+# | $S$ | a Schur complement (section 3) — not lecture 3's 90° rotation | `result.strain` |
+# | $\bar c^2$ | the truncation of graduated non-convexity (whitened, squared) | `RobustSettings().c2` |
 
 # %%
 try:                                  # run alone (Colab, a fresh environment)? then install the package first
@@ -192,6 +199,44 @@ check(abs(depth - strain.chi2_theta) < 1e-6 * strain.chi2_theta,
       f"depth of the parabola = the package's strain statistic of anchor 250 ({strain.chi2_theta:.4f})")
 
 # %% [markdown]
+# ## Exercise 1 — The forces balance
+#
+# Show that in phase 1 the multipliers of the anchor constraints always sum to zero, for any number of anchors,
+# and that with a single anchor the multiplier is zero. Which property of the design does it use, and does the same
+# hold for the position anchors of phase 3 (x and y separately)? Write `anchor_torques(graph, anchors)`, phase 1's
+# multipliers $\nu$ of the anchored orientations (anchors in increasing id; `lc.compare_methods(..., anchors=...)`
+# keeps the cvxpy problems and their duals); the check compares them with cvxpy's and sums them.
+#
+# **Hint.** Sum the stationarity conditions over all poses and use $\mathbf 1^\top A = 0$ (every column of the
+# incidence matrix sums to zero).
+
+# %%
+# your solution here: fill in the body of anchor_torques, then run the cell (check_anchor_torques tests it)
+from lago_cvx.exercises import check_anchor_torques, anchored_case
+graph, anchors = anchored_case()   # three anchors: {id: (x, y, θ)}
+
+def anchor_torques(graph, anchors):
+    """Phase 1's multipliers ν (a,) of the anchored orientations."""
+    raise NotImplementedError
+
+check_anchor_torques(anchor_torques)
+
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
+# Solution and Discussion. Phase 1's gradient is ∇f = 2AW²(Aᵀθ − δ_reg), and 1ᵀA = 0 (one −1, one +1 per
+# column), so 1ᵀ∇f = 0 for every θ. At the optimum ∇_U f = 0 on the free poses and ∇_K f + ν = 0 on the anchors:
+# Σ_a ν_a = −1ᵀ∇f = 0. With one anchor ν = 0: a single reference only fixes the gauge. (The position forces
+# of phase 3 balance the same way, x and y separately.)
+import numpy as np
+import lago_cvx as lc
+from lago_cvx.exercises import check_anchor_torques
+
+def anchor_torques(graph, anchors):
+    _, report = lc.compare_methods(graph, anchors=anchors)
+    return np.asarray(report["problems"]["phase1"].constraints[0].dual_value, dtype=float)
+
+check_anchor_torques(anchor_torques).require()
+
+# %% [markdown]
 # ## 3. The strain test
 #
 # A hard anchor cannot compromise: if it disagrees with the measurements, the residuals absorb the
@@ -255,7 +300,52 @@ check(abs(drop - s250.chi2_position) < 1e-6 * drop,
 # %% [markdown]
 # The test cannot say *which* of two disagreeing anchors is wrong: the force between them is mutual, so both
 # poses 0 and 250 come out strained. Pose 120, anchored only in orientation, is not involved.
+
+# %% [markdown]
+# ## Exercise 2 — The strain statistic from the dual value
 #
+# For one orientation anchor $a$, compute $\Delta\chi^2 = \nu_a^2/(4S)$ yourself: $\nu_a$ from the cvxpy dual,
+# $S$ the Schur complement of section 3 from $M = WB^\top$ of the package's phase-1 system (`result.phase1.system`).
+# Write `strain_statistic(graph, anchors, anchor_id)`; the check compares it with the package's `chi2_theta` for two
+# anchors. Why is it also the phase-1 cost drop when the anchor is released?
+#
+# **Hint.** $S$ is the Schur complement of the anchored orientation in $M^\top M$ of the phase-1 system without
+# that anchor.
+
+# %%
+# your solution here: fill in the body of strain_statistic, then run the cell (check_strain tests it)
+from lago_cvx.exercises import check_strain
+
+def strain_statistic(graph, anchors, anchor_id):
+    """ν_a² / (4S) for the anchor anchor_id (a float)."""
+    raise NotImplementedError
+
+check_strain(strain_statistic)
+
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
+# Solution and Discussion. With M the whitened design of phase 1 and a the anchored orientation, eliminating the
+# free coordinates leaves F(θ̄_a) = F(0) + gφ + Sφ², S = M_aᵀM_a − M_aᵀM_U(M_UᵀM_U)⁻¹M_UᵀM_a (a Schur complement)
+# and g = −ν_a. Releasing the anchor minimizes over φ: the cost drops by ν_a²/(4S), the Lagrange-multiplier test.
+import numpy as np
+import scipy.sparse.linalg as spla
+import lago_cvx as lc
+from lago_cvx.exercises import check_strain
+
+def strain_statistic(graph, anchors, anchor_id):
+    res, report = lc.compare_methods(graph, anchors=anchors)
+    system = res.phase1.system
+    K = list(np.flatnonzero(system.known))
+    nu = np.asarray(report["problems"]["phase1"].constraints[0].dual_value, dtype=float)
+    a = graph.anchor_index(anchor_id)
+    M = system.design()
+    MU, Ma = M[:, ~system.known], M[:, [a]]
+    b = (MU.T @ Ma).toarray().ravel()
+    schur = float((Ma.T @ Ma).toarray()[0, 0] - b @ spla.spsolve((MU.T @ MU).tocsc(), b))
+    return nu[K.index(a)] ** 2 / (4 * schur)
+
+check_strain(strain_statistic).require()
+
+# %% [markdown]
 # ## 4. Priors: soft anchors
 #
 # A prior on pose $q$ (mean $\mu_q$, $3\times3$ information $\Lambda_q$; GTSAM's `PriorFactor`) adds the term
@@ -491,64 +581,44 @@ if gi is not None:
 # false loop closures (section 6 measures how far that goes). On a real graph the closed forms and cvxpy agree.
 
 # %% [markdown]
-# ## Exercise 1 — The forces balance
-#
-# Show that in phase 1 the dual values of the anchor constraints always sum to zero, for any number of
-# anchors, and that with a single anchor the dual value is zero. Then show the same for the position anchors
-# of phase 3 (each of the x and y components sums to zero): which property of the design $B^\top$ does it use?
-# Check both on a noisy world with `lc.compare_methods(..., anchors=...)`, whose cvxpy problems keep the duals.
-#
-# **Hint.** Sum the stationarity conditions over all poses and use $\mathbf 1^\top A = 0$ (every column of the
-# incidence matrix sums to zero).
-
-# %%
-# your solution here
-
-# %% [markdown]
-# ````{dropdown} Solution
-# ```{literalinclude} solutions/07_variants_ex1.py
-# :language: python
-# ```
-# ````
-
-# %% [markdown]
-# ## Exercise 2 — The strain statistic from the dual value
-#
-# For one orientation anchor $a$, compute $\Delta\chi^2 = \nu_a^2/(4S)$ yourself: $\nu_a$ from the cvxpy dual,
-# $S$ as the Schur complement of section 2 from $M = WB^\top$ of the package's phase-1 system. Compare with
-# the package's `chi2_theta`, and with the phase-1 cost drop when the anchor is released.
-#
-# **Hint.** $S$ is the Schur complement of the anchored orientation in $M^\top M$ of the phase-1 system without
-# that anchor.
-
-# %%
-# your solution here
-
-# %% [markdown]
-# ````{dropdown} Solution
-# ```{literalinclude} solutions/07_variants_ex2.py
-# :language: python
-# ```
-# ````
-
-# %% [markdown]
 # ## Exercise 3 — Where should truncated least squares truncate?
 #
-# Sweep the truncation $\bar c^2$ of GNC, `lc.lago(graph, robust=V.RobustSettings(threshold=c2))`, over
-# $\{0.5, 2, 11.34, 100, 10^4\}$ on the world of section 6: count the false and the true edges rejected and
-# plot the ATE against $\bar c^2$. What happens for very small and very large $\bar c^2$, and why? Which
-# property of the inliers' residuals makes the $\chi^2_3$ quantile a natural choice?
+# An inlier's whitened squared residual $e^\top\Omega e$ is $\chi^2_3$-distributed when the measurement is correctly
+# modelled. Write `truncation(confidence)`, the $\bar c^2$ that keeps an inlier with that probability; the check
+# compares it with the package's default. Then sweep $\bar c^2$ of GNC, `lc.lago(graph,
+# robust=V.RobustSettings(threshold=c2))`, on the world of section 6, counting the false and the true edges rejected:
+# what happens for very small and very large $\bar c^2$, and why?
 #
-# **Hint.** `res.rejected_edges`, `wo.outlier_mask` and `lc.ate(estimate, truth)`; think of the distribution
-# of $e^\top\Omega e$ for a correctly modelled measurement, and of the largest $r^2$ a false loop closure
-# can have.
+# **Hint.** `scipy.stats.chi2.ppf`; `res.rejected_edges` and `wo.outlier_mask`; think of the largest $r^2$ a false
+# loop closure can have.
 
 # %%
-# your solution here
+# your solution here: fill in the body of truncation, then run the cell (check_truncation tests it)
+from lago_cvx.exercises import check_truncation
 
-# %% [markdown]
-# ````{dropdown} Solution
-# ```{literalinclude} solutions/07_variants_ex3.py
-# :language: python
-# ```
-# ````
+def truncation(confidence):
+    """c̄²: the χ²₃ quantile at confidence (a float)."""
+    raise NotImplementedError
+
+check_truncation(truncation)
+
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
+# Solution and Discussion. An inlier's whitened squared residual is χ²₃ when the model is right, so truncating at
+# the χ²₃ quantile at 0.99 (11.34) rejects about 1 % of the true edges at most. A tiny c̄² rejects true edges by the
+# hundred; a huge one accepts the false loop closures, and GNC is least squares again (the sweep below).
+import numpy as np
+from scipy.stats import chi2
+import lago_cvx as lc
+from lago_cvx import variants as V
+from lago_cvx.exercises import check_truncation
+
+def truncation(confidence):
+    return float(chi2.ppf(confidence, 3))
+
+wo = lc.manhattan_world(300, seed=0, outlier_fraction=0.1)
+for c2 in (0.5, truncation(0.99), 1e4):
+    res = lc.lago(wo.graph, robust=V.RobustSettings(threshold=c2))
+    rejected = np.isin(np.arange(wo.graph.n_edges), res.rejected_edges)
+    print(f"c̄² = {c2:8.2f}: false loop closures rejected {(rejected & wo.outlier_mask).sum()} of "
+          f"{wo.outlier_mask.sum()}, true edges rejected {(rejected & ~wo.outlier_mask).sum()}")
+check_truncation(truncation).require()

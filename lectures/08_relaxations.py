@@ -16,9 +16,15 @@
 # 4. solve the semidefinite relaxation with Clarabel, judge the answer by the solver's own accuracy, and state
 #    the certificate's bound for the right matrix.
 #
-# **Notation.** $n+1$ poses, $m$ edges $e = (i\to j)$ with measurements $\Delta l_e$, $\delta_e$ and
-# information $\Omega_e$; $P_\delta$ the orientation variances; a spanning tree with $l = m - n$ chords and the
-# cycle basis $C = [I_l\ B]$ of eq. (19); $R(\cdot)$ a planar rotation.
+# **Notation** (lectures 1–5's; $R(\cdot)$ a planar rotation; and):
+#
+# | symbol | meaning | in the package |
+# |---|---|---|
+# | $e = (i\to j)$ | an edge with measurements $\Delta l_e$, $\delta_e$, information $\Omega_e$; $P_\delta$ the orientation variances | `graph` |
+# | $C = [I_l\ B]$, $l = m - n$ | a spanning tree's cycle basis (eq. (19)) and its number of chords | `lc.cycle_basis` |
+# | $L$ | the complex connection Laplacian of the chordal relaxation, (G) | built in section 2 |
+# | $\Sigma_C = KK^\top$ | $CP_\delta C^\top$ and its Cholesky factor $K$ (not $L$), (IP) | `cycle_data(...).S`, `.W` $= K^{-1}$ |
+# | $S = M - \hat\Lambda$, $S_Q$ | the certificate matrix and its reduced form (section 6) — not lecture 3's rotation $S$ | `certify(...)` |
 
 # %%
 try:                                  # run alone (Colab, a fresh environment)? then install the package first
@@ -26,7 +32,6 @@ try:                                  # run alone (Colab, a fresh environment)? 
 except ImportError:
     import subprocess, sys; subprocess.run([sys.executable, "-m", "pip", "install", "lago-cvx[course]"], check=True)
 import cvxpy as cp
-import matplotlib.pyplot as plt
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.csgraph as csg
@@ -34,9 +39,9 @@ import scipy.sparse.linalg as spla
 from dataclasses import replace
 from scipy.special import erfc
 from scipy.stats import spearmanr
-
 import lago_cvx as lc
-from lago_cvx.course import FULL, check, quiet, real, setup, show
+from lago_cvx.course import (FULL, check, chordal_lengths_figure, quiet, real, sdp_tightness_figure, setup, show,
+                             sweep_figure, tree_rounding_figure)
 from lago_cvx.certification import certify, refine_sesync, sdp_relaxation, sesync_cost, solve_sdp
 from lago_cvx.certification.sesync import reduced_certificate_matrix
 from lago_cvx.datasets import PUBLISHED_SESYNC, REFERENCE_CHI2, REFERENCE_SESYNC
@@ -94,19 +99,42 @@ check(abs(observed.mean() - predicted.mean()) < 4 * np.sqrt(np.mean(se**2) / tre
 check(np.all(np.abs(observed - predicted) <= 5 * se + 1.0 / draws), "…and every chord's, within 5 binomial standard errors")
 
 # %%
-fig, ax = plt.subplots(figsize=(5.5, 3.6))
-order = np.argsort(sig_c)
-ax.plot(sig_c[order], predicted[order], "-", label="(W): erfc(π / √2 σ_c)")
-ax.plot(sig_c, observed, ".", ms=4, label=f"observed ({draws} noise draws)")
-ax.set(xlabel="σ_c = √(Σ P_δ around the cycle) [rad]", ylabel="P[wrong integer]",
-       title="tree rounding fails when a cycle's noise nears π")
-ax.legend(fontsize=8)
-show(fig, "tree_rounding")
+show(tree_rounding_figure(sig_c, predicted, observed, draws), "tree_rounding")
 
 # %% [markdown]
 # One wrong integer is enough to ruin the estimate: phase 1 then bends a whole loop by $2\pi$ spread over its edges, and
 # Gauss–Newton from there stays in the wrong basin (lecture 6 found this on two real graphs with the odometric tree).
+
+# %% [markdown]
+# ## Exercise 1 — The failure probability of the rounding
 #
+# Derive (W) from Theorem 3's rounding: show that the rounding of chord $c$ is right iff the sum of the orientation
+# noises around its fundamental cycle lies in $(-\pi, \pi]$, and compute $\sigma_c$ from $C$ and $P_\delta$. Write
+# `wrong_integer_probability(graph, tree)`, the probability per chord; the check tests both trees of a noisy world.
+# **Hint.** The noise around cycle $c$ is Gaussian with variance $\sigma_c^2 = \sum_k C_{ck}^2 P_{\delta,k}$, and
+# $P(|\mathcal N(0,\sigma^2)| > \pi) = \operatorname{erfc}(\pi/(\sigma\sqrt2))$.
+
+# %%
+# your solution here: fill in the body of wrong_integer_probability, then run the cell (check_wrong_integers tests it)
+from lago_cvx.exercises import check_wrong_integers
+def wrong_integer_probability(graph, tree):
+    """P[wrong k_c] (l,) for the chords of tree."""
+    raise NotImplementedError
+check_wrong_integers(wrong_integer_probability)
+
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
+# Solution and Discussion. (Cδ)_c = 2πK_c + e_c (K_c the true turns), e_c = Σ_{e∈c} ±ε_e ~ N(0, σ_c²), σ_c² = (|C|P_δ)_c;
+# the rounding is right iff e_c ∈ (−π, π]: P[wrong] = erfc(π/(√2 σ_c)) — eq. (W), as section 1's Monte Carlo shows.
+import numpy as np
+from scipy.special import erfc
+import lago_cvx as lc
+from lago_cvx.exercises import check_wrong_integers
+def wrong_integer_probability(graph, tree):
+    sigma_c = np.sqrt(abs(lc.cycle_basis(graph, tree)) @ graph.covariance[:, 2, 2])
+    return erfc(np.pi / (np.sqrt(2) * sigma_c))
+check_wrong_integers(wrong_integer_probability).require()
+
+# %% [markdown]
 # ## 2. The chordal relaxation
 #
 # Represent each rotation by the first column of its matrix, $r_i = (\cos\theta_i, \sin\theta_i)$. Edge
@@ -193,16 +221,7 @@ print(f"anchor moved from pose 0 to pose {n - 1}: ‖r_i‖ change by factors {r
       f"the directions by at most {np.abs(turn).max():.3f} rad")
 print(f"shortest vector (pose {i_short}, ‖r‖ = {closed.norms[i_short]:.2f}): its direction differs from phase 1's "
       f"θ̂ by {gap_blue:.1e} rad, while θ̂'s own error there is {abs(wrap_angle(phase1[i_short] - base.truth[i_short, 2])):.2f} rad")
-fig, axs = plt.subplots(1, 2, figsize=(12, 3.8))
-for sig, prof in profiles.items():
-    axs[0].semilogy(hops, prof, ".", ms=3, label=f"σ_θ = {sig}")
-axs[0].set(xlabel="hops from the anchor (pose 0)", ylabel="‖r_i‖", title="relaxed lengths decay away from the anchor")
-axs[0].legend(fontsize=8, markerscale=3)
-axs[1].plot(closed.norms, lw=0.8, label="anchor: pose 0")
-axs[1].plot(other.norms, lw=0.8, label=f"anchor: pose {n - 1}")
-axs[1].set(xlabel="pose", ylabel="‖r_i‖", title="same data (σ_θ = 0.05), two anchors")
-axs[1].legend(fontsize=8)
-show(fig, "chordal_lengths")
+show(chordal_lengths_figure(hops, profiles, closed.norms, other.norms, n - 1), "chordal_lengths")
 
 # %% tags=["remove-input"]
 for sig, same in same_graph.items():
@@ -215,6 +234,38 @@ check(np.median(profiles[0.05]) > np.median(profiles[0.1]) > np.median(profiles[
 check(ratio.max() / ratio.min() > 4 and np.abs(turn).max() < 0.1,
       "the lengths belong to the anchor (they change by a large factor), the directions do not")
 check(gap_blue < 0.01, "a short vector still points where eq. (13)'s estimate points")
+
+# %% [markdown]
+# ## Exercise 2 — The relaxed lengths from the connection Laplacian
+#
+# Build the complex connection Laplacian $L$ of (G) as a sparse matrix and write `chordal_from_laplacian(graph, omega,
+# anchor_index)`, the relaxed $z$ of (G); the check compares it with the package's relaxation for two anchors. In the
+# figure above the length is constant over the last poses: why, from (C), along a chain that hangs off the graph?
+# **Hint.** Assemble $L = D^{\mathsf H}D$ from the edge list; a pose on a chain has exactly two neighbours.
+
+# %%
+# your solution here: fill in the body of chordal_from_laplacian, then run the cell (check_connection_laplacian tests it)
+from lago_cvx.exercises import check_connection_laplacian
+def chordal_from_laplacian(graph, omega, anchor_index):
+    """z (n,) complex: (G) with z_a = 1 (omega: the edges' P_δ⁻¹)."""
+    raise NotImplementedError
+check_connection_laplacian(chordal_from_laplacian)
+
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
+# Solution and Discussion. Σ_e ω_e|z_j − e^{iδ_e}z_i|² = ‖Dz‖² = z^H L z, D = √ω (U_heads − diag(e^{iδ}) U_tails), L = D^H D;
+# with z_a = 1 the minimizer solves (Lz)_U = 0: z ∝ L⁻¹u_a — eq. (G). A pose on a dangling chain has one edge towards
+# the rest, whose term can be made zero: along the chain every ‖z_i‖ keeps its attachment point's length.
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+from lago_cvx.exercises import check_connection_laplacian
+def chordal_from_laplacian(graph, omega, anchor_index):
+    n, m, w = graph.n_poses, graph.n_edges, np.sqrt(omega)
+    D = (sp.coo_matrix((w, (np.arange(m), graph.heads)), shape=(m, n))
+         - sp.coo_matrix((w * np.exp(1j * graph.delta), (np.arange(m), graph.tails)), shape=(m, n)))
+    column = spla.spsolve((D.conj().T @ D).tocsc(), np.eye(n)[anchor_index].astype(complex))
+    return column / column[anchor_index]
+check_connection_laplacian(chordal_from_laplacian).require()
 
 # %% [markdown]
 # ## 3. Rounding against the chordal estimate
@@ -240,13 +291,7 @@ print(format_sweep(sweep))
 by = {(r["sigma_theta"], r["regularizer"]): r for r in sweep}
 
 # %%
-fig, ax = plt.subplots(figsize=(6, 3.6))
-for name, style in zip(regs, ("o--", "s:", "^-.", "D-")):
-    ax.plot(sweep_sigmas, [by[(sg, name)]["optimal"] / by[(sg, name)]["trials"] for sg in sweep_sigmas], style, label=name)
-ax.set(xlabel="rotation noise σ_θ [rad]", ylabel="fraction reaching the optimum",
-       title="Gauss–Newton from LAGO, by regularizer")
-ax.legend(fontsize=8)
-show(fig, "sweep")
+show(sweep_figure(sweep_sigmas, regs, by), "sweep")
 
 # %% tags=["remove-input"]
 check(all(by[(sg, "chordal")]["optimal"] >= by[(sg, "tree (odometry)")]["optimal"]
@@ -432,17 +477,7 @@ print(f"{'σ_θ':>5s} {'world':>5s} {'status':>10s} {'f_local − f_SDP':>16s} {
 for t in tight:
     print(f"{t['sigma']:5.2f} {t['world']:5d} {t['status']:>10s} {t['gap']:16.2e} {t['acc']:9.1e} {t['rank']:11.1e} "
           f"{t['reflected']:11d} {t['cert_bound']:27.1e}")
-fig, ax = plt.subplots(figsize=(5.5, 3.6))
-for t in tight:
-    if t["gap"] <= t["acc"]:   # tight: the gap is below what the solve resolves; draw that level
-        ax.semilogy(t["sigma"], t["acc"] / t["f"], "v", color="C2", ms=7)
-    else:
-        ax.semilogy(t["sigma"], t["gap"] / t["f"], "x", color="C3", ms=8)
-ax.plot([], [], "v", color="C2", label="tight: gap below the solve's accuracy (drawn)")
-ax.plot([], [], "x", color="C3", label="gap beyond the solve's accuracy")
-ax.set(xlabel="rotation noise σ_θ [rad]", ylabel="(f_local − f_SDP) / f_local", title="SDP relaxation, 30-pose worlds")
-ax.legend(fontsize=8)
-show(fig, "sdp_tightness")
+show(sdp_tightness_figure(tight), "sdp_tightness")
 
 # %% tags=["remove-input"]
 check(all(t["bracket"] >= -1e-9 * t["f"] for t in tight), "always: proven lower bound ≤ f_local (the bracket holds)")
@@ -519,13 +554,9 @@ print(f"raw LAGO: f = {cb.cost:.4f}, Σ tr Λ_i = {cb.dual_value:.4f}, λ_min(S_
       f"λ_min(S) of the full matrix = {cb.lambda_min_full:.1e}; (B): f* ≥ {bound:.4f} (certify: {cb.lower_bound:.4f})")
 rng = np.random.default_rng(0)
 costs = []
-for _ in range(200):
-    th = rng.uniform(-np.pi, np.pi, gb.n_poses)
+for th in rng.uniform(-np.pi, np.pi, (200, gb.n_poses)):       # 200 random rotation sets, translations optimal
     th[0] = 0.0
-    p = np.zeros((gb.n_poses, 3))
-    p[:, 2] = th
-    p[:, :2] = lc.certification.optimal_translations(gb, th)
-    costs.append(sesync_cost(gb, p))
+    costs.append(sesync_cost(gb, np.column_stack([lc.certification.optimal_translations(gb, th), th])))
 best = refine_sesync(gb, lc.refine(gb, raw).poses).cost
 
 # %% tags=["remove-input"]
@@ -588,63 +619,32 @@ for rel, (c0, c1) in certs.items():
 # | certificate (B) | one sparse $LDL^\top$ and the spectrum of $S_Q$ | a proof of global optimality, or a bound |
 
 # %% [markdown]
-# ## Exercise 1 — The failure probability of the rounding
-#
-# Derive (W) from Theorem 3's rounding: show that the rounding of chord $c$ is right iff the sum of the orientation
-# noises around its fundamental cycle lies in $(-\pi, \pi]$, and compute $\sigma_c$ from $C$ and $P_\delta$. Then
-# predict, without simulation, the expected number of wrong integers along the odometric and along the breadth-first
-# tree for the world of section 1, and check it with a Monte Carlo.
-#
-# **Hint.** The noise around cycle $c$ is Gaussian with variance $\sigma_c^2 = \sum_k C_{ck}^2 P_{\delta,k}$, and
-# $P(|\mathcal N(0,\sigma^2)| > \pi) = \operatorname{erfc}(\pi/(\sigma\sqrt2))$.
-
-# %%
-# your solution here
-
-# %% [markdown]
-# ````{dropdown} Solution
-# ```{literalinclude} solutions/08_relaxations_ex1.py
-# :language: python
-# ```
-# ````
-
-# %% [markdown]
-# ## Exercise 2 — The relaxed lengths from the connection Laplacian
-#
-# Build the complex connection Laplacian $L$ of section 2 as a sparse matrix and verify (G) for two different anchors.
-# In the right panel of the figure of section 2 the length is constant over the last poses: find the poses of the world
-# that hang on a single chain of edges (no loop closure beyond them), show that along such a chain every $\|r_i\|$
-# equals the length at the chain's attachment point, and explain why from (C).
-#
-# **Hint.** Assemble $L$ with `scipy.sparse.coo_matrix` from the edge list; a pose on a chain has exactly two
-# neighbours.
-
-# %%
-# your solution here
-
-# %% [markdown]
-# ````{dropdown} Solution
-# ```{literalinclude} solutions/08_relaxations_ex2.py
-# :language: python
-# ```
-# ````
+# **Summary.** In the plane the rotations' non-convexity sits in the integers $k$: Theorem 3's rounding fails when a
+# cycle's noise nears $\pi$ (W); the chordal relaxation (C, G) and the integer program (IP) repair it at rising cost.
+# The SDP relaxation and the certificate (B) say whether an estimate is the global optimum, with a proof or a bound.
 
 # %% [markdown]
 # ## Exercise 3 — How far does the certificate's bound reach?
 #
-# Take a 30-pose world and points between raw LAGO and the certified minimum (interpolate the orientations,
-# optimal translations). Plot the true gap $f - f^\star$ against the bound $f - \text{(B)}$ the certificate proves at
-# each point. Is the bound ever violated, and how loose is it far from the minimum?
-#
-# **Hint.** Interpolate the orientations, re-solve the translations for each
-# (`lago_cvx.positions.resolve_positions`), and evaluate the bound as the lecture's certificate section does.
+# Write `lower_bound_b(graph, poses)`, the bound (B) on $f^\star$ at `poses` (translations optimal), from what
+# `certify` reports; the check tests it along the segment from raw LAGO to the certified minimum of a 30-pose world
+# (`bound_case()`). Is the bound ever violated, and how loose is it far from the minimum? **Hint.** `cert.dual_value`
+# is $\sum_i\operatorname{tr}\Lambda_i$, `cert.lambda_min` is $\lambda_{\min}(S_Q)$.
 
 # %%
-# your solution here
+# your solution here: fill in the body of lower_bound_b, then run the cell (check_bound_b tests it)
+from lago_cvx.exercises import check_bound_b
+def lower_bound_b(graph, poses):
+    """The lower bound (B) on f* at poses (a float)."""
+    raise NotImplementedError
+check_bound_b(lower_bound_b)
 
-# %% [markdown]
-# ````{dropdown} Solution
-# ```{literalinclude} solutions/08_relaxations_ex3.py
-# :language: python
-# ```
-# ````
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
+# Solution and Discussion. f* ≥ Σ tr Λ_i + 2(n+1)·min(0, λ_min(S_Q)) holds everywhere and is tight at a global minimum
+# (S_Q ⪰ 0); along the segment from raw LAGO the proven gap stays within a factor of about 2 of the true one.
+from lago_cvx.certification import certify
+from lago_cvx.exercises import check_bound_b
+def lower_bound_b(graph, poses):
+    cert = certify(graph, poses, full=False)
+    return cert.dual_value + 2 * graph.n_poses * min(0.0, cert.lambda_min)
+check_bound_b(lower_bound_b).require()

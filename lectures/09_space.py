@@ -22,11 +22,17 @@
 # 4. place LAGO's 3-D estimate against GTSAM's `InitializePose3` on real data;
 # 5. state what SE-Sync's certificate proves in 3-D, and what it does not.
 #
-# **Notation.** $n$ poses $T_i = (R_i, t_i)$, $R_i\in SO(3)$, $t_i\in\mathbb R^3$; edges $i\to j$ with measurement
-# $\tilde T_{ij} = (\tilde R_{ij}, \tilde t_{ij})$ and $6\times 6$ information $\Omega_{ij}$ in the order (translation,
-# rotation), blocks $\Omega_{tt}$, $\Omega_{rr}$; the error $e_{ij} = \mathrm{Log}(\tilde T_{ij}^{-1}T_i^{-1}T_j)$ and
-# $\chi^2 = \sum e_{ij}^\top\Omega_{ij}e_{ij}$, the 3-D eq. (3). $[\varphi]_\times$ is the cross-product matrix, $\mathrm{Exp}$ /
-# $\mathrm{Log}$ map between $\mathbb R^3$ and $SO(3)$. Pose 0 is the anchor, held at $R_0 = I$, $t_0 = 0$.
+# **Notation.**
+#
+# | symbol | meaning | in the package |
+# |---|---|---|
+# | $T_i = (R_i, t_i)$ | the $n$ poses, $R_i\in SO(3)$, $t_i\in\mathbb R^3$; pose 0 the anchor, $R_0 = I$, $t_0 = 0$ | `result.t` $(n, 3)$, `result.R` $(n, 3, 3)$ |
+# | $\tilde T_{ij} = (\tilde R_{ij}, \tilde t_{ij})$ | the measurement of edge $i\to j$ | `graph.delta_R`, `graph.delta_t` |
+# | $\Omega_{ij}$; $\Omega_{tt}$, $\Omega_{rr}$ | its $6\times6$ information, order (translation, rotation); the diagonal blocks | `graph.information` |
+# | $e_{ij}$, χ² | $\mathrm{Log}(\tilde T_{ij}^{-1}T_i^{-1}T_j)$; $\sum e_{ij}^\top\Omega_{ij}e_{ij}$, the 3-D eq. (3) | `lago_cvx.posegraph3d.chi2_3d`, `result.chi2` |
+# | $[\varphi]_\times$, $\mathrm{Exp}$, $\mathrm{Log}$ | the cross-product matrix; the maps between $\mathbb R^3$ and $SO(3)$ | `lago_cvx.so3` |
+# | $S_{ij}$, $W = S^2$ | the weight of edge $ij$ in (C) (section 3) — not lecture 3's rotation $S$ | `weighting=` |
+# | $S_\Lambda = M - \Lambda$ | the certificate matrix (section 5) | `lc.certify3d` |
 
 # %%
 try:                                  # run alone (Colab, a fresh environment)? then install the package first
@@ -345,6 +351,39 @@ for rel, r in table.items():
           f"{r['minimum'].chi2:10.6g}")
 
 # %% [markdown]
+# ## Exercise 1 — The chordal distance and its weights
+#
+# Prove (D) and (Q). Then write `chordal_weight(Omega)`: the weight $W$ with $\operatorname{tr}(W)I - W = \Omega_{rr}$, which makes
+# $\|(R\,\mathrm{Exp}(\varphi) - R)S\|_F^2 = \varphi^\top\Omega_{rr}\varphi$ to second order in $\varphi$ for $S^2 = W$; the check tests the
+# defining equation on random $\Omega_{rr}$. Find an $\Omega_{rr}$ for which no symmetric positive-semidefinite $W$ can do that.
+#
+# **Hint.** $\operatorname{tr}(R_1^\top R_2) = 1 + 2\cos\psi$ and $[\varphi]_\times^\top[\varphi]_\times = \|\varphi\|^2I - \varphi\varphi^\top$;
+# take the trace of $\operatorname{tr}(W)I - W = \Omega_{rr}$ first.
+
+# %%
+# your solution here: fill in the body of chordal_weight, then run the cell (check_chordal_weight tests it)
+from lago_cvx.exercises import check_chordal_weight
+
+def chordal_weight(Omega):
+    """W (3, 3) with tr(W) I − W = Omega."""
+    raise NotImplementedError
+
+check_chordal_weight(chordal_weight)
+
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
+# Solution and Discussion. (D): ‖R₂ − R₁‖²_F = 6 − 2tr(R₁ᵀR₂) = 4(1 − cos ψ) = 2ψ² − ψ⁴/6 + …, twice the squared
+# angle near 0. (Q): ‖[φ]×S‖²_F = tr([φ]×ᵀ[φ]× W) = φᵀ(tr(W)I − W)φ with W = S². Taking traces, tr(W)I − W = Ω
+# forces tr W = ½tr Ω, so W = ½tr(Ω)I − Ω is the only solution; its eigenvalues ½(λ₁+λ₂+λ₃) − λ_k are negative
+# when one λ_k exceeds the sum of the other two (Ω = diag(1, 1, 10)): then no weight S reproduces Ω_rr.
+import numpy as np
+from lago_cvx.exercises import check_chordal_weight
+
+def chordal_weight(Omega):
+    return 0.5 * np.trace(Omega) * np.eye(3) - Omega
+
+check_chordal_weight(chordal_weight).require()
+
+# %% [markdown]
 # ## 4. Positions, the joint step, and GTSAM on sphere2500
 #
 # **Positions.** At fixed rotations the rotational part $\varphi_{ij} = \mathrm{Log}(\tilde R_{ij}^\top R_i^\top R_j)$ of
@@ -438,10 +477,10 @@ if table:
 # In $Y = [t_0 \cdots t_{n-1}\,|\,R_0 \cdots R_{n-1}]$ ($3\times4n$; the same poses $0,\dots,n-1$ as above, the anchor
 # included as column 0 and block 0, so $Y$ has $n$ blocks where (C) had $n-1$ unknowns) every residual is linear, so $f = \operatorname{tr}(YMY^\top)$ for a sparse
 # $4n\times4n$ matrix $M$. At a critical point the multipliers of $R_i^\top R_i = I$ are
-# $\Lambda_i = \operatorname{sym}(R_i^\top(YM)_{R_i})$, and $\sum_i\operatorname{tr}\Lambda_i = f$. If $S = M - \operatorname{blkdiag}(0, \Lambda_i)
+# $\Lambda_i = \operatorname{sym}(R_i^\top(YM)_{R_i})$, and $\sum_i\operatorname{tr}\Lambda_i = f$. If $S_\Lambda = M - \operatorname{blkdiag}(0, \Lambda_i)
 # \succeq 0$, $\Lambda$ is feasible for the dual of the semidefinite relaxation, so $f^\star \ge \sum_i \operatorname{tr}\Lambda_i = f$:
 # the point is a **global** minimum of (S1). `certify3d` first refines to a critical point of (S1), then counts the
-# negative pivots of one sparse $LDL^\top$ of $S_g + \mu\hat I_R$ (Sylvester's law of inertia), where $S_g$ is $S$ with
+# negative pivots of one sparse $LDL^\top$ of $S_{\Lambda,g} + \mu\hat I_R$ (Sylvester's law of inertia), where $S_{\Lambda,g}$ is $S_\Lambda$ with
 # the anchor's translation row and column removed and $\hat I_R$ the identity on the $3n$ rotation coordinates. The
 # shift $\mu$ allows for rounding: it starts at the floor $\eta = 10^{-12}\|M\|_\infty$ and, while a negative pivot
 # remains, is **multiplied by 4** ($\mu = 4^k\eta$, $k = 0, 1, \dots$, the first with no negative pivot; `cert.shift`).
@@ -490,7 +529,7 @@ if sphere is not None:
 # | projection $\Pi$ | SVD per pose | the nearest rotations; the gap of (C) bounds the loss |
 # | positions | linear least squares, full $6\times6$ information | the exact χ² minimizer at fixed rotations |
 # | joint step | one Gauss–Newton system, guarded | most of the χ² excess removed |
-# | certificate | one sparse $LDL^\top$ of $S = M - \Lambda$ | a proof of global optimality for (S1), or a bound |
+# | certificate | one sparse $LDL^\top$ of $S_\Lambda = M - \Lambda$ | a proof of global optimality for (S1), or a bound |
 
 # %% [markdown]
 # **Summary.** In 3-D the orientations need no $2k\pi$: the chordal relaxation (C) is a linear least-squares problem
@@ -499,43 +538,40 @@ if sphere is not None:
 # remaining χ² excess, and SE-Sync's certificate proves global optimality of its own cost (S1), not of χ².
 
 # %% [markdown]
-# ## Exercise 1 — The chordal distance and its weights
-#
-# Prove (D) and (Q). Then verify numerically, on random rotations $R$, small $\varphi$ and a random symmetric
-# positive-definite $\Omega_{rr}$ whose largest eigenvalue is below the sum of the other two, that the anisotropic
-# weight $W = \tfrac12\operatorname{tr}(\Omega_{rr})I - \Omega_{rr}$ makes $\|(R\,\mathrm{Exp}(\varphi) - R)S\|_F^2 = \varphi^\top\Omega_{rr}\varphi$
-# to second order in $\varphi$. Find an $\Omega_{rr}$ for which no symmetric positive-semidefinite $W$ can do that.
-#
-# **Hint.** $\operatorname{tr}(R_1^\top R_2) = 1 + 2\cos\psi$ and $[\varphi]_\times^\top[\varphi]_\times = \|\varphi\|^2I - \varphi\varphi^\top$;
-# for the last part, (Q) needs $\operatorname{tr}(W)I - W = \Omega_{rr}$, so solve for $W$.
-
-# %%
-# your solution here
-
-# %% [markdown]
-# ````{dropdown} Solution
-# ```{literalinclude} solutions/09_space_ex1.py
-# :language: python
-# ```
-# ````
-
-# %% [markdown]
 # ## Exercise 2 — On a tree the relaxation is exact
 #
 # Keep only the odometry edges of a world with noise (a spanning tree). Show that (C) then has the value 0 at the
 # rotations composed along the tree, so that the relaxed matrices are rotations and the projection loses nothing,
-# whatever the noise. Check it with `chordal_closed_form`, then add back the loop closures one at a time and watch
-# the distance of the relaxed matrices from SO(3) appear. Which loop closure costs most, and why?
+# whatever the noise. Write `tree_rotations(graph)`, the rotations composed along the odometry from $R_0 = I$; the
+# check compares them with `chordal_closed_form` on the tree. Then add back the loop closures one at a time: which
+# costs most, and why?
 #
-# **Hint.** `graph.subgraph_edges(mask)` keeps the edges of a boolean mask; compose
-# $R_{k+1} = R_k\tilde R_{k,k+1}$ from $R_0 = I$ and compare.
+# **Hint.** Compose $R_{k+1} = R_k\tilde R_{k,k+1}$ along the odometric edges; `graph.subgraph_edges(mask)` keeps the
+# edges of a boolean mask.
 
 # %%
-# your solution here
+# your solution here: fill in the body of tree_rotations, then run the cell (check_tree_rotations tests it)
+from lago_cvx.exercises import check_tree_rotations
 
-# %% [markdown]
-# ````{dropdown} Solution
-# ```{literalinclude} solutions/09_space_ex2.py
-# :language: python
-# ```
-# ````
+def tree_rotations(graph):
+    """The rotations (n, 3, 3) composed along the odometric edges, R_0 = I."""
+    raise NotImplementedError
+
+check_tree_rotations(tree_rotations)
+
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
+# Solution and Discussion. On a tree every pose is reached from the anchor by one path; composing R_{k+1} =
+# R_k R̃_{k,k+1} makes every residual R_j − R_i R̃_ij of (C) zero, so (C) = 0 there: these rotations are its
+# minimizer (unique: the tree's normal matrix is nonsingular), and the projection onto SO(3) changes nothing. A
+# loop closure adds a residual the tree's rotations do not satisfy, and (C) shrinks the matrices to trade it.
+import numpy as np
+from lago_cvx.exercises import check_tree_rotations
+
+def tree_rotations(graph):
+    R = np.empty((graph.n_poses, 3, 3))
+    R[0] = np.eye(3)
+    for k in np.flatnonzero(graph.is_odometric):     # the odometry in order: i = k, j = k + 1
+        R[graph.heads[k]] = R[graph.tails[k]] @ graph.delta_R[k]
+    return R
+
+check_tree_rotations(tree_rotations).require()

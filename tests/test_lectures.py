@@ -4,8 +4,10 @@
   least one figure, no error (``python lectures/render.py`` stores them);
 * each lecture executes top to bottom with nbclient (working directory lectures/, figures written to a
   temporary folder so the tracked ones stay as they are);
-* each lecture has two or three exercises, each with a hint, a stub cell to fill in, and one solution script
-  that runs and verifies and that the site shows in a collapsed dropdown;
+* each lecture has two or three exercises, each with a hint, a stub cell (a signature and a call of its check in
+  ``lago_cvx.exercises``) and a "Solution and Discussion" cell collapsed in Jupyter and hidden in the site, whose
+  stored output shows that its check accepts it; at least three lectures set an exercise mid-lecture;
+* each lecture has a notation table and a summary;
 * lectures 01–06 carry one running example and INTEL; a world of a section's own says why;
 * no ``matplotlib.use`` and no internal wording in the course's prose;
 * lectures/CONCORDANCE.md covers every item of the paper (../shared/SEED.md beside the project) and
@@ -37,10 +39,8 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 LECTURES = ROOT / "lectures"
-SOLUTIONS = LECTURES / "solutions"
 SOURCES = sorted(LECTURES.glob("[0-9][0-9]*_*.py"))
 IDS = [s.stem for s in SOURCES]
-SOLUTION_FILES = sorted(SOLUTIONS.glob("[0-9][0-9]*_*_ex[0-9].py"))
 SEED_MD = ROOT.parent / "shared" / "SEED.md"
 CONCORDANCE = LECTURES / "CONCORDANCE.md"
 
@@ -146,50 +146,95 @@ def test_lecture_executes(src, tmp_path):
 
 
 # ----------------------------------------------------------------------------- exercises
+#: The metadata of a solution cell: collapsed in Jupyter (output shown), hidden behind a toggle in the site.
+SOLUTION_TAGS = {"solution", "hide-cell"}
+SOLUTION_JUPYTER = {"source_hidden": True, "outputs_hidden": False}
+#: The site's toggle of a solution cell says what it hides (myst-nb's cell-level ``code_prompt_show``).
+SOLUTION_PROMPT = "Solution and Discussion"
+
+
+def _notebook_cells(stem: str):
+    return _jupytext().read(LECTURES / f"{stem}.py").cells
+
+
 @pytest.mark.parametrize("src", SOURCES, ids=IDS)
-def test_exercises_and_their_solutions(src):
+def test_exercises_are_numbered(src):
     numbers = _exercises(src.stem)
     assert 2 <= len(numbers) <= 3, f"{src.stem}: {len(numbers)} '## Exercise N — Title' headings (2 or 3 wanted)"
     assert numbers == list(range(1, len(numbers) + 1)), f"{src.stem}: exercises numbered {numbers}"
-    expected = {f"{src.stem}_ex{n}.py" for n in numbers}
-    found = {p.name for p in SOLUTIONS.glob(f"{src.stem}_ex*.py")}
-    assert found == expected, f"{src.stem}: solutions {sorted(found)}, expected {sorted(expected)}"
 
 
 @pytest.mark.parametrize("src", SOURCES, ids=IDS)
-def test_every_exercise_has_a_hint_a_stub_and_a_hidden_solution(src):
-    """Each exercise: its markdown gives a **Hint.**, a code cell starting ``# your solution here`` follows,
-    then a markdown cell with the solution file in a collapsed ``{dropdown}`` (``literalinclude``: the file the
-    tests run is the one the site shows)."""
-    cells = _cells(src.stem)
-    starts = [i for i, (kind, text) in enumerate(cells) if kind == "markdown" and EXERCISE.search(text.lstrip())]
-    numbers = _exercises(src.stem)
-    assert len(starts) == len(numbers), f"{src.stem}: each '## Exercise N' heading starts its own markdown cell"
-    for number, start in zip(numbers, starts):
-        kind, text = cells[start]
-        assert "**Hint.**" in text, f"{src.stem} exercise {number}: no '**Hint.**'"
-        assert start + 2 < len(cells), f"{src.stem} exercise {number}: no stub and solution cells after it"
-        stub_kind, stub = cells[start + 1]
-        assert stub_kind == "code" and stub.startswith("# your solution here"), \
-            f"{src.stem} exercise {number}: the next cell is not a code cell starting '# your solution here'"
-        solution_kind, solution = cells[start + 2]
-        include = f"```{{literalinclude}} solutions/{src.stem}_ex{number}.py"
-        assert solution_kind == "markdown" and solution.lstrip().startswith("````{dropdown}") and include in solution, \
-            f"{src.stem} exercise {number}: the cell after the stub is not a dropdown including its solution file"
+def test_every_exercise_has_a_hint_a_checked_stub_and_a_hidden_solution(src):
+    """Each exercise: its markdown gives a **Hint.**; the next cell is the stub (``# your solution here``, a ``def``
+    whose body raises NotImplementedError, and a call of a ``check_…`` of ``lago_cvx.exercises`` on it); the cell
+    after is the "Solution and Discussion", tagged ``solution`` and ``hide-cell``, collapsed in Jupyter, defining
+    the same function and calling the same check with ``.require()``."""
+    from lago_cvx import exercises
+
+    cells = _notebook_cells(src.stem)
+    starts = [i for i, c in enumerate(cells) if c.cell_type == "markdown" and EXERCISE.search(c.source.lstrip())]
+    assert len(starts) == len(_exercises(src.stem)), f"{src.stem}: each '## Exercise N' heading starts its own markdown cell"
+    for number, start in enumerate(starts, 1):
+        where = f"{src.stem} exercise {number}"
+        assert "**Hint.**" in cells[start].source, f"{where}: no '**Hint.**'"
+        assert start + 2 < len(cells), f"{where}: no stub and solution cells after it"
+        stub, solution = cells[start + 1], cells[start + 2]
+        assert stub.cell_type == "code" and stub.source.startswith("# your solution here"), \
+            f"{where}: the next cell is not a code cell starting '# your solution here'"
+        calls = re.findall(r"^(check_\w+)\((\w+)\)$", stub.source, re.MULTILINE)
+        assert len(calls) == 1 and hasattr(exercises, calls[0][0]), f"{where}: the stub calls no check of lago_cvx.exercises"
+        check, name = calls[0]
+        assert re.search(rf"^def {name}\(.*\n(\s+.*\n)*\s+raise NotImplementedError", stub.source, re.MULTILINE), \
+            f"{where}: the stub does not define {name}(...) with a body to fill in"
+        assert solution.cell_type == "code" and SOLUTION_TAGS <= set(solution.metadata.get("tags", [])), \
+            f"{where}: the cell after the stub is not tagged {sorted(SOLUTION_TAGS)}"
+        assert solution.metadata.get("jupyter") == SOLUTION_JUPYTER, f"{where}: the solution is not collapsed in Jupyter"
+        assert solution.metadata.get("mystnb", {}).get("code_prompt_show") == SOLUTION_PROMPT, \
+            f"{where}: the site's toggle does not say '{SOLUTION_PROMPT}'"
+        assert solution.source.startswith("# Solution and Discussion."), f"{where}: the solution starts otherwise"
+        assert re.search(rf"^def {name}\(", solution.source, re.MULTILINE) and f"{check}({name}).require()" in solution.source, \
+            f"{where}: the solution does not define {name} and call {check}({name}).require()"
 
 
-def test_every_solution_belongs_to_an_exercise():
-    stems = {s.stem for s in SOURCES}
-    orphans = [p.name for p in SOLUTIONS.glob("*.py") if p.name.rsplit("_ex", 1)[0] not in stems]
-    assert not orphans, f"solutions without a lecture: {orphans}"
+@pytest.mark.parametrize("src", SOURCES, ids=IDS)
+def test_the_stored_solutions_pass_their_checks(src):
+    """The rendered notebook proves its solutions: each solution cell's output ends with its check's ✓ line, and
+    each stub's shows the check's ✗ line (the body is not written)."""
+    nbformat = pytest.importorskip("nbformat")
+    nb = nbformat.read(src.with_suffix(".ipynb"), as_version=4)
+    solutions = [c for c in nb.cells if c.cell_type == "code" and "solution" in c.metadata.get("tags", [])]
+    assert len(solutions) == len(_exercises(src.stem)), f"{src.stem}: re-render it (python lectures/render.py)"
+    for cell in solutions:
+        shown = [o.get("data", {}).get("text/plain", "") for o in cell.get("outputs", []) if o.output_type == "execute_result"]
+        assert shown and shown[-1].startswith("✓ "), f"{src.stem}: a solution's check does not pass: {shown}"
+    for cell in (c for c in nb.cells if c.cell_type == "code" and c.source.startswith("# your solution here")):
+        shown = [o.get("data", {}).get("text/plain", "") for o in cell.get("outputs", []) if o.output_type == "execute_result"]
+        assert shown and shown[-1].startswith("✗ ") and "not written yet" in shown[-1], \
+            f"{src.stem}: a stub's check does not say that its body is missing: {shown}"
 
 
-@pytest.mark.parametrize("solution", SOLUTION_FILES, ids=[p.stem for p in SOLUTION_FILES])
-def test_solution_runs_and_verifies(solution):
-    run = subprocess.run([sys.executable, str(solution)], cwd=LECTURES, env=_script_env(), capture_output=True,
-                         text=True, encoding="utf-8", timeout=300)
-    assert run.returncode == 0, f"{solution.name} failed:\n{run.stdout[-2000:]}\n{run.stderr[-4000:]}"
-    assert "✓" in run.stdout, f"{solution.name} verifies nothing (no ✓ line):\n{run.stdout[-2000:]}"
+def test_some_exercises_are_set_mid_lecture():
+    """At least three lectures set an exercise before their last numbered section ends."""
+    mid = []
+    for src in SOURCES:
+        headings = [line for kind, text in _cells(src.stem) if kind == "markdown" for line in text.splitlines()
+                    if line.startswith("## ")]
+        sections = [k for k, h in enumerate(headings) if SECTION.match(h)]
+        if any(EXERCISE.match(h) for h in headings[:sections[-1]] if sections):
+            mid.append(src.stem)
+    assert len(mid) >= 3, f"exercises mid-lecture only in {mid}"
+
+
+@pytest.mark.parametrize("src", SOURCES, ids=IDS)
+def test_notation_table_and_summary(src):
+    """Every lecture has a notation table (a markdown table after '**Notation**') and a '**Summary.**'."""
+    text = "\n".join(t for kind, t in _cells(src.stem) if kind == "markdown")
+    assert "**Summary.**" in text, f"{src.stem}: no '**Summary.**'"
+    notation = text.find("**Notation")
+    assert notation >= 0, f"{src.stem}: no '**Notation**'"
+    assert re.search(r"^\| symbol \| meaning \|", text[notation:notation + 3000], re.MULTILINE), \
+        f"{src.stem}: the notation is not a table ('| symbol | meaning | … |')"
 
 
 # ----------------------------------------------------------------------------- the course as a text
@@ -319,9 +364,10 @@ def _prose_of_code(text: str) -> list[str]:
 
 
 def _course_texts() -> list[tuple[str, str, str]]:
-    """(file, kind, text) for every piece of the course: lectures, solutions, helpers, site pages."""
+    """(file, kind, text) for every piece of the course: lectures, helpers, exercises' checks, site pages."""
     texts = []
-    for path in sorted(LECTURES.glob("*.py")) + sorted(SOLUTIONS.glob("*.py")) + [ROOT / "lago_cvx" / "course.py"]:
+    helpers = [ROOT / "lago_cvx" / "course.py", ROOT / "lago_cvx" / "course_figures.py"]
+    for path in sorted(LECTURES.glob("*.py")) + helpers + sorted((ROOT / "lago_cvx" / "exercises").glob("*.py")):
         name = str(path.relative_to(ROOT))
         if path in SOURCES:
             for cell_type, source in _cells(path.stem):
