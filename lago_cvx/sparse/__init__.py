@@ -34,10 +34,9 @@ from .block_factor import inverse_blocks
 from .linalg import (SOLVER_BACKENDS, Factor, augmented_least_squares, block_diagonal_inverse, factorize,
                      refine_normal_equations, solve_least_squares, whitening_2x2)
 from .edge_system import EdgeSystem
-from .normal_equations import GraphElimination, RenumberedFactor, marginal_blocks
+from .normal_equations import GraphElimination, RenumberedFactor, factor_wide, marginal_blocks, solve_wide
 from .smallmat import cholesky, rotate, spd_inverse, spd_inverse_corner
 from .threads import cores, engine_threads, threads_option
-from .wide import factor_wide, solve_wide
 
 __all__ = [
     "EdgeSystem", "GraphElimination", "Factor", "factorize", "solve_least_squares", "refine_normal_equations",

@@ -1,4 +1,4 @@
-r"""The multifrontal block Cholesky of ``lago_cvx.sparse.multifrontal``, front by front in compiled code (C, or Numba).
+r"""The multifrontal block Cholesky of ``lago_cvx.sparse.multifrontal``, front by front in compiled code (C).
 
 Same symbolic analysis (the pose-level ``EliminationPlan``: AMD order, fronts with pivot poses P_f and
 update rows R_f, each front's rows ⊂ its parent's), same equations (MF):
@@ -8,7 +8,7 @@ update rows R_f, each front's rows ⊂ its parent's), same equations (MF):
 
 but each front is handled where NumPy's engine pays a Python call (or several) per front or per group:
 the whole loop over the fronts (postorder, children's updates on a stack, popped by their parent) is a
-compiled function (C, or Numba: **Kernels** below). A front's dense kernel is a right-looking loop for small
+compiled function (C: **Kernels** below). A front's dense kernel is a right-looking loop for small
 fronts and LAPACK's ``potrf`` with BLAS's ``trsm``/``syrk`` for large ones (SciPy's own LAPACK/BLAS through
 ``scipy.linalg.cython_lapack``/``cython_blas``, so the BLAS NumPy and SciPy load is the one used).
 At a million poses the NumPy engine spends most of phase 3 in Python's cost per small front (85 000 of
@@ -28,16 +28,10 @@ none holds more than 1/16 of the work, dealt to one worker thread per core (``th
 buffer and stack, one BLAS thread), and the fronts above them are factored afterwards in the calling
 thread, the children's updates copied across from the workers' stacks (``CompiledLayout.schedule``).
 
-**Kernels.** The compiled functions are C first (``c_kernels``: ``_ckernels.c``, built at install as an optional
-extension and loaded by ctypes), Numba as the fallback when it was not built (``compiled_kernels``; no compiler at
-install): the same functions with the same arithmetic in the same order, so both give the same bits. The reason is
-each process's start: the C library loads in milliseconds where Numba's import and its cached kernels cost a good
-part of a second (whole processes: ``benchmarks/spaceprocess.md``). ``IMPLEMENTATION`` / ``use_kernels`` choose one.
-Nothing is loaded until a factorization runs (``available()`` tells whether one can): import lago_cvx, the CLI's
-start-up and every system below ``normal_equations.COMPILED_MIN`` unknowns load neither. Numba's kernels are
-cached on disk (``cache=True``, in ``__pycache__`` beside this file or Numba's user cache), so only its first run
-on a machine compiles (seconds). LAPACK/BLAS are called by address (``fn``): the addresses are arguments
-looked up in each process, which keeps Numba's compiled code cacheable.
+**Kernels.** The compiled functions are C (``c_kernels``: ``_ckernels.c``, built at install as an optional extension,
+loaded by ctypes in milliseconds); LAPACK/BLAS are SciPy's, called by address (``fn``). Where no compiler was
+present at install, ``available()`` is False (said once, as a warning) and the engine factors by the NumPy
+multifrontal (``multifrontal.BlockLayout``), the same equations.
 """
 
 from __future__ import annotations
@@ -48,12 +42,11 @@ import numpy as np
 
 from ..errors import MissingSolverError
 from . import kernel_checks
-from .linalg import Factor, blas_threads
-from .multifrontal import NotPositiveDefinite
+from .linalg import NotPositiveDefinite, blas_threads
 from .threads import cores, spawn
 
-__all__ = ["available", "use_kernels", "kernels", "CompiledLayout", "CompiledAssembler", "CompiledFactor",
-           "CompiledPoseFactor", "CompiledEdgeOperator"]
+__all__ = ["available", "kernels", "CompiledLayout", "CompiledAssembler", "CompiledFactor",
+           "CompiledEdgeOperator"]
 
 log = logging.getLogger(__name__)
 
@@ -75,85 +68,33 @@ PARALLEL_WORK = 1e9
 CHUNK = 0.02
 
 
-#: Which kernels ``kernels()`` gives: None, the C ones when their library was built, else Numba's; "c" or
-#: "numba" that one (the tests compare them). Set by ``use_kernels``.
-IMPLEMENTATION: str | None = None
-
-
-def use_kernels(which: str | None) -> None:
-    """Choose the kernels of every compiled factorization, solve and product from now on: "c" (``c_kernels``),
-    "numba" (``compiled_kernels``) or None (C when built, else Numba; the default)."""
-    global IMPLEMENTATION
-    if which not in (None, "c", "numba"):
-        raise ValueError(f"use_kernels: 'c', 'numba' or None, not {which!r}")
-    IMPLEMENTATION = which
-
-
 def kernels() -> dict:
-    """The compiled kernels by name (``compiled_kernels.KERNELS``'s keys): C (``c_kernels``) when its library was
-    built, else Numba's (``compiled_kernels``, loaded on first use), or the one ``IMPLEMENTATION`` names.
-    The first time Numba's are used in a process, when Numba has none of them on disk yet (its first run on a
-    computer, or no writable cache), says at INFO level that they are compiled now and about how long it takes."""
-    if native():
-        return _C_KERNELS[0]
-    if IMPLEMENTATION == "c":
-        raise ImportError("the sparse engine's C kernels are not built (lago_cvx/sparse/_ckernels.c)")
-    try:
-        from . import compiled_kernels
-    except ModuleNotFoundError as exc:  # neither kernel set: the engine's choice falls back (``available()``)
-        if exc.name not in ("numba", "llvmlite"):
-            raise
-        raise MissingSolverError("the compiled engine needs its C kernels (built at install when a C compiler is "
-                                 "present) or Numba: pip install 'lago-cvx[numba]'") from exc
-
-    if not _ANNOUNCED:
-        _ANNOUNCED.append(True)
-        if not compiled_kernels.CACHED or not _on_disk(compiled_kernels.KERNELS):
-            log.info("compiling the sparse engine's kernels (Numba's first run here): about 10-20 s, once%s",
-                     "" if not compiled_kernels.CACHED else "; later processes load them from disk")
-    return compiled_kernels.KERNELS
+    """The C kernels by name (``c_kernels.KERNELS``); ``MissingSolverError`` when they are not built."""
+    if not available():
+        raise MissingSolverError("the sparse engine's C kernels are not built (lago_cvx/sparse/_ckernels.c: "
+                                 "reinstall lago-cvx with a C compiler present)")
+    return _C_KERNELS[0]
 
 
-def native() -> bool:
-    """True when ``kernels()`` gives the C kernels: their library was built and ``IMPLEMENTATION`` does not ask for
-    Numba's. Loads the C library (milliseconds), never Numba."""
-    if IMPLEMENTATION == "numba":
-        return False
+def available() -> bool:
+    """True when the C kernels load (tried once per process; a warning says so when they do not, and the engine
+    uses the NumPy multifrontal instead). ``LAGO_CVX_NUMPY_ENGINE=1`` in the environment leaves them unloaded."""
     if not _C_KERNELS:
+        import os
+
         try:
+            if os.environ.get("LAGO_CVX_NUMPY_ENGINE", "").strip() not in ("", "0"):
+                raise ImportError("LAGO_CVX_NUMPY_ENGINE is set")
             from . import c_kernels
 
             _C_KERNELS.append(c_kernels.KERNELS)
-        except ImportError as exc:  # not built: Numba's
-            log.debug("C kernels unavailable (%s)", exc)
+        except ImportError as exc:
+            log.warning("sparse engine: C kernels unavailable (%s); factoring by the NumPy multifrontal (slower)", exc)
             _C_KERNELS.append(None)
     return _C_KERNELS[0] is not None
 
 
 _C_KERNELS: list = []  # [c_kernels.KERNELS] or [None] once tried
-_ANNOUNCED: list = []
-
-
-def _on_disk(kernels: dict) -> bool:
-    """True when Numba's on-disk cache holds an index for any kernel: an earlier process compiled the ones it used
-    (a kernel that no factorization has needed yet, such as those of the planar systems' matrix products, may be
-    missing; it compiles in about a second when first needed)."""
-    import os
-
-    try:
-        return any(os.path.exists(k._cache._cache_file._index_path) for k in kernels.values() if hasattr(k, "_cache"))
-    except AttributeError:  # another Numba: nothing said
-        return True
-
-
-def available() -> bool:
-    """True when the compiled engine can run: its C kernels load, or else Numba's."""
-    try:
-        kernels()
-    except Exception as exc:  # ImportError (neither), or a Numba that cannot compile here
-        log.debug("compiled engine unavailable (%s)", exc)
-        return False
-    return True
 
 
 class CompiledLayout:
@@ -500,31 +441,6 @@ class CompiledFactor:
 
     def flops(self) -> float:
         return self.layout.plan.flops(self.layout.b)
-
-
-class CompiledPoseFactor(Factor):
-    """A system of (N) (a ``normal_equations.EdgeSystem``) factored by the compiled engine through the
-    ``normal_equations.GraphElimination`` it belongs to: ``solve(rhs)`` for rhs (d·b,) or (d·b, r)
-    pose-major; ``compiled`` the ``CompiledFactor``."""
-
-    def __init__(self, factor: CompiledFactor, slots: np.ndarray, system, elimination):
-        self.compiled = factor
-        self._system, self._elimination = system, elimination
-        order = np.argsort(slots)
-
-        def solve(rhs: np.ndarray) -> np.ndarray:
-            return factor.solve_slots(rhs[order])[slots]
-
-        super().__init__(solve, slots.size, "compiled")
-
-    def flops(self) -> float:
-        """Σ colcount² over the columns of L (the fronts' explicit zeros included)."""
-        return self.compiled.flops()
-
-    def engine_factor(self):
-        """The same matrix factored by the NumPy engine on the same plan (a ``normal_equations.PoseFactor``),
-        whose ``BlockFactor`` the selected inversion of ``Phase3.pose_covariances`` reads."""
-        return self._elimination.factor(self._system, engine=True)
 
 
 class CompiledEdgeOperator:

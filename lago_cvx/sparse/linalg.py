@@ -119,6 +119,10 @@ def _not_kept():
     return None
 
 
+class NotPositiveDefinite(NumericalError):
+    """A pivot block was not numerically positive definite (the matrix is not SPD in floating point)."""
+
+
 class EngineState:
     """Engine state — factors, orderings, C pointers, worker threads — is not data: ``pickle`` and
     ``copy.deepcopy`` turn it into None. Results keep the data (matrices, edge systems) from which whoever

@@ -51,8 +51,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .block_factor import BlockFactor, inverse_blocks
-from ..errors import NumericalError
-from .linalg import blas_threads
+from .linalg import NotPositiveDefinite, blas_threads
 
 __all__ = ["EliminationPlan", "BlockLayout", "BlockFactor", "plan_from_qdldl", "plan_from_pattern", "NotPositiveDefinite",
            "inverse_blocks"]
@@ -85,11 +84,6 @@ _LADDER = np.array([0, 1, 2, 3, 4, 5, 6, 7, 8, 10, 12, 14, 16, 20, 24, 28, 32, 4
                     128, 160, 192, 224, 256, 320, 384, 448, 512, 640, 768, 896, 1024])
 
 
-class NotPositiveDefinite(NumericalError):
-    """A front's pivot block was not numerically positive definite (the matrix is not SPD in floating
-    point)."""
-
-
 def _seg_arange(lengths: np.ndarray) -> np.ndarray:
     """Concatenated aranges: [0..l₀−1, 0..l₁−1, …] for ``lengths`` (k,)."""
     lengths = np.asarray(lengths, np.int64)
@@ -107,71 +101,21 @@ def _pad(x: np.ndarray) -> np.ndarray:
 
 
 def _postorder(parent: np.ndarray) -> np.ndarray:
-    """A postorder of the forest ``parent`` (−1 at roots): ``order[t]`` = the node visited t-th, children before
-    parents. The reverse of the depth-first preorder that visits children by increasing index (``scipy.sparse.
-    csgraph``'s), i.e. each node after its subtree and siblings by decreasing index. O(n) at every shape: for an
-    elimination tree (parent[i] > i) ``supernodes.postorder``'s two passes (in C, by Numba or in Python, as
-    ``_loops`` chooses), else one depth-first walk by an explicit stack. (``csgraph.depth_first_order``, used
-    before, is quadratic on a star: every pose tied to one hub.)"""
-    parent = np.ascontiguousarray(parent, np.int64)
-    n = parent.size
-    has = parent >= 0
-    if (parent[has] > np.flatnonzero(has)).all():
-        return _loops(n)[2](parent)
-    par = np.where(has, parent, n)  # a virtual root n above the roots
-    kids = np.argsort(par, kind="stable")  # children of each node by increasing index
-    ptr = np.r_[0, np.cumsum(np.bincount(par, minlength=n + 1))].tolist()
-    kids = kids.tolist()
-    pre, stack = [], [n]
-    while stack:
-        v = stack.pop()
-        pre.append(v)
-        stack.extend(reversed(kids[ptr[v]:ptr[v + 1]]))  # the smallest child on top
-    return np.array(pre[:0:-1], np.int64)
+    """``supernodes.postorder`` of an elimination tree (parent[i] > i, −1 at roots), O(n) at every shape (a star
+    as a chain; ``csgraph.depth_first_order`` is quadratic on a star)."""
+    return _loops()[2](np.ascontiguousarray(parent, np.int64))
 
 
-#: From this many poses the symbolic analysis's sequential loops run through Numba's ``compiled_kernels`` when the C
-#: kernels are not built: below it Numba's start costs more than the Python loops. The C kernels (``c_kernels``) run
-#: them at every size: they load in milliseconds (``benchmarks/million.md``, ``benchmarks/spaceprocess.md``).
-COMPILED_LOOPS = 200_000
+def _loops():
+    """``supernodes.relax``, ``supernodes.heights`` and ``supernodes.postorder``: in C when the kernels are built
+    (``compiled.available()``), else as Python (the same integer loops and floating-point operations: the same plan
+    either way, tested)."""
+    from . import compiled, supernodes
 
-
-def _postorder_python(parent: np.ndarray) -> np.ndarray:
-    """``supernodes.postorder`` on Python lists (faster than on NumPy scalars where nothing compiles)."""
-    n = parent.size
-    par = np.where(parent < 0, n, parent).tolist()
-    size = [1] * (n + 1)
-    for i in range(n):  # children before parents (parent[i] > i)
-        size[par[i]] += size[i]
-    free = [0] * (n + 1)  # next free place in each node's interval; the virtual root n starts at 0
-    where = [0] * n
-    for i in range(n - 1, -1, -1):  # parents before children, siblings by decreasing index
-        lo = free[par[i]]
-        free[par[i]] = lo + size[i]
-        free[i] = lo
-        where[i] = lo + size[i] - 1  # a node follows its subtree
-    order = np.empty(n, np.int64)
-    order[np.asarray(where, np.int64)] = np.arange(n)
-    return order
-
-
-def _loops(d: int):
-    """``supernodes.relax``, ``supernodes.heights`` and ``supernodes.postorder``: in C when its library was built, else through Numba for
-    d ≥ ``COMPILED_LOOPS`` when it can be imported, else as Python (integer loops and the same floating-point
-    operations: the same plan every way, tested)."""
-    from . import supernodes
-
-    try:
-        from .c_kernels import KERNELS
-    except ImportError:
-        if d < COMPILED_LOOPS:
-            return supernodes.relax, supernodes.heights, _postorder_python
-        try:
-            from .compiled_kernels import KERNELS
-        except Exception as exc:  # no Numba: the same loops in Python
-            log.debug("symbolic analysis in Python (%s)", exc)
-            return supernodes.relax, supernodes.heights, _postorder_python
-    return KERNELS["relax"], KERNELS["heights"], KERNELS["postorder"]
+    if compiled.available():
+        K = compiled.kernels()
+        return K["relax"], K["heights"], K["postorder"]
+    return supernodes.relax, supernodes.heights, supernodes.postorder
 
 
 @dataclass(eq=False)
@@ -256,7 +200,7 @@ def plan_from_qdldl(L: sp.csc_matrix, perm: np.ndarray, *, relaxation=None) -> E
     last = ends - 1
     sparent = np.where(parent_p[last] >= 0, snode_of[np.maximum(parent_p[last], 0)], -1)
     # relaxed amalgamation: children first (supernodes are in topological order)
-    relax, heights, _ = _loops(d)
+    relax, heights, _ = _loops()
     k = (ends - starts).astype(np.int64)
     true_nnz = np.add.reduceat(cnt_p + 1, starts).astype(np.int64) if d else np.zeros(0, np.int64)
     top = relax(k, cnt_p[last].astype(np.int64), true_nnz, sparent.astype(np.int64), *nrelax, *zrelax)

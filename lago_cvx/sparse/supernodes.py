@@ -56,22 +56,19 @@ def postorder(parent):
     parent[i] > i, as in an elimination tree): the reverse of the depth-first preorder that visits children by
     increasing index (``scipy.sparse.csgraph.depth_first_order``'s), i.e. each node right after its subtree, siblings
     by decreasing index. Two passes: subtree sizes (children first), then each node's interval in its parent's
-    (parents first), O(n)."""
+    (parents first), O(n) (on Python lists, faster than on NumPy scalars)."""
     n = parent.size
-    size = np.ones(n + 1, np.int64)
-    for i in range(n):  # children before parents (parent[i] > i); the virtual root n above the roots
-        p = parent[i]
-        if p < 0:
-            p = n
-        size[p] += size[i]
-    free = np.zeros(n + 1, np.int64)  # next free place in each node's interval; the virtual root's starts at 0
-    order = np.empty(n, np.int64)
+    par = np.where(parent < 0, n, parent).tolist()
+    size = [1] * (n + 1)
+    for i in range(n):  # children before parents; the virtual root n above the roots
+        size[par[i]] += size[i]
+    free = [0] * (n + 1)  # next free place in each node's interval; the virtual root's starts at 0
+    where = [0] * n
     for i in range(n - 1, -1, -1):  # parents before children, siblings by decreasing index
-        p = parent[i]
-        if p < 0:
-            p = n
-        lo = free[p]
-        free[p] = lo + size[i]
+        lo = free[par[i]]
+        free[par[i]] = lo + size[i]
         free[i] = lo
-        order[lo + size[i] - 1] = i  # a node follows its subtree
+        where[i] = lo + size[i] - 1  # a node follows its subtree
+    order = np.empty(n, np.int64)
+    order[np.asarray(where, np.int64)] = np.arange(n)
     return order
