@@ -461,12 +461,12 @@ class CompiledEdgeOperator:
 
     def matvec(self, x: np.ndarray) -> np.ndarray:
         """M x (m, q[, r]) for x (d, b[, r])."""
-        x3 = np.ascontiguousarray(x.reshape(x.shape[0], x.shape[1], -1), dtype=float)
+        x3 = np.ascontiguousarray(x.reshape(x.shape[:2] + (int(np.prod(x.shape[2:])),)), dtype=float)
         out = self._mv(self._A, self._B, self._t, self._h, x3)
         return out.reshape(out.shape[:2] + x.shape[2:])
 
     def rmatvec(self, r: np.ndarray) -> np.ndarray:
         """Mᵀ r (d, b[, r]) for r (m, q[, r])."""
-        r3 = np.ascontiguousarray(r.reshape(r.shape[0], r.shape[1], -1), dtype=float)
+        r3 = np.ascontiguousarray(r.reshape(r.shape[:2] + (int(np.prod(r.shape[2:])),)), dtype=float)
         out = self._rmv(self._A, self._B, self._t, self._h, r3, self.d)
         return out.reshape(out.shape[:2] + r.shape[2:])
