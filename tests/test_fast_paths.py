@@ -30,14 +30,15 @@ def block_size(request):
     return request.param
 
 
-@pytest.mark.parametrize("single_front", [8, 96, 10**9], ids=["all-single", "mixed", "all-batched"])
-def test_factor_solve_and_selected_inverse_match_dense(block_size, single_front, monkeypatch):
-    """N = A2 W A2ᵀ ⊗ (random SPD b×b couplings): the multifrontal solve and the selected inverse (eq. (T))
-    agree with numpy's dense solve and inverse to 1e-9 relative — diagonal pose blocks and the blocks of
-    every edge — on batched, single and mixed fronts (all-single: every front with all BLAS threads)."""
-    monkeypatch.setattr(mf, "SINGLE_FRONT", single_front)
-    if single_front == 8:
-        monkeypatch.setattr(mf, "THREADED_FRONT", 0)
+@pytest.mark.parametrize("engine", ["c", "numpy"])
+def test_factor_solve_and_selected_inverse_match_dense(block_size, engine, monkeypatch):
+    """N = MᵀM of a random edge system: the multifrontal solve and the selected inverse (eq. (T)) agree with
+    numpy's dense solve and inverse to 1e-9 relative — diagonal pose blocks and the blocks of every edge — on the
+    C kernels' factor and on the NumPy fallback's."""
+    from lago_cvx.sparse import compiled as C
+
+    if engine == "numpy":
+        monkeypatch.setattr(C, "_C_KERNELS", [None])
     g = lc.manhattan_world(160, seed=3).graph
     b = block_size
     el = GraphElimination(g, 0)
@@ -48,7 +49,7 @@ def test_factor_solve_and_selected_inverse_match_dense(block_size, single_front,
     system = ne.EdgeSystem(el.tails, el.heads, A, B, rng.standard_normal((m, b + 1)), el.d)
     M = system.sparse().toarray()
     N = M.T @ M
-    f = el.factor(system, engine=True)
+    f = el.factor(system)
     rhs = rng.standard_normal(el.d * b)
     x = f.solve(rhs)
     ref = np.linalg.solve(N, rhs)
@@ -65,20 +66,20 @@ def test_factor_solve_and_selected_inverse_match_dense(block_size, single_front,
     assert np.abs(pairs - pref).max() <= 1e-9 * scale
 
 
-@pytest.mark.parametrize("single_front", [1, 10**9], ids=["single", "batched"])
-def test_an_indefinite_matrix_is_refused_by_name(single_front, monkeypatch):
-    """A matrix that is not positive definite raises ``NotPositiveDefinite`` (a ``NumericalError``) from
-    both kernels, the single-front potrf and the stacked Cholesky, never a raw LAPACK error."""
-    monkeypatch.setattr(mf, "SINGLE_FRONT", single_front)
+def test_an_indefinite_matrix_is_refused_by_name():
+    """A matrix that is not positive definite raises ``NotPositiveDefinite`` (a ``NumericalError``) from the NumPy
+    fronts, never a raw LAPACK error (the C kernels: ``test_compiled``)."""
+    from lago_cvx.sparse import block_factor, compiled as C
+
     g = lc.manhattan_world(120, seed=5).graph
     el = GraphElimination(g, 0)
     prow, pcol, keep = el.pairs
-    lay = el.plan.layout(3)
+    lay = C.CompiledLayout.of(el.plan, 3)
     blocks = np.zeros((int(keep.sum()), 3, 3))
     diag = prow[keep] == pcol[keep]
     blocks[diag] = -np.eye(3)  # N = −(degree) I: negative definite
     with pytest.raises(mf.NotPositiveDefinite, match="not positive definite"):
-        lay.factor(lay.assembler(prow[keep], pcol[keep]), blocks)
+        block_factor.factor(lay, lay.assembler(prow[keep], pcol[keep]), blocks, np.empty(int(lay.Lptr[-1])))
 
 
 def test_blas_threads_sets_and_restores_the_thread_count():

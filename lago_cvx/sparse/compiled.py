@@ -41,7 +41,7 @@ import logging
 import numpy as np
 
 from ..errors import MissingSolverError
-from . import kernel_checks
+from . import block_factor, kernel_checks
 from .linalg import NotPositiveDefinite, blas_threads
 from .threads import cores, spawn
 
@@ -133,12 +133,19 @@ class CompiledLayout:
         if ok.any():
             rel[ok] = self._pose_local(par[ok], self.rows[ok])
         self.rel = rel
+        self.K, self.D = K, D
         self.work = K.astype(float) * D * D  # (F,) twice each front's multiply–adds
         self.max_front = int(D.max() ** 2) if F else 0
         self.rmax = int(R.max()) if F else 0
 
     def _pose_local(self, f: np.ndarray, pos: np.ndarray) -> np.ndarray:
         """Local pose index of position ``pos`` in front ``f`` (pivots 0 … k−1, rows k + rank)."""
+        if not available():
+            plan = self.plan
+            fr = np.repeat(np.arange(plan.n_fronts), plan.n_rows)
+            rank = np.searchsorted(fr * plan.d + self.rows, f * plan.d + pos) - self.rptr[f]
+            return np.where((pos >= self.fptr[f]) & (pos < self.fptr[f + 1]), pos - self.fptr[f],
+                            self.fptr[f + 1] - self.fptr[f] + rank)
         return kernels()["pose_local"](np.ascontiguousarray(f, np.int64), np.ascontiguousarray(pos, np.int64),
                                        self.fptr, self.rptr, self.rows)
 
@@ -159,14 +166,19 @@ class CompiledLayout:
         work, disjoint subtrees of the front tree are factored at once in worker threads (the compiled
         loop releases the GIL; one BLAS thread each), then the fronts above them (``schedule``) in this
         thread, large ones with every BLAS thread. ``progress(done, total)`` gets the multiply–adds done.
-        Raises ``multifrontal.NotPositiveDefinite`` if a pivot block is not positive definite."""
-
-        kern = kernels()
+        Raises ``multifrontal.NotPositiveDefinite`` if a pivot block is not positive definite. Without the C
+        kernels, ``block_factor.factor`` (NumPy, front by front) fills the same L."""
         A = np.ascontiguousarray(A, dtype=float)
         B = np.ascontiguousarray(B, dtype=float)
         L = self.__dict__.pop("_reserved", None)
         if L is None:
             L = np.empty(int(self.Lptr[-1]))
+        if not available():
+            At, Bt = np.swapaxes(A, 1, 2), np.swapaxes(B, 1, 2)
+            with blas_threads(1):
+                block_factor.factor(self, assembler, np.concatenate([At @ A, Bt @ B, Bt @ A]), L, progress)
+            return CompiledFactor(self, L, 1)
+        kern = kernels()
         data = (assembler.bptr, assembler.order, assembler.li, assembler.lj, assembler.transposed, A, B)
         n_threads = cores()
         sched = self.schedule_for(n_threads)
@@ -388,7 +400,20 @@ class CompiledAssembler:
 
     def __init__(self, layout: CompiledLayout, prow, pcol):
         plan = layout.plan
+        prow, pcol = np.asarray(prow, np.int64), np.asarray(pcol, np.int64)
         front_of = np.repeat(np.arange(plan.n_fronts, dtype=np.int64), plan.pivots)  # (d,) by position
+        if not available():  # the same map by NumPy
+            idx = np.flatnonzero((prow >= 0) & (pcol >= 0))
+            pr, pc = plan.position[prow[idx]], plan.position[pcol[idx]]
+            tr = pr < pc
+            lo, hi = np.where(tr, pr, pc), np.where(tr, pc, pr)
+            f = front_of[lo]
+            order = np.argsort(f, kind="stable")
+            self.bptr = np.r_[0, np.cumsum(np.bincount(f, minlength=plan.n_fronts))].astype(np.int64)
+            f = f[order]
+            self.order, self.li, self.transposed = idx[order], layout._pose_local(f, hi[order]), tr[order]
+            self.lj = lo[order] - plan.fptr[f]
+            return
         self.order, self.bptr, self.li, self.lj, self.transposed = kernels()["block_map"](
             np.ascontiguousarray(prow, np.int64), np.ascontiguousarray(pcol, np.int64),
             np.ascontiguousarray(plan.position, np.int64), front_of, layout.fptr, layout.rptr, layout.rows)
@@ -407,10 +432,16 @@ class CompiledFactor:
         """Solve N x = y for y (N,) or (N, r) in elimination slots; x likewise. With the layout's
         ``schedule``, each worker thread sweeps its own subtrees: forward on its own copy of y (its
         fronts update only their subtrees' slots and the top fronts'; the top slots' changes are summed
-        afterwards), back on y itself (each writes only its own slots, reading the top fronts')."""
-        kern = kernels()
+        afterwards), back on y itself (each writes only its own slots, reading the top fronts'). Without the C
+        kernels, ``block_factor.solve``."""
         lay = self.layout
         one = y.ndim == 1
+        if not available():
+            Y = np.array(y.reshape(lay.N, -1), dtype=float)
+            with blas_threads(1):
+                block_factor.solve(lay, self.L, Y)
+            return Y[:, 0] if one else Y
+        kern = kernels()
         Y = np.array(y.reshape(lay.N, -1).T, dtype=float, order="C")  # (r, N): each right-hand side contiguous
         args = (lay.b, lay.fptr, lay.rptr, lay.rows, lay.Lptr, self.L, lay.rmax)
         sched = lay.schedule_for(self.n_threads)

@@ -26,7 +26,7 @@ import logging
 import numpy as np
 import scipy.sparse as sp
 
-from . import compiled
+from . import block_factor, compiled
 from .block_factor import inverse_blocks
 from .edge_system import EdgeOperator, EdgeSystem
 from .linalg import Factor, augmented_least_squares, refine_normal_equations
@@ -46,12 +46,11 @@ OVERLAP_MIN = 2_500
 
 class PoseFactor(Factor):
     """A system of (N) factored through a ``GraphElimination``: ``solve(rhs)`` for rhs (d·b,) or (d·b, r)
-    pose-major; ``numeric`` the ``compiled.CompiledFactor`` or ``multifrontal``'s ``BlockFactor``;
-    ``block_factor()`` the ``BlockFactor`` the selected inversion reads (the same matrix refactored by the NumPy
-    engine on the same plan when it was factored in C)."""
+    pose-major; ``numeric`` the ``compiled.CompiledFactor`` (L packed front by front), which the selected inversion
+    (``marginal_blocks``) reads."""
 
-    def __init__(self, numeric, slots: np.ndarray, backend: str, refactor=None):
-        self.numeric, self._refactor = numeric, refactor
+    def __init__(self, numeric, slots: np.ndarray, backend: str):
+        self.numeric = numeric
         order = np.argsort(slots)
 
         def solve(rhs: np.ndarray) -> np.ndarray:
@@ -59,12 +58,9 @@ class PoseFactor(Factor):
 
         super().__init__(solve, slots.size, backend)
 
-    def block_factor(self):
-        return self.numeric if self._refactor is None else self._refactor().numeric
-
     def flops(self) -> float:
         """Σ colcount² over the columns of L (the fronts' explicit zeros included)."""
-        return self.numeric.layout.plan.flops(self.numeric.layout.b)
+        return self.numeric.flops()
 
 
 class RenumberedFactor(Factor):
@@ -115,14 +111,16 @@ def marginal_blocks(N, var_index: np.ndarray, *, factor: Factor | None = None, p
     (a sparse matrix, or a function that builds it) on its own pose-level plan."""
     pm = getattr(factor, "pose_major", factor)
     if isinstance(pm, PoseFactor):
-        return inverse_blocks(pm.block_factor(), progress=progress)[0]
+        return inverse_blocks(pm.numeric, progress=progress)[0]
     N = N() if callable(N) else N
     var_index = np.asarray(var_index, np.int64)
     d, b = var_index.shape
     prow, pcol, blocks = matrix_blocks(N, var_index)
     off = prow != pcol
-    lay = plan_from_pattern(d, prow[off], pcol[off]).layout(b)
-    return inverse_blocks(lay.factor(lay.assembler(prow, pcol), blocks), progress=progress)[0]
+    lay = compiled.CompiledLayout.of(plan_from_pattern(d, prow[off], pcol[off]), b)
+    L = np.empty(int(lay.Lptr[-1]))
+    block_factor.factor(lay, lay.assembler(prow, pcol), blocks, L)  # N = Σ_q E_q blocks[q], front by front
+    return inverse_blocks(compiled.CompiledFactor(lay, L), progress=progress)[0]
 
 
 class GraphElimination:
@@ -211,43 +209,24 @@ class GraphElimination:
             tasks, self._tasks = self._tasks, []
             spawn(lambda: [job.run() for job in tasks], name="lago-ahead")
 
-    def _build_layout(self, b: int, numpy: bool):
-        prow, pcol, keep = self.pairs
-        if numpy:
-            lay = self.plan.layout(b)
-            return lay, lay.assembler(prow[keep], pcol[keep])
-        lay = compiled.CompiledLayout.of(self.plan, b)
-        return lay, lay.assembler(prow, pcol)
-
     @in_engine_threads
-    def factor(self, system: EdgeSystem, *, progress=None, engine: bool | str | None = None,
-               solving: bool = False) -> PoseFactor:
-        """Factor the normal matrix (N) of ``system`` by (MF): in C when the kernels are built, else by the NumPy
-        engine; ``engine=True`` forces the NumPy engine (its ``BlockFactor`` is what the selected inversion reads),
-        ``"compiled"`` the C kernels (``MissingSolverError`` without them). Raises ``multifrontal.NotPositiveDefinite``
-        if N is not numerically SPD. The systems announced after this one are prepared once it is factored
-        (``solving``: once ``solve`` is done with it)."""
+    def factor(self, system: EdgeSystem, *, progress=None, solving: bool = False) -> PoseFactor:
+        """Factor the normal matrix (N) of ``system`` by (MF): in C when the kernels are built, else by NumPy
+        (``block_factor``; the same storage). Raises ``multifrontal.NotPositiveDefinite`` if N is not numerically
+        SPD. The systems announced after this one are prepared once it is factored (``solving``: once ``solve`` is
+        done with it)."""
         b = system.b
         job = self._preparing.pop(b, None)
         if job is not None:
             job.result()
         try:
-            if engine == "compiled" or (engine is None and compiled.available()):
-                compiled.kernels()
-                if b not in self._assemblers:
-                    self._assemblers[b] = self._build_layout(b, False)
-                lay, asm = self._assemblers[b]
-                self._run_ahead()
-                cf = lay.factor(asm, system.A, system.B, progress=progress)
-                return PoseFactor(cf, self.slots(b), "compiled", lambda: self.factor(system, engine=True))
-            key = ("numpy", b)
-            if key not in self._assemblers:
-                self._assemblers[key] = self._build_layout(b, True)
-            lay, asm = self._assemblers[key]
-            keep = self.pairs[2]
+            if b not in self._assemblers:
+                lay = compiled.CompiledLayout.of(self.plan, b)
+                self._assemblers[b] = (lay, lay.assembler(*self.pairs[:2]))
+            lay, asm = self._assemblers[b]
             self._run_ahead()
-            return PoseFactor(lay.factor(asm, system.normal_blocks()[keep], progress=progress), self.slots(b),
-                              "multifrontal")
+            cf = lay.factor(asm, system.A, system.B, progress=progress)
+            return PoseFactor(cf, self.slots(b), "compiled" if compiled.available() else "multifrontal")
         finally:
             if not solving:
                 self._prepare_next(b)
