@@ -16,7 +16,7 @@ D = k + r; its block column [L_PP; X] (D × k, eq. (MF) of ``multifrontal``) is 
 from __future__ import annotations
 
 import numpy as np
-from scipy.linalg import solve_triangular
+from scipy.linalg import lapack, solve_triangular
 
 from .linalg import NotPositiveDefinite
 
@@ -111,7 +111,7 @@ def inverse_blocks(factor, prow=None, pcol=None, *, progress=None):
     for f in range(F - 1, -1, -1):
         C, (piv, rows, rel) = _column(lay, L, f), _vars(lay, f)
         k, D = piv.size, int(lay.D[f])
-        Li = solve_triangular(C[:k], np.eye(k), lower=True, check_finite=False)
+        Li = np.tril(lapack.dtrtri(C[:k], lower=1)[0])  # L_PP⁻¹
         S = np.empty((D, D))
         S[:k, :k] = Li.T @ Li
         if rows.size:
