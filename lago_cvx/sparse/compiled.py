@@ -113,7 +113,7 @@ class CompiledLayout:
         return cache[b]
 
     def __init__(self, plan, b: int):
-        kernel_checks.plan(plan)  # O(d) once: a malformed plan raises PlanError before any compiled call
+        kernel_checks.plan(plan, b)  # O(d) once: a malformed plan raises PlanError before any compiled call
         self.plan = plan
         self.b = b = int(b)
         self.N = plan.d * b
@@ -137,6 +137,7 @@ class CompiledLayout:
         self.work = K.astype(float) * D * D  # (F,) twice each front's multiply–adds
         self.max_front = int(D.max() ** 2) if F else 0
         self.rmax = int(R.max()) if F else 0
+        kernel_checks.layout(self)  # the extend-add map checked, the arrays frozen and registered for the kernels
 
     def _pose_local(self, f: np.ndarray, pos: np.ndarray) -> np.ndarray:
         """Local pose index of position ``pos`` in front ``f`` (pivots 0 … k−1, rows k + rank)."""
