@@ -1,37 +1,23 @@
-r"""The multifrontal block Cholesky of ``lago_cvx.sparse.multifrontal``, front by front in compiled code (C).
+r"""The multifrontal block Cholesky (MF) of ``multifrontal``, front by front in C — the engine's one numeric
+factorization — with its NumPy fallback (``block_factor``) on the same storage.
 
-Same symbolic analysis (the pose-level ``EliminationPlan``: AMD order, fronts with pivot poses P_f and
-update rows R_f, each front's rows ⊂ its parent's), same equations (MF):
+The whole loop over the fronts (postorder, children's updates on a stack popped by their parent) is one C call
+(``c_kernels``: ``_ckernels.c``, built at install, loaded by ctypes in milliseconds): a few hundred nanoseconds per
+front where NumPy pays Python calls. A front's dense kernel is a right-looking loop for small fronts and LAPACK's
+``potrf`` with BLAS's ``trsm``/``syrk`` for large ones (SciPy's own, called by address through
+``cython_lapack``/``cython_blas``). Where no compiler was present at install, ``available()`` is False (said once,
+as a warning) and ``block_factor`` runs the same equations front by front in NumPy.
 
-    F_f = [[F_PP, ·], [F_RP, F_RR]] = N's entries in the columns P_f + Σ_children U_c   (extend-add)
-    L_PP = chol(F_PP),    X_f = F_RP L_PP⁻ᵀ,    U_f = F_RR − X_f X_fᵀ                          (MF)
+**Storage** (``CompiledLayout``). Variables are numbered by elimination slot, pose-major: slot = position·b +
+component. Front f has k = |P_f|·b pivot and r = |R_f|·b update variables, D = k + r; its block column
+[L_PP; X_f] is kept column by column from ``L[Lptr[f]]``, column j holding rows j … D − 1.
 
-but each front is handled where NumPy's engine pays a Python call (or several) per front or per group:
-the whole loop over the fronts (postorder, children's updates on a stack, popped by their parent) is a
-compiled function (C: **Kernels** below). A front's dense kernel is a right-looking loop for small
-fronts and LAPACK's ``potrf`` with BLAS's ``trsm``/``syrk`` for large ones (SciPy's own LAPACK/BLAS through
-``scipy.linalg.cython_lapack``/``cython_blas``, so the BLAS NumPy and SciPy load is the one used).
-At a million poses the NumPy engine spends most of phase 3 in Python's cost per small front (85 000 of
-them); here that cost is a few hundred nanoseconds.
+**Solve** N x = y (``CompiledFactor.solve_slots``): forward L z = y front by front (leaves up), back Lᵀ x = z.
 
-Storage. Variables are numbered by elimination slot, pose-major: slot = position·b + component (as in
-``multifrontal.BlockLayout``). Front f has k = |P_f|·b pivot and r = |R_f|·b update variables,
-D = k + r; its block column [L_PP; X_f] of L is kept column by column from ``L[Lptr[f]]`` on, column j
-holding rows j … D − 1 (packed: entry (i, j) at Lptr[f] + j·D − j(j+1)/2 + i; the strict upper triangle
-of L_PP is not stored).
-
-**Solve** N x = y (``CompiledFactor.solve_slots``): forward L z = y front by front (leaves up), back
-Lᵀ x = z (root down), each front's triangle and rectangle by compiled loops.
-
-**Two cores.** The compiled loop releases the GIL: the front tree's largest subtrees are split until
-none holds more than 1/16 of the work, dealt to one worker thread per core (``threads.cores()``) (each with its own front
-buffer and stack, one BLAS thread), and the fronts above them are factored afterwards in the calling
-thread, the children's updates copied across from the workers' stacks (``CompiledLayout.schedule``).
-
-**Kernels.** The compiled functions are C (``c_kernels``: ``_ckernels.c``, built at install as an optional extension,
-loaded by ctypes in milliseconds); LAPACK/BLAS are SciPy's, called by address (``fn``). Where no compiler was
-present at install, ``available()`` is False (said once, as a warning) and the engine factors by the NumPy
-multifrontal (``multifrontal.BlockLayout``), the same equations.
+**Two cores.** The C loop releases the GIL: the front tree's largest subtrees are split until none holds more than
+1/16 of the work, dealt to one worker thread per core (``threads.cores()``; each with its own front buffer and stack,
+one BLAS thread), and the fronts above them are factored afterwards in the calling thread, the children's updates
+copied across from the workers' stacks (``CompiledLayout.schedule_for``).
 """
 
 from __future__ import annotations
@@ -137,6 +123,8 @@ class CompiledLayout:
         self.work = K.astype(float) * D * D  # (F,) twice each front's multiply–adds
         self.max_front = int(D.max() ** 2) if F else 0
         self.rmax = int(R.max()) if F else 0
+        self.big = K >= THREADED_FRONT  # (F,) the fronts factored alone, with every BLAS thread
+        self.none_big = np.zeros(F, bool)  # in a worker thread, every front on one BLAS thread
         kernel_checks.layout(self)  # the extend-add map checked, the arrays frozen and registered for the kernels
 
     def _pose_local(self, f: np.ndarray, pos: np.ndarray) -> np.ndarray:
@@ -149,13 +137,6 @@ class CompiledLayout:
                             self.fptr[f + 1] - self.fptr[f] + rank)
         return kernels()["pose_local"](np.ascontiguousarray(f, np.int64), np.ascontiguousarray(pos, np.int64),
                                        self.fptr, self.rptr, self.rows)
-
-    def slots(self, var_index: np.ndarray) -> np.ndarray:
-        """Elimination slot of every variable of a system numbered by ``var_index`` (d, b)."""
-        var_index = np.asarray(var_index, np.int64).reshape(self.plan.d, self.b)
-        out = np.empty(self.N, np.int64)
-        out[var_index.reshape(-1)] = (self.plan.position[:, None] * self.b + np.arange(self.b)).reshape(-1)
-        return out
 
     def assembler(self, prow: np.ndarray, pcol: np.ndarray) -> "CompiledAssembler":
         return CompiledAssembler(self, prow, pcol)
@@ -227,11 +208,6 @@ class CompiledLayout:
                     kern["push"](w.stack, off, size, main.stack, main.st_front, main.st_off, main.state, c)
                 main.fronts(f, f + 1, threads, done, report)
         return CompiledFactor(self, L, n_threads)
-
-    @property
-    def schedule(self):
-        """``schedule_for(cores())``."""
-        return self.schedule_for(cores())
 
     def schedule_for(self, n_threads: int):
         """How the fronts are shared among ``n_threads`` threads, or None to factor them in one: the front
@@ -314,20 +290,6 @@ class CompiledLayout:
         fronts = np.asarray(fronts, np.int64)
         lo, n = self.fptr[fronts] * self.b, (self.fptr[fronts + 1] - self.fptr[fronts]) * self.b
         return np.repeat(lo - np.r_[0, np.cumsum(n)[:-1]], n) + np.arange(int(n.sum()))
-
-    @property
-    def big(self) -> np.ndarray:
-        """(F,) bool: the fronts factored with every BLAS thread (k at least ``THREADED_FRONT``)."""
-        if "_big" not in self.__dict__:
-            self._big = self.plan.pivots * self.b >= THREADED_FRONT
-        return self._big
-
-    @property
-    def none_big(self) -> np.ndarray:
-        """(F,) bool, all False: a worker thread factors every front of its subtrees on one BLAS thread."""
-        if "_none_big" not in self.__dict__:
-            self._none_big = np.zeros(self.plan.n_fronts, bool)
-        return self._none_big
 
 
 class _Front:
@@ -430,11 +392,9 @@ class CompiledFactor:
         self.n_threads = n_threads  # the threads it was factored on: its solves sweep the same subtrees
 
     def solve_slots(self, y: np.ndarray) -> np.ndarray:
-        """Solve N x = y for y (N,) or (N, r) in elimination slots; x likewise. With the layout's
-        ``schedule``, each worker thread sweeps its own subtrees: forward on its own copy of y (its
-        fronts update only their subtrees' slots and the top fronts'; the top slots' changes are summed
-        afterwards), back on y itself (each writes only its own slots, reading the top fronts'). Without the C
-        kernels, ``block_factor.solve``."""
+        """Solve N x = y for y (N,) or (N, r) in elimination slots; x likewise. On the threads it was factored on,
+        each worker sweeps its own subtrees: forward on its own copy of y (the top slots' changes summed
+        afterwards), back on y itself. Without the C kernels, ``block_factor.solve``."""
         lay = self.layout
         one = y.ndim == 1
         if not available():
