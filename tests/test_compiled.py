@@ -195,7 +195,7 @@ def test_factor_reports_its_progress(monkeypatch):
 
 
 def test_symbolic_loops_in_c_and_in_python_give_the_same_plan(numpy_engine):
-    """The amalgamation, height and postorder loops (lago_cvx.sparse.supernodes) in C and in Python give the same
+    """The amalgamation, height and postorder loops (lago_cvx.sparse.multifrontal) in C and in Python give the same
     plan, array for array, on a 3000-pose world."""
     g = lc.manhattan_world(3000, seed=1).graph
     el = GraphElimination(g, 0)

@@ -391,10 +391,10 @@ def test_postorder_equals_scipys_depth_first_order():
     """``multifrontal._postorder`` gives exactly the order of the reversed depth-first preorder of
     ``scipy.sparse.csgraph`` (the elimination order, hence every result, is unchanged), in C and by the Python loops
     of the fallback, on random elimination trees, a star and a chain."""
-    from lago_cvx.sparse import multifrontal, supernodes
+    from lago_cvx.sparse import multifrontal
     from lago_cvx.sparse import compiled as C
 
-    ways = {"python": supernodes.postorder, "c": C.kernels()["postorder"]}
+    ways = {"python": multifrontal.postorder, "c": C.kernels()["postorder"]}
     rng = np.random.default_rng(3)
     forests = [np.array([-1]), np.array([-1, -1, -1]), np.array([1, 2, -1]), np.array([2, 2, -1, -1]),
                np.r_[np.full(500, 500), -1], np.r_[np.arange(1, 500), -1]]  # a star, a chain

@@ -282,7 +282,7 @@ def push(src, off, size, stack, st_front, st_off, state, f):
 
 
 def relax(k, r, true_nnz, sparent, n0, n1, n2, z0, z1, z2):
-    """``supernodes.relax`` (``k``, ``true_nnz`` updated in place)."""
+    """``multifrontal.relax`` (``k``, ``true_nnz`` updated in place)."""
     top = np.empty(np.size(k), np.int64)
     if not (np.shape(r) == np.shape(true_nnz) == np.shape(sparent) == np.shape(k)):
         raise ValueError("C kernels: relax takes four arrays of one shape")
@@ -294,7 +294,7 @@ def relax(k, r, true_nnz, sparent, n0, n1, n2, z0, z1, z2):
 
 
 def heights(parent):
-    """``supernodes.heights``."""
+    """``multifrontal.heights``."""
     h = np.empty(np.size(parent), np.int64)
     address = _p(parent, _I64, "parent")
     chk.forest(parent)
@@ -303,7 +303,7 @@ def heights(parent):
 
 
 def postorder(parent):
-    """``supernodes.postorder``."""
+    """``multifrontal.postorder``."""
     n = np.size(parent)
     size, free, order = np.empty(n + 1, np.int64), np.empty(n + 1, np.int64), np.empty(n, np.int64)
     address = _p(parent, _I64, "parent")

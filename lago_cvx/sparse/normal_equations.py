@@ -14,7 +14,7 @@ positions (P), the 3-D systems) minimises a sum of per-edge terms over the free 
 the anchor-reduced pose graph's pattern for every b. ``GraphElimination`` holds the pose-level symbolic analysis
 of one graph and anchor (``multifrontal.EliminationPlan``, O(n)), computed once and shared by every system solved
 on it, and factors (N) by the one numeric factorization of the engine: the multifrontal block Cholesky (MF) in C
-(``compiled``), or, where the C kernels were not built, the same equations in NumPy (``multifrontal.BlockLayout``).
+(``compiled``), or, where the C kernels were not built, the same equations in NumPy (``block_factor``).
 (E) is then solved by the corrected semi-normal equations (``linalg.refine_normal_equations``), falling back to
 the augmented system as ``linalg.solve_least_squares`` does.
 """
