@@ -13,6 +13,7 @@ import pytest
 
 import lago_cvx as lc
 from lago_cvx.sparse import compiled as C
+from lago_cvx.sparse import engine_threads
 from lago_cvx.sparse import multifrontal as mf
 from lago_cvx.sparse import normal_equations as ne
 from lago_cvx.sparse.normal_equations import GraphElimination
@@ -33,14 +34,17 @@ def test_the_c_kernels_are_built_here():
 @pytest.fixture(params=["loops", "blas", "blas-threaded"])
 def kernel(request, monkeypatch):
     """Which dense kernel factors the fronts: all by the compiled loop, all by LAPACK/BLAS called from
-    compiled code, or by LAPACK/BLAS with every front handed to the caller for every BLAS thread."""
-    if request.param == "loops":
-        monkeypatch.setattr(C, "SMALL_WORK", 10**18)
-    else:
-        monkeypatch.setattr(C, "SMALL_WORK", 0)
+    compiled code (whether or not the engine may set the BLAS threads), or by LAPACK/BLAS with every front handed
+    to the caller for every BLAS thread (the engine allowed two)."""
+    work = 10**18 if request.param == "loops" else 0
+    monkeypatch.setattr(C, "SMALL_WORK", work)
+    monkeypatch.setattr(C, "ALONE_WORK", work)
     if request.param == "blas-threaded":
         monkeypatch.setattr(C, "THREADED_FRONT", 0)
-    return request.param
+        with engine_threads(blas_threads=2):
+            yield request.param
+    else:
+        yield request.param
 
 
 @pytest.fixture(params=[1, 2], ids=["one-thread", "two-threads"])
@@ -145,6 +149,7 @@ def test_a_matrix_that_is_not_positive_definite_is_refused(where, monkeypatch):
     removed) raises multifrontal.NotPositiveDefinite naming a front, from the compiled loop and from
     LAPACK alike; LAGO's solve then falls back to the augmented system (tested elsewhere)."""
     monkeypatch.setattr(C, "SMALL_WORK", 10**18 if where == "loops" else 0)
+    monkeypatch.setattr(C, "ALONE_WORK", 10**18 if where == "loops" else 0)
     g = lc.manhattan_world(120, seed=1).graph
     el, system = _random_system(g, 2)
     A, B = system.A.copy(), system.B.copy()

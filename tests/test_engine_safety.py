@@ -34,7 +34,7 @@ _BLAS_WATCH = """
     from threadpoolctl import threadpool_info
     import lago_cvx as lc
     from lago_cvx.sparse import compiled as C, normal_equations as ne, engine_threads
-    C.SMALL_WORK, C.THREADED_FRONT = 0, 0  # every front through LAPACK/BLAS, large ones on every BLAS thread
+    C.SMALL_WORK, C.ALONE_WORK, C.THREADED_FRONT = 0, 0, 0  # every front through LAPACK/BLAS, large ones threaded
     g = lc.manhattan_world(300, seed=5).graph
     el = ne.GraphElimination(g, 0)
     rng = np.random.default_rng(0)

@@ -29,7 +29,7 @@ import numpy as np
 from ..errors import MissingSolverError
 from . import block_factor, kernel_checks
 from .linalg import NotPositiveDefinite, blas_threads
-from .threads import cores, spawn
+from .threads import blas_limit, cores, spawn
 
 __all__ = ["available", "kernels", "CompiledLayout", "CompiledAssembler", "CompiledFactor",
            "CompiledEdgeOperator"]
@@ -39,6 +39,11 @@ log = logging.getLogger(__name__)
 #: A front whose k·D² (twice its multiply–adds) is below this is factored by a compiled right-looking
 #: loop; a larger one by LAPACK/BLAS (potrf, trsm, syrk), called by address from the compiled loop.
 SMALL_WORK = 50_000
+
+#: The same bound while the process's BLAS is left alone (no ``engine_threads(blas_threads=…)``): its threads, which
+#: the engine may not limit, cost far more than they give on the fronts of a busy machine (``benchmarks/perf.md``),
+#: so only fronts beyond this call LAPACK/BLAS, where the right-looking loop would lose more.
+ALONE_WORK = 1e10
 
 #: Fronts with at least this many pivot variables run BLAS on every thread; the others on one.
 THREADED_FRONT = 384
@@ -331,12 +336,14 @@ class _Front:
         run, assemble, finish, one, fn = kern["run"], kern["assemble"], kern["finish"], kern["one"], kern["fn"]
         b = lay.b
         common = (b, lay.fptr, lay.rptr, lay.rel, lay.nchild)
-        big = lay.big if threads is not None else lay.none_big
+        own = blas_limit() is not None  # the engine holds the BLAS threads: LAPACK/BLAS from SMALL_WORK on
+        big = lay.big if threads is not None and own else lay.none_big
         step = max(int(lay.plan.n_fronts * CHUNK), 1) if report is not None else max(f1 - f0, 1)
         bufs = (self.F, self.stack, self.st_front, self.st_off, self.state)
         f = f0
         while f < f1:
-            stop = run(f, min(f + step, f1), big, *common, lay.Lptr, *self.data, self.L, *bufs, SMALL_WORK, fn)
+            stop = run(f, min(f + step, f1), big, *common, lay.Lptr, *self.data, self.L, *bufs,
+                       SMALL_WORK if own else ALONE_WORK, fn)
             if stop < 0:
                 raise NotPositiveDefinite(f"the matrix is not positive definite (front {-stop - 1})")
             done[0] += float(lay.work[f:stop].sum())
