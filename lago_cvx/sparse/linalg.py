@@ -21,7 +21,7 @@ import scipy.sparse as sp
 from ..errors import NumericalError, OptionError
 from .threads import blas_limit
 
-__all__ = ["blas_threads", "Factor", "factorize", "solve_least_squares", "refine_normal_equations", "augmented_least_squares", "REFINEMENT_STEPS", "REFINEMENT_STOP", "TRUST_TOLERANCE", "whitening_2x2", "block_diagonal_inverse", "SOLVER_BACKENDS"]
+__all__ = ["blas_threads", "Factor", "factorize", "solve_least_squares", "refine_normal_equations", "augmented_least_squares", "refined_or_augmented", "REFINEMENT_STEPS", "REFINEMENT_STOP", "TRUST_TOLERANCE", "whitening_2x2", "block_diagonal_inverse", "SOLVER_BACKENDS"]
 
 log = logging.getLogger(__name__)
 
@@ -262,23 +262,31 @@ def solve_least_squares(M: sp.spmatrix, b: np.ndarray, *, backend: str = "auto")
     ``relative_correction`` (size of the last correction relative to ‖x‖∞)."""
     M = sp.csc_matrix(M)
     N = (M.T @ M).tocsc()
-    stats = {"method": "normal equations", "refinement_steps": 0, "relative_correction": 0.0}
     if M.shape[1] == 0:  # nothing to estimate (a single pose)
-        return np.zeros(0), N, None, stats
-    factor, x = None, None
-    trusted = False
+        return np.zeros(0), N, None, {"method": "normal equations", "refinement_steps": 0, "relative_correction": 0.0}
+    x, factor, stats = refined_or_augmented(lambda: factorize(N, backend=backend), M.dot, M.T.dot, b, lambda: M)
+    return x, N, factor, stats
+
+
+def refined_or_augmented(factor, matvec, rmatvec, b: np.ndarray, sparse):
+    """min ‖M x − b‖ (b (r,) or (r, k)) by ``refine_normal_equations`` on ``factor()`` (a ``Factor`` of MᵀM); where
+    that factorization fails or the refined answer is not trusted, by the augmented system of ``sparse()`` (M)
+    instead, logged. Returns ``(x, factor, stats)``, ``factor`` None after the fallback."""
+    stats = {"method": "normal equations", "refinement_steps": 0, "relative_correction": 0.0}
+    f, x, trusted = None, None, False
     try:
-        factor = factorize(N, backend=backend)
-        x, stats, trusted = refine_normal_equations(factor.solve, M.dot, M.T.dot, b)
-    except Exception as exc:  # qdldl "not quasi-definite", SuperLU "exactly singular", CHOLMOD errors
+        f = factor()
+        x, stats, trusted = refine_normal_equations(f.solve, matvec, rmatvec, b)
+    except Exception as exc:  # NotPositiveDefinite, qdldl "not quasi-definite", SuperLU "exactly singular", …
         log.info("normal equations could not be factored (%s): using the augmented system", exc)
     if not trusted:
         log.warning("least squares: normal equations too ill-conditioned (relative correction %.2g); "
                     "solving the augmented system instead", stats["relative_correction"])
-        x = augmented_least_squares(M, b)
-        stats["method"] = "augmented system"
-        factor = None
-    return x, N, factor, stats
+        M, B = sparse(), b.reshape(b.shape[0], -1)
+        x = np.stack([augmented_least_squares(M, B[:, j]) for j in range(B.shape[1])], 1)
+        x = x.reshape((M.shape[1],) + b.shape[1:])
+        stats["method"], f = "augmented system", None
+    return x, f, stats
 
 
 def whitening_2x2(info: np.ndarray) -> np.ndarray:

@@ -29,7 +29,7 @@ import scipy.sparse as sp
 from . import block_factor, compiled
 from .block_factor import inverse_blocks
 from .edge_system import EdgeOperator, EdgeSystem
-from .linalg import Factor, augmented_least_squares, refine_normal_equations
+from .linalg import Factor, refined_or_augmented
 from .multifrontal import COMPILED_RELAX, EliminationPlan, plan_from_pattern
 from ..progress import Progress
 from .threads import Ahead, cores, engine_threads, in_engine_threads, spawn, thread_settings
@@ -270,33 +270,26 @@ class GraphElimination:
         reports it (``factor`` None after the augmented-system fallback). A given ``factor`` (of the same normal
         matrix) is reused."""
         d, b = system.d, system.b
-        stats = {"method": "normal equations", "refinement_steps": 0, "relative_correction": 0.0}
         if d == 0:
-            return np.zeros((0, b) + system.c.shape[2:]), None, stats
+            return np.zeros((0, b) + system.c.shape[2:]), None, {"method": "normal equations",
+                                                                 "refinement_steps": 0, "relative_correction": 0.0}
         self.plan  # noqa: B018  (built or waited for here: its error is raised as it is)
         tracker = Progress(stage, callback=progress, logger=log) if progress is not None or d > 200_000 else None
         extra = system.c.shape[2:]  # several right-hand sides: (d·b, r)
         m, q = system.c.shape[:2]
-        trusted, x = False, None
-        try:
-            if factor is None:
-                factor = self.factor(system, solving=True, progress=None if tracker is None else
-                                     (lambda i, n: tracker.update(0.9 * i / n)))
-            op = edge_operator(system)
-            x, stats, trusted = refine_normal_equations(
-                factor.solve,
-                lambda v: op.matvec(v.reshape((d, b) + extra)).reshape((m * q,) + extra),
-                lambda r: op.rmatvec(r.reshape((m, q) + extra)).reshape((d * b,) + extra),
-                system.c.reshape((m * q,) + extra))
-        except Exception as exc:  # NotPositiveDefinite, LinAlgError
-            log.info("normal equations could not be factored (%s): using the augmented system", exc)
-        if not trusted:
-            log.warning("least squares: normal equations too ill-conditioned (relative correction %.2g); "
-                        "solving the augmented system instead", stats["relative_correction"])
-            cc = system.c.reshape(m * q, -1)
-            M = system.sparse()
-            x = np.stack([augmented_least_squares(M, cc[:, j]) for j in range(cc.shape[1])], 1)
-            stats["method"], factor = "augmented system", None
+        given, op = factor, []  # M's operator, set up once, after the factorization
+
+        def M():
+            if not op:
+                op.append(edge_operator(system))
+            return op[0]
+
+        x, factor, stats = refined_or_augmented(
+            lambda: given if given is not None else self.factor(system, solving=True, progress=None if tracker is None
+                                                                else (lambda i, n: tracker.update(0.9 * i / n))),
+            lambda v: M().matvec(v.reshape((d, b) + extra)).reshape((m * q,) + extra),
+            lambda r: M().rmatvec(r.reshape((m, q) + extra)).reshape((d * b,) + extra),
+            system.c.reshape((m * q,) + extra), system.sparse)
         if tracker is not None:
             tracker.finish()
         self._prepare_next(b)
