@@ -6,10 +6,9 @@ input_INTEL (where a fixed cost would show): ``--repeat`` interleaved runs (ours
 route, ours seed route, GTSAM) and their medians — interleaving keeps the ratio meaningful on a machine
 whose speed drifts. Then ``res.pose_covariances()`` (selected inversion on phase 3's factor, eq. (T) of
 ``lago_cvx.sparse.multifrontal``) on city10000 and on a 100 000-pose Manhattan world. Last, phase 3's solve
-(factor, refined solve; the engine's symbolic analysis included) by QDLDL in the pose-level order, by
-``qdldl.Solver`` (its own AMD first: the path before ``lago_cvx.sparse.ldl``) and by the multifrontal engine on
-city10000 and on Manhattan worlds up to 1 000 000 poses: where ``normal_equations.ENGINE_MIN`` comes
-from.
+(factor, refined solve; the engine's symbolic analysis included) by the engine's one factorization in C, by its
+NumPy fallback and by ``qdldl.Solver`` (QDLDL after its own AMD of the scalar matrix) on city10000 and on
+Manhattan worlds up to 1 000 000 poses.
 """
 
 from __future__ import annotations
@@ -22,7 +21,7 @@ import numpy as np
 
 from lago_cvx import lago, manhattan_world
 from lago_cvx.sparse import compiled
-from lago_cvx.sparse.normal_equations import COMPILED_MIN, ENGINE_MIN, GraphElimination
+from lago_cvx.sparse.normal_equations import GraphElimination
 from lago_cvx.peers import gtsam_factor_graph, gtsam_lago, have_gtsam
 
 FILES = ("se-sync/city10000.g2o", "carlone/input_M3500_g2o.g2o", "se-sync/MIT.g2o", "se-sync/CSAIL.g2o",
@@ -36,7 +35,7 @@ def add_arguments(group) -> None:
     group.add_argument("--cov-poses", type=int, default=None,
                        help=f"poses of the synthetic world timed for pose_covariances (default {COV_WORLD})")
     group.add_argument("--engine-poses", type=int, nargs="*", default=None,
-                       help="Manhattan worlds on which phase 3's solve is timed with QDLDL and with the "
+                       help="Manhattan worlds on which phase 3's solve is timed by the engine (C and NumPy) and "
                             f"multifrontal engine (default {' '.join(map(str, ENGINE_WORLDS))})")
 
 
@@ -68,50 +67,51 @@ def phase3_cholmod(system, repeat: int) -> float:
     return _bench.median_time(lambda: solve_least_squares(M, c, backend="cholmod"), repeat)[0]
 
 
-#: Largest world whose phase 3 is also timed through ``qdldl.Solver`` (QDLDL with its own AMD, the path
-#: before ``lago_cvx.sparse.ldl``): above it that takes minutes and decides nothing.
+#: Largest world whose phase 3 is also timed through ``qdldl.Solver`` and the NumPy fallback: above it they take
+#: minutes and decide nothing.
 SOLVER_MAX_POSES = 300_000
 
 
 def phase3_solvers(graph, repeat: int, *, cholmod: bool) -> tuple[float, float, float, float, float]:
-    """Seconds of phase 3's solve (eq. (15), seed route) by QDLDL in the pose-level order (``lago_cvx.sparse.ldl``),
-    by the multifrontal engine (fresh symbolic analysis each run: plan, layout, assembler), by
-    ``qdldl.Solver`` (QDLDL ordering the scalar matrix by its own AMD; nan above ``SOLVER_MAX_POSES``) and by
-    CHOLMOD (nan unless ``cholmod``), medians of ``repeat``; and the largest difference of the QDLDL and
-    engine solutions relative to ‖x‖∞. One LAGO run provides the system all of them solve."""
-    from lago_cvx.sparse import ldl
+    """Seconds of phase 3's solve (eq. (15), seed route) by the engine in C (fresh symbolic analysis each run: plan,
+    layout, assembler), by its NumPy fallback and by ``qdldl.Solver`` on MᵀM (nan above ``SOLVER_MAX_POSES``), by
+    CHOLMOD (nan unless ``cholmod``), medians of ``repeat``; and the largest difference of the C and ``qdldl.Solver``
+    solutions relative to ‖x‖∞. One LAGO run provides the system all of them solve."""
+    import qdldl
+    import scipy.sparse as sp
+
+    from lago_cvx.sparse.linalg import refine_normal_equations
 
     res = lago(graph, route="seed")
     system = res.phase2.edges
     a = res.anchor_index
-    weights = res.uncertainty.info_delta
     out, xs = {}, {}
-    modes = ["direct", "engine"] + (["solver"] if graph.n_poses <= SOLVER_MAX_POSES else [])
-    for mode in modes:
+    small = graph.n_poses <= SOLVER_MAX_POSES
+    for mode in ["c"] + (["numpy", "solver"] if small else []):
         def once():
-            el = GraphElimination(graph, a, weights=weights)  # phase 1's analysis: not timed
+            if mode == "solver":
+                M = system.sparse()
+                c = system.c.reshape(-1)
+                t = time.perf_counter()
+                f = qdldl.Solver(sp.triu(M.T @ M, format="csc"), upper=True)
+                x = refine_normal_equations(f.solve, M.dot, M.T.dot, c)[0]
+                return time.perf_counter() - t, x.reshape(-1, 3)
+            el = GraphElimination(graph, a)
             t = time.perf_counter()
-            x, _, _ = el.solve(system, factor=el.factor(system, engine=mode == "engine"))
+            x, _, _ = el.solve(system)
             return time.perf_counter() - t, x
-        saved = list(ldl._LIB)
-        if mode == "solver":
-            ldl._LIB[:] = [None]  # as if the C routines were not exported: qdldl.Solver
+        saved = list(compiled._C_KERNELS)
+        if mode == "numpy":
+            compiled._C_KERNELS[:] = [None]  # as after an install without a C compiler
         try:
             runs = [once() for _ in range(repeat)]
         finally:
-            ldl._LIB[:] = saved
+            compiled._C_KERNELS[:] = saved
         out[mode] = statistics.median(r[0] for r in runs)
         xs[mode] = runs[-1][1]
-    diff = float(np.abs(xs["engine"] - xs["direct"]).max() / np.abs(xs["direct"]).max())
+    diff = float(np.abs(xs["c"] - xs["solver"]).max() / np.abs(xs["solver"]).max()) if small else float("nan")
     tc = phase3_cholmod(system, repeat) if cholmod else float("nan")
-    return out["direct"], out["engine"], out.get("solver", float("nan")), tc, diff
-
-
-def _uses(unknowns: int) -> str:
-    """Which factorization ``GraphElimination.factor`` picks for phase 3 with so many unknowns, here."""
-    if unknowns >= COMPILED_MIN and compiled.available():
-        return "compiled engine"
-    return "engine" if unknowns >= ENGINE_MIN else "QDLDL"
+    return out["c"], out.get("numpy", float("nan")), out.get("solver", float("nan")), tc, diff
 
 
 def run(args) -> str:
@@ -158,10 +158,10 @@ def run(args) -> str:
         if g is None:
             g = manhattan_world(item[2], seed=0).graph
         reps = args.repeat if g.n_poses <= 100_000 else 1
-        tq, te, ts, tc, diff = phase3_solvers(g, reps, cholmod=cholmod)
-        eng_rows.append([name, g.n_poses, 3 * (g.n_poses - 1), f"{tq:.3f}", _bench.fmt(ts, ".3f"), f"{te:.3f}",
-                         _bench.fmt(tc, ".3f"), f"{te / tq:.2f}", f"{diff:.1e}",
-                         _uses(3 * (g.n_poses - 1))])
+        tc_, tn, ts, tc, diff = phase3_solvers(g, reps, cholmod=cholmod)
+        eng_rows.append([name, g.n_poses, 3 * (g.n_poses - 1), f"{tc_:.3f}", _bench.fmt(tn, ".3f"),
+                         _bench.fmt(ts, ".3f"), _bench.fmt(tc, ".3f"), _bench.fmt(tc_ / ts, ".2f"),
+                         _bench.fmt(diff, ".1e")])
         print("  " + " | ".join(map(str, eng_rows[-1])), flush=True)
         del g
     head = ["file", *(f"{k} [ms]" for k in STEPS), "seed route [ms]", "GTSAM initialize [ms]", "default / GTSAM",
@@ -175,28 +175,20 @@ def run(args) -> str:
         skipped or _bench.table(head, rows), "",
         "## Marginal covariances", "",
         "`res.pose_covariances()`: every 3×3 pose block of phase 3's (Ω*)⁻¹ by selected inversion "
-        "(Takahashi's recurrences on the multifrontal factor, `lago_cvx.sparse.multifrontal`: phase 3's own from "
-        "`ENGINE_MIN` unknowns, below it phase 3's system factored again by the engine on the graph's shared "
-        "plan, which is timed too), median of "
+        "(Takahashi's recurrences on phase 3's own multifrontal factor, `lago_cvx.sparse.block_factor`), median of "
         f"{max(1, args.repeat // 2)} run(s) (the world: one run).", "",
         _bench.table(["graph", "poses", "pose_covariances [s]"], cov_rows), "",
-        "## Phase 3's solve: QDLDL against the multifrontal engine", "",
-        "Phase 3 of the seed route (eq. (15), 3(n − 1) unknowns): factorization and refined solve, by QDLDL "
-        "(LDLᵀ in C, called in the pose-level AMD order: `lago_cvx.sparse.ldl`, the upper triangle scattered from a "
-        "pattern whose build is timed too), by `qdldl.Solver` (the same LDLᵀ after QDLDL's own AMD of the "
-        f"scalar matrix: the path before `lago_cvx.sparse.ldl`, and the fallback; – above {SOLVER_MAX_POSES:,} poses) "
-        "and by the multifrontal engine (`lago_cvx.sparse.multifrontal`; its symbolic analysis "
-        f"— plan, layout, assembler — timed too), median of {args.repeat} runs up to 100 000 poses, one run "
-        "above. LAGO uses the compiled engine (`lago_cvx.sparse.compiled`, the same plan and equations in "
-        "compiled kernels: C built at install, else Numba's; `million.md` times it against QDLDL) from "
-        f"`normal_equations.COMPILED_MIN` = {COMPILED_MIN:,} unknowns when either can be loaded, and without "
-        "them the engine from "
-        f"`normal_equations.ENGINE_MIN` = {ENGINE_MIN:,} unknowns. rel. diff = ‖x_engine − x_QDLDL‖∞ / ‖x_QDLDL‖∞. CHOLMOD (the optional "
+        "## Phase 3's solve: the engine against qdldl.Solver", "",
+        "Phase 3 of the seed route (eq. (15), 3(n − 1) unknowns): factorization and refined solve by the engine's "
+        "one factorization in C (`lago_cvx.sparse.compiled`; its symbolic analysis — plan, layout, assembler — "
+        "timed too), by its NumPy fallback (`lago_cvx.sparse.block_factor`, an install without a C compiler) and by "
+        f"`qdldl.Solver` on MᵀM (QDLDL after its own AMD; both – above {SOLVER_MAX_POSES:,} poses), median of "
+        f"{args.repeat} runs up to 100 000 poses, one run above. rel. diff = ‖x_C − x_qdldl‖∞ / ‖x_qdldl‖∞. CHOLMOD "
+        "(the optional "
         "`cholmod` extra, `backend=\"cholmod\"`: MᵀM formed, supernodal factorization, the same refinement; "
         "– when scikit-sparse is not installed) runs on whatever BLAS the system's SuiteSparse is linked "
         "to: on Debian that is the reference BLAS unless an optimized one is installed "
         f"(`apt-get install libopenblas0-pthread`). In this run: {blas}.", "",
-        _bench.table(["graph", "poses", "unknowns", "QDLDL [s]", "qdldl.Solver [s]", "engine [s]", "CHOLMOD [s]",
-                      "engine / QDLDL",
-                      "rel. diff", "LAGO uses"], eng_rows),
+        _bench.table(["graph", "poses", "unknowns", "engine, C [s]", "engine, NumPy [s]", "qdldl.Solver [s]",
+                      "CHOLMOD [s]", "C / qdldl.Solver", "rel. diff"], eng_rows),
     ])

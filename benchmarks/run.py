@@ -47,7 +47,7 @@ date):
   0–2): precision, recall, ATE and χ² of robust LAGO (graduated non-convexity) against the clean solution;
   ``--robust-gtsam``: GTSAM's GNC on the same graphs;
 * ``million``  — ``lago-cvx solve -o`` as a whole process on 100 000 to 1 000 000-pose worlds by both routes,
-  step by step with peak memory, and phase 3 by QDLDL against the compiled engine (``COMPILED_MIN``).
+  step by step with peak memory, and phase 3 by the C kernels against the NumPy fallback.
 
 Datasets are found through ``lago_cvx.datasets`` (``LAGO_CVX_DATASETS=DIR`` to point elsewhere than
 ``../shared/datasets``); a section that needs them says "skipped: datasets not found" without them.

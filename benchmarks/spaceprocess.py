@@ -5,9 +5,8 @@
    run alternately after one warm-up each; medians of ``--repeat`` pairs (at least 9) and the spread of the
    pairwise ratios.
 2. What every such process pays before it reads a byte: the interpreter with each side's imports (NumPy and
-   SciPy's sparse modules for ours, ``gtsam`` for GTSAM's), and the compiled engine's start (loading its C kernels;
-   or importing Numba and loading its cached kernels, the fallback), each a fresh process, median of the same number
-   of runs.
+   SciPy's sparse modules for ours, ``gtsam`` for GTSAM's), and the engine's start (loading its C kernels), each a
+   fresh process, median of the same number of runs.
 3. A ``lago-cvx generate --world sphere3d --poses 100000`` world: read + initialization + write as one process by
    both routes, wall time and peak memory (``os.wait4``), median of three.
 """
@@ -30,10 +29,8 @@ STARTS = {
     "Python alone": "pass",
     "ours: NumPy + SciPy's sparse modules": "import numpy, scipy.sparse, scipy.sparse.linalg, scipy.linalg",
     "ours: the whole CLI imported": "import lago_cvx.cli.main, lago_cvx.io, lago_cvx.space",
-    "ours: + the compiled engine's start, its C kernels (and SciPy's LAPACK, whose addresses they call)":
-        _START + "compiled.use_kernels('c'); " + _CALL,
-    "ours: + the compiled engine's start by Numba's kernels instead (installs without a C compiler)":
-        _START + "compiled.use_kernels('numba'); " + _CALL,
+    "ours: + the engine's start, its C kernels (and SciPy's LAPACK, whose addresses they call)":
+        _START + _CALL,
     "GTSAM: import gtsam": "import gtsam",
 }
 
@@ -90,9 +87,8 @@ def run(args) -> str:
         "beside both routes (it pins the first pose by a prior and runs readG2o, InitializePose3, writeG2o).", "",
         _bench.table(["file", "route", "ours", "GTSAM", "ours / GTSAM", "pairwise ratios"], rows), "",
         "## What a process pays before it reads its file [s]", "",
-        f"Fresh processes, median of {pairs}. With its C kernels the compiled engine factors every 3-D system "
-        "(`sparse.wide.compiled_from()`); with Numba's, from `sparse.wide.WIDE_COMPILED_MIN` unknowns. Its start is "
-        "paid once per process.", "",
+        f"Fresh processes, median of {pairs}. The engine's C kernels factor every system; their start is paid once "
+        "per process.", "",
         _bench.table(["what", "wall"], starts), "",
         f"## A {BIG_POSES:,}-pose 3-D world: read + initialization + write".replace(",", " "), "",
         f"`lago-cvx generate --world sphere3d --poses {BIG_POSES}` (the sphere of rings nearest that size), then "

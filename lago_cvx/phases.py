@@ -141,7 +141,7 @@ class Phase1:
         d = self.theta_free.size
         if d == 0:
             return np.zeros(1)
-        var = marginal_blocks(self.info, np.arange(d)[:, None])[:, 0, 0]
+        var = marginal_blocks(self.info, np.arange(d)[:, None], factor=self.factor)[:, 0, 0]
         return _full(d + 1, self.anchor_index, var)
 
 

@@ -1,36 +1,50 @@
-"""The compiled multifrontal engine (lago_cvx.sparse.compiled) held to dense linear algebra, to the NumPy engine
-and to QDLDL inside LAGO: every kernel path (the right-looking loop, LAPACK/BLAS by address, a large front
-on every BLAS thread), one thread and subtrees shared between two, the stack sizes, refusal of a matrix
-that is not positive definite, progress, and that importing the package loads no Numba."""
+"""The compiled multifrontal engine (lago_cvx.sparse.compiled, C kernels) held to dense linear algebra and to the
+NumPy engine (its fallback) inside LAGO: every kernel path (the right-looking loop, LAPACK/BLAS by address, a large
+front on every BLAS thread), one thread and subtrees shared between two, the stack sizes, refusal of a matrix that
+is not positive definite, progress, the wrappers' refusals, and threads factoring at once. Nothing here skips: the
+C kernels are built by the install (``setup.py``), and a checkout without them fails these tests."""
 
 from __future__ import annotations
 
-import subprocess
-import sys
+import threading
 
 import numpy as np
 import pytest
 
 import lago_cvx as lc
 from lago_cvx.sparse import compiled as C
+from lago_cvx.sparse import engine_threads
 from lago_cvx.sparse import multifrontal as mf
 from lago_cvx.sparse import normal_equations as ne
 from lago_cvx.sparse.normal_equations import GraphElimination
 
-pytestmark = pytest.mark.skipif(not C.available(), reason="Numba cannot be imported here")
+
+
+@pytest.fixture
+def numpy_engine(monkeypatch):
+    """The C kernels as after an install without a compiler: the engine falls back to the NumPy multifrontal."""
+    monkeypatch.setattr(C, "_C_KERNELS", [None])
+
+
+def test_the_c_kernels_are_built_here():
+    """The install builds the C kernels; a checkout without them fails here instead of skipping."""
+    assert C.available(), "build them: python setup.py build_ext --inplace"
 
 
 @pytest.fixture(params=["loops", "blas", "blas-threaded"])
 def kernel(request, monkeypatch):
     """Which dense kernel factors the fronts: all by the compiled loop, all by LAPACK/BLAS called from
-    compiled code, or by LAPACK/BLAS with every front handed to the caller for every BLAS thread."""
-    if request.param == "loops":
-        monkeypatch.setattr(C, "SMALL_WORK", 10**18)
-    else:
-        monkeypatch.setattr(C, "SMALL_WORK", 0)
+    compiled code (whether or not the engine may set the BLAS threads), or by LAPACK/BLAS with every front handed
+    to the caller for every BLAS thread (the engine allowed two)."""
+    work = 10**18 if request.param == "loops" else 0
+    monkeypatch.setattr(C, "SMALL_WORK", work)
+    monkeypatch.setattr(C, "ALONE_WORK", work)
     if request.param == "blas-threaded":
         monkeypatch.setattr(C, "THREADED_FRONT", 0)
-    return request.param
+        with engine_threads(blas_threads=2):
+            yield request.param
+    else:
+        yield request.param
 
 
 @pytest.fixture(params=[1, 2], ids=["one-thread", "two-threads"])
@@ -57,10 +71,10 @@ def test_compiled_factor_solves_like_dense_algebra(b, kernel, threads):
     thread and on two."""
     g = lc.manhattan_world(300, seed=5).graph
     el, system = _random_system(g, b, seed=b)
-    f = el.factor(system, engine="compiled")
-    assert isinstance(f, ne.CompiledPoseFactor)
+    f = el.factor(system)
+    assert f.backend == "compiled"
     if threads == 2:
-        assert f.compiled.layout.schedule is not None
+        assert f.numeric.layout.schedule_for(2) is not None
     M = system.sparse().toarray()
     N = M.T @ M
     rng = np.random.default_rng(1)
@@ -73,12 +87,19 @@ def test_compiled_factor_solves_like_dense_algebra(b, kernel, threads):
 
 
 def test_compiled_factor_is_the_numpy_engines_factor(threads):
-    """The same plan factored by both engines: the compiled L's block columns equal the NumPy engine's
-    [L_PP; X] front by front (to rounding), so both are the same Cholesky factor of eq. (MF)."""
+    """The same plan factored by both engines: the C kernels' L, read front by front as [L_PP; X], is a Cholesky
+    factor of N (eq. (MF)), and the NumPy fallback writes the same L (to rounding) and solves alike."""
     g = lc.manhattan_world(200, seed=8).graph
     el, system = _random_system(g, 3, seed=4)
-    cf = el.factor(system, engine="compiled").compiled
-    pf = el.factor(system, engine=True).blocks
+    cf = el.factor(system).numeric
+    saved = list(C._C_KERNELS)
+    C._C_KERNELS[:] = [None]
+    try:
+        pf = el.factor(system).numeric
+        xp = pf.solve_slots(np.random.default_rng(0).standard_normal(cf.layout.N))
+    finally:
+        C._C_KERNELS[:] = saved
+    assert np.abs(pf.L - cf.L).max() <= 1e-10 * np.abs(cf.L).max()
     lay, plan = cf.layout, el.plan
     L = np.zeros((lay.N, lay.N))
     for f in range(plan.n_fronts):
@@ -98,7 +119,7 @@ def test_compiled_factor_is_the_numpy_engines_factor(threads):
     ref = (dense.T @ dense)[np.ix_(order, order)]
     assert np.abs(N - ref).max() <= 1e-10 * np.abs(ref).max()
     x = np.random.default_rng(0).standard_normal(lay.N)
-    assert np.allclose(cf.solve_slots(x), pf.solve_slots(x), rtol=0, atol=1e-9 * np.abs(pf.solve_slots(x)).max())
+    assert np.allclose(cf.solve_slots(x), xp, rtol=0, atol=1e-9 * np.abs(xp).max())
 
 
 def test_stack_sizes_hold_every_update(threads):
@@ -119,7 +140,7 @@ def test_stack_sizes_hold_every_update(threads):
         peak = max(peak, sum(live))
     seq = np.arange(el.plan.n_fronts)
     assert C.kernels()["stack_peak"](seq, lay.nchild, R2.astype(np.int64)) == peak
-    el.factor(system, engine="compiled")
+    el.factor(system)
 
 
 @pytest.mark.parametrize("where", ["loops", "blas"])
@@ -128,6 +149,7 @@ def test_a_matrix_that_is_not_positive_definite_is_refused(where, monkeypatch):
     removed) raises multifrontal.NotPositiveDefinite naming a front, from the compiled loop and from
     LAPACK alike; LAGO's solve then falls back to the augmented system (tested elsewhere)."""
     monkeypatch.setattr(C, "SMALL_WORK", 10**18 if where == "loops" else 0)
+    monkeypatch.setattr(C, "ALONE_WORK", 10**18 if where == "loops" else 0)
     g = lc.manhattan_world(120, seed=1).graph
     el, system = _random_system(g, 2)
     A, B = system.A.copy(), system.B.copy()
@@ -135,21 +157,25 @@ def test_a_matrix_that_is_not_positive_definite_is_refused(where, monkeypatch):
     B[el.heads == 7] = 0.0
     bad = ne.EdgeSystem(el.tails, el.heads, A, B, system.c, el.d)
     with pytest.raises(mf.NotPositiveDefinite, match="not positive definite"):
-        el.factor(bad, engine="compiled")
+        el.factor(bad)
 
 
-def test_lago_by_the_compiled_engine_equals_lago_by_qdldl(monkeypatch):
-    """Every closed-form system of LAGO (chordal relaxation, phase 1 where it is refactored, phase 3, the
-    position re-solve) through the compiled engine (COMPILED_MIN 0) gives the estimate QDLDL gives, to
-    1e-10 relative, by the default and the seed route; the covariances through it equal QDLDL's."""
+def test_lago_by_the_c_kernels_equals_lago_by_the_numpy_fallback(monkeypatch, caplog):
+    """Every closed-form system of LAGO (chordal relaxation, phase 1, phase 3, the position re-solve) through the
+    C kernels gives the estimate the NumPy multifrontal gives where they are missing (their fallback, announced by a
+    warning), to 1e-10 relative, by the default and the seed route; the covariances too."""
     g = lc.manhattan_world(1500, seed=11).graph
     for route in ("default", "seed"):
-        ref = lc.lago(g, route=route)
-        monkeypatch.setattr(ne, "COMPILED_MIN", 0)
         res = lc.lago(g, route=route)
-        monkeypatch.setattr(ne, "COMPILED_MIN", 10**12)
+        monkeypatch.setattr(C, "_C_KERNELS", [])
+        monkeypatch.setenv("LAGO_CVX_NUMPY_ENGINE", "1")
+        with caplog.at_level("WARNING", logger="lago_cvx.sparse.compiled"):
+            ref = lc.lago(g, route=route)
+        assert "NumPy multifrontal" in caplog.text
+        monkeypatch.setattr(C, "_C_KERNELS", [])
+        monkeypatch.delenv("LAGO_CVX_NUMPY_ENGINE")
         assert res.phase3.factor.pose_major.backend == "compiled"
-        assert ref.phase3.factor.pose_major.backend == "qdldl"
+        assert ref.phase3.factor.pose_major.backend == "multifrontal"
         scale = np.abs(ref.poses).max()
         assert np.abs(res.poses - ref.poses).max() <= 1e-10 * scale
         assert res.chi2 == pytest.approx(ref.chi2, rel=1e-10)
@@ -168,28 +194,20 @@ def test_factor_reports_its_progress(monkeypatch):
         seen = []
         el.plan.__dict__.pop("_compiled_layouts", None)
         el._assemblers.clear()
-        el.factor(system, engine="compiled", progress=lambda i, n: seen.append((i, n)))
+        el.factor(system, progress=lambda i, n: seen.append((i, n)))
         assert seen and seen[-1][0] == pytest.approx(seen[-1][1])
         assert all(b[0] >= a[0] for a, b in zip(seen, seen[1:]))
 
 
-def test_import_and_small_systems_load_no_numba():
-    """``import lago_cvx`` and LAGO on a graph below COMPILED_MIN never import Numba (its import and the
-    first call of cached kernels cost about half a second)."""
-    code = ("import sys, lago_cvx as lc; g = lc.manhattan_world(300, seed=0).graph; lc.lago(g); "
-            "print('numba' in sys.modules)")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    assert out.stdout.strip() == "False"
-
-
-def test_symbolic_loops_compiled_and_in_python_give_the_same_plan(monkeypatch):
-    """The amalgamation and height loops (lago_cvx.sparse.supernodes) compiled (COMPILED_LOOPS 0) and in Python
-    give the same plan, array for array, on a 3000-pose world."""
+def test_symbolic_loops_in_c_and_in_python_give_the_same_plan(numpy_engine):
+    """The amalgamation, height and postorder loops (lago_cvx.sparse.multifrontal) in C and in Python give the same
+    plan, array for array, on a 3000-pose world."""
     g = lc.manhattan_world(3000, seed=1).graph
-    monkeypatch.setattr(mf, "COMPILED_LOOPS", 10**12)
-    p1 = GraphElimination(g, 0).plan
-    monkeypatch.setattr(mf, "COMPILED_LOOPS", 0)
-    p2 = GraphElimination(g, 0).plan
+    el = GraphElimination(g, 0)
+    both = (el.tails >= 0) & (el.heads >= 0)
+    p1 = mf.plan_from_pattern(el.d, el.tails[both], el.heads[both], relaxation=mf.COMPILED_RELAX)
+    C._C_KERNELS[:] = []
+    p2 = mf.plan_from_pattern(el.d, el.tails[both], el.heads[both], relaxation=mf.COMPILED_RELAX)
     for name in ("position", "fptr", "rptr", "rows", "parent", "height"):
         assert np.array_equal(getattr(p1, name), getattr(p2, name)), name
 
@@ -197,10 +215,10 @@ def test_symbolic_loops_compiled_and_in_python_give_the_same_plan(monkeypatch):
 def test_prepared_factorization_is_the_same(monkeypatch):
     """``GraphElimination.prepare(b)`` builds the layout, the assembler and a touched L in a worker thread;
     the factorization then uses that L (taken, not copied) and solves exactly as without preparation."""
-    monkeypatch.setattr(ne, "COMPILED_MIN", 0)
+    monkeypatch.setattr(ne, "OVERLAP_MIN", 0)
     g = lc.manhattan_world(600, seed=9).graph
     el, system = _random_system(g, 3, seed=2)
-    ref = el.factor(system, engine="compiled")
+    ref = el.factor(system)
     el2, _ = _random_system(g, 3, seed=2)
     el2.prepare(3)
     assert 3 in el2._preparing
@@ -208,7 +226,7 @@ def test_prepared_factorization_is_the_same(monkeypatch):
     lay = C.CompiledLayout.of(el2.plan, 3)
     reserved = lay._reserved
     f = el2.factor(system)
-    assert f.compiled.L is reserved and "_reserved" not in lay.__dict__
+    assert f.numeric.L is reserved and "_reserved" not in lay.__dict__
     rhs = np.random.default_rng(3).standard_normal(el.d * 3)
     assert np.array_equal(f.solve(rhs), ref.solve(rhs))
 
@@ -242,23 +260,20 @@ def test_block_map_is_the_numpy_formulation(anchor):
             assert np.array_equal(getattr(asm, name), want), name
 
 
-def test_the_compiled_engines_relaxation_stores_fewer_zeros(monkeypatch):
-    """When phase 3 will be factored by the compiled engine (3d ≥ COMPILED_MIN) the plan is amalgamated
-    with ``COMPILED_RELAX``: fewer explicit zeros in L (more, smaller fronts) than with the NumPy engine's
-    default, and the same solution to 1e-10."""
+def test_the_compiled_engines_relaxation_stores_fewer_zeros():
+    """The compiled engine's amalgamation ``COMPILED_RELAX`` stores fewer explicit zeros in L (more, smaller fronts)
+    than the NumPy engine's default, for the same solution to 1e-10."""
     g = lc.manhattan_world(3000, seed=2).graph
-    monkeypatch.setattr(ne, "COMPILED_MIN", 10**12)
-    el_default, system = _random_system(g, 3, seed=1)
-    assert el_default.relaxation is None
-    p0 = el_default.plan  # (built now: the plan is built on first use)
-    monkeypatch.setattr(ne, "COMPILED_MIN", 0)
-    el_tight, _ = _random_system(g, 3, seed=1)
-    assert el_tight.relaxation == mf.COMPILED_RELAX
-    p1 = el_tight.plan
+    el, system = _random_system(g, 3, seed=1)
+    both = (el.tails >= 0) & (el.heads >= 0)
+    p0 = mf.plan_from_pattern(el.d, el.tails[both], el.heads[both])
+    p1 = el.plan
     assert p1.nnz < p0.nnz and p1.n_fronts > p0.n_fronts
-    rhs = np.random.default_rng(0).standard_normal(el_default.d * 3)
-    x0 = el_default.factor(system, engine="compiled").solve(rhs)
-    x1 = el_tight.factor(system, engine="compiled").solve(rhs)
+    rhs = np.random.default_rng(0).standard_normal(el.d * 3)
+    x1 = el.factor(system).solve(rhs)
+    el._plan = p0
+    el._assemblers.clear()
+    x0 = el.factor(system).solve(rhs)
     assert np.abs(x1 - x0).max() <= 1e-10 * np.abs(x0).max()
 
 
@@ -282,28 +297,90 @@ def test_compiled_edge_operator_is_the_numpy_operator(b, q, anchor):
     assert np.array_equal(op.rmatvec(r2), ref.rmatvec(r2))
 
 
-def test_large_systems_get_the_compiled_operator(monkeypatch):
-    """``normal_equations.edge_operator`` is compiled from COMPILED_MIN unknowns, NumPy's below."""
+def test_the_operator_is_compiled_unless_the_kernels_are_missing(numpy_engine):
+    """``normal_equations.edge_operator`` is compiled whenever the C kernels load, NumPy's without them."""
     g = lc.manhattan_world(300, seed=0).graph
     el, system = _random_system(g, 3)
-    monkeypatch.setattr(ne, "COMPILED_MIN", 10**12)
     assert isinstance(ne.edge_operator(system), ne.EdgeOperator)
-    monkeypatch.setattr(ne, "COMPILED_MIN", 0)
+    C._C_KERNELS[:] = []
     assert isinstance(ne.edge_operator(system), C.CompiledEdgeOperator)
 
 
-def test_the_first_compilation_is_announced_only_without_any_cached_kernel(tmp_path):
-    """``_on_disk``: an earlier process compiled kernels when any index file exists (the planar matrix-product kernels
-    may never have been needed); none at all means Numba's first run here, which is announced."""
-    from types import SimpleNamespace
+@pytest.mark.parametrize("q", [1, 2, 4])
+@pytest.mark.parametrize("b", [1, 2, 3])
+def test_normal_blocks_are_the_products_of_the_edge_blocks(b, q):
+    """``EdgeSystem.normal_blocks`` are [A_kᵀA_k, B_kᵀB_k, B_kᵀA_k], and summed at ``pairs`` they are MᵀM."""
+    g = lc.manhattan_world(200, seed=3).graph
+    el = GraphElimination(g, 0)
+    rng = np.random.default_rng(b * 10 + q)
+    m = el.tails.size
+    system = ne.EdgeSystem(el.tails, el.heads, rng.standard_normal((m, q, b)), rng.standard_normal((m, q, b)),
+                           rng.standard_normal((m, q)), el.d)
+    blocks = system.normal_blocks()
+    prow, pcol, keep = el.pairs
+    N = np.zeros((el.d, b, el.d, b))
+    for i, j, blk in zip(prow[keep], pcol[keep], blocks[keep]):
+        N[i, :, j] += blk
+        if i != j:
+            N[j, :, i] += blk.T
+    M = system.sparse().toarray()
+    np.testing.assert_allclose(N.reshape(el.d * b, -1), M.T @ M, rtol=1e-12, atol=1e-12)
 
-    from lago_cvx.sparse.compiled import _on_disk
 
-    def kernel(name, exists):
-        path = tmp_path / f"{name}.nbi"
-        if exists:
-            path.write_text("")
-        return SimpleNamespace(_cache=SimpleNamespace(_cache_file=SimpleNamespace(_index_path=str(path))))
+def test_the_wrappers_refuse_what_the_c_code_cannot_read():
+    """The ctypes wrappers check dtype, order and writability before the C code reads an array."""
+    CK = C.kernels()
+    el, system = _random_system(lc.manhattan_world(300, seed=0).graph, 2)
+    lay = C.CompiledLayout.of(el.plan, 2)
+    Y = np.zeros((2, lay.N))
+    args = (np.arange(el.plan.n_fronts, dtype=np.int64), lay.b, lay.fptr, lay.rptr, lay.rows, lay.Lptr,
+            np.ones(int(lay.Lptr[-1])), lay.rmax)
+    with pytest.raises(ValueError, match="Y must be C-contiguous"):
+        CK["forward"](np.zeros((lay.N, 2)).T, *args)
+    with pytest.raises(ValueError, match="Y is written in place but is read-only"):
+        Y.setflags(write=False)
+        CK["backward"](Y, *args)
+    with pytest.raises(TypeError, match="Y must be a float64 NumPy array, not float32"):
+        CK["forward"](np.zeros((2, lay.N), np.float32), *args)
+    with pytest.raises(TypeError, match="seq must be a int64 NumPy array, not int32"):
+        CK["forward"](np.zeros((2, lay.N)), args[0].astype(np.int32), *args[1:])
+    A, B = np.ascontiguousarray(system.A), np.ascontiguousarray(system.B)
+    with pytest.raises(ValueError, match="x must be"):
+        CK["edge_matvec"](A, B, system.tails, system.heads, np.zeros((el.d, lay.b + 1, 1)))
+    with pytest.raises(ValueError, match="beyond"):
+        CK["push"](np.zeros(5), 2, 4, np.zeros(9), np.zeros(2, np.int64), np.zeros(3, np.int64),
+                   np.zeros(1, np.int64), 0)
 
-    assert _on_disk({"a": kernel("a", True), "b": kernel("b", False)})
-    assert not _on_disk({"c": kernel("c", False), "d": kernel("d", False)})
+
+def test_threads_factoring_at_once_give_the_sequential_results(monkeypatch):
+    """Two threads each factoring and solving its own system six times (at once, the GIL released in the C calls)
+    give exactly the arrays of each system factored in a thread alone."""
+    monkeypatch.setattr(C, "cores", lambda: 1)
+    jobs = [_random_system(lc.manhattan_world(1000, seed=1).graph, 3, seed=1),
+            _random_system(lc.manhattan_world(1000, seed=2).graph, 6, seed=2)]
+    rhs = [np.random.default_rng(i).standard_normal(el.d * s.b) for i, (el, s) in enumerate(jobs)]
+    got = [[], []]
+
+    def work(i, times, start=None):
+        el, system = jobs[i]
+        if start is not None:
+            start.wait()  # both threads begin together
+        for _ in range(times):
+            f = el.factor(system)
+            got[i].append((f.numeric.L.copy(), f.solve(rhs[i])))
+
+    def run(*jobs):
+        threads = [threading.Thread(target=work, args=job) for job in jobs]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+
+    run((0, 1))
+    run((1, 1))  # one after the other: the references
+    start = threading.Barrier(2)
+    run((0, 6, start), (1, 6, start))  # at once
+    for i in (0, 1):
+        (L, x), *rest = got[i]
+        assert len(rest) == 6
+        assert all(np.array_equal(L, L2) and np.array_equal(x, x2) for L2, x2 in rest)

@@ -1,126 +1,38 @@
-"""The start of every closed form, made cheaper at stop 27: AMD of the pose graph called directly
-(``lago_cvx.sparse.amd``), the weighted Laplacian factored on the graph's b = 1 pattern
-(``upper_pattern.PoseLaplacian``, at once or on first read), L's arrays on reused huge pages
-(``ldl.huge_empty``), P_δ by its one cofactor (``EdgeUncertainty.var_delta``), the BFS adjacency from one
-sort (``graph._neighbours``) and the refinement's stopping rule (``linalg.REFINEMENT_STOP``). Each is
-held to what it replaced or to dense algebra."""
+"""The start of every closed form: the pose-level plan from the pattern alone (the weighted Laplacian of phase 1
+factored on it by the engine, held to dense algebra), P_δ by its one cofactor (``EdgeUncertainty.var_delta``), the
+BFS adjacency from one sort (``graph._neighbours``) and the refinement's stopping rule
+(``linalg.REFINEMENT_STOP``). Each is held to what it replaced or to dense algebra."""
 
 from __future__ import annotations
 
-import gc
-
 import numpy as np
 import pytest
-import qdldl
-import scipy.sparse as sp
 
 import lago_cvx as lc
 from lago_cvx import graph as G
-from lago_cvx.sparse import amd, ldl, linalg
+from lago_cvx.sparse import EdgeSystem, linalg
 from lago_cvx.sparse.arrays import unique_sorted
 from lago_cvx.errors import GraphError
 from lago_cvx.sparse.normal_equations import GraphElimination
 from lago_cvx.sparse.smallmat import spd_inverse
 from lago_cvx.uncertainty import _sym, edge_uncertainty
-from lago_cvx.sparse.upper_pattern import PoseLaplacian
-
-pytestmark = pytest.mark.skipif(not (ldl.available() and amd.available()),
-                                reason="qdldl's C routines are not exported by this build")
-
-
-def _laplacian(el: GraphElimination, w: np.ndarray) -> sp.csc_matrix:
-    """A2 diag(w) A2ᵀ over the free poses, assembled by scipy (the edges at the anchor on the diagonal)."""
-    d, t, h = el.d, el.tails, el.heads
-    rows, cols, vals = [], [], []
-    for k in range(t.size):
-        ends = [e for e in (t[k], h[k]) if e >= 0]
-        for e in ends:
-            rows.append(e), cols.append(e), vals.append(w[k])
-        if len(ends) == 2:
-            rows += [t[k], h[k]]
-            cols += [h[k], t[k]]
-            vals += [-w[k], -w[k]]
-    return sp.csc_matrix((vals, (rows, cols)), shape=(d, d))
 
 
 @pytest.mark.parametrize("n, seed, anchor", [(60, 1, 0), (400, 3, 17), (1500, 5, 1499)])
-def test_amd_gives_qdldl_solvers_order_and_the_laplacian_solves_like_dense(n, seed, anchor):
+def test_the_weighted_laplacian_solves_like_dense(n, seed, anchor):
+    """Phase 1's system (b = q = 1, A_k = −√w_k, B_k = √w_k) factored on the plan of the pattern alone (built in a
+    worker by ``start``) solves like a dense solve of A2 diag(w) A2ᵀ, and the plan is the same with and without
+    weights."""
     g = lc.manhattan_world(n, seed=seed).graph
-    w = edge_uncertainty(g).info_delta
-    el = GraphElimination(g, anchor, weights=w)
-    lap, upper = el.laplacian
-    assert isinstance(lap, PoseLaplacian) and upper is None
-    N = _laplacian(el, w)
-    reference = qdldl.Solver(sp.triu(N).tocsc(), upper=True)
-    assert np.array_equal(lap.perm, np.asarray(reference.factors()[2]))  # the same AMD permutation
-    assert abs(lap.matrix() - N).max() <= 1e-12 * abs(N).max()
-    rhs = np.random.default_rng(seed).standard_normal((el.d, 2))
-    dense = np.linalg.solve(N.toarray(), rhs)
-    assert np.abs(lap.solve(rhs) - dense).max() <= 1e-9 * np.abs(dense).max()
-    L, D, perm = lap.factors()  # (I + L) D (I + L)ᵀ = N permuted
-    I = sp.identity(el.d)
-    P = N[perm][:, perm]
-    assert abs((I + L) @ sp.diags(D) @ (I + L).T - P).max() <= 1e-10 * abs(N).max()
-
-
-def test_the_laplacian_waits_when_told_and_equals_the_eager_one():
-    g = lc.manhattan_world(300, seed=2).graph
-    w = edge_uncertainty(g).info_delta
-    eager = GraphElimination(g, 0, weights=w)
-    lazy = GraphElimination(g, 0, weights=w, factor_laplacian=False)
-    assert lazy._lap_pending is not None and lazy._laplacian is None  # nothing factored yet
-    assert np.array_equal(lazy.elimination_position, eager.elimination_position)
-    rhs = np.arange(eager.d, dtype=float)
-    assert np.array_equal(lazy.laplacian[0].solve(rhs), eager.laplacian[0].solve(rhs))
-    assert lazy._lap_pending is None
-
-
-def test_without_amd_qdldl_solver_orders_and_lago_is_unchanged(monkeypatch):
-    g = lc.manhattan_world(500, seed=4).graph
-    ref = {r: lc.lago(g, route=r) for r in ("default", "seed")}
-    monkeypatch.setattr(amd, "_AMD", [None])  # as if the symbol were not exported
-    assert not amd.available()
-    el = GraphElimination(g, 0, weights=edge_uncertainty(g).info_delta)
-    assert isinstance(el.laplacian[0], qdldl.Solver)
-    for r, res0 in ref.items():
-        res = lc.lago(g, route=r)
-        assert np.abs(res.poses - res0.poses).max() <= 1e-12 * np.abs(res0.poses).max()
-        assert res.chi2 == pytest.approx(res0.chi2, rel=1e-12)
-
-
-def test_a_singular_laplacian_leaves_the_plan_to_the_pattern():
-    g = lc.manhattan_world(50, seed=1).graph
-    w = np.zeros(g.n_edges)  # no rotational information at all: zero pivots
-    el = GraphElimination(g, 0, weights=w)
-    assert el.laplacian is None
-    assert el.plan.d == el.d and np.array_equal(el.elimination_position, el.plan.position)
-
-
-def test_huge_pages_are_aligned_and_reused_only_after_the_last_view(monkeypatch):
-    monkeypatch.setattr(ldl, "_POOL", [])  # regions earlier tests left: not this test's
-    monkeypatch.setattr(ldl, "_RETURNED", [])
-    n = ldl.HUGE_MIN // 8 + 1000
-    a = ldl.huge_empty(n, np.float64)
-    assert a.shape == (n,) and a.dtype == np.float64
-    if a.base is None:  # no MADV_HUGEPAGE here (another OS, or a kernel that refuses it): plain NumPy memory
-        pytest.skip("transparent huge pages cannot be advised on this machine")
-    assert a.ctypes.data % (2 << 20) == 0
-    a[:] = 7.0
-    view = a[5:9]
-    address = a.ctypes.data
-    del a
-    gc.collect()
-    b = ldl.huge_empty(n, np.float64)  # the first region is still held by the view: a new one
-    assert b.ctypes.data != address and np.all(view == 7.0)
-    del view
-    gc.collect()
-    c = ldl.huge_empty(n, np.int64)
-    assert c.ctypes.data == address  # the freed region, reused
-    small = ldl.huge_empty(10, np.float64)
-    assert small.base is None  # below HUGE_MIN: plain NumPy memory
-    del b, c
-    gc.collect()
-    assert sum(len(r) for r in ldl._POOL + ldl._RETURNED) <= ldl.HUGE_POOL
+    w = np.random.default_rng(seed).uniform(0.5, 3.0, g.n_edges)
+    el = GraphElimination.start(g, anchor, weights=w)
+    s = np.sqrt(w)[:, None, None]
+    system = EdgeSystem(el.tails, el.heads, -s, s, np.zeros((g.n_edges, 1)), el.d)
+    M = system.sparse().toarray()
+    rhs = np.random.default_rng(0).standard_normal(el.d)
+    ref = np.linalg.solve(M.T @ M, rhs)
+    assert np.abs(el.factor(system).solve(rhs) - ref).max() <= 1e-10 * np.abs(ref).max()
+    assert np.array_equal(el.plan.position, GraphElimination(g, anchor).plan.position)
 
 
 def test_var_delta_is_spd_inverses_entry_bit_for_bit():

@@ -1,9 +1,10 @@
 """The performance work held to the numbers: the multifrontal factorization and its selected inversion
 against dense linear algebra, the isotropic position fast path against the general one, the engine
-against QDLDL inside LAGO, the progress throttle, and when the chordal regularizer warns."""
+against its fallback inside LAGO, the progress throttle, and when the chordal regularizer warns."""
 
 from __future__ import annotations
 
+import contextlib
 import logging
 
 import numpy as np
@@ -29,14 +30,15 @@ def block_size(request):
     return request.param
 
 
-@pytest.mark.parametrize("single_front", [8, 96, 10**9], ids=["all-single", "mixed", "all-batched"])
-def test_factor_solve_and_selected_inverse_match_dense(block_size, single_front, monkeypatch):
-    """N = A2 W A2ᵀ ⊗ (random SPD b×b couplings): the multifrontal solve and the selected inverse (eq. (T))
-    agree with numpy's dense solve and inverse to 1e-9 relative — diagonal pose blocks and the blocks of
-    every edge — on batched, single and mixed fronts (all-single: every front with all BLAS threads)."""
-    monkeypatch.setattr(mf, "SINGLE_FRONT", single_front)
-    if single_front == 8:
-        monkeypatch.setattr(mf, "THREADED_FRONT", 0)
+@pytest.mark.parametrize("engine", ["c", "numpy"])
+def test_factor_solve_and_selected_inverse_match_dense(block_size, engine, monkeypatch):
+    """N = MᵀM of a random edge system: the multifrontal solve and the selected inverse (eq. (T)) agree with
+    numpy's dense solve and inverse to 1e-9 relative — diagonal pose blocks and the blocks of every edge — on the
+    C kernels' factor and on the NumPy fallback's."""
+    from lago_cvx.sparse import compiled as C
+
+    if engine == "numpy":
+        monkeypatch.setattr(C, "_C_KERNELS", [None])
     g = lc.manhattan_world(160, seed=3).graph
     b = block_size
     el = GraphElimination(g, 0)
@@ -47,14 +49,14 @@ def test_factor_solve_and_selected_inverse_match_dense(block_size, single_front,
     system = ne.EdgeSystem(el.tails, el.heads, A, B, rng.standard_normal((m, b + 1)), el.d)
     M = system.sparse().toarray()
     N = M.T @ M
-    f = el.factor(system, engine=True)
+    f = el.factor(system)
     rhs = rng.standard_normal(el.d * b)
     x = f.solve(rhs)
     ref = np.linalg.solve(N, rhs)
     assert np.abs(x - ref).max() <= 1e-9 * np.abs(ref).max()
     prow, pcol, keep = el.pairs
     off = keep & (prow != pcol)
-    diag, pairs = mf.inverse_blocks(f.blocks, prow[off], pcol[off])
+    diag, pairs = mf.inverse_blocks(f.numeric, prow[off], pcol[off])
     inv = np.linalg.inv(N)
     idx = np.arange(el.d * b).reshape(el.d, b)
     dref = np.stack([inv[np.ix_(v, v)] for v in idx])
@@ -64,20 +66,20 @@ def test_factor_solve_and_selected_inverse_match_dense(block_size, single_front,
     assert np.abs(pairs - pref).max() <= 1e-9 * scale
 
 
-@pytest.mark.parametrize("single_front", [1, 10**9], ids=["single", "batched"])
-def test_an_indefinite_matrix_is_refused_by_name(single_front, monkeypatch):
-    """A matrix that is not positive definite raises ``NotPositiveDefinite`` (a ``NumericalError``) from
-    both kernels, the single-front potrf and the stacked Cholesky, never a raw LAPACK error."""
-    monkeypatch.setattr(mf, "SINGLE_FRONT", single_front)
+def test_an_indefinite_matrix_is_refused_by_name():
+    """A matrix that is not positive definite raises ``NotPositiveDefinite`` (a ``NumericalError``) from the NumPy
+    fronts, never a raw LAPACK error (the C kernels: ``test_compiled``)."""
+    from lago_cvx.sparse import block_factor, compiled as C
+
     g = lc.manhattan_world(120, seed=5).graph
     el = GraphElimination(g, 0)
     prow, pcol, keep = el.pairs
-    lay = el.plan.layout(3)
+    lay = C.CompiledLayout.of(el.plan, 3)
     blocks = np.zeros((int(keep.sum()), 3, 3))
     diag = prow[keep] == pcol[keep]
     blocks[diag] = -np.eye(3)  # N = −(degree) I: negative definite
     with pytest.raises(mf.NotPositiveDefinite, match="not positive definite"):
-        lay.factor(lay.assembler(prow[keep], pcol[keep]), blocks)
+        block_factor.factor(lay, lay.assembler(prow[keep], pcol[keep]), blocks, np.empty(int(lay.Lptr[-1])))
 
 
 def test_blas_threads_sets_and_restores_the_thread_count():
@@ -189,18 +191,13 @@ def test_plan_is_a_valid_elimination():
 
 def test_pose_covariances_and_variances_match_the_dense_inverse():
     """LAGO's pose covariances (phase 3, eq. (15)) and phase-1 variances by selected inversion = blocks of
-    the dense inverse, to 1e-9 relative, on a full-information world: phase 3 factored by QDLDL (the
-    covariances then factor it again by the engine) and with the engine forced."""
+    the dense inverse, to 1e-9 relative, on a full-information world: phase 3 factored in C (the covariances then
+    factor it again by the NumPy engine) and by the NumPy engine (the fallback without C kernels)."""
     g = _full_info_world(200, 4)
-    for engine_min in (ne.ENGINE_MIN, 0):
-        old = ne.ENGINE_MIN
-        ne.ENGINE_MIN = engine_min
-        try:
+    for numpy in (False, True):
+        with _numpy_engine(numpy):
             res = lc.lago(g)
-        finally:
-            ne.ENGINE_MIN = old
-        # below ENGINE_MIN phase 3 is QDLDL's and the covariances refactor it by the engine
-        assert isinstance(res.phase3.factor.pose_major, ne.QdldlFactor if engine_min else ne.PoseFactor)
+        assert res.phase3.factor.pose_major.backend == ("multifrontal" if numpy else "compiled")
         cov = res.phase3.pose_covariances()
         full = np.linalg.inv(res.phase3.info.toarray())
         d = g.n_poses - 1
@@ -216,18 +213,14 @@ def test_pose_covariances_and_variances_match_the_dense_inverse():
 
 def test_a_phase_factor_is_the_phase_matrix_in_its_own_numbering():
     """``Phase.factor`` solves ``Phase.info`` and ``factor.matrix`` *is* ``info`` (whole, symmetric, same
-    numbering) — with QDLDL and with the engine — so ``linalg.block_diagonal_inverse`` on it gives the
+    numbering) — in C and by the NumPy engine — so ``linalg.block_diagonal_inverse`` on it gives the
     covariance blocks (a renumbered, upper-triangular matrix once made it return nonsense)."""
     from lago_cvx.sparse.linalg import block_diagonal_inverse
 
     g = lc.manhattan_world(150, seed=6).graph
-    for engine_min in (ne.ENGINE_MIN, 0):
-        old = ne.ENGINE_MIN
-        ne.ENGINE_MIN = engine_min
-        try:
+    for numpy in (False, True):
+        with _numpy_engine(numpy):
             res = lc.lago(g, information="marginal", positions="phase3", regularization="tree")
-        finally:
-            ne.ENGINE_MIN = old
         ph = res.phase3
         info = ph.info.toarray()
         if ph.factor.matrix is not None:
@@ -242,16 +235,28 @@ def test_a_phase_factor_is_the_phase_matrix_in_its_own_numbering():
         assert np.abs(blocks - cov).max() <= 1e-9 * np.abs(cov).max()
 
 
-def test_engine_and_qdldl_give_the_same_lago():
-    """The multifrontal engine (forced) and QDLDL solve the same systems: LAGO's poses agree to 1e-10."""
+@contextlib.contextmanager
+def _numpy_engine(on: bool = True):
+    """The engine as after an install without a C compiler (the NumPy multifrontal), or as it is."""
+    from lago_cvx.sparse import compiled as C
+
+    saved = list(C._C_KERNELS)
+    if on:
+        C._C_KERNELS[:] = [None]
+    try:
+        yield
+    finally:
+        C._C_KERNELS[:] = saved
+
+
+def test_the_c_kernels_and_the_numpy_fallback_give_the_same_lago():
+    """The C kernels and the NumPy engine (forced, as without a compiler) solve the same systems: LAGO's poses
+    agree to 1e-10."""
     g = lc.manhattan_world(300, seed=2).graph
     ref = lc.lago(g)
-    old = ne.ENGINE_MIN
-    ne.ENGINE_MIN = 0
-    try:
+    with _numpy_engine():
         eng = lc.lago(g)
-    finally:
-        ne.ENGINE_MIN = old
+    assert eng.phase3.factor.pose_major.backend == "multifrontal"
     assert np.abs(eng.poses - ref.poses).max() <= 1e-10 * np.abs(ref.poses).max()
     assert eng.chi2 == pytest.approx(ref.chi2, rel=1e-10)
 
@@ -309,9 +314,8 @@ def test_progress_is_throttled_and_bracketed(caplog):
 
 
 def test_lago_reports_progress_through_its_callback(monkeypatch):
-    """``lago(progress=...)`` reaches the long steps: with the engine forced, phase 3's factorization
-    reports (stage names, fractions in [0, 1], ending at 1.0)."""
-    monkeypatch.setattr(ne, "ENGINE_MIN", 0)
+    """``lago(progress=...)`` reaches the long steps: phase 3's factorization reports (stage names, fractions in
+    [0, 1], ending at 1.0)."""
     seen = []
     lc.lago(lc.manhattan_world(200, seed=0).graph, progress=lambda s, f: seen.append((s, f)))
     stages = {s for s, _ in seen}
@@ -385,21 +389,12 @@ def _csgraph_postorder(parent):
 
 def test_postorder_equals_scipys_depth_first_order():
     """``multifrontal._postorder`` gives exactly the order of the reversed depth-first preorder of
-    ``scipy.sparse.csgraph`` (the elimination order, hence every result, is unchanged), by each of its ways — C,
-    Numba, the Python loops (elimination trees) and the explicit-stack walk (any other forest) — on random
-    forests, a star and a chain."""
-    from lago_cvx.sparse import multifrontal, supernodes
+    ``scipy.sparse.csgraph`` (the elimination order, hence every result, is unchanged), in C and by the Python loops
+    of the fallback, on random elimination trees, a star and a chain."""
+    from lago_cvx.sparse import multifrontal
     from lago_cvx.sparse import compiled as C
 
-    ways = {"python": multifrontal._postorder_python, "arrays": supernodes.postorder}
-    if C.native():
-        ways["c"] = C.kernels()["postorder"]
-    try:
-        from lago_cvx.sparse.compiled_kernels import KERNELS as NK
-
-        ways["numba"] = NK["postorder"]
-    except ImportError:
-        pass
+    ways = {"python": multifrontal.postorder, "c": C.kernels()["postorder"]}
     rng = np.random.default_rng(3)
     forests = [np.array([-1]), np.array([-1, -1, -1]), np.array([1, 2, -1]), np.array([2, 2, -1, -1]),
                np.r_[np.full(500, 500), -1], np.r_[np.arange(1, 500), -1]]  # a star, a chain
@@ -419,7 +414,3 @@ def test_postorder_equals_scipys_depth_first_order():
         place[ref] = np.arange(parent.size)
         has = parent >= 0
         assert (place[has] < place[parent[has]]).all()  # children before parents
-        relabel = rng.permutation(parent.size)  # the same forest, parents no longer after their children
-        inv = np.argsort(relabel)
-        other = np.where(parent[inv] >= 0, relabel[np.maximum(parent[inv], 0)], -1)
-        assert np.array_equal(multifrontal._postorder(other), _csgraph_postorder(other))

@@ -163,10 +163,10 @@ def test_elimination_beside_the_tree_and_its_errors(monkeypatch):
             t.join(10)
             assert not t.is_alive()
 
-    def broken(self, factor_laplacian):
+    def broken(self):
         raise MemoryError("no room for the elimination")
 
-    monkeypatch.setattr(ne.GraphElimination, "_build", broken)
+    monkeypatch.setattr(ne.GraphElimination, "_make_plan", broken)
     with pytest.raises(MemoryError, match="no room"):
         lago(manhattan_world(30, seed=0).graph)
     job = ne.Ahead(lambda: 1 / 0)

@@ -103,26 +103,6 @@ def test_joblib_on_a_dask_cluster(serial):
     assert [float(r.chi2) for r in got] == serial
 
 
-@pytest.mark.skipif(sys.platform != "linux", reason="fork start method")
-def test_a_forked_child_never_writes_its_parents_factor_memory():
-    """The engine's reused large buffers (L on huge pages) are private mappings: a child writing into one it
-    inherited leaves the parent's values as they were (a shared mapping corrupted both)."""
-    from lago_cvx.sparse import ldl
-
-    buf = ldl.huge_empty(1 << 20, np.float64)  # 8 MiB: above HUGE_MIN, from the pool or a new mapping
-    buf[:] = 1.0
-    ctx = mp.get_context("fork")
-    child = ctx.Process(target=_scribble, args=(buf,))
-    child.start()
-    child.join()
-    assert child.exitcode == 0
-    assert np.all(buf == 1.0)
-
-
-def _scribble(buf):
-    buf[:] = -7.0
-
-
 @pytest.mark.parametrize("how", ["pickle", "deepcopy"])
 def test_certificates_and_3d_results_survive_copies(how):
     """The certificate of the SE-Sync-refined estimate and a 3-D result travel too (data, no engine state)."""

@@ -271,28 +271,19 @@ def test_fixed_poses():
 
 
 @pytest.mark.parametrize("route", ["seed", "default"])
-def test_compiled_factorizations_agree_with_the_engines_choice(monkeypatch, route):
-    """Every system of the route on the compiled engine (``sparse.wide.compiled_from`` lowered to 0) against QDLDL
-    (the engine's choice at this size when the compiled engine is kept for larger systems): the same estimate to
-    rounding, and the compiled engine used."""
-    from lago_cvx.sparse import wide as blocks
+def test_c_kernels_agree_with_the_numpy_fallback(route):
+    """Every system of the route factored by the C kernels against the NumPy engine (their fallback without a
+    compiler): the same estimate to rounding, and each engine used."""
+    from lago_cvx.sparse import compiled
 
     w = torus_world(6, 12, seed=2)
-    monkeypatch.setattr(blocks, "compiled_from", lambda: 10 ** 9)
-    ref = lago3d(w.graph, route=route)
-    calls = []
-    real = blocks._compiled
-
-    def counted(el, system):
-        f = real(el, system)
-        calls.append(f is not None)
-        return f
-
-    monkeypatch.setattr(blocks, "compiled_from", lambda: 0)
-    monkeypatch.setattr(blocks, "_compiled", counted)
     got = lago3d(w.graph, route=route)
-    assert calls and all(calls)  # chordal, positions (and the joint step and its positions) compiled
-    assert len(calls) == (2 if route == "seed" else 4)
+    saved = list(compiled._C_KERNELS)
+    compiled._C_KERNELS[:] = [None]
+    try:
+        ref = lago3d(w.graph, route=route)
+    finally:
+        compiled._C_KERNELS[:] = saved
     assert got.chi2 == pytest.approx(ref.chi2, rel=1e-10)
     assert got.chi2_seed == pytest.approx(ref.chi2_seed, rel=1e-10)
     assert _rel(ref.R, got.R) < 1e-8 and _rel(ref.t, got.t) < 1e-8

@@ -30,6 +30,6 @@ def pose_covariances3d(graph, t, R, *, anchor=None) -> np.ndarray:
     L = whitening(graph)
     e, Ji, Jj = jacobians(graph, t, R)
     system = EdgeSystem(el.tails, el.heads, L @ Ji, L @ Jj, -np.einsum("kij,kj->ki", L, e), el.d)
-    diag = marginal_blocks(None, np.arange(el.d * 6).reshape(el.d, 6), factor=el.factor(system, engine=True))
+    diag = marginal_blocks(None, np.arange(el.d * 6).reshape(el.d, 6), factor=el.factor(system))
     out[np.flatnonzero(np.arange(graph.n_poses) != a)] = diag
     return out

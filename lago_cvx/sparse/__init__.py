@@ -1,9 +1,9 @@
 """The sparse engine behind one door.
 
-Everything that makes LAGO's closed forms fast — orderings (AMD), QDLDL in the pose graph's order, the
-pose-level multifrontal block Cholesky and its Numba-compiled twin, selected inversion, worker threads,
-memory — lives in this subpackage. The mathematics (phases, positions, regularizers, variants, refinement,
-certification) imports only the names below, never a submodule: ``tests/test_architecture.py`` holds that.
+Everything that makes LAGO's closed forms fast — the pose-level ordering and symbolic analysis, the one numeric
+factorization (the multifrontal block Cholesky in C, with its NumPy fallback), selected inversion, worker threads —
+lives in this subpackage. The mathematics (phases, positions, regularizers, variants, refinement, certification)
+imports only the names below, never a submodule: ``tests/test_architecture.py`` holds that.
 
 The door, in the spirit of scikit-sparse's ``cholesky(A) -> Factor``:
 
@@ -13,8 +13,7 @@ The door, in the spirit of scikit-sparse's ``cholesky(A) -> Factor``:
   shared by every system solved on it: ``.factor(system) -> Factor``, ``.solve(system) -> (x, factor, stats)``;
   ``GraphElimination.start(…, expect=…)`` builds it in a worker while the caller goes on, and
   ``.ahead(task)`` hands over work needed later (overlap and prefetching live here, not in the caller);
-* ``factor_wide(elimination, system)`` / ``solve_wide`` — the same for the 3-D systems, which fill more per pose:
-  the compiled engine sooner, decided once per elimination built with ``wide=(3, 6)`` (its block sizes);
+* ``factor_wide(elimination, system)`` / ``solve_wide`` — the same for the 3-D systems (the same path);
 * ``factorize(N) -> Factor`` and ``solve_least_squares(M, b)`` for a sparse matrix of any other pattern;
 * ``Factor`` — ``solve(rhs)``; ``marginal_blocks(N, var_index, factor=…)`` the diagonal blocks of N⁻¹ by
   selected inversion (``block_diagonal_inverse`` by column solves for small blocks of any factor);
@@ -34,10 +33,9 @@ from .block_factor import inverse_blocks
 from .linalg import (SOLVER_BACKENDS, Factor, augmented_least_squares, block_diagonal_inverse, factorize,
                      refine_normal_equations, solve_least_squares, whitening_2x2)
 from .edge_system import EdgeSystem
-from .normal_equations import GraphElimination, RenumberedFactor, marginal_blocks
+from .normal_equations import GraphElimination, RenumberedFactor, factor_wide, marginal_blocks, solve_wide
 from .smallmat import cholesky, rotate, spd_inverse, spd_inverse_corner
 from .threads import cores, engine_threads, threads_option
-from .wide import factor_wide, solve_wide
 
 __all__ = [
     "EdgeSystem", "GraphElimination", "Factor", "factorize", "solve_least_squares", "refine_normal_equations",

@@ -1,12 +1,8 @@
-/* The kernels of lago_cvx.sparse.compiled_kernels (Numba) as plain C99, loaded by ctypes
- * (lago_cvx.sparse.c_kernels). Each function is its Numba twin line for line: the same loops in the
- * same order, the same accumulation order, sqrt and 1/d then a product, so that both give the same
- * bits (built with -ffp-contract=off: no fused multiply-add, as Numba's default). Indices are int64,
- * reals double, the bool arrays one byte each. Arrays that the Numba kernels allocate are passed in by
- * the caller (outputs and scratch); no function keeps state between calls, so threads may call them at
- * once on different data. The Python module defined at the end is empty: it only makes the built file
- * an importable extension module (the kernels use no Python API).
- */
+/* The sparse engine's kernels (lago_cvx.sparse.compiled) in C99, loaded by ctypes (lago_cvx.sparse.c_kernels),
+ * which checks every index they read first (lago_cvx.sparse.kernel_checks). Indices int64, reals double, bool
+ * arrays one byte each; outputs and scratch are passed in, no function keeps state (threads may call them at once
+ * on different data). Built with -ffp-contract=off (no fused multiply-add). The Python module at the end is empty:
+ * it only makes the built file an importable extension module. */
 
 #include <Python.h>
 

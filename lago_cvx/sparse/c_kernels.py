@@ -1,16 +1,13 @@
-r"""The compiled kernels of ``lago_cvx.sparse.compiled`` in C (``_ckernels.c``, built at install as an optional
-extension module), called through ctypes: ``KERNELS`` has the keys, call signatures and results of
-``compiled_kernels.KERNELS`` (Numba), and gives the same bits (the same loops in the same order; the C file is
-compiled without fused multiply-add). It loads in a few milliseconds where Numba's import and cached kernels cost
-about half a second per process (``compiled``'s docstring); Numba remains the engine's kernels when the C library
-was not built (no compiler at install). Importing this module raises ImportError then; it never imports Numba.
+r"""The kernels of ``lago_cvx.sparse.compiled`` in C (``_ckernels.c``, built at install as an optional extension
+module), called through ctypes; importing this module raises ImportError when it was not built.
 
-Each wrapper checks the indices the C code reads (``kernel_checks``: the plan once, O(n), then each call in O(1))
-and what else it relies on — the dtype (float64, int64, bool) and C order of every array, the
+Each wrapper checks what the C code relies on — the dtype (float64, int64, bool) and C order of every array, the
 arrays written in place writable, the shapes of the edge blocks — and raises TypeError or ValueError otherwise;
-nothing is copied. Arrays that a Numba kernel allocates (its results, its scratch) are allocated here, so the C
-functions keep no state: threads may call them at once on different data (ctypes releases the GIL during a call).
-LAPACK's ``dpotrf`` and BLAS's ``dtrsm``, ``dsyrk`` are SciPy's (``cython_lapack``/``cython_blas``), by address.
+nothing is copied. The indices it reads are checked by ``kernel_checks``: the plan once (O(n), when its layout is
+built), then per call in O(1) that the plan arrays are those of a checked layout and that the fronts, buffers and
+stacks fit it; trees, sequences and edge ends handed over alone are checked in full. Outputs and scratch are
+allocated here, so the C functions keep no state: threads may call them at once on different data (ctypes releases
+the GIL during a call). LAPACK's ``dpotrf`` and BLAS's ``dtrsm``, ``dsyrk`` are SciPy's, by address.
 """
 
 from __future__ import annotations
@@ -20,7 +17,7 @@ import importlib.util
 
 import numpy as np
 
-from .kernel_checks import checked
+from . import kernel_checks as chk
 
 __all__ = ["KERNELS"]
 
@@ -107,88 +104,133 @@ SIGNATURES = dict(assemble="iiipppppppppppiippppp", finish="-iippppppppp", run="
 _C = {name: _c(name, sig) for name, sig in SIGNATURES.items()}
 
 
+def _frontal(f, b, fptr, rptr, rel, nchild, bptr, border, F, st_front, st_off, state, A, pop=0, **more):
+    """The checked sizes of a call on front(s) from ``f``: its layout's arrays, the assembler against the edges,
+    the front buffer and the update stack's arrays and top (``pop`` entries to pop)."""
+    info = chk.arrays(b, fptr, rptr=rptr, rel=rel, nchild=nchild, **more)
+    chk.need(0 <= int(f) <= info["F"], f"front {f} is not in [0, {info['F']}]")
+    chk.need(np.size(bptr) == info["F"] + 1 and int(bptr[-1]) == np.size(border)
+             and (not np.size(border) or int(np.max(border)) < 3 * np.shape(A)[0]), "the assembler does not fit")
+    top = int(state[0]) if np.size(state) else -1
+    chk.need(np.size(F) >= info["maxD"] ** 2 and np.size(st_front) >= info["F"] + 1
+             and np.size(st_off) >= info["F"] + 2 and pop <= top <= info["F"], f"buffers or stack top {top} too small")
+    return info
+
+
 def assemble(f, b, fptr, rptr, rel, nchild, bptr, border, bli, blj, btr, A, B, F, stack, st_front, st_off, state):
-    """Front f's matrix in F (``compiled_kernels.assemble``). Returns D."""
-    return _C["assemble"](int(f), *_fronts_args(b, fptr, rptr, rel, nchild, bptr, border, bli, blj, btr, A, B),
-                          _p(F, _F64, "F", True), *_stack(stack, st_front, st_off, state))
+    """Front f's matrix in F: N's blocks in its pivot columns, then its children's updates. Returns D."""
+    args = _fronts_args(b, fptr, rptr, rel, nchild, bptr, border, bli, blj, btr, A, B)
+    out = (_p(F, _F64, "F", True), *_stack(stack, st_front, st_off, state))
+    info = _frontal(f, b, fptr, rptr, rel, nchild, bptr, border, F, st_front, st_off, state, A)
+    chk.need(int(f) < info["F"] and int(state[0]) >= int(nchild[int(f)]), f"front {f}: nothing to assemble")
+    return _C["assemble"](int(f), *args, *out)
 
 
 def finish(f, b, fptr, rptr, Lptr, L, F, stack, st_front, st_off, state):
-    """Keep front f's block column in L, push its update (``compiled_kernels.finish``)."""
-    _C["finish"](int(f), int(b), *_i(fptr=fptr, rptr=rptr, Lptr=Lptr), _p(L, _F64, "L", True), _p(F, _F64, "F"),
-                 *_stack(stack, st_front, st_off, state))
+    """Keep front f's block column in L, push its update."""
+    args = (int(b), *_i(fptr=fptr, rptr=rptr, Lptr=Lptr), _p(L, _F64, "L", True), _p(F, _F64, "F"),
+            *_stack(stack, st_front, st_off, state))
+    info = chk.arrays(b, fptr, rptr=rptr, Lptr=Lptr)
+    chk.need(0 <= int(f) < info["F"] and np.size(L) >= info["Lsize"] and np.size(F) >= info["maxD"] ** 2
+             and np.size(st_front) >= info["F"] + 1 and np.size(st_off) >= info["F"] + 2
+             and 0 <= int(state[0]) < info["F"], f"front {f}, its buffers or its stack do not fit the plan")
+    _C["finish"](int(f), *args)
 
 
 def run(f0, f1, big, b, fptr, rptr, rel, nchild, Lptr, bptr, border, bli, blj, btr, A, B, L, F, stack,
         st_front, st_off, state, small_work, fn):
-    """Fronts f0 … f1 − 1 up to the first ``big`` one (``compiled_kernels.run``)."""
+    """Fronts f0 … f1 − 1 up to the first ``big`` one. Returns where it stopped, −1 − f if front f is not SPD."""
     args = _fronts_args(b, fptr, rptr, rel, nchild, bptr, border, bli, blj, btr, A, B)
-    return _C["run"](int(f0), int(f1), _p(big, _BOOL, "big"), *args[:5], _p(Lptr, _I64, "Lptr"), *args[5:],
-                     _p(L, _F64, "L", True), _p(F, _F64, "F", True), *_stack(stack, st_front, st_off, state),
-                     int(small_work), _p(fn, _I64, "fn"))
+    out = (_p(L, _F64, "L", True), _p(F, _F64, "F", True), *_stack(stack, st_front, st_off, state))
+    big_p, Lptr_p, fn_p = _p(big, _BOOL, "big"), _p(Lptr, _I64, "Lptr"), _p(fn, _I64, "fn")
+    info = _frontal(f0, b, fptr, rptr, rel, nchild, bptr, border, F, st_front, st_off, state, A, Lptr=Lptr)
+    chk.need(int(f0) <= int(f1) <= info["F"] and np.size(big) >= info["F"] and np.size(L) >= info["Lsize"]
+             and np.size(fn) == 3, f"fronts {f0} … {f1}, big, L or fn do not fit the plan")
+    return _C["run"](int(f0), int(f1), big_p, *args[:5], Lptr_p, *args[5:], *out, int(small_work), fn_p)
 
 
 def one(f, b, fptr, rptr, Lptr, L, F, D, fn):
-    """A front assembled in F, by LAPACK/BLAS (``compiled_kernels.one``). Returns LAPACK's info."""
-    return _C["one"](int(f), int(b), _p(fptr, _I64, "fptr"), _p(F, _F64, "F", True), int(D), _p(fn, _I64, "fn"))
+    """A front assembled in F, by LAPACK/BLAS. Returns LAPACK's info."""
+    args = (int(f), int(b), _p(fptr, _I64, "fptr"), _p(F, _F64, "F", True), int(D), _p(fn, _I64, "fn"))
+    info = chk.arrays(b, fptr, rptr=rptr, Lptr=Lptr)
+    chk.need(0 <= int(f) < info["F"] and int(D) == int(info["D"][int(f)]) <= chk.INT_MAX
+             and np.size(F) >= int(D) ** 2 and np.size(fn) == 3, f"front {f} of order {D} does not fit the plan")
+    return _C["one"](*args)
 
 
 def _sweep(kernel, Y, seq, b, fptr, rptr, rows, Lptr, L, rmax):
     if np.ndim(Y) != 2:
         raise ValueError(f"C kernels: Y must be (right-hand sides, slots), not of shape {np.shape(Y)}")
-    y = _p(Y, _F64, "Y", True)
+    y, sq = _p(Y, _F64, "Y", True), _p(seq, _I64, "seq")
+    info = chk.arrays(b, fptr, rptr=rptr, rows=rows, Lptr=Lptr)
+    chk.ints(seq, "seq", 0, info["F"])
+    chk.need(Y.shape[1] >= info["d"] * int(b) and int(rmax) >= info["rmax"] and np.size(L) >= info["Lsize"],
+             f"Y of shape {Y.shape}, rmax {rmax} or L too small for the plan")
     n = max(int(rmax), 1)
     slot, t = np.empty(n, np.int64), np.empty(n)
-    kernel(y, Y.shape[0], Y.shape[1], _p(seq, _I64, "seq"), seq.size, int(b),
+    kernel(y, Y.shape[0], Y.shape[1], sq, seq.size, int(b),
            *_i(fptr=fptr, rptr=rptr, rows=rows, Lptr=Lptr), _p(L, _F64, "L"), slot.ctypes.data, t.ctypes.data)
 
 
 def forward(Y, seq, b, fptr, rptr, rows, Lptr, L, rmax):
-    """L z = y in place for Y (nrhs, slots) (``compiled_kernels.forward``)."""
+    """L z = y in place for Y (nrhs, slots)."""
     _sweep(_C["forward"], Y, seq, b, fptr, rptr, rows, Lptr, L, rmax)
 
 
 def backward(Y, seq, b, fptr, rptr, rows, Lptr, L, rmax):
-    """Lᵀ x = z in place for Y (nrhs, slots) (``compiled_kernels.backward``)."""
+    """Lᵀ x = z in place for Y (nrhs, slots)."""
     _sweep(_C["backward"], Y, seq, b, fptr, rptr, rows, Lptr, L, rmax)
 
 
 def pose_local(f, pos, fptr, rptr, rows):
-    """Local pose index of position pos[t] in front f[t] (``compiled_kernels.pose_local``)."""
+    """Local pose index of position pos[t] in front f[t]."""
     if np.shape(pos) != np.shape(f):
         raise ValueError("C kernels: f and pos must have one shape")
+    addresses = _i(f=f, pos=pos, fptr=fptr, rptr=rptr, rows=rows)
+    F, d = chk.fronts(fptr, rptr, rows)
+    chk.ints(f, "f", 0, F)
+    chk.ints(pos, "pos", 0, max(d, 1))
     out = np.empty(np.size(f), np.int64)
-    _C["pose_local"](*_i(f=f, pos=pos), out.size, *_i(fptr=fptr, rptr=rptr, rows=rows), out.ctypes.data)
+    _C["pose_local"](*addresses[:2], out.size, *addresses[2:], out.ctypes.data)
     return out
 
 
 def block_map(prow, pcol, position, front_of, fptr, rptr, rows):
-    """(order, bptr, li, lj, transposed): ``compiled_kernels.block_map``."""
+    """(order, bptr, li, lj, transposed) (the map from N's blocks to their fronts)."""
     if np.shape(pcol) != np.shape(prow):
         raise ValueError("C kernels: prow and pcol must have one shape")
     ends = _i(prow=prow, pcol=pcol)
     where = _i(position=position, front_of=front_of)
-    nf = np.size(fptr) - 1
+    addresses = _i(fptr=fptr, rptr=rptr, rows=rows)
+    nf, d = chk.fronts(fptr, rptr, rows)
+    chk.need(np.size(position) == d and np.size(front_of) == d, f"position and front_of must have {d} entries")
+    chk.ints(position, "position", 0, max(d, 1))
+    chk.ints(front_of, "front_of", 0, max(nf, 1))
+    chk.ints(prow, "prow", -1, d)
+    chk.ints(pcol, "pcol", -1, d)
     bptr = np.empty(nf + 1, np.int64)
     n = _C["block_count"](*ends, prow.size, *where, nf, bptr.ctypes.data)
     order, li, lj = np.empty(n, np.int64), np.empty(n, np.int64), np.empty(n, np.int64)
     transposed, fill = np.empty(n, np.bool_), np.empty(max(nf, 1), np.int64)
-    _C["block_fill"](*ends, prow.size, *where, *_i(fptr=fptr, rptr=rptr, rows=rows), nf, bptr.ctypes.data,
+    _C["block_fill"](*ends, prow.size, *where, *addresses, nf, bptr.ctypes.data,
                      fill.ctypes.data, order.ctypes.data, li.ctypes.data, lj.ctypes.data, transposed.ctypes.data)
     return order, bptr, li, lj, transposed
 
 
-def _operator_args(A, B, t, h, v, name):
+def _operator_args(A, B, t, h, v, name, d=0):
     m, q, b = _edges(A, B)
     if np.shape(t) != (m,) or np.shape(h) != (m,):
         raise ValueError(f"C kernels: tails and heads must be ({m},)")
     if np.ndim(v) != 3:
         raise ValueError(f"C kernels: {name} must be 3-D, not of shape {np.shape(v)}")
+    d = np.shape(v)[0] if name == "x" else d
+    chk.ints(t, "tails", -1, d)
+    chk.ints(h, "heads", -1, d)
     return m, q, b, (_p(A, _F64, "A"), _p(B, _F64, "B"), m, q, b, *_i(t=t, h=h), _p(v, _F64, name), v.shape[2])
 
 
 def edge_matvec(A, B, t, h, x):
-    """M x (m, q, nr) for x (d, b, nr) (``compiled_kernels.edge_matvec``)."""
+    """M x (m, q, nr) for x (d, b, nr)."""
     m, q, b, args = _operator_args(A, B, t, h, x, "x")
     if x.shape[1] != b:
         raise ValueError(f"C kernels: x must be (d, {b}, nr), not {x.shape}")
@@ -198,8 +240,8 @@ def edge_matvec(A, B, t, h, x):
 
 
 def edge_rmatvec(A, B, t, h, r, d):
-    """Mᵀ r (d, b, nr) for r (m, q, nr) (``compiled_kernels.edge_rmatvec``)."""
-    m, q, b, args = _operator_args(A, B, t, h, r, "r")
+    """Mᵀ r (d, b, nr) for r (m, q, nr)."""
+    m, q, b, args = _operator_args(A, B, t, h, r, "r", int(d))
     if r.shape[:2] != (m, q):
         raise ValueError(f"C kernels: r must be ({m}, {q}, nr), not {r.shape}")
     out = np.zeros((int(d), b, r.shape[2]))
@@ -208,36 +250,43 @@ def edge_rmatvec(A, B, t, h, r, d):
 
 
 def stack_peak(seq, nchild, sizes):
-    """The most stack entries alive at once (``compiled_kernels.stack_peak``)."""
+    """The most stack entries alive at once."""
     lev = np.empty(np.size(seq) + 1, np.int64)
-    return _C["stack_peak"](_p(seq, _I64, "seq"), seq.size, *_i(nchild=nchild, sizes=sizes), lev.ctypes.data)
+    args = (_p(seq, _I64, "seq"), np.size(seq), *_i(nchild=nchild, sizes=sizes), lev.ctypes.data)
+    chk.ints(seq, "seq", 0, np.size(nchild))
+    chk.need(np.size(sizes) == np.size(nchild), "sizes must have one entry per front")
+    return _C["stack_peak"](*args)
 
 
 def subtrees(parent, work):
-    """(total work, first front) of each subtree (``compiled_kernels.subtrees``)."""
+    """(total work, first front) of each subtree."""
     n = np.size(parent)
     if np.shape(work) != (n,):
         raise ValueError("C kernels: work must be one value per front")
+    chk.forest(parent)
     total, first = np.empty(n), np.empty(n, np.int64)
     _C["subtrees"](_p(parent, _I64, "parent"), _p(work, _F64, "work"), n, total.ctypes.data, first.ctypes.data)
     return total, first
 
 
 def push(src, off, size, stack, st_front, st_off, state, f):
-    """Push ``src[off:off + size]`` onto this stack as front f's update (``compiled_kernels.push``)."""
+    """Push ``src[off:off + size]`` onto this stack as front f's update."""
     off, size = int(off), int(size)
     if off < 0 or size < 0 or off + size > np.size(src):
-        raise ValueError(f"C kernels: push of src[{off}:{off + size}] beyond its {np.size(src)} entries")
+        raise chk.PlanError(f"C kernels: push of src[{off}:{off + size}] beyond its {np.size(src)} entries")
+    top = int(state[0]) if np.size(state) else -1
+    chk.need(0 <= top < min(np.size(st_front), np.size(st_off) - 1), f"update stack top {top} outside its arrays")
     if _C["push"](_p(src, _F64, "src"), off, size, _p(stack, _F64, "stack", True), stack.size,
                   *_stack(stack, st_front, st_off, state)[1:], int(f)) != 0:
         raise ValueError("C kernels: the update does not fit on the stack")
 
 
 def relax(k, r, true_nnz, sparent, n0, n1, n2, z0, z1, z2):
-    """``supernodes.relax`` (``k``, ``true_nnz`` updated in place)."""
+    """``multifrontal.relax`` (``k``, ``true_nnz`` updated in place)."""
     top = np.empty(np.size(k), np.int64)
     if not (np.shape(r) == np.shape(true_nnz) == np.shape(sparent) == np.shape(k)):
         raise ValueError("C kernels: relax takes four arrays of one shape")
+    chk.forest(sparent, "sparent")
     _C["relax"](_p(k, _I64, "k", True), _p(r, _I64, "r"), _p(true_nnz, _I64, "true_nnz", True),
                 _p(sparent, _I64, "sparent"), top.size, int(n0), int(n1), int(n2), float(z0), float(z1), float(z2),
                 top.ctypes.data)
@@ -245,23 +294,27 @@ def relax(k, r, true_nnz, sparent, n0, n1, n2, z0, z1, z2):
 
 
 def heights(parent):
-    """``supernodes.heights``."""
+    """``multifrontal.heights``."""
     h = np.empty(np.size(parent), np.int64)
-    _C["heights"](_p(parent, _I64, "parent"), h.size, h.ctypes.data)
+    address = _p(parent, _I64, "parent")
+    chk.forest(parent)
+    _C["heights"](address, h.size, h.ctypes.data)
     return h
 
 
 def postorder(parent):
-    """``supernodes.postorder``."""
+    """``multifrontal.postorder``."""
     n = np.size(parent)
     size, free, order = np.empty(n + 1, np.int64), np.empty(n + 1, np.int64), np.empty(n, np.int64)
-    _C["postorder"](_p(parent, _I64, "parent"), n, size.ctypes.data, free.ctypes.data, order.ctypes.data)
+    address = _p(parent, _I64, "parent")
+    chk.forest(parent, postorder=True)
+    _C["postorder"](address, n, size.ctypes.data, free.ctypes.data, order.ctypes.data)
     return order
 
 
 def _addresses() -> np.ndarray:
     """(3,) int64: the addresses of SciPy's LAPACK ``dpotrf`` and BLAS ``dtrsm``, ``dsyrk`` — the capsules of
-    ``cython_lapack``/``cython_blas``, opened by the C API (what Numba's ``get_cython_function_address`` does)."""
+    ``cython_lapack``/``cython_blas``, opened by the C API."""
     from scipy.linalg import cython_blas, cython_lapack
 
     name = ctypes.PYFUNCTYPE(ctypes.c_void_p, ctypes.py_object)(("PyCapsule_GetName", ctypes.pythonapi))
@@ -274,11 +327,8 @@ def _addresses() -> np.ndarray:
     return np.array(out, np.int64)
 
 
-#: The kernels by name (the keys of ``compiled_kernels.KERNELS``), and ``fn`` the LAPACK/BLAS addresses; each checks
-#: the indices it reads first (``kernel_checks``: a malformed plan raises PlanError, never reaches the C code), and
-#: so do this module's functions of the same names.
-KERNELS = checked(dict(assemble=assemble, finish=finish, run=run, forward=forward, backward=backward,
-               stack_peak=stack_peak, one=one, subtrees=subtrees, push=push, pose_local=pose_local,
-               block_map=block_map, edge_matvec=edge_matvec, edge_rmatvec=edge_rmatvec, relax=relax,
-               heights=heights, postorder=postorder, fn=_addresses()))
-globals().update({name: fn for name, fn in KERNELS.items() if name != "fn"})
+#: The kernels by name, and ``fn`` the LAPACK/BLAS addresses.
+KERNELS = dict(assemble=assemble, finish=finish, run=run, forward=forward, backward=backward, stack_peak=stack_peak,
+               one=one, subtrees=subtrees, push=push, pose_local=pose_local, block_map=block_map,
+               edge_matvec=edge_matvec, edge_rmatvec=edge_rmatvec, relax=relax, heights=heights, postorder=postorder,
+               fn=_addresses())

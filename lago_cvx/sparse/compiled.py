@@ -1,43 +1,23 @@
-r"""The multifrontal block Cholesky of ``lago_cvx.sparse.multifrontal``, front by front in compiled code (C, or Numba).
+r"""The multifrontal block Cholesky (MF) of ``multifrontal``, front by front in C — the engine's one numeric
+factorization — with its NumPy fallback (``block_factor``) on the same storage.
 
-Same symbolic analysis (the pose-level ``EliminationPlan``: AMD order, fronts with pivot poses P_f and
-update rows R_f, each front's rows ⊂ its parent's), same equations (MF):
+The whole loop over the fronts (postorder, children's updates on a stack popped by their parent) is one C call
+(``c_kernels``: ``_ckernels.c``, built at install, loaded by ctypes in milliseconds): a few hundred nanoseconds per
+front where NumPy pays Python calls. A front's dense kernel is a right-looking loop for small fronts and LAPACK's
+``potrf`` with BLAS's ``trsm``/``syrk`` for large ones (SciPy's own, called by address through
+``cython_lapack``/``cython_blas``). Where no compiler was present at install, ``available()`` is False (said once,
+as a warning) and ``block_factor`` runs the same equations front by front in NumPy.
 
-    F_f = [[F_PP, ·], [F_RP, F_RR]] = N's entries in the columns P_f + Σ_children U_c   (extend-add)
-    L_PP = chol(F_PP),    X_f = F_RP L_PP⁻ᵀ,    U_f = F_RR − X_f X_fᵀ                          (MF)
+**Storage** (``CompiledLayout``). Variables are numbered by elimination slot, pose-major: slot = position·b +
+component. Front f has k = |P_f|·b pivot and r = |R_f|·b update variables, D = k + r; its block column
+[L_PP; X_f] is kept column by column from ``L[Lptr[f]]``, column j holding rows j … D − 1.
 
-but each front is handled where NumPy's engine pays a Python call (or several) per front or per group:
-the whole loop over the fronts (postorder, children's updates on a stack, popped by their parent) is a
-compiled function (C, or Numba: **Kernels** below). A front's dense kernel is a right-looking loop for small
-fronts and LAPACK's ``potrf`` with BLAS's ``trsm``/``syrk`` for large ones (SciPy's own LAPACK/BLAS through
-``scipy.linalg.cython_lapack``/``cython_blas``, so the BLAS NumPy and SciPy load is the one used).
-At a million poses the NumPy engine spends most of phase 3 in Python's cost per small front (85 000 of
-them); here that cost is a few hundred nanoseconds.
+**Solve** N x = y (``CompiledFactor.solve_slots``): forward L z = y front by front (leaves up), back Lᵀ x = z.
 
-Storage. Variables are numbered by elimination slot, pose-major: slot = position·b + component (as in
-``multifrontal.BlockLayout``). Front f has k = |P_f|·b pivot and r = |R_f|·b update variables,
-D = k + r; its block column [L_PP; X_f] of L is kept column by column from ``L[Lptr[f]]`` on, column j
-holding rows j … D − 1 (packed: entry (i, j) at Lptr[f] + j·D − j(j+1)/2 + i; the strict upper triangle
-of L_PP is not stored).
-
-**Solve** N x = y (``CompiledFactor.solve_slots``): forward L z = y front by front (leaves up), back
-Lᵀ x = z (root down), each front's triangle and rectangle by compiled loops.
-
-**Two cores.** The compiled loop releases the GIL: the front tree's largest subtrees are split until
-none holds more than 1/16 of the work, dealt to one worker thread per core (``threads.cores()``) (each with its own front
-buffer and stack, one BLAS thread), and the fronts above them are factored afterwards in the calling
-thread, the children's updates copied across from the workers' stacks (``CompiledLayout.schedule``).
-
-**Kernels.** The compiled functions are C first (``c_kernels``: ``_ckernels.c``, built at install as an optional
-extension and loaded by ctypes), Numba as the fallback when it was not built (``compiled_kernels``; no compiler at
-install): the same functions with the same arithmetic in the same order, so both give the same bits. The reason is
-each process's start: the C library loads in milliseconds where Numba's import and its cached kernels cost a good
-part of a second (whole processes: ``benchmarks/spaceprocess.md``). ``IMPLEMENTATION`` / ``use_kernels`` choose one.
-Nothing is loaded until a factorization runs (``available()`` tells whether one can): import lago_cvx, the CLI's
-start-up and every system below ``normal_equations.COMPILED_MIN`` unknowns load neither. Numba's kernels are
-cached on disk (``cache=True``, in ``__pycache__`` beside this file or Numba's user cache), so only its first run
-on a machine compiles (seconds). LAPACK/BLAS are called by address (``fn``): the addresses are arguments
-looked up in each process, which keeps Numba's compiled code cacheable.
+**Two cores.** The C loop releases the GIL: the front tree's largest subtrees are split until none holds more than
+1/16 of the work, dealt to one worker thread per core (``threads.cores()``; each with its own front buffer and stack,
+one BLAS thread), and the fronts above them are factored afterwards in the calling thread, the children's updates
+copied across from the workers' stacks (``CompiledLayout.schedule_for``).
 """
 
 from __future__ import annotations
@@ -47,19 +27,23 @@ import logging
 import numpy as np
 
 from ..errors import MissingSolverError
-from . import kernel_checks
-from .linalg import Factor, blas_threads
-from .multifrontal import NotPositiveDefinite
-from .threads import cores, spawn
+from . import block_factor, kernel_checks
+from .linalg import NotPositiveDefinite, blas_threads
+from .threads import blas_limit, cores, spawn
 
-__all__ = ["available", "use_kernels", "kernels", "CompiledLayout", "CompiledAssembler", "CompiledFactor",
-           "CompiledPoseFactor", "CompiledEdgeOperator"]
+__all__ = ["available", "kernels", "CompiledLayout", "CompiledAssembler", "CompiledFactor",
+           "CompiledEdgeOperator"]
 
 log = logging.getLogger(__name__)
 
 #: A front whose k·D² (twice its multiply–adds) is below this is factored by a compiled right-looking
 #: loop; a larger one by LAPACK/BLAS (potrf, trsm, syrk), called by address from the compiled loop.
 SMALL_WORK = 50_000
+
+#: The same bound while the process's BLAS is left alone (no ``engine_threads(blas_threads=…)``): its threads, which
+#: the engine may not limit, cost far more than they give on the fronts of a busy machine (``benchmarks/perf.md``),
+#: so only fronts beyond this call LAPACK/BLAS, where the right-looking loop would lose more.
+ALONE_WORK = 1e10
 
 #: Fronts with at least this many pivot variables run BLAS on every thread; the others on one.
 THREADED_FRONT = 384
@@ -75,85 +59,33 @@ PARALLEL_WORK = 1e9
 CHUNK = 0.02
 
 
-#: Which kernels ``kernels()`` gives: None, the C ones when their library was built, else Numba's; "c" or
-#: "numba" that one (the tests compare them). Set by ``use_kernels``.
-IMPLEMENTATION: str | None = None
-
-
-def use_kernels(which: str | None) -> None:
-    """Choose the kernels of every compiled factorization, solve and product from now on: "c" (``c_kernels``),
-    "numba" (``compiled_kernels``) or None (C when built, else Numba; the default)."""
-    global IMPLEMENTATION
-    if which not in (None, "c", "numba"):
-        raise ValueError(f"use_kernels: 'c', 'numba' or None, not {which!r}")
-    IMPLEMENTATION = which
-
-
 def kernels() -> dict:
-    """The compiled kernels by name (``compiled_kernels.KERNELS``'s keys): C (``c_kernels``) when its library was
-    built, else Numba's (``compiled_kernels``, loaded on first use), or the one ``IMPLEMENTATION`` names.
-    The first time Numba's are used in a process, when Numba has none of them on disk yet (its first run on a
-    computer, or no writable cache), says at INFO level that they are compiled now and about how long it takes."""
-    if native():
-        return _C_KERNELS[0]
-    if IMPLEMENTATION == "c":
-        raise ImportError("the sparse engine's C kernels are not built (lago_cvx/sparse/_ckernels.c)")
-    try:
-        from . import compiled_kernels
-    except ModuleNotFoundError as exc:  # neither kernel set: the engine's choice falls back (``available()``)
-        if exc.name not in ("numba", "llvmlite"):
-            raise
-        raise MissingSolverError("the compiled engine needs its C kernels (built at install when a C compiler is "
-                                 "present) or Numba: pip install 'lago-cvx[numba]'") from exc
-
-    if not _ANNOUNCED:
-        _ANNOUNCED.append(True)
-        if not compiled_kernels.CACHED or not _on_disk(compiled_kernels.KERNELS):
-            log.info("compiling the sparse engine's kernels (Numba's first run here): about 10-20 s, once%s",
-                     "" if not compiled_kernels.CACHED else "; later processes load them from disk")
-    return compiled_kernels.KERNELS
+    """The C kernels by name (``c_kernels.KERNELS``); ``MissingSolverError`` when they are not built."""
+    if not available():
+        raise MissingSolverError("the sparse engine's C kernels are not built (lago_cvx/sparse/_ckernels.c: "
+                                 "reinstall lago-cvx with a C compiler present)")
+    return _C_KERNELS[0]
 
 
-def native() -> bool:
-    """True when ``kernels()`` gives the C kernels: their library was built and ``IMPLEMENTATION`` does not ask for
-    Numba's. Loads the C library (milliseconds), never Numba."""
-    if IMPLEMENTATION == "numba":
-        return False
+def available() -> bool:
+    """True when the C kernels load (tried once per process; a warning says so when they do not, and the engine
+    uses the NumPy multifrontal instead). ``LAGO_CVX_NUMPY_ENGINE=1`` in the environment leaves them unloaded."""
     if not _C_KERNELS:
+        import os
+
         try:
+            if os.environ.get("LAGO_CVX_NUMPY_ENGINE", "").strip() not in ("", "0"):
+                raise ImportError("LAGO_CVX_NUMPY_ENGINE is set")
             from . import c_kernels
 
             _C_KERNELS.append(c_kernels.KERNELS)
-        except ImportError as exc:  # not built: Numba's
-            log.debug("C kernels unavailable (%s)", exc)
+        except ImportError as exc:
+            log.warning("sparse engine: C kernels unavailable (%s); factoring by the NumPy multifrontal (slower)", exc)
             _C_KERNELS.append(None)
     return _C_KERNELS[0] is not None
 
 
 _C_KERNELS: list = []  # [c_kernels.KERNELS] or [None] once tried
-_ANNOUNCED: list = []
-
-
-def _on_disk(kernels: dict) -> bool:
-    """True when Numba's on-disk cache holds an index for any kernel: an earlier process compiled the ones it used
-    (a kernel that no factorization has needed yet, such as those of the planar systems' matrix products, may be
-    missing; it compiles in about a second when first needed)."""
-    import os
-
-    try:
-        return any(os.path.exists(k._cache._cache_file._index_path) for k in kernels.values() if hasattr(k, "_cache"))
-    except AttributeError:  # another Numba: nothing said
-        return True
-
-
-def available() -> bool:
-    """True when the compiled engine can run: its C kernels load, or else Numba's."""
-    try:
-        kernels()
-    except Exception as exc:  # ImportError (neither), or a Numba that cannot compile here
-        log.debug("compiled engine unavailable (%s)", exc)
-        return False
-    return True
 
 
 class CompiledLayout:
@@ -172,7 +104,7 @@ class CompiledLayout:
         return cache[b]
 
     def __init__(self, plan, b: int):
-        kernel_checks.plan(plan)  # O(d) once: a malformed plan raises PlanError before any compiled call
+        kernel_checks.plan(plan, b)  # O(d) once: a malformed plan raises PlanError before any compiled call
         self.plan = plan
         self.b = b = int(b)
         self.N = plan.d * b
@@ -192,21 +124,24 @@ class CompiledLayout:
         if ok.any():
             rel[ok] = self._pose_local(par[ok], self.rows[ok])
         self.rel = rel
+        self.K, self.D = K, D
         self.work = K.astype(float) * D * D  # (F,) twice each front's multiply–adds
         self.max_front = int(D.max() ** 2) if F else 0
         self.rmax = int(R.max()) if F else 0
+        self.big = K >= THREADED_FRONT  # (F,) the fronts factored alone, with every BLAS thread
+        self.none_big = np.zeros(F, bool)  # in a worker thread, every front on one BLAS thread
+        kernel_checks.layout(self)  # the extend-add map checked, the arrays frozen and registered for the kernels
 
     def _pose_local(self, f: np.ndarray, pos: np.ndarray) -> np.ndarray:
         """Local pose index of position ``pos`` in front ``f`` (pivots 0 … k−1, rows k + rank)."""
+        if not available():
+            plan = self.plan
+            fr = np.repeat(np.arange(plan.n_fronts), plan.n_rows)
+            rank = np.searchsorted(fr * plan.d + self.rows, f * plan.d + pos) - self.rptr[f]
+            return np.where((pos >= self.fptr[f]) & (pos < self.fptr[f + 1]), pos - self.fptr[f],
+                            self.fptr[f + 1] - self.fptr[f] + rank)
         return kernels()["pose_local"](np.ascontiguousarray(f, np.int64), np.ascontiguousarray(pos, np.int64),
                                        self.fptr, self.rptr, self.rows)
-
-    def slots(self, var_index: np.ndarray) -> np.ndarray:
-        """Elimination slot of every variable of a system numbered by ``var_index`` (d, b)."""
-        var_index = np.asarray(var_index, np.int64).reshape(self.plan.d, self.b)
-        out = np.empty(self.N, np.int64)
-        out[var_index.reshape(-1)] = (self.plan.position[:, None] * self.b + np.arange(self.b)).reshape(-1)
-        return out
 
     def assembler(self, prow: np.ndarray, pcol: np.ndarray) -> "CompiledAssembler":
         return CompiledAssembler(self, prow, pcol)
@@ -218,14 +153,19 @@ class CompiledLayout:
         work, disjoint subtrees of the front tree are factored at once in worker threads (the compiled
         loop releases the GIL; one BLAS thread each), then the fronts above them (``schedule``) in this
         thread, large ones with every BLAS thread. ``progress(done, total)`` gets the multiply–adds done.
-        Raises ``multifrontal.NotPositiveDefinite`` if a pivot block is not positive definite."""
-
-        kern = kernels()
+        Raises ``multifrontal.NotPositiveDefinite`` if a pivot block is not positive definite. Without the C
+        kernels, ``block_factor.factor`` (NumPy, front by front) fills the same L."""
         A = np.ascontiguousarray(A, dtype=float)
         B = np.ascontiguousarray(B, dtype=float)
         L = self.__dict__.pop("_reserved", None)
         if L is None:
             L = np.empty(int(self.Lptr[-1]))
+        if not available():
+            At, Bt = np.swapaxes(A, 1, 2), np.swapaxes(B, 1, 2)
+            with blas_threads(1):
+                block_factor.factor(self, assembler, np.concatenate([At @ A, Bt @ B, Bt @ A]), L, progress)
+            return CompiledFactor(self, L, 1)
+        kern = kernels()
         data = (assembler.bptr, assembler.order, assembler.li, assembler.lj, assembler.transposed, A, B)
         n_threads = cores()
         sched = self.schedule_for(n_threads)
@@ -273,11 +213,6 @@ class CompiledLayout:
                     kern["push"](w.stack, off, size, main.stack, main.st_front, main.st_off, main.state, c)
                 main.fronts(f, f + 1, threads, done, report)
         return CompiledFactor(self, L, n_threads)
-
-    @property
-    def schedule(self):
-        """``schedule_for(cores())``."""
-        return self.schedule_for(cores())
 
     def schedule_for(self, n_threads: int):
         """How the fronts are shared among ``n_threads`` threads, or None to factor them in one: the front
@@ -361,20 +296,6 @@ class CompiledLayout:
         lo, n = self.fptr[fronts] * self.b, (self.fptr[fronts + 1] - self.fptr[fronts]) * self.b
         return np.repeat(lo - np.r_[0, np.cumsum(n)[:-1]], n) + np.arange(int(n.sum()))
 
-    @property
-    def big(self) -> np.ndarray:
-        """(F,) bool: the fronts factored with every BLAS thread (k at least ``THREADED_FRONT``)."""
-        if "_big" not in self.__dict__:
-            self._big = self.plan.pivots * self.b >= THREADED_FRONT
-        return self._big
-
-    @property
-    def none_big(self) -> np.ndarray:
-        """(F,) bool, all False: a worker thread factors every front of its subtrees on one BLAS thread."""
-        if "_none_big" not in self.__dict__:
-            self._none_big = np.zeros(self.plan.n_fronts, bool)
-        return self._none_big
-
 
 class _Front:
     """One thread's working set for (MF): its front buffer, its stack of updates (sized by simulating
@@ -415,12 +336,14 @@ class _Front:
         run, assemble, finish, one, fn = kern["run"], kern["assemble"], kern["finish"], kern["one"], kern["fn"]
         b = lay.b
         common = (b, lay.fptr, lay.rptr, lay.rel, lay.nchild)
-        big = lay.big if threads is not None else lay.none_big
+        own = blas_limit() is not None  # the engine holds the BLAS threads: LAPACK/BLAS from SMALL_WORK on
+        big = lay.big if threads is not None and own else lay.none_big
         step = max(int(lay.plan.n_fronts * CHUNK), 1) if report is not None else max(f1 - f0, 1)
         bufs = (self.F, self.stack, self.st_front, self.st_off, self.state)
         f = f0
         while f < f1:
-            stop = run(f, min(f + step, f1), big, *common, lay.Lptr, *self.data, self.L, *bufs, SMALL_WORK, fn)
+            stop = run(f, min(f + step, f1), big, *common, lay.Lptr, *self.data, self.L, *bufs,
+                       SMALL_WORK if own else ALONE_WORK, fn)
             if stop < 0:
                 raise NotPositiveDefinite(f"the matrix is not positive definite (front {-stop - 1})")
             done[0] += float(lay.work[f:stop].sum())
@@ -447,7 +370,20 @@ class CompiledAssembler:
 
     def __init__(self, layout: CompiledLayout, prow, pcol):
         plan = layout.plan
+        prow, pcol = np.asarray(prow, np.int64), np.asarray(pcol, np.int64)
         front_of = np.repeat(np.arange(plan.n_fronts, dtype=np.int64), plan.pivots)  # (d,) by position
+        if not available():  # the same map by NumPy
+            idx = np.flatnonzero((prow >= 0) & (pcol >= 0))
+            pr, pc = plan.position[prow[idx]], plan.position[pcol[idx]]
+            tr = pr < pc
+            lo, hi = np.where(tr, pr, pc), np.where(tr, pc, pr)
+            f = front_of[lo]
+            order = np.argsort(f, kind="stable")
+            self.bptr = np.r_[0, np.cumsum(np.bincount(f, minlength=plan.n_fronts))].astype(np.int64)
+            f = f[order]
+            self.order, self.li, self.transposed = idx[order], layout._pose_local(f, hi[order]), tr[order]
+            self.lj = lo[order] - plan.fptr[f]
+            return
         self.order, self.bptr, self.li, self.lj, self.transposed = kernels()["block_map"](
             np.ascontiguousarray(prow, np.int64), np.ascontiguousarray(pcol, np.int64),
             np.ascontiguousarray(plan.position, np.int64), front_of, layout.fptr, layout.rptr, layout.rows)
@@ -463,13 +399,17 @@ class CompiledFactor:
         self.n_threads = n_threads  # the threads it was factored on: its solves sweep the same subtrees
 
     def solve_slots(self, y: np.ndarray) -> np.ndarray:
-        """Solve N x = y for y (N,) or (N, r) in elimination slots; x likewise. With the layout's
-        ``schedule``, each worker thread sweeps its own subtrees: forward on its own copy of y (its
-        fronts update only their subtrees' slots and the top fronts'; the top slots' changes are summed
-        afterwards), back on y itself (each writes only its own slots, reading the top fronts')."""
-        kern = kernels()
+        """Solve N x = y for y (N,) or (N, r) in elimination slots; x likewise. On the threads it was factored on,
+        each worker sweeps its own subtrees: forward on its own copy of y (the top slots' changes summed
+        afterwards), back on y itself. Without the C kernels, ``block_factor.solve``."""
         lay = self.layout
         one = y.ndim == 1
+        if not available():
+            Y = np.array(y.reshape(lay.N, -1), dtype=float)
+            with blas_threads(1):
+                block_factor.solve(lay, self.L, Y)
+            return Y[:, 0] if one else Y
+        kern = kernels()
         Y = np.array(y.reshape(lay.N, -1).T, dtype=float, order="C")  # (r, N): each right-hand side contiguous
         args = (lay.b, lay.fptr, lay.rptr, lay.rows, lay.Lptr, self.L, lay.rmax)
         sched = lay.schedule_for(self.n_threads)
@@ -502,31 +442,6 @@ class CompiledFactor:
         return self.layout.plan.flops(self.layout.b)
 
 
-class CompiledPoseFactor(Factor):
-    """A system of (N) (a ``normal_equations.EdgeSystem``) factored by the compiled engine through the
-    ``normal_equations.GraphElimination`` it belongs to: ``solve(rhs)`` for rhs (d·b,) or (d·b, r)
-    pose-major; ``compiled`` the ``CompiledFactor``."""
-
-    def __init__(self, factor: CompiledFactor, slots: np.ndarray, system, elimination):
-        self.compiled = factor
-        self._system, self._elimination = system, elimination
-        order = np.argsort(slots)
-
-        def solve(rhs: np.ndarray) -> np.ndarray:
-            return factor.solve_slots(rhs[order])[slots]
-
-        super().__init__(solve, slots.size, "compiled")
-
-    def flops(self) -> float:
-        """Σ colcount² over the columns of L (the fronts' explicit zeros included)."""
-        return self.compiled.flops()
-
-    def engine_factor(self):
-        """The same matrix factored by the NumPy engine on the same plan (a ``normal_equations.PoseFactor``),
-        whose ``BlockFactor`` the selected inversion of ``Phase3.pose_covariances`` reads."""
-        return self._elimination.factor(self._system, engine=True)
-
-
 class CompiledEdgeOperator:
     """M x and Mᵀ r of an edge system (E) (``normal_equations.EdgeSystem``) by compiled loops over its
     edges, reading A, B (m, q, b) where they are: no transposed copies and no temporaries of length m
@@ -545,12 +460,12 @@ class CompiledEdgeOperator:
 
     def matvec(self, x: np.ndarray) -> np.ndarray:
         """M x (m, q[, r]) for x (d, b[, r])."""
-        x3 = np.ascontiguousarray(x.reshape(x.shape[0], x.shape[1], -1), dtype=float)
+        x3 = np.ascontiguousarray(x.reshape(x.shape[:2] + (int(np.prod(x.shape[2:])),)), dtype=float)
         out = self._mv(self._A, self._B, self._t, self._h, x3)
         return out.reshape(out.shape[:2] + x.shape[2:])
 
     def rmatvec(self, r: np.ndarray) -> np.ndarray:
         """Mᵀ r (d, b[, r]) for r (m, q[, r])."""
-        r3 = np.ascontiguousarray(r.reshape(r.shape[0], r.shape[1], -1), dtype=float)
+        r3 = np.ascontiguousarray(r.reshape(r.shape[:2] + (int(np.prod(r.shape[2:])),)), dtype=float)
         out = self._rmv(self._A, self._B, self._t, self._h, r3, self.d)
         return out.reshape(out.shape[:2] + r.shape[2:])

@@ -53,28 +53,6 @@ class EdgeSystem:
         Bt = np.ascontiguousarray(np.swapaxes(self.B, 1, 2))
         return np.concatenate([At @ self.A, Bt @ self.B, Bt @ self.A])
 
-    def normal_entries(self) -> np.ndarray:
-        """The same blocks entry by entry, (3, b, b, m): [k, r, c] the (r, c) entries of the k-th kind
-        (A_kᵀA_k, B_kᵀB_k, B_kᵀA_k) for every edge, each a sum over the q rows of products of length-m
-        vectors. For small m faster than the stacked products of ``normal_blocks`` (NumPy pays per 3×3
-        matrix there; equal at 1.8 M edges: ``benchmarks/perf.md``)."""
-        m, q, b = self.A.shape
-        At = np.ascontiguousarray(self.A.transpose(1, 2, 0))  # (q, b, m)
-        Bt = np.ascontiguousarray(self.B.transpose(1, 2, 0))
-        out = np.empty((3, b, b, m))
-        tmp = np.empty(m)
-        for k, X, Y, symmetric in ((0, At, At, True), (1, Bt, Bt, True), (2, Bt, At, False)):
-            for r in range(b):
-                for c in range(r if symmetric else 0, b):
-                    o = out[k, r, c]
-                    np.multiply(X[0, r], Y[0, c], out=o)
-                    for t in range(1, q):
-                        np.multiply(X[t, r], Y[t, c], out=tmp)
-                        o += tmp
-                    if symmetric and c > r:
-                        out[k, c, r] = o
-        return out
-
     def sparse(self, var_index: np.ndarray | None = None) -> sp.csr_matrix:
         """M as a sparse (m·q) × (d·b) matrix, columns ``var_index`` (d, b) (default pose-major)."""
         m, q, b = self.A.shape

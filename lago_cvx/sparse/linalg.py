@@ -1,21 +1,10 @@
-"""Sparse linear algebra shared by the closed forms: SPD solves, whitening, marginal covariances.
+"""Sparse linear algebra shared by the closed forms: SPD solves, least squares with the corrected semi-normal
+equations, whitening, the BLAS thread guard.
 
-``factorize(N)`` factors a sparse symmetric positive definite matrix once and returns a ``Factor``.
-Backends:
-
-* ``"qdldl"`` — QDLDL's LDLᵀ with an AMD fill-reducing ordering (the ``qdldl`` package, which cvxpy
-  already depends on, and the same factorization Clarabel uses). Several times faster than SuperLU on our
-  systems (``benchmarks/perf.md``) — the default.
-* ``"superlu"`` — SciPy's SuperLU with a symmetric minimum-degree ordering and no off-diagonal
-  pivoting (for SPD matrices, Cholesky's sparsity). Solves many right-hand sides at once, so it is
-  used for selected inverses (marginal covariances).
-* ``"cholmod"`` — CHOLMOD through scikit-sparse, an optional extra (lazy import; GPL parts).
-
-``"auto"`` picks QDLDL (else SuperLU). The closed forms do not come through here: below 1 200 000
-unknowns they call QDLDL's C routines directly in the pose-level elimination order (``lago_cvx.sparse.ldl``, no
-AMD of QDLDL's own), from there on the multifrontal engine (``normal_equations.ENGINE_MIN``). CHOLMOD is
-used only when asked for. Its speed depends on the BLAS the system's SuiteSparse is linked to: slower than QDLDL on
-a reference BLAS, the fastest on OpenBLAS (version 0.2's ``benchmarks/perf.md``).
+``factorize(N)`` factors a sparse SPD matrix of any pattern once and returns a ``Factor``: ``"qdldl"`` (the
+``qdldl`` package's public ``Solver``, LDLᵀ after AMD; the default), ``"superlu"`` (SciPy, symmetric mode: many
+right-hand sides at once), ``"cholmod"`` (scikit-sparse, an optional extra). The pose-graph systems of the closed
+forms do not come through here: they go through ``normal_equations.GraphElimination`` (the multifrontal engine).
 """
 
 from __future__ import annotations
@@ -32,7 +21,7 @@ import scipy.sparse as sp
 from ..errors import NumericalError, OptionError
 from .threads import blas_limit
 
-__all__ = ["blas_threads", "Factor", "factorize", "solve_least_squares", "refine_normal_equations", "augmented_least_squares", "REFINEMENT_STEPS", "REFINEMENT_STOP", "TRUST_TOLERANCE", "whitening_2x2", "block_diagonal_inverse", "SOLVER_BACKENDS"]
+__all__ = ["blas_threads", "Factor", "factorize", "solve_least_squares", "refine_normal_equations", "augmented_least_squares", "refined_or_augmented", "REFINEMENT_STEPS", "REFINEMENT_STOP", "TRUST_TOLERANCE", "whitening_2x2", "block_diagonal_inverse", "SOLVER_BACKENDS"]
 
 log = logging.getLogger(__name__)
 
@@ -57,18 +46,12 @@ if hasattr(os, "register_at_fork"):
 
 @contextlib.contextmanager
 def blas_threads(n: int | None):
-    """Run a block with at most ``n`` BLAS threads (None: as many as configured on entry) and yield a
-    setter ``threads(k)`` that changes it inside the block (k None: back to the count on entry) — only when a
-    caller asked the engine to (``threads.engine_threads(blas_threads=m)``, which also caps every count at m).
-    Otherwise (the default) the block runs with the process's BLAS settings untouched and the setter does
-    nothing: the BLAS thread count is process-wide, seen by every other thread meanwhile, so the engine leaves it
-    alone unless asked. When set, the process's count is restored when the last such block ends, also when blocks
-    of several threads overlap (the counts are kept from the first entry, not re-read from a count another block
-    lowered).
-
-    Through threadpoolctl, which finds every loaded BLAS (NumPy and SciPy each carry an OpenBLAS).
-    Small dense kernels run faster on one thread: OpenBLAS's threads cost more than they give on
-    blocks of a few dozen rows, above all on a machine whose other core is busy."""
+    """Run a block with at most ``n`` BLAS threads (None: as many as on entry) and yield a setter ``threads(k)``
+    that changes it inside the block (k None: back to the count on entry) — only when a caller asked the engine to
+    (``threads.engine_threads(blas_threads=m)``, which also caps every count at m). Otherwise (the default) the
+    process's BLAS settings are left untouched and the setter does nothing: the count is process-wide, seen by every
+    other thread meanwhile. When set (through threadpoolctl, every loaded BLAS), the process's count is restored
+    when the last such block ends, also when blocks of several threads overlap."""
     limit = blas_limit()
     if limit is None:
         yield _leave_blas
@@ -119,6 +102,10 @@ def _not_kept():
     return None
 
 
+class NotPositiveDefinite(NumericalError):
+    """A pivot block was not numerically positive definite (the matrix is not SPD in floating point)."""
+
+
 class EngineState:
     """Engine state — factors, orderings, C pointers, worker threads — is not data: ``pickle`` and
     ``copy.deepcopy`` turn it into None. Results keep the data (matrices, edge systems) from which whoever
@@ -154,19 +141,11 @@ class Factor(EngineState):
     __call__ = solve
 
 
-def _have_qdldl() -> bool:
-    try:
-        import qdldl  # noqa: F401
-    except Exception:
-        return False
-    return True
-
-
 def factorize(N: sp.spmatrix, *, backend: str = "auto") -> Factor:
     """Factor the sparse SPD matrix ``N`` (shape (d, d)) once; return a ``Factor``.
 
-    ``backend``: ``"auto"`` (QDLDL if importable, else SuperLU), ``"qdldl"``,
-    ``"superlu"``, ``"cholmod"`` (raises ImportError naming the extra if missing)."""
+    ``backend``: ``"auto"`` and ``"qdldl"`` (QDLDL, a dependency), ``"superlu"``, ``"cholmod"`` (raises ImportError
+    naming the extra if missing)."""
     if backend not in SOLVER_BACKENDS:
         raise OptionError(f"unknown backend {backend!r}; expected one of {SOLVER_BACKENDS}")
     N = sp.csc_matrix(N)
@@ -177,7 +156,7 @@ def factorize(N: sp.spmatrix, *, backend: str = "auto") -> Factor:
         except ImportError as exc:  # depends on the optional extra
             raise ImportError("backend='cholmod' needs the optional extra: pip install 'lago-cvx[cholmod]'") from exc
         return Factor(cholesky(N), d, "cholmod")
-    if backend == "qdldl" or (backend == "auto" and _have_qdldl()):
+    if backend in ("qdldl", "auto"):
         import qdldl
 
         solver = qdldl.Solver(sp.triu(N, format="csc"), upper=True)
@@ -198,13 +177,9 @@ def factorize(N: sp.spmatrix, *, backend: str = "auto") -> Factor:
 REFINEMENT_STEPS = 5
 
 
-#: The refinement stops once a correction is below this size relative to ‖x‖∞. Each step shrinks the
-#: error by a factor ρ of about the first solve's relative error (the normal equations' κ²ε), which the
-#: first correction measures: so after a correction of relative size c the error left is about ρ·c, far
-#: below c. Measured (first, second, third correction): se-sync/city10000.g2o phase 3 8.2e-13, 1.7e-15,
-#: 4.1e-16; input_M3500 2.7e-11, 6.5e-15, 4.9e-15; input_INTEL phase 1 1.6e-6, 1.2e-10, 1.1e-14 (ρ about
-#: 1e-4, sixty times the first correction). Below 1e-9 the next correction is at rounding level
-#: (≤ 1e-14) even with ρ a hundred times c, so it is not computed.
+#: The refinement stops once a correction is below this size relative to ‖x‖∞: each step shrinks the error by about
+#: the first solve's relative error ρ (κ²ε), so after a correction c the error left is about ρ·c — at rounding level
+#: (≤ 1e-14) below 1e-9 even with ρ a hundred times c (measured on city10000, M3500, INTEL: ``benchmarks/perf.md``).
 REFINEMENT_STOP = 1e-9
 
 #: After refinement, a last correction larger than this (relative to ‖x‖∞) means the normal equations
@@ -287,23 +262,31 @@ def solve_least_squares(M: sp.spmatrix, b: np.ndarray, *, backend: str = "auto")
     ``relative_correction`` (size of the last correction relative to ‖x‖∞)."""
     M = sp.csc_matrix(M)
     N = (M.T @ M).tocsc()
-    stats = {"method": "normal equations", "refinement_steps": 0, "relative_correction": 0.0}
     if M.shape[1] == 0:  # nothing to estimate (a single pose)
-        return np.zeros(0), N, None, stats
-    factor, x = None, None
-    trusted = False
+        return np.zeros(0), N, None, {"method": "normal equations", "refinement_steps": 0, "relative_correction": 0.0}
+    x, factor, stats = refined_or_augmented(lambda: factorize(N, backend=backend), M.dot, M.T.dot, b, lambda: M)
+    return x, N, factor, stats
+
+
+def refined_or_augmented(factor, matvec, rmatvec, b: np.ndarray, sparse):
+    """min ‖M x − b‖ (b (r,) or (r, k)) by ``refine_normal_equations`` on ``factor()`` (a ``Factor`` of MᵀM); where
+    that factorization fails or the refined answer is not trusted, by the augmented system of ``sparse()`` (M)
+    instead, logged. Returns ``(x, factor, stats)``, ``factor`` None after the fallback."""
+    stats = {"method": "normal equations", "refinement_steps": 0, "relative_correction": 0.0}
+    f, x, trusted = None, None, False
     try:
-        factor = factorize(N, backend=backend)
-        x, stats, trusted = refine_normal_equations(factor.solve, M.dot, M.T.dot, b)
-    except Exception as exc:  # qdldl "not quasi-definite", SuperLU "exactly singular", CHOLMOD errors
+        f = factor()
+        x, stats, trusted = refine_normal_equations(f.solve, matvec, rmatvec, b)
+    except Exception as exc:  # NotPositiveDefinite, qdldl "not quasi-definite", SuperLU "exactly singular", …
         log.info("normal equations could not be factored (%s): using the augmented system", exc)
     if not trusted:
         log.warning("least squares: normal equations too ill-conditioned (relative correction %.2g); "
                     "solving the augmented system instead", stats["relative_correction"])
-        x = augmented_least_squares(M, b)
-        stats["method"] = "augmented system"
-        factor = None
-    return x, N, factor, stats
+        M, B = sparse(), b.reshape(b.shape[0], -1)
+        x = np.stack([augmented_least_squares(M, B[:, j]) for j in range(B.shape[1])], 1)
+        x = x.reshape((M.shape[1],) + b.shape[1:])
+        stats["method"], f = "augmented system", None
+    return x, f, stats
 
 
 def whitening_2x2(info: np.ndarray) -> np.ndarray:

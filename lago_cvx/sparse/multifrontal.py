@@ -1,63 +1,45 @@
-r"""Multifrontal block Cholesky on the pose graph: one symbolic analysis shared by every LAGO system,
-batched dense kernels, and selected inversion (Takahashi) for marginal covariances.
+r"""Multifrontal block Cholesky on the pose graph: the symbolic analysis shared by every LAGO system.
 
-Every sparse system of LAGO's closed forms has the sparsity of the anchor-reduced pose graph with b×b
-blocks, one block row per free pose (d = n − 1 of them):
+Every sparse system of LAGO's closed forms has the sparsity of the anchor-reduced pose graph with b×b blocks, one
+block row per free pose (d = n − 1): b = 1 phase 1 (eq. (13)), b = 2 the chordal relaxation (C3) and the positions
+(P), b = 3 phase 3 (eqs. (12), (15)) and the 3-D relaxation and positions, b = 6 the 3-D joint step. So one
+fill-reducing ordering and one elimination tree, computed once **at the pose level**, serve them all.
 
-* b = 1 — phase 1, eq. (13): Ω_θ = A2 P_δ⁻¹ A2ᵀ (d × d); the positions (P) with isotropic information;
-* b = 2 — the chordal relaxation (C3), MᵀM (2d × 2d); the positions (P) in general;
-* b = 3 — phase 3, eqs. (12), (15): Ω* = B P_z⁻¹ Bᵀ (3d × 3d).
+**Symbolic analysis** (``EliminationPlan``, O(n) after the ordering). AMD's ordering of the d × d pose pattern
+and the pattern of its factor (``qdldl.Solver``'s public ``factors()`` on a diagonally dominant matrix of that
+pattern); the elimination tree (parent of column j = first off-diagonal row of L's column j), its postorder, the
+fundamental supernodes (chains j → j + 1 whose columns share their structure) and a relaxed amalgamation of small
+supernodes into *fronts* (a few explicit zeros traded for fewer, larger dense blocks). Front f has pivot poses P_f
+(contiguous in the final order) and update rows R_f (later poses, sorted); R_f ⊂ P_parent ∪ R_parent.
 
-So one fill-reducing ordering and one elimination tree, computed once **at the pose level**, serve them
-all; the b×b blocks are dense and are factored by dense LAPACK/BLAS kernels.
-
-**Symbolic analysis** (``EliminationPlan``). An AMD ordering of the d × d pose pattern and the pattern of
-its Cholesky factor (taken from QDLDL, which runs AMD); the elimination tree (parent of column j = first
-off-diagonal row of L's column j), a postorder of it, the fundamental supernodes (chains j → j + 1 whose
-columns share their structure) and a relaxed amalgamation of small supernodes into *fronts* (a few
-explicit zeros traded for fewer, larger dense blocks). Front f has pivot poses P_f (contiguous in the
-final elimination order) and update rows R_f (later poses, sorted); R_f ⊂ P_parent ∪ R_parent.
-
-**Numeric factorization** N = L Lᵀ (``BlockLayout.factor``), front by front from the leaves up:
+**Numeric factorization** N = L Lᵀ, front by front from the leaves up (``compiled``: in C, or ``block_factor``
+in NumPy where the C kernels were not built):
 
     F_f = [[F_PP, ·], [F_RP, F_RR]] = N's entries in the columns P_f + Σ_children U_c   (extend-add)
     L_PP = chol(F_PP),    X_f = F_RP L_PP⁻ᵀ,    U_f = F_RR − X_f X_fᵀ                          (MF)
 
-L's block column of P_f is [L_PP; X_f]. Fronts at the same height of the front tree are independent;
-those of similar size are padded to a common size (identity on padded pivots, zero padded rows) and
-factored together by stacked calls (Cholesky, products), with a few NumPy calls per front left (the
-extend-add of its children, L_PP⁻¹ by ``trtri``). Large fronts are factored one by one with exact sizes
-(``potrf``/``trsm``/``syrk``) on every BLAS thread, small ones on one (``linalg.blas_threads``).
-
-**Solve** N x = y: forward L_PP z_P = y_P, y_R −= X z_P (leaves up); back x_P = L_PP⁻ᵀ(z_P − Xᵀx_R).
-
-**Selected inversion** (Takahashi, Fagan, Chen 1973; Erisman, Tinney 1975): with Σ = N⁻¹ = L⁻ᵀL⁻¹ and
-the fronts taken from the root down, Σ_RR is known (a submatrix of the parent front's Σ, as
-R_f ⊂ P_parent ∪ R_parent) and
+L's block column of P_f is [L_PP; X_f]. **Selected inversion** (Takahashi, Fagan, Chen 1973; Erisman, Tinney
+1975): with Σ = N⁻¹ = L⁻ᵀL⁻¹ and the fronts taken from the root down, Σ_RR is a submatrix of the parent front's Σ
+and
 
     Y = X_f L_PP⁻¹,    Σ_RP = −Σ_RR Y,    Σ_PP = L_PP⁻ᵀ L_PP⁻¹ − Yᵀ Σ_RP                       (T)
 
-(from Σ L = L⁻ᵀ, whose block column P reads [Σ_PP Σ_PR; Σ_RP Σ_RR][L_PP; X] = [L_PP⁻ᵀ; 0]). This gives
-every entry of Σ on the pattern of L — each pose's b×b block and the block of every pose pair joined by an
-edge — in about the time of two factorizations and the memory of the fronts, never forming N⁻¹.
+(from Σ L = L⁻ᵀ, whose block column P reads [Σ_PP Σ_PR; Σ_RP Σ_RR][L_PP; X] = [L_PP⁻ᵀ; 0]): every entry of Σ on
+the pattern of L, never forming N⁻¹ (``block_factor.inverse_blocks``).
 """
 
 from __future__ import annotations
 
-import logging
 from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
 
-from .block_factor import BlockFactor, inverse_blocks
-from ..errors import NumericalError
-from .linalg import blas_threads
+from .block_factor import inverse_blocks
+from .linalg import NotPositiveDefinite
 
-__all__ = ["EliminationPlan", "BlockLayout", "BlockFactor", "plan_from_qdldl", "plan_from_pattern", "NotPositiveDefinite",
-           "inverse_blocks"]
-
-log = logging.getLogger(__name__)
+__all__ = ["EliminationPlan", "plan_from_qdldl", "plan_from_pattern", "NotPositiveDefinite", "inverse_blocks",
+           "NRELAX", "ZRELAX", "COMPILED_RELAX"]
 
 #: Relaxed amalgamation (CHOLMOD's defaults): a child front is merged into its parent when the merged
 #: front has at most NRELAX[0] pivots, or at most NRELAX[1] pivots and a fraction of explicit zeros
@@ -65,29 +47,9 @@ log = logging.getLogger(__name__)
 NRELAX = (4, 16, 48)
 ZRELAX = (0.8, 0.1, 0.05)
 
-#: The amalgamation for the compiled engine (``lago_cvx.sparse.compiled``), whose cost per front is a few hundred
-#: nanoseconds, not a Python call: fewer explicit zeros, so a smaller L (less memory to fault in, shorter
-#: solves) for the same factorization time (phase 3 of the 1 000 000-pose world: L 1.85 GiB with ``NRELAX``/
-#: ``ZRELAX``, 1.48 GiB with these; tighter still cost time). Whole runs: ``benchmarks/million.md``.
+#: The amalgamation for the C kernels, whose cost per front is a few hundred nanoseconds, not a Python call:
+#: fewer explicit zeros, so a smaller L for the same factorization time (``benchmarks/million.md``).
 COMPILED_RELAX = ((2, 8, 32), (0.8, 0.1, 0.05))
-
-#: Fronts with at least this many pivot variables (k·b) are factored one at a time with exact sizes;
-#: smaller ones are padded and batched.
-SINGLE_FRONT = 96
-
-#: Fronts with at least this many pivot variables are factored with every BLAS thread; smaller ones
-#: with one — when the caller let the engine set the BLAS threads (``threads.engine_threads``): threads cost far
-#: more than they give on small dense blocks (``benchmarks/million.md``).
-THREADED_FRONT = 384
-
-#: Pose-count ladder the small fronts are padded to (steps of about 1.25).
-_LADDER = np.array([0, 1, 2, 3, 4, 5, 6, 7, 8, 10, 12, 14, 16, 20, 24, 28, 32, 40, 48, 56, 64, 80, 96, 112,
-                    128, 160, 192, 224, 256, 320, 384, 448, 512, 640, 768, 896, 1024])
-
-
-class NotPositiveDefinite(NumericalError):
-    """A front's pivot block was not numerically positive definite (the matrix is not SPD in floating
-    point)."""
 
 
 def _seg_arange(lengths: np.ndarray) -> np.ndarray:
@@ -100,50 +62,69 @@ def _seg_arange(lengths: np.ndarray) -> np.ndarray:
     return np.arange(total, dtype=np.int64) - np.repeat(starts, lengths)
 
 
-def _pad(x: np.ndarray) -> np.ndarray:
-    """Smallest ladder value ≥ x (beyond the ladder: x itself)."""
-    i = np.searchsorted(_LADDER, x)
-    return np.where(i < _LADDER.size, _LADDER[np.minimum(i, _LADDER.size - 1)], x)
-
-
 def _postorder(parent: np.ndarray) -> np.ndarray:
-    """A postorder of the forest ``parent`` (−1 at roots): ``order[t]`` = the node visited t-th, children before
-    parents. The reverse of the depth-first preorder that visits children by increasing index (``scipy.sparse.
-    csgraph``'s), i.e. each node after its subtree and siblings by decreasing index. O(n) at every shape: for an
-    elimination tree (parent[i] > i) ``supernodes.postorder``'s two passes (in C, by Numba or in Python, as
-    ``_loops`` chooses), else one depth-first walk by an explicit stack. (``csgraph.depth_first_order``, used
-    before, is quadratic on a star: every pose tied to one hub.)"""
-    parent = np.ascontiguousarray(parent, np.int64)
+    """``postorder`` of an elimination tree (parent[i] > i, −1 at roots), O(n) at every shape (a star
+    as a chain; ``csgraph.depth_first_order`` is quadratic on a star)."""
+    return _loops()[2](np.ascontiguousarray(parent, np.int64))
+
+
+def _loops():
+    """``relax``, ``heights`` and ``postorder``, the symbolic analysis's sequential loops: in C when the kernels are
+    built (``compiled.available()``), else as the Python below (the same integer loops and floating-point operations:
+    the same plan either way, tested)."""
+    from . import compiled
+
+    if compiled.available():
+        K = compiled.kernels()
+        return K["relax"], K["heights"], K["postorder"]
+    return relax, heights, postorder
+
+
+def relax(k, r, true_nnz, sparent, n0, n1, n2, z0, z1, z2):
+    """Supernodes 0 … ns−1 in topological order (children first): ``k`` (ns,) pivots, ``r`` (ns,) update
+    rows, ``true_nnz`` (ns,) entries of L without explicit zeros, ``sparent`` (ns,) parent (−1 at a root).
+    ``k`` and ``true_nnz`` are updated in place as children merge. Returns (ns,) the supernode each was
+    merged into (itself when it survives; one step, not followed to the end)."""
+    ns = k.size
+    top = np.arange(ns)
+    for c in range(ns):
+        p = sparent[c]
+        if p < 0:
+            continue
+        kk = k[c] + k[p]
+        total = kk * (kk + 1) // 2 + kk * r[p]
+        zf = (total - true_nnz[c] - true_nnz[p]) / total
+        if kk <= n0 or (kk <= n1 and zf < z0) or (kk <= n2 and zf < z1) or zf < z2:
+            k[p] = kk
+            true_nnz[p] += true_nnz[c]
+            top[c] = p
+    return top
+
+
+def heights(parent):
+    """(F,) the height of each front of the forest ``parent`` (fronts in topological order, −1 at a
+    root): 0 at a leaf, else 1 + the largest height of its children."""
     n = parent.size
-    has = parent >= 0
-    if (parent[has] > np.flatnonzero(has)).all():
-        return _loops(n)[2](parent)
-    par = np.where(has, parent, n)  # a virtual root n above the roots
-    kids = np.argsort(par, kind="stable")  # children of each node by increasing index
-    ptr = np.r_[0, np.cumsum(np.bincount(par, minlength=n + 1))].tolist()
-    kids = kids.tolist()
-    pre, stack = [], [n]
-    while stack:
-        v = stack.pop()
-        pre.append(v)
-        stack.extend(reversed(kids[ptr[v]:ptr[v + 1]]))  # the smallest child on top
-    return np.array(pre[:0:-1], np.int64)
+    h = np.zeros(n, np.int64)
+    for f in range(n):
+        p = parent[f]
+        if p >= 0 and h[p] < h[f] + 1:
+            h[p] = h[f] + 1
+    return h
 
 
-#: From this many poses the symbolic analysis's sequential loops run through Numba's ``compiled_kernels`` when the C
-#: kernels are not built: below it Numba's start costs more than the Python loops. The C kernels (``c_kernels``) run
-#: them at every size: they load in milliseconds (``benchmarks/million.md``, ``benchmarks/spaceprocess.md``).
-COMPILED_LOOPS = 200_000
-
-
-def _postorder_python(parent: np.ndarray) -> np.ndarray:
-    """``supernodes.postorder`` on Python lists (faster than on NumPy scalars where nothing compiles)."""
+def postorder(parent):
+    """(n,) ``order[t]`` the node visited t-th by the postorder of the forest ``parent`` (n,) (−1 at a root, else
+    parent[i] > i, as in an elimination tree): the reverse of the depth-first preorder that visits children by
+    increasing index (``scipy.sparse.csgraph.depth_first_order``'s), i.e. each node right after its subtree, siblings
+    by decreasing index. Two passes: subtree sizes (children first), then each node's interval in its parent's
+    (parents first), O(n) (on Python lists, faster than on NumPy scalars)."""
     n = parent.size
     par = np.where(parent < 0, n, parent).tolist()
     size = [1] * (n + 1)
-    for i in range(n):  # children before parents (parent[i] > i)
+    for i in range(n):  # children before parents; the virtual root n above the roots
         size[par[i]] += size[i]
-    free = [0] * (n + 1)  # next free place in each node's interval; the virtual root n starts at 0
+    free = [0] * (n + 1)  # next free place in each node's interval; the virtual root's starts at 0
     where = [0] * n
     for i in range(n - 1, -1, -1):  # parents before children, siblings by decreasing index
         lo = free[par[i]]
@@ -153,25 +134,6 @@ def _postorder_python(parent: np.ndarray) -> np.ndarray:
     order = np.empty(n, np.int64)
     order[np.asarray(where, np.int64)] = np.arange(n)
     return order
-
-
-def _loops(d: int):
-    """``supernodes.relax``, ``supernodes.heights`` and ``supernodes.postorder``: in C when its library was built, else through Numba for
-    d ≥ ``COMPILED_LOOPS`` when it can be imported, else as Python (integer loops and the same floating-point
-    operations: the same plan every way, tested)."""
-    from . import supernodes
-
-    try:
-        from .c_kernels import KERNELS
-    except ImportError:
-        if d < COMPILED_LOOPS:
-            return supernodes.relax, supernodes.heights, _postorder_python
-        try:
-            from .compiled_kernels import KERNELS
-        except Exception as exc:  # no Numba: the same loops in Python
-            log.debug("symbolic analysis in Python (%s)", exc)
-            return supernodes.relax, supernodes.heights, _postorder_python
-    return KERNELS["relax"], KERNELS["heights"], KERNELS["postorder"]
 
 
 @dataclass(eq=False)
@@ -217,12 +179,6 @@ class EliminationPlan:
         # column t of a front (t = 0 … kb−1) has kb − t + rb entries (diagonal included)
         return float((k * (k + 1) * (2 * k + 1) / 6 + k * (k + 1) * r + k * r * r).sum())
 
-    def layout(self, b: int) -> "BlockLayout":
-        cache = self.__dict__.setdefault("_layouts", {})
-        if b not in cache:
-            cache[b] = BlockLayout(self, b)
-        return cache[b]
-
 
 def plan_from_qdldl(L: sp.csc_matrix, perm: np.ndarray, *, relaxation=None) -> EliminationPlan:
     """The plan from a pose-level factorization ``P A Pᵀ = (I + L) D (I + L)ᵀ`` as ``qdldl.Solver.factors()``
@@ -256,7 +212,7 @@ def plan_from_qdldl(L: sp.csc_matrix, perm: np.ndarray, *, relaxation=None) -> E
     last = ends - 1
     sparent = np.where(parent_p[last] >= 0, snode_of[np.maximum(parent_p[last], 0)], -1)
     # relaxed amalgamation: children first (supernodes are in topological order)
-    relax, heights, _ = _loops(d)
+    relax, heights, _ = _loops()
     k = (ends - starts).astype(np.int64)
     true_nnz = np.add.reduceat(cnt_p + 1, starts).astype(np.int64) if d else np.zeros(0, np.int64)
     top = relax(k, cnt_p[last].astype(np.int64), true_nnz, sparent.astype(np.int64), *nrelax, *zrelax)
@@ -309,237 +265,3 @@ def plan_from_pattern(d: int, rows: np.ndarray, cols: np.ndarray, *, relaxation=
     s = qdldl.Solver(A, upper=True)
     L, _, perm = s.factors()
     return plan_from_qdldl(L, perm, relaxation=relaxation)
-
-
-@dataclass(eq=False)
-class _Group:
-    """Fronts factored together: ``fronts`` (B,), padded pivot/row pose counts K, R (exact for a single
-    front), ``piv`` (B, K·b) and ``rowv`` (B, R·b) the variables' elimination slots (padding → the dummy
-    slot N), ``pad_diag`` the flat positions of padded pivot diagonals in the group buffer (B, D, D)."""
-
-    fronts: np.ndarray
-    K: int
-    R: int
-    b: int
-    piv: np.ndarray
-    rowv: np.ndarray
-    single: bool
-    pad_diag: np.ndarray
-
-    @property
-    def D(self) -> int:
-        return (self.K + self.R) * self.b
-
-
-class BlockLayout:
-    """The plan expanded to b×b blocks: groups of fronts with their index maps (module docstring).
-
-    Variables are numbered in elimination order, pose-major: slot = position·b + component; ``slots``
-    maps a system's variable numbering into it. ``rel[f]`` (r_f·b,) the local variable index, in its
-    parent's front, of each update row variable of front f (the extend-add map)."""
-
-    def __init__(self, plan: EliminationPlan, b: int):
-        self.plan = plan
-        self.b = b = int(b)
-        self.N = plan.d * b
-        k, r = plan.pivots, plan.n_rows
-        F = plan.n_fronts
-        self.group_of = np.full(F, -1, np.int64)
-        self.slot_of_front = np.full(F, -1, np.int64)
-        big = k * b >= SINGLE_FRONT
-        kp, rp = _pad(k), _pad(r)
-        self.K_of = np.where(big, k, kp)  # pivot poses of each front's buffer
-        groups = []
-        if F:
-            order = np.lexsort((np.where(big, np.arange(F), -1), rp, kp, big, plan.height))
-            hk = np.stack([plan.height[order], big[order], kp[order], rp[order],
-                           np.where(big[order], order, -1)], 1)
-            cut = np.flatnonzero(np.any(hk[1:] != hk[:-1], axis=1)) + 1
-            groups = np.split(order, cut)
-        comp = np.arange(b)
-        self.groups: list[_Group] = []
-        for gi, fs in enumerate(groups):
-            single = bool(big[fs[0]]) or fs.size == 1
-            K = int(k[fs[0]]) if single else int(kp[fs[0]])
-            R = int(r[fs[0]]) if single else int(rp[fs[0]])
-            self.K_of[fs] = K
-            self.group_of[fs] = gi
-            self.slot_of_front[fs] = np.arange(fs.size)
-            t = np.arange(K)
-            valid = t[None, :] < k[fs][:, None]
-            pos = plan.fptr[fs][:, None] + t[None, :]
-            piv = np.where(valid[:, :, None], pos[:, :, None] * b + comp, self.N).reshape(fs.size, K * b)
-            t = np.arange(R)
-            valid_r = t[None, :] < r[fs][:, None]
-            rpos = plan.rows[np.where(valid_r, plan.rptr[fs][:, None] + t[None, :], 0)] if plan.rows.size else \
-                np.zeros((fs.size, R), np.int64)
-            rowv = np.where(valid_r[:, :, None], rpos[:, :, None] * b + comp, self.N).reshape(fs.size, R * b)
-            D = (K + R) * b
-            pv = np.flatnonzero(~np.repeat(valid, b, axis=1).reshape(-1))
-            s_, v_ = np.divmod(pv, K * b)
-            self.groups.append(_Group(fs, K, R, b, piv, rowv, single, s_ * D * D + v_ * D + v_))
-        # extend-add maps, all fronts at once
-        rf = np.repeat(np.arange(F), r)
-        par = plan.parent[rf]
-        ok = par >= 0
-        loc = np.full(rf.size, -1, np.int64)
-        if ok.any():
-            loc[ok] = self._pose_local(par[ok], plan.rows[ok])
-        relv = (loc[:, None] * b + comp).reshape(-1)
-        self.rel = np.split(relv, plan.rptr[1:-1] * b) if F else []
-        children = np.argsort(plan.parent, kind="stable")
-        nroot = int((plan.parent < 0).sum())
-        self.children = np.split(children[nroot:], np.cumsum(np.bincount(plan.parent[plan.parent >= 0],
-                                                                          minlength=F))[:-1]) if F else []
-
-    def _pose_local(self, f: np.ndarray, pos: np.ndarray) -> np.ndarray:
-        """Local pose index of position ``pos`` in front ``f`` (arrays of one shape; pos must be in the
-        front): pivots 0 … k−1, update rows K + their rank (K the front's padded pivot count)."""
-        plan = self.plan
-        is_piv = (pos >= plan.fptr[f]) & (pos < plan.fptr[f + 1])
-        d = max(plan.d, 1)
-        fr = np.repeat(np.arange(plan.n_fronts), plan.n_rows)
-        rank = np.searchsorted(fr * d + plan.rows, f * d + pos) - plan.rptr[f]
-        return np.where(is_piv, pos - plan.fptr[f], self.K_of[f] + rank)
-
-    def slots(self, var_index: np.ndarray) -> np.ndarray:
-        """Elimination slot of every variable of a system numbered by ``var_index`` (d, b) (variable of
-        (free pose, component)): ``out[var_index[i, c]] = position[i]·b + c``."""
-        var_index = np.asarray(var_index, np.int64).reshape(self.plan.d, self.b)
-        out = np.empty(self.N, np.int64)
-        out[var_index.reshape(-1)] = (self.plan.position[:, None] * self.b + np.arange(self.b)).reshape(-1)
-        return out
-
-    # ---------------------------------------------------------------------------- assembly
-    def block_targets(self, prow: np.ndarray, pcol: np.ndarray):
-        """Where the b×b block (prow, pcol) of N (free-pose indices, a pair joined by an edge or a pose
-        with itself) lives: ``(group, offset, D, transposed)`` per pair, ``offset`` the flat position of
-        the block's (0, 0) entry in the group buffer (lower triangle: row = the later-eliminated pose);
-        ``transposed`` True where the stored block is the given block's transpose."""
-        plan = self.plan
-        pr, pc = plan.position[prow], plan.position[pcol]
-        tr = pr < pc
-        lo_pos, hi_pos = np.where(tr, pr, pc), np.where(tr, pc, pr)
-        f = np.searchsorted(plan.fptr, lo_pos, side="right") - 1
-        g = self.group_of[f]
-        D = np.array([G.D for G in self.groups], np.int64)[g]
-        li = self._pose_local(f, hi_pos)
-        lj = lo_pos - plan.fptr[f]
-        b = self.b
-        offset = self.slot_of_front[f] * D * D + li * b * D + lj * b
-        return g, offset, D, tr
-
-    def assembler(self, prow: np.ndarray, pcol: np.ndarray) -> "BlockAssembler":
-        """An assembler for matrices given as b×b blocks at the pose pairs (prow[q], pcol[q]) (each
-        unordered pair at most once per matrix entry; duplicates are summed)."""
-        return BlockAssembler(self, prow, pcol)
-
-    def factor(self, assembler: "BlockAssembler", blocks: np.ndarray, *, progress=None) -> "BlockFactor":
-        """Factor N = Σ_q E_q blocks[q] by (MF) (blocks (q, b, b) at the assembler's pose pairs).
-        Raises ``NotPositiveDefinite`` if a pivot block is not positive definite.
-
-        Only lower triangles are kept: the assembly writes N's lower triangle, an update U_f is passed
-        on as its lower-triangle entries (rel is increasing, so they land in the parent's lower
-        triangle), and every kernel reads the lower triangle. A batch of small fronts is factored by
-        stacked LAPACK calls (one Python call per group); a large front by potrf, trsm and syrk, with
-        the BLAS threads ``blas_threads`` allows."""
-        from scipy.linalg import blas, lapack
-
-        blocks = np.asarray(blocks, dtype=float).reshape(assembler.n_blocks, self.b, self.b)
-        b, nG = self.b, len(self.groups)
-        L11, Linv, X = [], [], []
-        update = [None] * self.plan.n_fronts  # lower-triangle entries of U_f, until the parent adds them
-        tri: dict = {}
-        work = np.empty(max((G.fronts.size * G.D * G.D for G in self.groups), default=0))
-        with blas_threads(1) as threads:
-            for gi, g in enumerate(self.groups):
-                B, D, Kb = g.fronts.size, g.D, g.K * b
-                Rb = D - Kb
-                dest, values = assembler.group(gi, blocks)
-                Fm = work[:B * D * D]  # one buffer for every group: no fresh pages to fault in
-                Fm.fill(0.0)
-                np.add.at(Fm, dest, values)
-                Fm[g.pad_diag] = 1.0
-                for s_, f in enumerate(g.fronts.tolist()):  # extend-add, flat indices into the front
-                    base = s_ * D * D
-                    for ch in self.children[f].tolist():
-                        rel = self.rel[ch]
-                        ii, jj = _tril(tri, rel.size)
-                        Fm[base + rel[ii] * D + rel[jj]] += update[ch]
-                        update[ch] = None
-                Fm = Fm.reshape(B, D, D)
-                if g.single:
-                    threads(None if Kb >= THREADED_FRONT else 1)
-                    A = Fm[0]
-                    cf, info = lapack.dpotrf(A[:Kb, :Kb].T, lower=0, clean=1)  # Fortran: upper = Lᵀ
-                    if info != 0:
-                        raise NotPositiveDefinite(f"the matrix is not positive definite (front {g.fronts[0]})")
-                    c, ci = cf.T[None], None
-                    Xi = np.empty((1, Rb, Kb))
-                    if Rb:
-                        Xt = blas.dtrsm(1.0, cf, A[Kb:, :Kb].T, side=0, lower=0, trans_a=1)  # Xᵀ (Kb, Rb)
-                        Xi[0] = Xt.T
-                        U = blas.dsyrk(-1.0, Xt, beta=1.0, c=A[Kb:, Kb:].T, trans=1, lower=0,
-                                       overwrite_c=1).T[None]  # upper of the transpose = lower of U
-                    threads(1)
-                else:
-                    try:
-                        c = np.linalg.cholesky(Fm[:, :Kb, :Kb])
-                    except np.linalg.LinAlgError:
-                        raise NotPositiveDefinite("the matrix is not positive definite (fronts "
-                                                  f"{g.fronts[0]}…{g.fronts[-1]})") from None
-                    ci = np.empty_like(c)
-                    for s_ in range(B):  # L_PP⁻¹ front by front (faster than a stacked general inverse)
-                        ci[s_] = lapack.dtrtri(c[s_].T, lower=0)[0].T
-                    Xi = Fm[:, Kb:, :Kb] @ np.swapaxes(ci, 1, 2)
-                    if Rb:
-                        U = Fm[:, Kb:, Kb:] - Xi @ np.swapaxes(Xi, 1, 2)
-                if Rb:
-                    for s_, f in enumerate(g.fronts.tolist()):
-                        ii, jj = _tril(tri, self.rel[f].size)
-                        update[f] = U[s_][ii, jj]
-                L11.append(c)
-                Linv.append(ci)
-                X.append(Xi)
-                if progress is not None:
-                    progress(gi + 1, nG)
-        return BlockFactor(self, L11, Linv, X)
-
-
-def _tril(cache: dict, n: int):
-    """``np.tril_indices(n)``, cached per n."""
-    t = cache.get(n)
-    if t is None:
-        t = cache[n] = np.tril_indices(n)
-    return t
-
-
-class BlockAssembler:
-    """Where b×b blocks at fixed pose pairs go in the fronts (computed once, reused for every matrix of
-    that pattern): the blocks sorted by group (``order``), each block's flat offset in its group buffer
-    (``offset``) and whether it is stored transposed (``transposed``); ``gptr`` the group boundaries.
-    A block is added whole at its place in the lower triangle; on a diagonal block that also writes
-    the upper triangle, which no kernel reads."""
-
-    def __init__(self, layout: BlockLayout, prow, pcol):
-        self.layout = layout
-        prow = np.asarray(prow, np.int64)
-        pcol = np.asarray(pcol, np.int64)
-        g, off, _, tr = layout.block_targets(prow, pcol)
-        # a stable radix sort of the blocks on their (small integer) group
-        self.order = np.argsort(g.astype(np.int16 if len(layout.groups) < 2 ** 15 else np.int32), kind="stable")
-        self.offset = off[self.order]
-        self.transposed = tr[self.order]
-        self.gptr = np.r_[0, np.cumsum(np.bincount(g, minlength=len(layout.groups)))]
-        self.n_blocks = prow.size
-
-    def group(self, gi: int, blocks: np.ndarray):
-        """(flat destinations, values) of group ``gi``'s blocks of ``blocks`` (q, b, b)."""
-        sl = slice(self.gptr[gi], self.gptr[gi + 1])
-        vals = blocks[self.order[sl]]
-        tr = self.transposed[sl]
-        if tr.any():
-            vals[tr] = np.swapaxes(vals[tr], 1, 2)
-        b, D = self.layout.b, self.layout.groups[gi].D
-        local = np.arange(b)[:, None] * D + np.arange(b)
-        return (self.offset[sl][:, None, None] + local).reshape(-1), vals.reshape(-1)

@@ -1,21 +1,11 @@
 """How many threads the engine may use, and whether it may touch the process's BLAS thread count.
 
-``cores()`` — the engine's own threads (compiled subtrees, solves, background builds): the cores of this
-process's CPU affinity, read when asked, capped by ``LAGO_CVX_THREADS`` (an integer ≥ 1, for users who share a
-machine) and by ``workers`` when a caller set it (``engine_threads(workers=…)``; SciPy's name). No count is fixed:
-a process pinned to one core (``taskset``, a Dask worker with one thread, a batch scheduler's cgroup) gets one
-thread, a 64-core workstation gets more. ``workers=1`` runs the engine in the calling thread alone.
-
-``blas_limit()`` — the BLAS thread count the engine may set around its small dense kernels: None (the default)
-leaves the process's BLAS settings alone; only a caller that asks (``engine_threads(blas_threads=k)``) lets the
-engine hold the BLAS to at most k threads while it runs (``linalg.blas_threads``) — a process-wide setting,
-visible to every thread of the process meanwhile, so never the default. OpenBLAS offers no thread-local count to
-use instead: its ``openblas_set_num_threads_local`` (0.3.27 on) calls the process-wide ``openblas_set_num_threads``
-and stores the count in a plain global (not thread-local storage), so another thread sees the change (the
-pthreads builds NumPy and SciPy bundle, 0.3.30 and 0.3.31, read from their machine code and seen at run time).
-
-Both are context variables: set for the calling thread's context, not for the process; the engine hands them
-to the threads it starts (``spawn``).
+``cores()`` — the engine's own threads (compiled subtrees, solves, background builds): the cores of this process's
+CPU affinity, capped by ``LAGO_CVX_THREADS`` and by ``workers`` (``engine_threads(workers=…)``; SciPy's name);
+``workers=1`` runs the engine in the calling thread alone. ``blas_limit()`` — None (the default) leaves the
+process's BLAS settings alone; only ``engine_threads(blas_threads=k)`` lets the engine hold every BLAS to at most k
+threads while it runs (``linalg.blas_threads``: a process-wide setting — OpenBLAS has no thread-local count — so
+never the default). Both are context variables, handed to the threads the engine starts (``spawn``).
 """
 
 from __future__ import annotations
