@@ -61,7 +61,9 @@ def test_phase3_moves_away_from_the_minimum_on_real_graphs(rel, factor):
           f"LAGO {t.chi2_lago:.6g}; identity {t.identity_error:.1e}")
     assert t.identity_error < 1e-9
     assert t.chi2_phase3 > factor * t.chi2_suboptimal
-    assert t.chi2_lago <= min(t.chi2_suboptimal, t.chi2_resolved) * (1 + 1e-12)
+    # LAGO's default route re-solves the positions too, on its own factorization: the same minimum up to the
+    # linear solves' rounding (INTEL's information spans eight decades: 7e-11 relative seen), not bit for bit
+    assert t.chi2_lago <= min(t.chi2_suboptimal, t.chi2_resolved) * (1 + 1e-9)
 
 
 @pytest.mark.parametrize("rel,factor", [("se-sync/city10000.g2o", 0.9), ("se-sync/CSAIL.g2o", 1.0),
