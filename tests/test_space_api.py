@@ -287,3 +287,18 @@ def test_certify3d_takes_an_id(cube):
     assert a.cost == pytest.approx(b.cost, rel=1e-12) and a.certified == b.certified == c.certified
     with pytest.raises(OptionError, match="not both"):
         certify3d(g, res, anchor=0, anchor_index=0)
+
+
+def test_api_reference_lists_every_3d_module():
+    import pkgutil
+    import re
+    from pathlib import Path
+
+    import lago_cvx.space
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "api.md").read_text(encoding="utf-8")
+    listed = set(re.findall(r"automodule:: (lago_cvx[\w.]*)", text))
+    space = ["lago_cvx.space"] + [m.name for m in pkgutil.iter_modules(lago_cvx.space.__path__, "lago_cvx.space.")]
+    wanted = space + ["lago_cvx.posegraph3d", "lago_cvx.so3", "lago_cvx.metrics3d", "lago_cvx.synthetic.space"]
+    assert not sorted(set(wanted) - listed)
+    assert "lago_cvx.space.chordal_problem" in text  # and which chordal_problem lc.chordal_problem is
