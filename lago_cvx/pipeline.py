@@ -129,13 +129,11 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
     options do not apply and must be left unset.
     """
     clock = _Clock()  # from the call's first line: ``timings["total"]`` is the whole call
-    if getattr(graph, "dim", 2) == 3:
+    if getattr(graph, "dim", 2) == 3 or rotation_constraints is not None:
         return _in_space(graph, route=route, method=method, anchor=anchor, solver_settings=solver_settings,
                          anchors=anchors, priors=priors, rotation_constraints=rotation_constraints,
                          spanning_tree=spanning_tree, regularization=regularization, information=information,
                          positions=positions, anchor_pose=anchor_pose, integer_search=integer_search)
-    if rotation_constraints is not None:
-        raise OptionError("rotation_constraints: 3-D graphs only (planar orientations: variants.orientation_bounds)")
     choice, route_name = resolve_route(route, spanning_tree=spanning_tree, regularization=regularization,
                                        information=information, positions=positions)
     if anchors is not None or priors is not None:  # the variants engine (loaded on demand)
@@ -202,6 +200,8 @@ def _in_space(graph, *, route, method, anchor, solver_settings, anchors, priors,
     """A 3-D graph to ``lago_cvx.space.lago3d``; the planar-only options must be left unset."""
     from .space import lago3d
 
+    if getattr(graph, "dim", 2) != 3:
+        raise OptionError("rotation_constraints: 3-D graphs only (planar orientations: variants.orientation_bounds)")
     given = sorted(k for k, v in planar.items() if v is not None)
     if given:
         raise OptionError(f"option(s) {', '.join(given)} apply to planar graphs only")
