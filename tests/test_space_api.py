@@ -69,8 +69,9 @@ def _two_anchors(g, t, R, first: int, second: int) -> dict:
 
 
 def _check_anchors_hold(g, anchors, start):
-    for method in ("closed_form", "cvxpy"):
-        res = lc.lago(g, anchors=anchors, method=method)
+    runs = [lc.lago(g, anchors=anchors, method=method) for method in ("cvxpy", "closed_form")]
+    assert runs[0].chi2 == pytest.approx(runs[1].chi2, rel=1e-6)  # cvxpy and the closed form: one problem
+    for res in runs:
         for pid, (t, R) in anchors.items():
             i = g.index_of(pid)
             assert np.array_equal(res.t[i], t) and np.array_equal(res.R[i], R)
@@ -237,6 +238,7 @@ def test_position_priors_fix_the_frame_in_lago_and_refine(cube):
     g = cube.graph
     gps = {int(g.ids[v]): (cube.t[v], None, np.eye(3) / 0.05 ** 2) for v in (0, 21, 42, 63)}
     res = lc.lago(g, priors=gps)
+    assert lc.lago(g, priors=gps, method="cvxpy").chi2 == pytest.approx(res.chi2, rel=1e-6)
     ref = lc.refine(g, res, priors=gps)
     assert ref.converged and not ref.held.any()
     err = np.linalg.norm(ref.t[[0, 21, 42, 63]] - cube.t[[0, 21, 42, 63]], axis=1)

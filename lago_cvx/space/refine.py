@@ -49,7 +49,7 @@ from ..errors import OptionError, check_choice
 from ..posegraph3d import chi2_3d
 from ..so3 import exp_so3, log_so3, right_jacobian_inverse
 from .blocks import edge_matrix
-from .constraints import check_rotation_constraints, constraint_violation, null_basis, project_constrained
+from .constraints import check_rotation_constraints, constraint_violation, project_constrained
 from .fixed import check_fixed
 from .gauss_newton import gauss_newton_step, jacobians, normal_equations, whitening
 
@@ -306,6 +306,11 @@ class Refine3DResult:
     problem: object = field(default=None, repr=False)
 
     dim = 3
+
+    def __repr__(self) -> str:
+        return (f"Refine3DResult(n={self.t.shape[0]}, chi2={self.chi2:.10g}, chi2_initial={self.chi2_initial:.10g}, "
+                f"iterations={self.iterations}, converged={self.converged}, method={self.method!r}, "
+                f"reason={self.reason!r})")
 
     @property
     def poses(self):
