@@ -304,3 +304,19 @@ def test_api_reference_lists_every_3d_module():
     wanted = space + ["lago_cvx.posegraph3d", "lago_cvx.so3", "lago_cvx.metrics3d", "lago_cvx.synthetic.space"]
     assert not sorted(set(wanted) - listed)
     assert "lago_cvx.space.chordal_problem" in text  # and which chordal_problem lc.chordal_problem is
+
+
+def test_known_positions_without_a_rotation_fix_the_frame(cube):
+    """Position anchors (t only) or two GPS priors: the chordal gauge is aligned onto them, then refine leaves the
+    one rotation they do not fix (about the line through two positions) to the gauge."""
+    g = cube.graph
+    free = lc.refine(g, lc.lago(g))
+    anchors = {int(g.ids[i]): (cube.t[i], None) for i in (0, 21, 63)}
+    res = lc.lago(g, anchors=anchors)
+    ref = lc.refine(g, res, anchors=anchors)
+    assert ref.converged and free.chi2 * (1 - 1e-9) <= ref.chi2 < 1.01 * free.chi2  # the frame fits, little cost
+    assert lc.ate(ref, cube, align=False) < 0.2 and np.array_equal(ref.t[21], cube.t[21])
+    gps = {int(g.ids[i]): (cube.t[i], None, 400.0 * np.eye(3)) for i in (0, 63)}
+    two = lc.refine(g, lc.lago(g, priors=gps), priors=gps)
+    assert two.converged and two.chi2 < 1.01 * free.chi2
+    assert np.linalg.eigvalsh(two.pose_covariances()[30]).min() > 0

@@ -22,8 +22,8 @@ as a cvxpy problem (Clarabel), the same problem both ways:
 The frame: the anchors' when they give a rotation and a position; otherwise the reference pose (``anchor``, or
 with rotation constraints and no anchor the first constrained pose, at R₀ with R₀ a = b: every rotation with
 R a = b is R₀ times a rotation about a, the freedom a global rotation about b leaves) holds what is left. When
-position priors but no known rotation fix the frame, the estimate of (C′)–(P′) is first moved rigidly onto the
-priors' means (Kabsch; about b alone under rotation constraints), then (P′) is solved with them.
+known positions (anchors' or priors') but no known rotation fix the frame, the estimate of (C′)–(P′) without them
+is first moved rigidly onto them (Kabsch; about b alone under rotation constraints), then (P′) is solved with them.
 """
 
 from __future__ import annotations
@@ -147,12 +147,12 @@ def chordal_constrained(graph, var: Variant3D, *, weighting: str = "isotropic", 
 
 
 def positions_with_priors(graph, R, var: Variant3D, *, method: str = "closed_form", settings=None, priors=True):
-    """t (n, 3) of (P′) at rotations R (module docstring); ``priors=False`` leaves the position priors out (and
-    holds the reference at 0 instead)."""
+    """t (n, 3) of (P′) at rotations R (module docstring); ``priors=False`` leaves the known positions (anchors and
+    priors) out and holds the reference at 0 instead: the shape to align onto them (``_align_to_known``)."""
     n = graph.n_poses
     LB, Lc = _whitened_edges(graph, R)
     rows_M, rows_b = [edge_matrix(graph.tails, graph.heads, LB, -LB, n)], [Lc.ravel()]
-    known = dict(var.known_t)
+    known = dict(var.known_t) if priors else {}
     if priors:
         known.update(var.hold_t)
         for i, tb, _, U in var.pos_priors:
@@ -186,11 +186,12 @@ def positions_with_priors(graph, R, var: Variant3D, *, method: str = "closed_for
     return t
 
 
-def _align_to_priors(t, R, var: Variant3D):
-    """(t, R) moved rigidly, G t + s and G R, so that the prior poses' positions best match their means (Kabsch;
-    G a rotation about b under rotation constraints)."""
-    idx = np.array([p[0] for p in var.pos_priors])
-    src, dst = t[idx], np.array([p[1] for p in var.pos_priors])
+def _align_to_known(t, R, var: Variant3D):
+    """(t, R) moved rigidly, G t + s and G R, so that the known positions (anchors' and priors' means) are best
+    matched (Kabsch; G a rotation about b under rotation constraints)."""
+    known = list(var.known_t.items()) + [(p[0], p[1]) for p in var.pos_priors]
+    idx = np.array([i for i, _ in known])
+    src, dst = t[idx], np.array([q for _, q in known])
     H = (src - src.mean(0)).T @ (dst - dst.mean(0))
     ci, _, cb = var.constraints
     if ci.size:  # a rotation about b: the 2-D polar factor in b's frame (as eq. (PC))
@@ -220,9 +221,9 @@ def lago3d_variant(graph, *, anchors=None, priors=None, rotation_constraints=Non
             R[ci] = project_constrained(R[ci], ca, cb)
         for i, Rk in var.known_R.items():
             R[i] = Rk
-    if var.pos_priors and not var.known_t and not var.known_R and not var.rot_priors:
+    if (var.pos_priors or var.known_t) and not var.known_R and not var.rot_priors:
         t = positions_with_priors(graph, R, var, method=method, settings=settings, priors=False)
-        t, R = _align_to_priors(t, R, var)
+        t, R = _align_to_known(t, R, var)
     t = positions_with_priors(graph, R, var, method=method, settings=settings)
     prob = Problem3D(graph, t, R, reference=var.reference, anchors=var.anchors, priors=var.priors,
                      constraints=var.constraints)
