@@ -46,6 +46,7 @@ import scipy.sparse as sp
 
 from ..conventions import REFINE_MAX_ITERATIONS, REFINE_METHOD, REFINE_TOLERANCE
 from ..errors import OptionError, check_choice
+from ..reports import refine_repr, refine_summary
 from ..posegraph3d import chi2_3d
 from ..so3 import exp_so3, log_so3, right_jacobian_inverse
 from .blocks import edge_matrix
@@ -287,8 +288,9 @@ class Refine3DResult:
     """A refined 3-D estimate, named as the planar ``RefineResult`` where the meaning is the same: ``t`` (n, 3),
     ``R`` (n, 3, 3) (``poses`` the pair), ``chi2`` (edges and priors, no ½), ``chi2_initial``, ``iterations``
     (accepted steps), ``converged``, ``reason``, ``log`` (one dict per iteration: chi2, time, …), ``method``,
-    ``anchor`` (id of the reference pose), ``cost``, ``held`` (n, 6) bool (directions of δ = (δv, δφ) held: anchors,
-    the gauge, rotation constraints), ``constraint_names``, ``problem`` (``Problem3D``)."""
+    ``anchor`` (id of the reference pose), ``cost``, ``held`` (n, 6) bool (coordinates of δ = (δv, δφ) held:
+    anchors, the gauge, rotation constraints), ``constraint_names``, ``problem`` (``Problem3D``), ``backend`` (the
+    sparse solver of the steps)."""
 
     t: np.ndarray
     R: np.ndarray
@@ -304,13 +306,16 @@ class Refine3DResult:
     held: np.ndarray | None = None
     constraint_names: list = field(default_factory=list)
     problem: object = field(default=None, repr=False)
+    backend: str = ""
 
     dim = 3
 
     def __repr__(self) -> str:
-        return (f"Refine3DResult(n={self.t.shape[0]}, chi2={self.chi2:.10g}, chi2_initial={self.chi2_initial:.10g}, "
-                f"iterations={self.iterations}, converged={self.converged}, method={self.method!r}, "
-                f"reason={self.reason!r})")
+        return refine_repr(self)
+
+    def summary(self):
+        """The numbers of the refinement as a small table (``reports.Summary``, also a dict), as planar."""
+        return refine_summary(self)
 
     @property
     def poses(self):
@@ -357,7 +362,8 @@ def refine_space(graph, t, R, *, method: str, max_iterations: int, tolerance: fl
     res = Refine3DResult(t, R, chi, 0, False, [{"iteration": 0, "chi2": chi, "step_norm": 0.0, "time": 0.0}],
                          chi2_initial=chi, method=method, anchor=int(graph.ids[prob.reference]), cost=graph.cost,
                          held=prob.held, problem=prob,
-                         constraint_names=[f"R_{graph.ids[i]} a = b" for i in prob.constraints[0]])
+                         constraint_names=[f"R_{graph.ids[i]} a = b" for i in prob.constraints[0]],
+                         backend="pose-level elimination" if prob.plain else "factorize")
     if prob.dim == 0 or graph.n_edges == 0:
         res.converged, res.reason = True, "nothing to optimize"
         return res
