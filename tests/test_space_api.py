@@ -252,7 +252,11 @@ def test_lago_continues_from_given_rotations(cube):
     cont = lago3d(g, route="seed", rotations=seed.R)
     assert np.allclose(cont.t, seed.t, atol=1e-8) and cont.chi2 == pytest.approx(seed.chi2, rel=1e-9)
     joint = lago3d(g, rotations=seed.R)
-    assert joint.chi2 == pytest.approx(lago3d(g).chi2, rel=1e-6)
+    assert joint.chi2 == pytest.approx(lago3d(g).chi2, rel=1e-9) and joint.alpha is not None
+    G = exp_so3(np.array([[0.4, 0.1, -0.7]]))[0]  # another frame: the same estimate up to it
+    assert lago3d(g, rotations=G @ seed.R).chi2 == pytest.approx(joint.chi2, rel=1e-9)
+    cx = lago3d(g, rotations=seed.R, method="cvxpy")
+    assert cx.chi2 == pytest.approx(joint.chi2, rel=1e-6)
 
 
 # ------------------------------------------------------------------ metrics and certify3d

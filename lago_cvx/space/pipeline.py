@@ -137,7 +137,9 @@ def lago3d(graph, *, route: str = "default", method: str = "closed_form", weight
     poses (t or R may be None: known in part); ``priors`` ``{id: (t̄ or None, R̄ or None, Λ)}`` soft absolute
     measurements (Λ 3×3, or 6×6 position first); ``rotation_constraints`` ``{id: (a, b)}``, R_id a = b kept through
     the relaxation, its projection and the joint step (``space.gravity_aligned(ids)``: R e₃ = e₃); ``rotations``
-    (n, 3, 3) to continue from (the chordal relaxation skipped). With priors ``chi2`` includes their terms."""
+    (n, 3, 3) to continue from: the chordal relaxation skipped, the positions and the guarded joint step of the
+    route from there (the rotations moved rigidly so that the anchor's is the identity). With priors ``chi2``
+    includes their terms."""
     if getattr(graph, "dim", 2) != 3:
         raise OptionError("lago3d takes a 3-D pose graph (PoseGraph3D); planar graphs go to lago()")
     if cost is not None:
@@ -146,7 +148,8 @@ def lago3d(graph, *, route: str = "default", method: str = "closed_form", weight
     check_method(method)
     check_choice("weighting", weighting, WEIGHTINGS)
     check_connected(graph)  # Proposition 1's condition; the systems would be singular
-    if anchors is not None or priors is not None or rotation_constraints is not None or rotations is not None:
+    if anchors is not None or priors is not None or rotation_constraints is not None or (
+            rotations is not None and fixed is not None):
         return _variant(graph, anchors={**(fixed or {}), **(anchors or {})} or None, priors=priors,
                         rotation_constraints=rotation_constraints, rotations=rotations, anchor=anchor, route=route,
                         method=method, weighting=weighting, solver_settings=solver_settings)
@@ -171,20 +174,27 @@ def lago3d(graph, *, route: str = "default", method: str = "closed_form", weight
         from ..sparse import GraphElimination
 
         el = GraphElimination(graph, a, wide=(3, 6) if route == "default" else (3,))  # every system of the route
-        ch = chordal_closed_form(graph, weighting=weighting, anchor_index=a, elimination=el)
+        ch = None if rotations is not None else chordal_closed_form(graph, weighting=weighting, anchor_index=a,
+                                                                    elimination=el)
 
         def solve_positions(R):
             return positions_closed_form(graph, R, anchor_index=a, elimination=el)
     else:
-        ch = chordal_cvxpy(graph, weighting=weighting, anchor_index=a, settings=solver_settings)
+        ch = None if rotations is not None else chordal_cvxpy(graph, weighting=weighting, anchor_index=a,
+                                                              settings=solver_settings)
 
         def solve_positions(R):
             return positions_cvxpy(graph, R, anchor_index=a, settings=solver_settings)
-    timings["chordal"] = time.perf_counter() - start
-    accuracy["chordal"] = ch.accuracy
+    if ch is None:  # continue from the given rotations, moved rigidly so that the anchor's is the identity
+        R = graph.check_poses(np.zeros((graph.n_poses, 3)), rotations)[1]
+        R = np.swapaxes(R[a], 0, 1) @ R
+        R[a] = np.eye(3)
+        accuracy["chordal"] = {"method": "given rotations"}
+    else:
+        timings["chordal"] = time.perf_counter() - start
+        R, accuracy["chordal"] = ch.rotations, ch.accuracy
     t0 = time.perf_counter()
-    t, accuracy["positions"] = solve_positions(ch.rotations)
-    R = ch.rotations
+    t, accuracy["positions"] = solve_positions(R)
     seed = chi2_3d(graph, t, R)
     timings["positions"] = time.perf_counter() - t0
     cost, alpha, trials = seed, None, ()
