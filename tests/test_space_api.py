@@ -324,3 +324,12 @@ def test_known_positions_without_a_rotation_fix_the_frame(cube):
     two = lc.refine(g, lc.lago(g, priors=gps), priors=gps)
     assert two.converged and two.chi2 < 1.01 * free.chi2
     assert np.linalg.eigvalsh(two.pose_covariances()[30]).min() > 0
+
+
+def test_certify_dispatches_on_dim(cube):
+    res = lc.lago(cube.graph)
+    a, b = lc.certify(cube.graph, res), certify3d(cube.graph, res.t, res.R)
+    assert type(a).__name__ == "Certificate3D" and a.cost == pytest.approx(b.cost, rel=1e-12)
+    w = lc.manhattan_world(60, seed=1)
+    r2 = lc.lago(w.graph)
+    assert lc.certify(w.graph, r2).cost == pytest.approx(lc.certify(w.graph, r2.poses).cost, rel=1e-15)
