@@ -234,21 +234,22 @@ class Problem3D:
         return (J.T @ J).tocsc(), J.T @ r
 
     def step(self, t, R, elimination=None):
-        """(ξ, the linear model's decrease χ̄² − ‖r̄ + J̄ξ‖²) of the Gauss–Newton step."""
+        """(ξ, the linear model's decrease χ̄² − ‖r̄ + J̄ξ‖² or None) of the Gauss–Newton step (on the pose-level
+        elimination the decrease is left to ``predicted``, asked only when no step decreases χ̄²)."""
         if self.plain:
             xi = gauss_newton_step(self.graph, t, R, anchor_index=self.reference, L=self.L, elimination=elimination)
-            d = (self.B @ xi).reshape(-1, 6)
-            e, Ji, Jj = jacobians(self.graph, t, R)
-            g = self.graph
-            r = np.einsum("kij,kj->ki", self.L, e)
-            lin = r + np.einsum("kij,kj->ki", self.L, np.einsum("kij,kj->ki", Ji, d[g.tails])
-                                + np.einsum("kij,kj->ki", Jj, d[g.heads]))
-            return xi, float(np.sum(r * r) - np.sum(lin * lin))
+            return xi, None
         from ..sparse import factorize
 
         H, gr = self.normal(t, R)
         xi = -factorize(H).solve(gr)
         return xi, -float(gr @ xi)
+
+    def predicted(self, t, R, xi) -> float:
+        """χ̄² − ‖r̄ + J̄ξ‖², the decrease the linear model predicts for the step ξ."""
+        r, J = self.linearize(t, R)
+        lin = r + J @ (self.B @ xi)
+        return float(r @ r - lin @ lin)
 
     def update(self, t, R, xi):
         """The poses moved by ξ: R_i Exp(δφ_i), t_i + R_i δv_i, δ = Bξ."""
@@ -403,6 +404,7 @@ def refine_space(graph, t, R, *, method: str, max_iterations: int, tolerance: fl
                 used = lam
                 lam = lam / 10.0 if new <= chi else lam * 10.0
         if not new <= chi:  # no decrease along any step tried: stationary to working precision, or a failure
+            predicted = prob.predicted(t, R, xi) if predicted is None else predicted
             res.converged = predicted <= 10 * max(tolerance, 1e-12) * max(chi, tiny) or new - chi <= 1e-9 * chi
             res.reason = ("no further decrease (stationary to working precision)" if res.converged else
                           f"line search failed (predicted decrease {predicted:.3g})")
