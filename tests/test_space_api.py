@@ -333,3 +333,37 @@ def test_certify_dispatches_on_dim(cube):
     w = lc.manhattan_world(60, seed=1)
     r2 = lc.lago(w.graph)
     assert lc.certify(w.graph, r2).cost == pytest.approx(lc.certify(w.graph, r2.poses).cost, rel=1e-15)
+
+
+def test_anchors_and_priors_in_space_agree_with_gtsam():
+    """smallGrid3D in GTSAM's cost with two anchors (tight PriorFactorPose3), three GPS priors
+    (PoseTranslationPrior3D) and a rotation prior (PoseRotationPrior3D): the same minimum and the same marginals
+    (GTSAM's tangent is (δφ, δv), ours (δv, δφ): both perturb on the right)."""
+    gtsam = pytest.importorskip("gtsam")
+    path = dataset_path("se-sync-3d/smallGrid3D.g2o")
+    g = lc.read_graph(path, cost="gtsam")
+    best = lc.refine(g, lc.lago(g))
+    anchors = {0: (best.t[0], best.R[0]), 124: (best.t[124] + [0.1, 0, 0], best.R[124])}
+    gps = {v: (best.t[v] + 0.05, None, np.eye(3) / 0.05 ** 2) for v in (30, 60, 90)}
+    rot = {45: (None, best.R[45] @ exp_so3(np.array([[0.02, 0.0, 0.0]]))[0], 1e4 * np.eye(3))}
+    priors = {**gps, **rot}
+    ours = lc.refine(g, lc.lago(g, anchors=anchors, priors=priors), anchors=anchors, priors=priors,
+                     tolerance=1e-12, max_iterations=100)
+    fg, init = gtsam.readG2o(str(path), True)
+    info = gtsam.noiseModel.Gaussian.Information
+    for v, (t, R) in anchors.items():
+        fg.add(gtsam.PriorFactorPose3(v, gtsam.Pose3(gtsam.Rot3(R), t), info(1e12 * np.eye(6))))
+    for v, (t, _, lam) in gps.items():
+        fg.add(gtsam.PoseTranslationPrior3D(v, gtsam.Point3(*t), info(lam)))
+    for v, (_, R, lam) in rot.items():
+        fg.add(gtsam.PoseRotationPrior3D(v, gtsam.Rot3(R), info(lam)))
+    params = gtsam.LevenbergMarquardtParams()
+    params.setRelativeErrorTol(1e-14)
+    params.setAbsoluteErrorTol(1e-14)
+    params.setMaxIterations(200)
+    est = gtsam.LevenbergMarquardtOptimizer(fg, init, params).optimize()
+    assert ours.converged and 2 * fg.error(est) == pytest.approx(ours.chi2, rel=1e-9)
+    swap = np.block([[np.zeros((3, 3)), np.eye(3)], [np.eye(3), np.zeros((3, 3))]])
+    theirs = swap @ gtsam.Marginals(fg, est).marginalCovariance(60) @ swap.T
+    mine = ours.pose_covariances()[60]
+    assert np.abs(theirs - mine).max() <= 1e-6 * np.abs(mine).max()
