@@ -88,7 +88,7 @@ def check_anchors3d(graph, anchors) -> list:
         if t is None and R is None:
             raise OptionError(f"anchor {pid}: give t, R or both")
         (i,), (tt,), (RR,) = check_fixed(graph, {pid: (np.zeros(3) if t is None else t,
-                                                        np.eye(3) if R is None else R)})
+                                                        np.eye(3) if R is None else R)}, "anchor")
         out.append((int(i), None if t is None else tt, None if R is None else RR))
     if len({a[0] for a in out}) != len(out):
         raise OptionError("anchors: a pose is anchored twice")
@@ -107,7 +107,7 @@ def check_priors3d(graph, priors) -> list:
         if t is None and R is None:
             raise OptionError(f"prior {pid}: give a position, a rotation or both")
         (i,), (tt,), (RR,) = check_fixed(graph, {pid: (np.zeros(3) if t is None else t,
-                                                        np.eye(3) if R is None else R)})
+                                                        np.eye(3) if R is None else R)}, "prior")
         k = 6 if t is not None and R is not None else 3
         info = np.asarray(info, dtype=float)
         if info.shape != (k, k) or not np.isfinite(info).all():
