@@ -122,8 +122,8 @@ def check_priors3d(graph, priors) -> list:
 
 
 class Problem3D:
-    """The restricted least-squares problem of the module docstring: ``bases`` (n lists of a (6, k_i) array),
-    ``dim`` d, ``plain`` (one pose held, no priors: the pose-level elimination's fast step), ``held`` (n, 6) bool
+    """The restricted least-squares problem of the module docstring: ``special`` {pose: B_i (6, k_i)} for the
+    restricted poses (B_i = I₆ elsewhere), ``B`` (6n, d) sparse, ``dim`` d, ``plain`` (one pose held, no priors: the pose-level elimination's fast step), ``held`` (n, 6) bool
     (coordinates of δ that cannot move), ``start`` the poses set to the anchors and projected onto the
     constraints."""
 
@@ -131,25 +131,25 @@ class Problem3D:
         n = graph.n_poses
         self.graph, self.priors, self.reference = graph, list(priors), reference
         t, R = np.array(t, dtype=float), np.array(R, dtype=float)
-        Bt = [np.eye(3)] * n
-        Br = [np.eye(3)] * n
+        eye, none = np.eye(3), np.zeros((3, 0))
+        Bt, Br = {}, {}  # the poses whose step is restricted (few); every other pose moves freely (B_i = I₆)
         for i, ta, Ra in anchors:
             if ta is not None:
-                t[i], Bt[i] = ta, np.zeros((3, 0))
+                t[i], Bt[i] = ta, none
             if Ra is not None:
-                R[i], Br[i] = Ra, np.zeros((3, 0))
+                R[i], Br[i] = Ra, none
         ci, ca, cb = constraints if constraints is not None else (np.zeros(0, np.int64), np.zeros((0, 3)),
                                                                   np.zeros((0, 3)))
         self.constraints = (ci, ca, cb)
         if ci.size:
             R[ci] = project_constrained(R[ci], ca, cb)
             for i, a in zip(ci, ca):
-                if Br[i].shape[1]:
+                if Br.get(i, eye).shape[1]:
                     Br[i] = a[:, None]
         known_t = [ta for _, ta, _ in anchors if ta is not None] + [p[1] for p in self.priors if p[1] is not None]
         rot_known = any(Ra is not None for _, _, Ra in anchors) or any(p[2] is not None for p in self.priors)
         if not known_t:
-            Bt[reference] = np.zeros((3, 0))
+            Bt[reference] = none
         if not rot_known:
             dirs = list(cb)
             if len(known_t) > 1:  # the directions the known positions span stay put too
@@ -160,24 +160,34 @@ class Problem3D:
             s, V = (np.linalg.svd(D)[1:] if D.size else (np.zeros(0), None))
             rank = int((s > 1e-9).sum())
             if rank == 0:
-                Br[reference] = np.zeros((3, 0))
+                Br[reference] = none
             elif rank == 1:  # rotations about u remain: hold the reference's about R_refᵀ u
                 c = R[reference].T @ V[0]
-                keep = Br[reference] - np.outer(c, c) @ Br[reference]
-                u, sv, _ = np.linalg.svd(keep, full_matrices=False)
+                base = Br.get(reference, eye)
+                u, sv, _ = np.linalg.svd(base - np.outer(c, c) @ base, full_matrices=False)
                 Br[reference] = u[:, sv > 1e-9]
         self.start = (t, R)
-        self.bases = [_blkdiag(a, b) for a, b in zip(Bt, Br)]
-        k = np.array([b.shape[1] for b in self.bases])
+        special = sorted(set(Bt) | set(Br))
+        self.special = {i: _blkdiag(Bt.get(i, eye), Br.get(i, eye)) for i in special}
+        k = np.full(n, 6)
+        k[special] = [b.shape[1] for b in self.special.values()]
         self.dim = int(k.sum())
-        self.held = np.array([~np.abs(b).any(axis=1) for b in self.bases]).reshape(n, 6)
-        self.plain = (not self.priors and k[reference] == 0 and (np.delete(k, reference) == 6).all()
-                      and not ci.size)
-        rows = np.concatenate([6 * i + np.nonzero(b)[0] for i, b in enumerate(self.bases)])
+        self.held = np.zeros((n, 6), bool)
+        for i, b in self.special.items():
+            self.held[i] = ~np.abs(b).any(axis=1)
+        self.plain = not self.priors and not ci.size and special == [reference] and k[reference] == 0
         off = np.concatenate([[0], np.cumsum(k)])
-        cols = np.concatenate([off[i] + np.nonzero(b)[1] for i, b in enumerate(self.bases)])
-        vals = np.concatenate([b[np.nonzero(b)] for b in self.bases])
-        self.B = sp.csc_matrix((vals, (rows, cols)), shape=(6 * n, self.dim))
+        free = np.setdiff1d(np.arange(n), special)
+        rows = [(6 * free[:, None] + np.arange(6)).ravel()]
+        cols = [(off[free][:, None] + np.arange(6)).ravel()]
+        vals = [np.ones(6 * free.size)]
+        for i, b in self.special.items():  # loop over the restricted poses (few)
+            r, c = np.nonzero(b)
+            rows.append(6 * i + r)
+            cols.append(off[i] + c)
+            vals.append(b[r, c])
+        self.B = sp.csc_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                               shape=(6 * n, self.dim))
         self.L = whitening(graph)
 
     # -- residuals
@@ -273,7 +283,8 @@ class Problem3D:
             blocks = marginal_blocks(Nbar, np.arange(6 * n).reshape(n, 6))
         except Exception as exc:  # a direction the data, priors and anchors leave free
             raise OptionError(f"pose_covariances: the refined problem's Hessian is singular ({exc})") from None
-        blocks = blocks - np.array([np.eye(6) - b @ b.T for b in self.bases])
+        for i, b in self.special.items():
+            blocks[i] -= np.eye(6) - b @ b.T
         return 0.5 * (blocks + np.swapaxes(blocks, 1, 2))
 
 
