@@ -367,3 +367,13 @@ def test_anchors_and_priors_in_space_agree_with_gtsam():
     theirs = swap @ gtsam.Marginals(fg, est).marginalCovariance(60) @ swap.T
     mine = ours.pose_covariances()[60]
     assert np.abs(theirs - mine).max() <= 1e-6 * np.abs(mine).max()
+
+
+def test_an_estimate_of_the_other_dimension_is_named(cube):
+    planar = lc.manhattan_world(cube.graph.n_poses, seed=1)
+    res3 = lc.lago(cube.graph)
+    for estimate in (res3, (res3.t, res3.R)):
+        with pytest.raises(OptionError, match="planar graph"):
+            lc.refine(planar.graph, estimate)
+    with pytest.raises(OptionError, match="3-D estimate"):
+        lc.refine(cube.graph, lc.lago(planar.graph))
