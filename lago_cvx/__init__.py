@@ -14,7 +14,7 @@ Public API::
 
     graph = read_graph("sphere2500.g2o")    # VERTEX_SE3:QUAT / EDGE_SE3:QUAT: a PoseGraph3D (graph.dim == 3)
     result = lago(graph)                    # = lago3d(graph): chordal relaxation, positions, joint step
-    refine3d(graph, result.t, result.R)     # Gauss–Newton / Levenberg–Marquardt on SE(3)
+    refine(graph, result)                   # Gauss–Newton on SE(3): the same refine, keywords and defaults
 
 The names below are loaded on first use (PEP 562), so ``import lago_cvx`` is cheap, and cvxpy is
 imported only by the routes that build a cvxpy problem. The layers of the package and where each step
@@ -37,7 +37,7 @@ _EXPORTS = {
     "io": ["read_graph", "write_graph"],
     "graph": ["incidence_matrix", "reduced_incidence", "connected_components", "cyclomatic_number",
               "spanning_tree", "cycle_basis"],
-    "metrics": ["chi2", "chi2_parts", "edge_errors", "whitened_errors", "ate", "rotation_error"],
+    "metrics": ["chi2", "chi2_parts", "edge_errors", "whitened_errors", "ate", "rpe", "rotation_error"],
     "regularization": ["regularize"],
     "regularization.chordal": ["chordal_closed_form", "chordal_problem"],
     "result": ["LagoResult"],
@@ -47,7 +47,7 @@ _EXPORTS = {
     "certification": ["certify", "refine_sesync", "sesync_cost", "solve_sdp", "certify_estimate"],
     "synthetic": ["manhattan_world", "circle_world", "random_graph", "add_false_loop_closures"],
     "posegraph3d": ["PoseGraph3D", "chi2_3d"],
-    "space": ["lago3d", "refine3d", "pose_covariances3d", "Lago3DResult"],
+    "space": ["lago3d", "refine3d", "pose_covariances3d", "Lago3DResult", "Refine3DResult", "gravity_aligned"],
     "space.certify": ["certify3d"],
     "synthetic.space": ["sphere_world", "torus_world", "cube_grid_world"],
 }

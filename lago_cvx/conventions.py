@@ -19,10 +19,18 @@ measurement Z = (t̃, R̃) and information Ω as the file gives it (:data:`COSTS
 * ``CHI2_CONVENTION`` — how χ² is summed (no ½; twice GTSAM's ``error()``).
 * ``SESYNC_COST_CONVENTION`` — the cost the optimality certificate is about (``lago_cvx.certification``).
 * ``CERTIFY_TOL`` — the largest proven relative suboptimality (f − f*_lower)/f called "certified".
+* ``REFINE_METHOD``, ``REFINE_MAX_ITERATIONS``, ``REFINE_TOLERANCE`` — the defaults of ``refine``, the same for
+  planar and 3-D graphs. Gauss–Newton, because refinement starts from LAGO's estimate, near the minimum, where the
+  Gauss–Newton step is Levenberg–Marquardt's with λ → 0 and converges quadratically (a backtracking line search
+  guards it; Levenberg–Marquardt stays a keyword away for far starts); a relative χ² decrease below 1e-9 ends it,
+  because at quadratic convergence the χ² left to gain after such a step is of the order of its square, far below
+  any difference a reader compares (the 3-D minima of ``benchmarks/space.md`` are reached to their 10 digits, in
+  2 to 6 iterations); 50 iterations, ten times what the benchmark graphs need from LAGO's start. Where residuals
+  are large Gauss–Newton converges only linearly, and a smaller ``tolerance`` (with more iterations) gets closer.
 """
 
 __all__ = ["CHI2_CONVENTION", "SESYNC_COST_CONVENTION", "CERTIFY_TOL", "COSTS", "COSTS_3D", "COST_OF_FORMAT",
-           "COST_DESCRIPTION", "check_cost"]
+           "COST_DESCRIPTION", "check_cost", "REFINE_METHOD", "REFINE_MAX_ITERATIONS", "REFINE_TOLERANCE"]
 
 CHI2_CONVENTION = "sum e'Ωe, no 1/2"
 
@@ -45,6 +53,11 @@ SESYNC_COST_CONVENTION = ("SE-Sync cost f = Σ κ‖R_j−R_iR̃‖²_F + τ‖t
 
 #: The largest relative suboptimality bound (f − f*_lower)/f ``certify`` accepts as "certified" (default).
 CERTIFY_TOL = 1e-3
+
+#: ``refine``'s defaults in every dimension (module docstring).
+REFINE_METHOD = "gauss-newton"
+REFINE_MAX_ITERATIONS = 50
+REFINE_TOLERANCE = 1e-9
 
 
 def check_cost(cost, *, dim: int = 2) -> str:

@@ -21,7 +21,7 @@ from .sparse import row_blocks
 from .errors import OptionError
 from .posegraph import PoseGraph, logmap_translation, rot2, wrap_angle
 
-__all__ = ["edge_errors", "chi2", "chi2_parts", "whitened_errors", "alignment_angle", "alignment", "ate",
+__all__ = ["edge_errors", "chi2", "chi2_parts", "whitened_errors", "alignment_angle", "alignment", "ate", "rpe",
            "rotation_error", "relative_difference"]
 
 
@@ -115,13 +115,43 @@ def _check_pair(estimate, truth):
 def ate(estimate, truth, *, align: bool = True) -> float:
     """Absolute trajectory error: RMS of the position errors ‖p_est − p_truth‖ over the n poses
     (both (n, 3)), after the best rigid 2-D alignment of the estimate onto the truth when ``align``
-    (no scale), else raw."""
+    (no scale), else raw. Either dimension: ``estimate`` and ``truth`` may be results, 3-D pairs (t, R) or
+    generated worlds (their ``truth``); 3-D by SE(3) alignment (``metrics3d.ate3d``, Umeyama without scale)."""
+    estimate, truth = _dispatch(estimate, truth)
+    if isinstance(estimate, tuple):
+        from .metrics3d import ate3d
+
+        return ate3d(estimate, truth, align=align)
     estimate, truth = _check_pair(estimate, truth)
     p = estimate[:, :2]
     if align:
         phi, t = alignment(estimate, truth)
         p = p @ rot2(phi).T + t
     return float(np.sqrt(np.mean(np.sum((p - truth[:, :2]) ** 2, axis=1))))
+
+
+def _dispatch(estimate, truth):
+    """Both trajectories as planar (n, 3) arrays or 3-D (t, R) pairs (``metrics3d.as_trajectory``), of one
+    dimension and length."""
+    from .metrics3d import as_trajectory
+
+    e, t = as_trajectory(estimate, "estimate"), as_trajectory(truth, "truth")
+    if isinstance(e, tuple) != isinstance(t, tuple) or len(e[0] if isinstance(e, tuple) else e) != \
+            len(t[0] if isinstance(t, tuple) else t):
+        raise OptionError("estimate and truth must be trajectories of the same dimension and length")
+    return e, t
+
+
+def rpe(estimate, truth, *, delta: int = 1) -> float:
+    """Relative pose error over ``delta`` steps in graph order: the RMS translation of
+    (T̃_i⁻¹T̃_{i+δ})⁻¹(T_i⁻¹T_{i+δ}) (truth T̃), planar or 3-D (``metrics3d``; the same inputs as ``ate``;
+    no alignment: the relative poses do not depend on the frame)."""
+    from .metrics3d import rpe2d, rpe3d
+
+    estimate, truth = _dispatch(estimate, truth)
+    if isinstance(estimate, tuple):
+        return rpe3d(estimate, truth, delta=delta)
+    return rpe2d(*_check_pair(estimate, truth), delta=delta)
 
 
 def rotation_error(estimate, truth, *, align: bool = True) -> float:

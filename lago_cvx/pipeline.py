@@ -71,7 +71,7 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
          anchor=None, anchor_pose=None, margin: float = AMBIGUITY_MARGIN,
          solver_settings: ClarabelSettings | None = None, backend: str = "auto", anchors=None,
          priors=None, integer_search: IntegerSearch | None = None, progress=None,
-         workers: int | None = None) -> LagoResult:
+         workers: int | None = None, rotation_constraints=None) -> LagoResult:
     """LAGO: the linear approximation of planar pose-graph optimization (the seed's Section IV).
 
     Parameters (keyword-only):
@@ -124,14 +124,16 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
     or an unknown anchor; ``OptionError`` for a bad option.
 
     A 3-D graph (``graph.dim == 3``, a ``PoseGraph3D``) goes to ``lago_cvx.space.lago3d`` with ``route``,
-    ``method``, ``anchor`` and ``solver_settings`` (the planar options do not apply and must be left unset).
+    ``method``, ``anchor``, ``solver_settings``, ``anchors`` ``{id: (t, R)}``, ``priors`` ``{id: (t̄, R̄, Λ)}`` and
+    ``rotation_constraints`` ``{id: (a, b)}`` (R_id a = b; 3-D only) — ``lago_cvx.space.variants``; the planar
+    options do not apply and must be left unset.
     """
     clock = _Clock()  # from the call's first line: ``timings["total"]`` is the whole call
-    if getattr(graph, "dim", 2) == 3:
+    if getattr(graph, "dim", 2) == 3 or rotation_constraints is not None:
         return _in_space(graph, route=route, method=method, anchor=anchor, solver_settings=solver_settings,
+                         anchors=anchors, priors=priors, rotation_constraints=rotation_constraints,
                          spanning_tree=spanning_tree, regularization=regularization, information=information,
-                         positions=positions, anchor_pose=anchor_pose, anchors=anchors, priors=priors,
-                         integer_search=integer_search)
+                         positions=positions, anchor_pose=anchor_pose, integer_search=integer_search)
     choice, route_name = resolve_route(route, spanning_tree=spanning_tree, regularization=regularization,
                                        information=information, positions=positions)
     if anchors is not None or priors is not None:  # the variants engine (loaded on demand)
@@ -194,14 +196,17 @@ def _log_run(graph, route_name, method, tree, reg, choice, seconds) -> None:
              choice["information"], choice["positions"], graph.n_poses, graph.n_edges, reg.n_regularized, seconds)
 
 
-def _in_space(graph, *, route, method, anchor, solver_settings, **planar):
+def _in_space(graph, *, route, method, anchor, solver_settings, anchors, priors, rotation_constraints, **planar):
     """A 3-D graph to ``lago_cvx.space.lago3d``; the planar-only options must be left unset."""
     from .space import lago3d
 
+    if getattr(graph, "dim", 2) != 3:
+        raise OptionError("rotation_constraints: 3-D graphs only (planar orientations: variants.orientation_bounds)")
     given = sorted(k for k, v in planar.items() if v is not None)
     if given:
         raise OptionError(f"option(s) {', '.join(given)} apply to planar graphs only")
-    return lago3d(graph, route=route, method=method, anchor=anchor, solver_settings=solver_settings)
+    return lago3d(graph, route=route, method=method, anchor=anchor, solver_settings=solver_settings, anchors=anchors,
+                  priors=priors, rotation_constraints=rotation_constraints)
 
 
 def _check_options(graph: PoseGraph, method: str, choice: dict) -> None:

@@ -210,7 +210,11 @@ class PoseGraph(PoseGraphBase):
     def check_poses(self, poses) -> np.ndarray:
         """``poses`` as a new float array of shape (n, 3); ``OptionError`` (a ValueError) if the shape is
         wrong or a value is not finite."""
-        poses = np.array(poses, dtype=float)
+        try:
+            poses = np.array(poses, dtype=float)
+        except (TypeError, ValueError):  # ragged: e.g. a 3-D pair (t, R) given for a planar graph
+            raise OptionError(f"poses must be an array of shape ({self.n_poses}, 3) (a planar graph's; a 3-D "
+                              "estimate is (t, R))") from None
         if poses.shape != (self.n_poses, 3):
             raise OptionError(f"poses must have shape ({self.n_poses}, 3), got {poses.shape}")
         if not np.isfinite(poses).all():

@@ -80,6 +80,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .reports import refine_repr, refine_summary
+from .conventions import REFINE_MAX_ITERATIONS, REFINE_METHOD, REFINE_TOLERANCE
 from .errors import OptionError, check_choice
 from .graph import accumulate_to_root, check_connected, spanning_tree as build_tree
 from .sparse import SOLVER_BACKENDS, factorize
@@ -335,12 +336,19 @@ def held_coordinates(graph: PoseGraph, poses: np.ndarray, anchors, anchor=None,
 
 
 # ------------------------------------------------------------------------------ the solvers
-def refine(graph: PoseGraph, poses, *, method: str = "gauss-newton", max_iterations: int = 50,
-           tolerance: float = 1e-9, anchor=None, anchors=None, priors=None, constraints=None,
-           backend: str = "auto", cost: str | None = None, solver_settings=None) -> RefineResult:
-    """Minimise the graph's nonlinear χ² over the SE(2) poses, starting from ``poses`` (n, 3): eq. (3) with the
-    information of the graph's cost — exactly g2o's χ² for cost ``"g2o"``, GTSAM's 2·error() for ``"gtsam"``
-    (module docstring).
+def refine(graph: PoseGraph, estimate, *, method: str = REFINE_METHOD, max_iterations: int = REFINE_MAX_ITERATIONS,
+           tolerance: float = REFINE_TOLERANCE, anchor=None, anchors=None, priors=None, constraints=None,
+           backend: str = "auto", cost: str | None = None, solver_settings=None):
+    """Minimise the graph's nonlinear χ² over the SE(2) poses, starting from ``estimate`` (poses (n, 3), or a
+    result with ``poses``): eq. (3) with the information of the graph's cost — exactly g2o's χ² for cost
+    ``"g2o"``, GTSAM's 2·error() for ``"gtsam"`` (module docstring).
+
+    A 3-D graph (``graph.dim == 3``) is refined on SE(3) by ``lago_cvx.space.refine`` with the same keywords and
+    defaults: ``estimate`` a pair (t, R) or a result with ``t`` and ``R``; ``anchors`` ``{id: (t, R)}`` (either may
+    be None); ``priors`` ``{id: (t̄ or None, R̄ or None, Λ)}``; ``constraints`` rotation constraints
+    ``{id: (a, b)}``, R_id a = b (``space.gravity_aligned``); it returns a ``Refine3DResult`` (``t``, ``R``,
+    ``chi2``, ``pose_covariances()`` 6×6 …). The defaults (``lago_cvx.conventions``: Gauss–Newton, relative
+    tolerance 1e-9, 50 iterations) are the same in both dimensions; that module says why.
 
     Parameters (keyword-only):
       method — ``"gauss-newton"`` (plain steps, backtracking line search if a step increases χ²) or
@@ -371,8 +379,16 @@ def refine(graph: PoseGraph, poses, *, method: str = "gauss-newton", max_iterati
     """
     check_choice("method", method, REFINE_METHODS)
     check_choice("backend", backend, SOLVER_BACKENDS)
+    if getattr(graph, "dim", 2) == 3:
+        from .space.refine import estimate3d, refine3d
+
+        if backend != "auto" or solver_settings is not None:
+            raise OptionError("backend, solver_settings: planar refinement only (3-D steps use the sparse engine)")
+        return refine3d(graph, *estimate3d(estimate), cost=cost, method=method, anchor=anchor, anchors=anchors,
+                        priors=priors, constraints=constraints, max_iterations=max_iterations, tolerance=tolerance)
     if cost is not None:
         graph = graph.with_cost(cost)
+    poses = estimate.poses if hasattr(estimate, "poses") and not isinstance(estimate, np.ndarray) else estimate
     x, a = prepare(graph, poses, anchor=anchor, max_iterations=max_iterations, tolerance=tolerance)
     held = None
     if constraints is not None and method != "gauss-newton":

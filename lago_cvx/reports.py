@@ -122,7 +122,7 @@ def refine_repr(res) -> str:
     """``repr`` of a ``lago_cvx.refinement.RefineResult`` (fields ``poses``, ``chi2``, ``chi2_initial``,
     ``iterations``, ``converged``, ``reason``, ``method``, ``anchor``, ``backend``, ``log``)."""
     t = res.log[-1]["time"] if res.log else float("nan")
-    return short_repr("RefineResult", f"{res.poses.shape[0]} poses: χ² {res.chi2_initial:.10g} → {res.chi2:.10g} "
+    return short_repr(type(res).__name__, f"{_n_poses(res)} poses: χ² {res.chi2_initial:.10g} → {res.chi2:.10g} "
                       f"(cost {getattr(res, 'cost', 'paper')})", [
                           f"{res.method or 'refine'}: {res.iterations} iterations, "
                           f"{'converged' if res.converged else 'not converged'}"
@@ -130,11 +130,18 @@ def refine_repr(res) -> str:
                           f"backend {res.backend or '—'}; time {t:.3g} s"])
 
 
+def _n_poses(res) -> int:
+    """The number of poses of a planar (``poses`` (n, 3)) or 3-D (``t`` (n, 3)) result."""
+    return int(res.t.shape[0] if getattr(res, "dim", 2) == 3 else res.poses.shape[0])
+
+
 def refine_summary(res) -> Summary:
-    """``summary()`` of a ``lago_cvx.refinement.RefineResult``: a dict that prints as a small table."""
+    """``summary()`` of a ``lago_cvx.refinement.RefineResult`` or a 3-D ``Refine3DResult``: a dict that prints as a
+    small table."""
     t = res.log[-1]["time"] if res.log else float("nan")
-    return Summary("Refinement of the full cost eq. (3)", [
-        ("n_poses", "poses", int(res.poses.shape[0])), ("chi2_initial", "χ² at the start", res.chi2_initial),
+    title = "Refinement of the full cost eq. (3)" if getattr(res, "dim", 2) == 2 else "Refinement on SE(3)"
+    return Summary(title, [
+        ("n_poses", "poses", _n_poses(res)), ("chi2_initial", "χ² at the start", res.chi2_initial),
         ("chi2", "χ² at the end", res.chi2), ("iterations", "iterations", res.iterations),
         ("converged", "converged", bool(res.converged)), ("reason", "reason", res.reason),
         ("method", "method", res.method), ("anchor", "anchor pose", res.anchor), ("backend", "backend", res.backend),

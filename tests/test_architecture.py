@@ -21,7 +21,7 @@ LAYERS = [
     ["_version", "errors", "progress", "solvers", "cvxpy_names", "routes", "conventions", "optimality", "reports"],
     ["sparse"],
     ["posegraph_base", "posegraph", "so3", "posegraph3d"],
-    ["io", "graph", "metrics", "synthetic", "datasets"],
+    ["io", "graph", "metrics", "metrics3d", "synthetic", "datasets"],
     ["uncertainty", "rounding"],
     ["regularization"],
     ["phases", "positions", "space"],
@@ -121,7 +121,7 @@ def test_engine_is_one_folder_behind_one_door():
 PLUMBING = ("threading", "ctypes", "mmap", "concurrent.futures", "COMPILED_MIN", "ENGINE_MIN", "numba", "threadpoolctl",
             "WIDE_COMPILED_MIN")
 MATHEMATICS = ("uncertainty", "rounding", "regularization", "phases", "positions", "result", "variants",
-               "pipeline", "refinement", "certification", "theorem1", "graph", "posegraph", "metrics", "space",
+               "pipeline", "refinement", "certification", "theorem1", "graph", "posegraph", "metrics", "metrics3d", "space",
                "so3", "posegraph3d")
 
 

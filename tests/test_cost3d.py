@@ -129,9 +129,12 @@ def test_jacobians_of_both_costs_against_finite_differences(cost, scale):
 def test_refine3d_minimizes_the_cost_it_is_given():
     g, t, R = _random_graph(seed=5, scale=0.2)
     res = lago3d(g)
-    a = refine3d(g, res.t, res.R)
-    b = refine3d(g, res.t, res.R, cost="gtsam")
-    c = refine3d(g.with_cost("gtsam"), res.t, res.R)
+    # a graph of large residuals, where Gauss–Newton converges linearly: the gradient test asks for more than
+    # refine's defaults (a relative decrease below 1e-9 stops it at a gradient of 3e-6 relative here)
+    tight = {"tolerance": 1e-12, "max_iterations": 100}
+    a = refine3d(g, res.t, res.R, **tight)
+    b = refine3d(g, res.t, res.R, cost="gtsam", **tight)
+    c = refine3d(g.with_cost("gtsam"), res.t, res.R, **tight)
     assert a.converged and b.converged and b.chi2 == c.chi2 and np.array_equal(b.t, c.t)
     assert a.chi2 == pytest.approx(chi2_3d(g, a.t, a.R), rel=1e-15)
     # each is a minimum of its own cost: the gradient JᵀΩe vanishes there

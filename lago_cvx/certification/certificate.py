@@ -257,10 +257,18 @@ def certify(graph: PoseGraph, poses, *, tol: float = CERTIFY_TOL, abs_tol: float
     compute λ_min of the full S.
 
     Cost: one sparse LDLᵀ of S_g + ηÎ_R (3n−1 square) for the verdict, a few more (same pattern) for
-    the spectrum; city10000 (30 000 × 30 000) takes about a second."""
+    the spectrum; city10000 (30 000 × 30 000) takes about a second.
+
+    ``poses`` may be a result (its ``poses``). A 3-D graph goes to ``lago_cvx.space.certify.certify3d`` with
+    ``tol`` and ``anchor`` (``poses`` a pair (t, R) or a 3-D result)."""
     if not (0 < tol <= CERTIFY_TOL):
         raise OptionError(f"tol must be in (0, {CERTIFY_TOL:g}] (a relative suboptimality bound), got {tol}")
     check_abs_tol(abs_tol)
+    if getattr(graph, "dim", 2) == 3:
+        from ..space.certify import certify3d
+
+        return certify3d(graph, poses, tol=tol, abs_tol=abs_tol, anchor=anchor)
+    poses = poses.poses if hasattr(poses, "poses") and not isinstance(poses, np.ndarray) else poses
     if graph.n_edges == 0:
         raise GraphError(f"the graph has {graph.n_poses} pose(s) and no edges: nothing to certify")
     times = {}

@@ -150,7 +150,8 @@ def chordal_problem(graph: PoseGraph, info_delta, *, anchor=None):
 
     ``print(problem)`` reads ``minimize quad_over_lin(M @ r + -b, 1.0, …)``; b (the anchor's terms) is a
     ``cp.Parameter``. Returns ``(problem, r)``; add constraints with ``cp.Problem(problem.objective,
-    [...])`` (e.g. ``cp.norm(r[2*i:2*i+2]) <= 1``)."""
+    [...])`` (e.g. ``cp.norm(r[2*i:2*i+2]) <= 1``). Planar (``lc.chordal_problem``); the 3-D relaxation over
+    rotation matrices is ``lago_cvx.space.chordal_problem``."""
     import cvxpy as cp
 
     M, b = chordal_system(graph, info_delta, anchor=anchor)

@@ -11,15 +11,20 @@
   linearized step, positions re-solved, guarded), and the result type;
 * ``certify`` — SE-Sync's optimality certificate in 3-D (SE-Sync's cost, weights from the information as written);
 * ``covariance`` — the poses' first-order covariances from the factor of JᵀΩJ (selected inversion);
-* ``fixed`` — the routes with several poses known exactly (``lago3d(graph, fixed={id: (t, R)})``).
+* ``fixed`` — the routes with several poses known exactly (``lago3d(graph, fixed={id: (t, R)})``);
+* ``constraints`` — linear constraints on rotations, R_i a = b (gravity-aligned poses), and the projection that
+  keeps them;
+* ``refine`` — Gauss–Newton / Levenberg–Marquardt with anchors, priors and rotation constraints (what
+  ``lago_cvx.refine`` runs on a 3-D graph; ``refine3d`` its old name), and the covariances of the refined problem.
 """
 
 from .chordal import WEIGHTINGS, chordal_closed_form, chordal_cvxpy, chordal_problem
 from .covariance import pose_covariances3d
-from .gauss_newton import REFINE_METHODS, Refined3D, refine3d
 from .pipeline import ROUTES3D, Lago3DResult, compare_methods3d, lago3d
 from .positions import position_problem, positions_closed_form, positions_cvxpy
+from .refine import REFINE_METHODS, Refine3DResult, Refined3D, refine3d
+from .constraints import gravity_aligned
 
 __all__ = ["WEIGHTINGS", "chordal_closed_form", "chordal_cvxpy", "chordal_problem", "REFINE_METHODS", "Refined3D",
            "refine3d", "ROUTES3D", "Lago3DResult", "compare_methods3d", "lago3d", "position_problem",
-           "positions_closed_form", "positions_cvxpy", "pose_covariances3d"]
+           "positions_closed_form", "positions_cvxpy", "pose_covariances3d", "Refine3DResult", "gravity_aligned"]

@@ -50,6 +50,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..conventions import CERTIFY_TOL
+from ..errors import OptionError
 from ..optimality import ProvenBound, absolute_test, check_abs_tol, relative_suboptimality
 from ..sparse import factorize
 from ..so3 import exp_so3, hat
@@ -210,11 +211,21 @@ def _negative_pivots(A: sp.csc_matrix) -> int | None:
     return int((lu.U.diagonal() < 0).sum())
 
 
-def certify3d(graph, t, R, *, tol: float = CERTIFY_TOL, abs_tol: float = 0.0, anchor_index: int = 0,
-              local: bool = True, max_iterations: int = 30) -> Certificate3D:
+def certify3d(graph, t, R=None, *, tol: float = CERTIFY_TOL, abs_tol: float = 0.0, anchor=None, local: bool = True,
+              max_iterations: int = 30, anchor_index: int | None = None) -> Certificate3D:
     """SE-Sync's certificate for (S1) at (t, R) — after ``refine_sesync3d`` from there (at most ``max_iterations``)
-    when ``local`` (module docstring); ``tol`` relative, ``abs_tol`` absolute (0: none)."""
+    when ``local`` (module docstring); ``tol`` relative, ``abs_tol`` absolute (0: none). ``t`` may be a whole
+    estimate instead (a result with ``t`` and ``R``, or the pair), R then left out. ``anchor``: the id of the pose
+    whose translation is grounded (default the smallest id, as everywhere); ``anchor_index`` (an index) is the older
+    spelling, kept for callers that have one."""
     check_abs_tol(abs_tol)
+    if R is None:
+        from .refine import estimate3d
+
+        t, R = estimate3d(t)
+    if anchor_index is not None and anchor is not None:
+        raise OptionError("certify3d: give anchor (an id) or anchor_index, not both")
+    anchor_index = graph.anchor_index(anchor) if anchor_index is None else int(anchor_index)
     times = {}
     start = time.perf_counter()
     if local:

@@ -23,9 +23,9 @@ from .positions import _whitened_edges
 __all__ = ["check_fixed", "chordal_fixed", "positions_fixed", "joint_step_fixed"]
 
 
-def check_fixed(graph, fixed) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def check_fixed(graph, fixed, what: str = "fixed pose") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(indices (k,), t (k, 3), R (k, 3, 3)) of ``fixed`` = {id: (t (3,), R (3, 3))}; ``OptionError`` for a value
-    that is not a finite position and rotation, ``GraphError`` for an unknown id."""
+    that is not a finite position and rotation (named ``what``), ``GraphError`` for an unknown id."""
     if not fixed:
         raise OptionError("fixed must name at least one pose: {id: (t, R)}")
     idx, ts, Rs = [], [], []
@@ -33,11 +33,11 @@ def check_fixed(graph, fixed) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         try:
             t, R = (np.asarray(v, dtype=float) for v in value)
         except (TypeError, ValueError):
-            raise OptionError(f"fixed pose {pid}: expected (t (3,), R (3, 3))") from None
+            raise OptionError(f"{what} {pid}: expected (t (3,), R (3, 3))") from None
         if t.shape != (3,) or R.shape != (3, 3) or not (np.isfinite(t).all() and np.isfinite(R).all()):
-            raise OptionError(f"fixed pose {pid}: expected a finite t (3,) and R (3, 3)")
+            raise OptionError(f"{what} {pid}: expected a finite t (3,) and R (3, 3)")
         if np.abs(R.T @ R - np.eye(3)).max() > 1e-6 or np.linalg.det(R) <= 0:
-            raise OptionError(f"fixed pose {pid}: R is not a rotation matrix")
+            raise OptionError(f"{what} {pid}: R is not a rotation matrix")
         idx.append(graph.index_of(pid))
         ts.append(t)
         Rs.append(R)

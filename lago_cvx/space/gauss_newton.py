@@ -17,27 +17,19 @@ Log error, and D = blkdiag(R_E, ½(w I + [q_v]×)) for g2o's (``posegraph3d.g2o_
 Each iteration whitens the errors by Ω = LᵀL and solves the normal equations (JᵀΩJ + λ diag(JᵀΩJ)) δ = −JᵀΩe for
 the free poses (the anchor stays put): the Gauss–Newton step (λ = 0) on the closed forms' pose-level elimination
 (``normal_equations``; ``blocks.factor``), Levenberg–Marquardt's damped ones (λ > 0) through ``linalg.factorize``
-when the Gauss–Newton step does not decrease χ² (``refine3d``).
+when the Gauss–Newton step does not decrease χ² (the iterations, with anchors, priors and rotation constraints:
+``space.refine``).
 """
 
 from __future__ import annotations
 
-import time
-from dataclasses import dataclass
-
 import numpy as np
-import scipy.sparse as sp
 
-from ..errors import check_choice
-from ..sparse import factorize
-from ..posegraph3d import chi2_3d, g2o_errors_and_derivative, log_errors
+from ..posegraph3d import g2o_errors_and_derivative, log_errors
 from ..so3 import adjoint, exp_so3, right_jacobian_inverse
 from .blocks import edge_matrix, factor, free_index, per_graph
 
-__all__ = ["REFINE_METHODS", "jacobians", "normal_equations", "retract", "gauss_newton_step", "Refined3D",
-           "refine3d"]
-
-REFINE_METHODS = ("levenberg-marquardt", "gauss-newton")
+__all__ = ["jacobians", "normal_equations", "retract", "gauss_newton_step", "error_derivative", "whitening"]
 
 
 def error_derivative(graph, t, R):
@@ -96,67 +88,3 @@ def gauss_newton_step(graph, t, R, *, anchor_index: int = 0, L=None, elimination
     # One factorization and one solve of the normal equations: a step needs no refinement to rounding (near a
     # minimum the gradient, hence the step, is tiny, and a correction relative to it would look untrustworthy).
     return factor(el, system).solve(system.rmatvec(system.c).ravel())
-
-
-@dataclass(frozen=True, eq=False)
-class Refined3D:
-    """A refined 3-D estimate: ``t`` (n, 3), ``R`` (n, 3, 3), ``chi2``, ``iterations``, ``converged`` (relative χ²
-    decrease below the tolerance, or a step below it), ``log``: one dict per iteration (chi2, lambda, time)."""
-
-    t: np.ndarray
-    R: np.ndarray
-    chi2: float
-    iterations: int
-    converged: bool
-    log: tuple
-
-
-def refine3d(graph, t, R, *, cost: str | None = None, method: str = "levenberg-marquardt", anchor: int | None = None,
-             max_iterations: int = 100, tolerance: float = 1e-12, initial_lambda: float = 1e-5) -> Refined3D:
-    """Refine poses (t (n, 3), R (n, 3, 3)) on the χ² of ``cost`` (None: the graph's, ``graph.cost``; ``"g2o"`` or
-    ``"gtsam"``, module docstring), with that cost's exact errors and Jacobians.
-
-    Every iteration first tries the Gauss–Newton step, solved on the pose-level elimination shared by the closed
-    forms (``gauss_newton_step``). ``"gauss-newton"`` takes it when χ² decreases; ``"levenberg-marquardt"`` then
-    falls back to damped steps (JᵀΩJ + λ diag(JᵀΩJ)) δ = −JᵀΩe through ``linalg.factorize``, λ from
-    ``initial_lambda`` up (×10 per rejected step, ÷10 after an accepted damped one) until χ² decreases. Ends when χ²
-    decreases by less than ``tolerance`` relative (or the step moves no pose by more than ``tolerance``), after
-    ``max_iterations``, or when no step decreases χ² (λ beyond 1e10): that step is not taken, and the result counts
-    as converged if the increase was within 1e-9 relative (rounding at a minimum). ``anchor``: the pose id held
-    fixed (default: smallest id)."""
-    from ..sparse import GraphElimination
-
-    check_choice("method", method, REFINE_METHODS)
-    if cost is not None:
-        graph = graph.with_cost(cost)
-    a = graph.anchor_index(anchor)
-    t, R = graph.check_poses(t, R)
-    L = whitening(graph)
-    cost = chi2_3d(graph, t, R)
-    lam = initial_lambda
-    log, converged, it = [], graph.n_poses == 1 or graph.n_edges == 0, 0
-    el = None if converged else GraphElimination(graph, a, wide=(6,))
-    start = time.perf_counter()
-    while not converged and it < max_iterations:
-        it += 1
-        delta = gauss_newton_step(graph, t, R, anchor_index=a, L=L, elimination=el)
-        t2, R2 = retract(t, R, delta, a)
-        new = chi2_3d(graph, t2, R2)
-        used = 0.0
-        if not new <= cost and method == "levenberg-marquardt":
-            N, g, _ = normal_equations(graph, t, R, L, a)
-            damping = sp.diags(N.diagonal(), format="csc")
-            while not new <= cost and lam <= 1e10:
-                delta = -factorize((N + lam * damping).tocsc()).solve(g)
-                t2, R2 = retract(t, R, delta, a)
-                new = chi2_3d(graph, t2, R2)
-                used = lam
-                lam = lam / 10.0 if new <= cost else lam * 10.0
-        if not new <= cost:  # no decrease at any damping: a minimum to working precision
-            converged = (new - cost) <= 1e-9 * cost
-            break
-        small = np.abs(delta).max() <= tolerance if delta.size else True
-        converged = small or (cost - new) <= tolerance * max(cost, 1e-300)
-        t, R, cost = t2, R2, new
-        log.append({"iteration": it, "chi2": cost, "lambda": used, "time": time.perf_counter() - start})
-    return Refined3D(t, R, float(cost), it, bool(converged), tuple(log))

@@ -67,6 +67,8 @@ class Lago3DResult:
     timings: dict = field(default_factory=dict)
     accuracy: dict = field(default_factory=dict)
     cost: str = "g2o"
+    graph: object = field(default=None, repr=False)
+    variant: object = field(default=None, repr=False)
 
     dim = 3
 
@@ -74,6 +76,22 @@ class Lago3DResult:
     def poses(self):
         """(t, R)."""
         return self.t, self.R
+
+    def pose_covariances(self) -> np.ndarray:
+        """First-order covariances Σ_ii (n, 6, 6) of δ = (δv, δφ) at the estimate, (JᵀΩJ)⁻¹ blocks with the anchor
+        held (zero there; ``covariance.pose_covariances3d``); with anchors, priors or rotation constraints those of
+        the same problem as ``refine``'s (``space.refine``: anchors held, priors included, δφ ∥ a)."""
+        if self.graph is None:
+            raise OptionError("pose_covariances: this result does not carry its graph")
+        if self.variant is None:
+            from .covariance import pose_covariances3d
+
+            return pose_covariances3d(self.graph, self.t, self.R, anchor=self.anchor)
+        from .refine import Problem3D
+
+        v = self.variant
+        return Problem3D(self.graph, self.t, self.R, reference=v.reference, anchors=v.anchors, priors=v.priors,
+                         constraints=v.constraints).covariances(self.t, self.R)
 
 
 def _joint(graph, t0, R0, cost0, a, solve_positions, elimination=None):
@@ -99,7 +117,8 @@ def _joint(graph, t0, R0, cost0, a, solve_positions, elimination=None):
 @threads_option
 def lago3d(graph, *, route: str = "default", method: str = "closed_form", weighting: str = "isotropic",
            anchor=None, solver_settings=None, fixed=None, workers: int | None = None,
-           blas_threads: int | None = None, cost: str | None = None) -> Lago3DResult:
+           blas_threads: int | None = None, cost: str | None = None, anchors=None, priors=None,
+           rotation_constraints=None, rotations=None) -> Lago3DResult:
     """LAGO on a 3-D pose graph (module docstring).
 
     Parameters (keyword-only): ``route`` ``"default"`` or ``"seed"``; ``method`` ``"closed_form"`` (sparse
@@ -112,7 +131,15 @@ def lago3d(graph, *, route: str = "default", method: str = "closed_form", weight
     None: ``lago_cvx.sparse.cores()``); ``blas_threads`` None (the default) leaves the process's BLAS thread count
     alone, k holds it to at most k threads while the engine factors (the 3-D systems' compiled factorizations ask
     for one: faster when another process shares the cores, docs/performance.md "3-D graphs"); ``cost`` ``"g2o"`` or
-    ``"gtsam"`` (None: the graph's, ``graph.with_cost(cost)``)."""
+    ``"gtsam"`` (None: the graph's, ``graph.with_cost(cost)``).
+
+    Variants (``space.variants``; closed form or cvxpy, the same problems): ``anchors`` ``{id: (t, R)}`` known
+    poses (t or R may be None: known in part); ``priors`` ``{id: (t̄ or None, R̄ or None, Λ)}`` soft absolute
+    measurements (Λ 3×3, or 6×6 position first); ``rotation_constraints`` ``{id: (a, b)}``, R_id a = b kept through
+    the relaxation, its projection and the joint step (``space.gravity_aligned(ids)``: R e₃ = e₃); ``rotations``
+    (n, 3, 3) to continue from: the chordal relaxation skipped, the positions and the guarded joint step of the
+    route from there (the rotations moved rigidly so that the anchor's is the identity). With priors ``chi2``
+    includes their terms."""
     if getattr(graph, "dim", 2) != 3:
         raise OptionError("lago3d takes a 3-D pose graph (PoseGraph3D); planar graphs go to lago()")
     if cost is not None:
@@ -121,6 +148,11 @@ def lago3d(graph, *, route: str = "default", method: str = "closed_form", weight
     check_method(method)
     check_choice("weighting", weighting, WEIGHTINGS)
     check_connected(graph)  # Proposition 1's condition; the systems would be singular
+    if anchors is not None or priors is not None or rotation_constraints is not None or (
+            rotations is not None and fixed is not None):
+        return _variant(graph, anchors={**(fixed or {}), **(anchors or {})} or None, priors=priors,
+                        rotation_constraints=rotation_constraints, rotations=rotations, anchor=anchor, route=route,
+                        method=method, weighting=weighting, solver_settings=solver_settings)
     if fixed is not None:
         from .fixed import lago3d_fixed
 
@@ -132,7 +164,8 @@ def lago3d(graph, *, route: str = "default", method: str = "closed_form", weight
         a = graph.index_of(next(iter(fixed)))
         return Lago3DResult(t=t, R=R, chi2=float(cost), chi2_seed=float(seed), route=route, method=method,
                             weighting=weighting, anchor=int(graph.ids[a]), anchor_index=a, alpha=alpha,
-                            trials=trials, timings={"total": time.perf_counter() - start}, cost=graph.cost)
+                            trials=trials, timings={"total": time.perf_counter() - start}, cost=graph.cost,
+                            graph=graph, variant=_fixed_variant(graph, fixed))
     a = graph.anchor_index(anchor)
     start = time.perf_counter()
     timings, accuracy = {}, {}
@@ -141,20 +174,27 @@ def lago3d(graph, *, route: str = "default", method: str = "closed_form", weight
         from ..sparse import GraphElimination
 
         el = GraphElimination(graph, a, wide=(3, 6) if route == "default" else (3,))  # every system of the route
-        ch = chordal_closed_form(graph, weighting=weighting, anchor_index=a, elimination=el)
+        ch = None if rotations is not None else chordal_closed_form(graph, weighting=weighting, anchor_index=a,
+                                                                    elimination=el)
 
         def solve_positions(R):
             return positions_closed_form(graph, R, anchor_index=a, elimination=el)
     else:
-        ch = chordal_cvxpy(graph, weighting=weighting, anchor_index=a, settings=solver_settings)
+        ch = None if rotations is not None else chordal_cvxpy(graph, weighting=weighting, anchor_index=a,
+                                                              settings=solver_settings)
 
         def solve_positions(R):
             return positions_cvxpy(graph, R, anchor_index=a, settings=solver_settings)
-    timings["chordal"] = time.perf_counter() - start
-    accuracy["chordal"] = ch.accuracy
+    if ch is None:  # continue from the given rotations, moved rigidly so that the anchor's is the identity
+        R = graph.check_poses(np.zeros((graph.n_poses, 3)), rotations)[1]
+        R = np.swapaxes(R[a], 0, 1) @ R
+        R[a] = np.eye(3)
+        accuracy["chordal"] = {"method": "given rotations"}
+    else:
+        timings["chordal"] = time.perf_counter() - start
+        R, accuracy["chordal"] = ch.rotations, ch.accuracy
     t0 = time.perf_counter()
-    t, accuracy["positions"] = solve_positions(ch.rotations)
-    R = ch.rotations
+    t, accuracy["positions"] = solve_positions(R)
     seed = chi2_3d(graph, t, R)
     timings["positions"] = time.perf_counter() - t0
     cost, alpha, trials = seed, None, ()
@@ -165,7 +205,28 @@ def lago3d(graph, *, route: str = "default", method: str = "closed_form", weight
     timings["total"] = time.perf_counter() - start
     return Lago3DResult(t=t, R=R, chi2=float(cost), chi2_seed=float(seed), route=route, method=method,
                         weighting=weighting, anchor=int(graph.ids[a]), anchor_index=a, alpha=alpha, trials=trials,
-                        timings=timings, accuracy=accuracy, cost=graph.cost)
+                        timings=timings, accuracy=accuracy, cost=graph.cost, graph=graph)
+
+
+def _fixed_variant(graph, fixed):
+    from .variants import Variant3D
+
+    return Variant3D(graph, anchors=fixed)
+
+
+def _variant(graph, *, anchors, priors, rotation_constraints, rotations, anchor, route, method, weighting,
+             solver_settings) -> Lago3DResult:
+    """``lago3d`` with anchors, priors, rotation constraints or given rotations (``space.variants``)."""
+    from .variants import lago3d_variant
+
+    start = time.perf_counter()
+    t, R, cost, seed, alpha, trials, var = lago3d_variant(
+        graph, anchors=anchors, priors=priors, rotation_constraints=rotation_constraints, rotations=rotations,
+        anchor=anchor, route=route, method=method, weighting=weighting, settings=solver_settings,
+        max_halvings=MAX_HALVINGS)
+    return Lago3DResult(t=t, R=R, chi2=cost, chi2_seed=seed, route=route, method=method, weighting=weighting,
+                        anchor=int(graph.ids[var.reference]), anchor_index=var.reference, alpha=alpha, trials=trials,
+                        timings={"total": time.perf_counter() - start}, cost=graph.cost, graph=graph, variant=var)
 
 
 def _rel(a, b) -> float:

@@ -157,10 +157,11 @@ def torus_world(n_loops: int = 10, per_loop: int = 20, *, major: float = 10.0, m
 
 def cube_grid_world(side: int = 5, *, spacing: float = 1.0, seed: int = 0, sigma_t: float = 0.05,
                     sigma_r: float = 0.01, cost: str = "g2o", info_sigma_t: float | None = None,
-                    info_sigma_r: float | None = None) -> SyntheticWorld3D:
-    """A side³ lattice visited in a snake order (as smallGrid3D), each pose with a random orientation; every pair
-    of lattice neighbours not consecutive along the path is a loop closure. ``cost``: the graph's, its noise drawn in
-    that cost's coordinates (module docstring)."""
+                    info_sigma_r: float | None = None, yaw_only: bool = False) -> SyntheticWorld3D:
+    """A side³ lattice visited in a snake order (as smallGrid3D), each pose with a random orientation (with
+    ``yaw_only`` a random rotation about z: gravity-aligned poses, R e₃ = e₃); every pair of lattice neighbours not
+    consecutive along the path is a loop closure. ``cost``: the graph's, its noise drawn in that cost's coordinates
+    (module docstring)."""
     if side < 2:
         raise OptionError("cube_grid_world needs side >= 2")
     cells = []
@@ -171,7 +172,7 @@ def cube_grid_world(side: int = 5, *, spacing: float = 1.0, seed: int = 0, sigma
             cells += [(x, y, z) for x in xs]
     cells = np.array(cells)
     t = spacing * cells.astype(float)
-    R = exp_so3(np.random.default_rng([seed, 1]).normal(size=(len(cells), 3)))
+    R = exp_so3(np.random.default_rng([seed, 1]).normal(size=(len(cells), 3)) * ([0, 0, 1] if yaw_only else 1))
     index = {tuple(c): i for i, c in enumerate(cells)}
     lt, lh = [], []
     for i, c in enumerate(cells):
@@ -183,5 +184,5 @@ def cube_grid_world(side: int = 5, *, spacing: float = 1.0, seed: int = 0, sigma
                 lt.append(min(i, j))
                 lh.append(max(i, j))
     return _world("cube_grid_world", t, R, np.array(lt, np.int64), np.array(lh, np.int64), sigma_t=sigma_t,
-                  sigma_r=sigma_r, seed=seed, cost=cost,
-                  info_sigma_t=info_sigma_t, info_sigma_r=info_sigma_r, params={"side": side, "spacing": spacing})
+                  sigma_r=sigma_r, seed=seed, cost=cost, info_sigma_t=info_sigma_t, info_sigma_r=info_sigma_r,
+                  params={"side": side, "spacing": spacing, "yaw_only": yaw_only})
