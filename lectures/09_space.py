@@ -217,7 +217,7 @@ show(fig, "normal_matrix")
 #
 # Then what χ² says: the two-step route (`route="seed"`: projected rotations, positions exact for them) against
 # the minimum of χ²
-# found by Levenberg–Marquardt (`refine3d`), and the default route's joint step in between (section 4). A
+# found by Gauss–Newton (`lc.refine`, the same in 2-D and 3-D), and the default route's joint step in between (section 4). A
 # 160-pose sphere with rising rotation noise:
 
 # %%
@@ -326,7 +326,7 @@ check(all(rms[second, s, "anisotropic"] > rms[second, s, "isotropic"] for s in r
 # %% [markdown]
 # On the real 3-D benchmark graphs the two weightings differ little, and not always in the same direction — the χ²
 # of the two-step route in the two weightings, beside the default route and the minimum of χ² reached from it
-# (Levenberg–Marquardt, `refine3d`), computed here. The files are read for GTSAM's cost (`cost="gtsam"`), the
+# (Gauss–Newton, `lc.refine`), computed here. The files are read for GTSAM's cost (`cost="gtsam"`), the
 # Logmap error this lecture derives with and the cost `InitializePose3` is measured in; their own cost is g2o's
 # (`lago_cvx.conventions`: the rotational error is the vector part of the error's unit quaternion, ≈ φ/2), and
 # `python benchmarks/run.py space` reports both.

@@ -118,7 +118,12 @@ def test_solve_3d_anchor_with_a_pose_holds_it_and_moves_the_frame(world3d, tmp_p
                          "--json"])
     g = read_graph(out)
     assert np.allclose(g.initial_t[list(g.ids).index(20)], 0, atol=1e-9) and two["chi2"] > one["chi2"]
-    for extra, flag in ((["--refine"], "--refine"), (["--check"], "--check"), (["--method", "cvxpy"], "--method")):
+    both = _json(capsys, ["solve", world3d, "--anchor", spec, "--anchor", "20:0,0,0,0,0,0,1", "--refine", "-o",
+                          str(out), "--json"])  # --refine holds both anchors
+    g = read_graph(out)
+    assert np.allclose(g.initial_t[list(g.ids).index(20)], 0, atol=1e-9)
+    assert np.allclose(g.initial_t[k], [1, 2, 3], atol=1e-9) and both["chi2_refined"] <= both["chi2"]
+    for extra, flag in ((["--check"], "--check"), (["--method", "cvxpy"], "--method")):
         err = _error(capsys, ["solve", world3d, "--anchor", spec, "--anchor", "20:0,0,0,0,0,0,1", *extra])
         assert flag in err
     assert "bare ID" in _error(capsys, ["solve", world3d, "--anchor", spec, "--anchor", "20"])

@@ -116,13 +116,11 @@ def solve3d(args, graph, out) -> int:
     if args.robust or args.robust_loss:  # graduated non-convexity runs weighted planar LAGO
         raise UsageError(f"--robust applies to planar graphs only: {args.file} is 3-D")
     anchor, fixed = _anchors3d(args.anchor, graph)
-    if fixed:  # poses known exactly (space.fixed): closed form, and refinement can hold one of them only
-        for given, flag in ((args.check, "--check"), (args.method != "closed_form", "--method cvxpy"),
-                            (args.refine and len(fixed) > 1, "--refine")):
+    if fixed:  # poses known exactly (space.fixed): closed form; the refinement holds every one of them
+        for given, flag in ((args.check, "--check"), (args.method != "closed_form", "--method cvxpy")):
             if given:
                 raise UsageError(f"{flag} with --anchor ID:X,Y,Z,QX,QY,QZ,QW on a 3-D graph: "
-                                 + ("3-D refinement holds one pose fixed and would move the other anchors"
-                                    if flag == "--refine" else "poses known exactly are solved in closed form only"))
+                                 "poses known exactly are solved in closed form only")
     if args.check:
         res, report = compare_methods3d(graph, route=args.route, anchor=anchor)
     else:
@@ -148,8 +146,8 @@ def solve3d(args, graph, out) -> int:
     final = (res.t, res.R)
     if args.refine:
         method = "levenberg-marquardt" if args.refine_method == "levenberg-marquardt" else "gauss-newton"
-        ref = refine3d(graph, res.t, res.R, method=method, anchor=anchor if anchor is not None else res.anchor,
-                       max_iterations=args.max_iterations)
+        held = {"anchors": fixed} if fixed else {"anchor": anchor if anchor is not None else res.anchor}
+        ref = refine3d(graph, res.t, res.R, method=method, max_iterations=args.max_iterations, **held)
         check_finite(ref.chi2, ref.t, what="refined estimate")
         final = (ref.t, ref.R)
         payload.update(chi2_refined=ref.chi2, refine_iterations=ref.iterations, refine_converged=ref.converged)
