@@ -6,7 +6,7 @@
 # A pose-graph file gives, for every edge, a measurement and a 3×3 information matrix $\Omega$. The matrix is
 # written *for an error*: $\chi^2 = \sum_k e_k^\top\Omega_k e_k$ means nothing until $e_k$ is defined, and the three
 # programs this course meets define it differently — the paper's eq. (3) (and TORO {cite}`grisetti2007toro`), g2o
-# {cite}`kummerle2011g2o` and GTSAM {cite}`dellaert2017factor`. Read the same file with another error and you
+# {cite}`kummerle2011g2o` and GTSAM {cite}`dellaert2012gtsam`. Read the same file with another error and you
 # get another $\chi^2$ and another minimum. This lecture writes the three errors side by side, computes them by
 # hand on a real file, shows when they coincide, how the package moves a file's information into eq. (3)'s frame,
 # and checks the numbers against g2o and GTSAM themselves where they are installed.
@@ -251,7 +251,7 @@ if minima.get("MIT.g2o") and minima.get("input_M3500_g2o.g2o"):
                        color=color, label=name.split(".")[0].replace("input_", "").replace("_g2o", ""))
     grid = np.logspace(-6, 0, 50)
     axes[0].loglog(grid, (grid / 2 / np.sin(grid / 2)) ** 2 - 1, "k-", lw=1, label="s(ε)² − 1 ≈ ε²/12")
-    axes[0].set(xlabel="|ε| [rad]", ylabel="|χ²_gtsam / χ²_g2o − 1| per edge", ylim=(1e-16, 10),
+    axes[0].set(xlabel="|ε| [rad]", ylabel="|χ²_gtsam / χ²_g2o − 1| per edge", xlim=(1e-7, 4), ylim=(1e-16, 10),
                 title="GTSAM against g2o at g2o's minimum")
     axes[0].legend(fontsize=8)
     gm = open_graph("se-sync/MIT.g2o")
