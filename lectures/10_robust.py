@@ -497,7 +497,8 @@ if rows:
 # The full table — M3500, MIT, city10000, the 3-D graphs, fractions up to 50 %, GTSAM's GNC beside ours — is the
 # package's robust benchmark, `benchmarks/robust.md` in the project's repository (`python benchmarks/run.py
 # robust`). There MIT is where GNC is weakest: 20 true loop closures against 82 false ones at 10 %.
-#
+
+# %% [markdown]
 # ## Exercise 2 — Which integers a tree edge decides
 #
 # Section 1's count, in general: write `circuits_through(graph, tree_edges, f)`, the edge indices of the chords
