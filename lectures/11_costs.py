@@ -1,8 +1,6 @@
 # %% [markdown]
 # # Lecture 11 — Beyond the paper: what a file's information means — g2o's, GTSAM's and the paper's cost
 #
-# [![Open in Colab](https://colab.research.google.com/assets/colab-badge.svg)](https://colab.research.google.com/github/lago-cvx/lago-cvx/blob/main/lectures/11_costs.ipynb)
-#
 # A pose-graph file gives, for every edge, a measurement and a 3×3 information matrix $\Omega$. The matrix is
 # written *for an error*: $\chi^2 = \sum_k e_k^\top\Omega_k e_k$ means nothing until $e_k$ is defined, and the three
 # programs this course meets define it differently — the paper's eq. (3) (and TORO {cite}`grisetti2007toro`), g2o
