@@ -149,7 +149,7 @@ check(min(min(a) for a in ate.values()) > 0.5,
 #
 # ## 2. Graduated non-convexity: a sequence of weighted convex problems
 #
-# Replace the cost $\sum_k r_k^2$ by $\sum_k \rho(r_k)$ with a loss that stops growing: **truncated least squares**
+# Replace the cost $\sum_k r_k^2$ by $\sum_k \rho(r_k)$ with a bounded loss: **truncated least squares**
 # (TLS) $\rho(r) = \min(r^2, \bar c^2)$, or **Geman–McClure** (GM) $\rho(r) = \bar c^2 r^2/(\bar c^2 + r^2)$. Both
 # are non-convex. By Black–Rangarajan duality, $\rho(r) = \min_{w\in[0,1]} w r^2 + \Phi(w)$, so the problem becomes
 # an alternation: for fixed weights, the **weighted problem** $\min_x \sum_k w_k\, e_k(x)^\top\Omega_k e_k(x)$ —
