@@ -469,11 +469,11 @@ for name in ("se-sync/intel.g2o", "se-sync/CSAIL.g2o"):
                          recall=(rejected & falses).sum() / outl.size,
                          plain=lc.ate(plain.poses, clean_min.poses), robust=lc.ate(ref.poses, clean_min.poses),
                          chi2=lc.chi2(base, ref.poses) / clean_min.chi2, seconds=seconds))
-print(f"{'graph':10s} {'false':>9s} {'precision':>9s} {'recall':>6s} {'ATE plain':>10s} {'ATE robust':>10s} "
-      f"{'χ² clean / min':>14s} {'GNC s':>6s}")
+print(f"{'graph':10s} {'false edges':>12s} {'draw':>4s} {'precision':>9s} {'recall':>6s} {'ATE plain':>10s} "
+      f"{'ATE robust':>10s} {'χ² clean / min':>14s} {'robust s':>8s}")
 for x in rows:
-    print(f"{x['graph']:10s} {x['false']:4d} ({x['fraction']:.0%}) {x['precision']:9.3f} {x['recall']:6.3f} "
-          f"{x['plain']:9.2f}m {x['robust']:9.4f}m {x['chi2']:14.5f} {x['seconds']:6.2f}")
+    print(f"{x['graph']:10s} {x['false']:5d} ({x['fraction']:3.0%}) {x['draw']:4d} {x['precision']:9.3f} {x['recall']:6.3f} "
+          f"{x['plain']:9.2f}m {x['robust']:9.4f}m {x['chi2']:14.5f} {x['seconds']:8.2f}")
 
 # %% tags=["remove-input"]
 if rows:
