@@ -174,6 +174,10 @@ WRONG = {
     "check_tree_rotations": [(lambda g: np.broadcast_to(np.eye(3), (g.n_poses, 3, 3)).copy(), "R_j against R_i R̃_ij")],
 }
 
+from exercises_robust_wrong import WRONG_ROBUST  # noqa: E402  (lectures 10–11)
+
+WRONG.update(WRONG_ROBUST)
+
 
 def test_every_check_has_wrong_answers():
     assert set(WRONG) == {name for name in exercises.__all__ if name.startswith("check_")}

@@ -14,7 +14,7 @@ executed notebook proves its solutions pass). An exception raised by the student
 message, never a traceback from here.
 
 Layered with ``course`` (docs/ARCHITECTURE.md, layer 12): it uses the package and ``course``'s worlds, nothing
-above. ``basics`` holds lectures 01–04b, ``beyond`` 05–09, ``feedback`` the shared tools.
+above. ``basics`` holds lectures 01–04b, ``beyond`` 05–09, ``robust`` 10–11, ``feedback`` the shared tools.
 """
 
 from lago_cvx.exercises.basics import *  # noqa: F401,F403
@@ -22,8 +22,10 @@ from lago_cvx.exercises.basics import __all__ as _basics
 from lago_cvx.exercises.beyond import *  # noqa: F401,F403
 from lago_cvx.exercises.beyond import __all__ as _beyond
 from lago_cvx.exercises.feedback import Feedback, WrongAnswer
+from lago_cvx.exercises.robust import *  # noqa: F401,F403
+from lago_cvx.exercises.robust import __all__ as _robust
 
-__all__ = ["Feedback", "WrongAnswer", *_basics, *_beyond]
+__all__ = ["Feedback", "WrongAnswer", *_basics, *_beyond, *_robust]
 
 #: Every check, by lecture: ``{"01": [check_half_offset, ...], ...}`` (the tests feed each its solution).
 CHECKS = {}
