@@ -566,6 +566,15 @@ check(abs(from_lago.chi2 - from_truth.chi2) < 1e-6 * from_truth.chi2, "from LAGO
 check(np.max(segment - chord) > 0, f"the cost rises {np.max(segment - chord):.0f} above the chord between them")
 
 # %% [markdown]
+# ### Try it: noise and the two minima
+# Drag the heading noise σ_θ and the world: at small σ_θ both starts of Gauss–Newton end in one minimum, as on the
+# running example; as it grows, dead reckoning's start more and more often ends in a worse one.
+
+# %%
+from lago_cvx import course, course_sliders
+course.interactive(course_sliders.two_minima, "try_minima", sigma_theta=(0.02, 0.4, 0.02, 0.2), draw=(0, 20, 1, 11))
+
+# %% [markdown]
 # **Summary.** Maximum likelihood on a pose graph is the non-linear least-squares problem eq. (3); with
 # independent position and orientation noise it splits as eqs. (5)–(6), and it is the least-squares form
 # of the system eq. (7), whose only non-linearity is $R(\theta)$. The graph is connected (Lemma 1), but

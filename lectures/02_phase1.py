@@ -530,6 +530,16 @@ check(fast_path < 1e-9, "the loop's θ̂ = K δ_reg is the package's phase1_clos
 check(rel < 3 * expected, f"sample covariance = P_θ: ‖S − P_θ‖/‖P_θ‖ = {rel:.3f} (sampling level {expected:.3f})")
 
 # %% [markdown]
+# ### Try it: the BLUE against the noise
+# Drag σ_θ: phase 1's errors stay inside the band of Proposition 1's $P_\theta$ while dead reckoning drifts out of it;
+# at σ_θ ≳ 0.3 rad a wrong $2k\pi$ (lecture 5) throws the estimate out of its own band — the covariance assumes the
+# integers right.
+
+# %%
+from lago_cvx import course, course_sliders
+course.interactive(course_sliders.phase1_blue, "try_blue", sigma_theta=(0.01, 0.4, 0.01, 0.05))
+
+# %% [markdown]
 # **Summary.** After the $2k\pi$ regularization, the relative orientations obey the linear model
 # eq. (8); connectivity and one known orientation make it uniquely solvable (Proposition 1); its BLUE
 # eq. (13) is one sparse solve with a grounded weighted Laplacian. cvxpy states the same problem in a

@@ -587,6 +587,15 @@ if intel is not None:
 # from it needs fewer steps than from dead reckoning.
 
 # %% [markdown]
+# ### Try it: phase 3's correction against the rotation noise
+# Drag σ_θ on the running example: the correction $\tilde\theta$ of eq. (16) grows with the heading noise, and so does
+# the drop of χ² from $\hat\rho$ to $\rho^*$.
+
+# %%
+from lago_cvx import course, course_sliders
+course.interactive(course_sliders.phase3_correction, "try_phase3", sigma_theta=(0.01, 0.3, 0.01, 0.05))
+
+# %% [markdown]
 # **Summary.** Phase 3 is a linear least-squares problem: given $\hat\theta$ and the phase-2 vector $z$, eq. (12)
 # makes $z$ linear in $\rho = [p;\ \theta]$ and eq. (15) is its best linear unbiased estimate, solved here by cvxpy
 # (with an explicit Clarabel setting) and by the package's sparse closed form. Theorem 1 splits $\rho^*$ into the

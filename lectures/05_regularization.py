@@ -129,7 +129,6 @@ inset.set_xlabel("")
 inset.set_ylabel("")
 fig.tight_layout()
 show(fig, "wraparound")
-
 # %% tags=["remove-input"]
 check(err_raw > 1.0, f"without regularization: max position error {err_raw:.2f} m")
 check(err_reg < 1e-9, f"with regularization ({res4.regularization.n_regularized} chords corrected): "
@@ -171,7 +170,6 @@ for name, c in (("loop 0-1-2-3", loop_a), ("loop 3-4-5-6", loop_b), ("both loops
     deg = degrees(eight, c)
     kind = "circuit" if set(deg[deg > 0]) == {2} else "cycle, not a circuit"
     print(f"{name:13s}: degrees {deg}, A c = {A8 @ c} → {kind}")
-
 # %% tags=["remove-input"]
 check(np.all(A8 @ eight_cycle == 0) and degrees(eight, eight_cycle)[3] == 4 and np.all(degrees(eight, eight_cycle) % 2 == 0),
       "both loops together: every degree even, pose 3 has degree 4 — a cycle that is not a circuit")
@@ -225,7 +223,6 @@ for ax, c, title in [(axes[0], eight_cycle, "a cycle (not a circuit)")] + \
     ax.margins(0.2)
 fig.tight_layout()
 show(fig, "circuits")
-
 # %% tags=["remove-input"]
 for row, k in zip(C8, tree8.chords):
     deg = degrees(eight, row)
@@ -259,7 +256,6 @@ for name, gr, kinds in CASES:
         spans = np.abs(cycles[:, tree.chords] @ C - cycles).max() == 0
         print(f"{name:28s} {kind:8s} {gr.n_edges:5d} {gr.n_poses - 1:5d} {C.shape[0]:4d} {rank:6d} {ACt:9.0f} {spans!s:>5s}")
         spanning.append((name, kind, C.shape[0] == rank == gr.n_edges - (gr.n_poses - 1) and ACt == 0 and spans))
-
 # %% tags=["remove-input"]
 for name, kind, holds in spanning:
     check(holds, f"{name}, {kind} tree: l = m − n independent circuits that span the cycles")
@@ -279,7 +275,6 @@ for name, kind, holds in spanning:
 
 # %%
 print("C in the order [chords | tree edges] (eq. (19)):\n", C8[:, tree8.edge_order])
-
 # %% tags=["remove-input"]
 for name, gr, kinds in CASES:
     for kind in kinds:
@@ -330,7 +325,6 @@ q = C @ gn.delta / TWO_PI
 v = np.zeros(gn.n_edges)
 v[tree.chords] = -(C @ gn.delta)                                   # eq. (23), in the graph's edge order
 reg = regularize(gn, tree)
-
 # %% tags=["remove-input"]
 check(np.abs(q - np.rint(q)).max() < 1e-9, f"2π-multiple property: C δ / 2π integer on exact data "
       f"({np.count_nonzero(np.rint(q))} of {q.size} non-zero)")
@@ -391,7 +385,6 @@ for ax in axes:
 fig.suptitle(f"the running example: {Cq.shape[0]} fundamental circuits of the odometric tree")
 fig.tight_layout()
 show(fig, "circuit_sums")
-
 # %% tags=["remove-input"]
 check(np.allclose(np.abs(nu_reg), np.abs(nu_formula), rtol=1e-6, atol=1e-9 * np.abs(nu_formula).max()),
       "|ν| = |2 (C P_δ Cᵀ)⁻¹ C δ_reg|: one tension per fundamental circuit")
@@ -419,7 +412,6 @@ check(np.abs(Cq @ regq.delta_reg).max() < np.pi, f"after rounding every circuit 
 # %%
 reg4 = regularize(g4, lc.spanning_tree(g4, "odometry"))             # the 4-lap circle of section 1
 turns = np.rint((w4.truth[g4.heads, 2] - w4.truth[g4.tails, 2] - g4.delta) / TWO_PI).astype(int)
-
 # %% tags=["remove-input"]
 for name, gr in [("circle 120 poses, 4 laps", g4), ("running example", running_example().graph)] + \
         ([("INTEL_P_toro (real)", intel)] if intel is not None else []):
@@ -490,7 +482,6 @@ for i, sig in enumerate(SIGMAS):
     print(f"{sig:5.2f} " + " ".join(f"{wrong[k][i]:16.1f}" for k in wrong) + " " +
           " ".join(f"{ambiguous[k][i]:20.1f}" for k in TREES))
 first_bad = {k: next((s for s, x in zip(SIGMAS, wrong[k]) if x > 0), np.inf) for k in wrong}
-
 # %% tags=["remove-input"]
 check(all(wrong[k][0] == 0 for k in wrong), f"σ_θ = {SIGMAS[0]}: every k right with every regularizer")
 check(margin_ok, f"circuit noise margin: k wrong ⇔ |C ν| > π, verified on {verified} chords")
@@ -559,7 +550,6 @@ if m3500a is not None:
                      fontsize=10)
     fig.tight_layout()
     show(fig, "m3500a")
-
 # %% tags=["remove-input"]
 if m3500a is not None:
     check(runs["odometric tree"].regularization.ambiguous.size > 0 and disagree > 0
@@ -606,6 +596,16 @@ if intel is not None:
     check(computed == TABLE_I, "Table I reproduced on INTEL_P_toro with the odometric tree")
     check(same == 0, "on INTEL the two trees' corrections are equivalent: the count depends on the tree, "
           "the regularized graph does not")
+
+# %% [markdown]
+# ### Try it: when the rounding fails
+# Drag σ_θ: each point is one circuit's accumulated noise $(C\nu)_c$; the rounding is right inside the dashed band
+# $(-\pi, \pi]$. The long circuits of the odometric tree leave it from σ_θ ≈ 0.15 rad, the BFS tree's short ones much
+# later.
+
+# %%
+from lago_cvx import course, course_sliders
+course.interactive(course_sliders.rounding_failure, "try_rounding", sigma_theta=(0.02, 0.6, 0.02, 0.2))
 
 # %% [markdown]
 # ## Exercise 1 — Coordinates in the fundamental basis

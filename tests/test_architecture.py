@@ -30,7 +30,7 @@ LAYERS = [
     ["pipeline"],
     ["refinement", "refine_variants"],
     ["certification"],
-    ["experiments", "plotting", "peers", "theorem1", "course", "section_v"],
+    ["experiments", "plotting", "peers", "theorem1", "course", "course_sliders", "section_v"],
     ["cli", "__main__", "__init__"],
 ]
 LAYER = {name: i for i, names in enumerate(LAYERS) for name in names}
