@@ -532,8 +532,8 @@ check(rel < 3 * expected, f"sample covariance = P_θ: ‖S − P_θ‖/‖P_θ�
 # %% [markdown]
 # ### Try it: the BLUE against the noise
 # Drag σ_θ: phase 1's errors stay inside the band of Proposition 1's $P_\theta$ while dead reckoning drifts out of it;
-# at σ_θ ≳ 0.3 rad a wrong $2k\pi$ (lecture 5) throws the estimate out of its own band — the covariance assumes the
-# integers right.
+# from σ_θ ≈ 0.2 rad, wrong $2k\pi$ corrections (lecture 5) throw the estimate out of its own band: the covariance
+# assumes the integers right.
 
 # %%
 from lago_cvx import course, course_sliders

@@ -487,7 +487,7 @@ if gi is not None:
 # %% [markdown]
 # ### Try it: how hard is a soft anchor?
 # Drag the prior's information on pose 40 (mean 1.4 m off LAGO's estimate): from 10⁰ the estimate hardly moves, around
-# 10² it is pulled half-way, beyond 10⁶ it sits on the hard anchor (section 4).
+# 10² it is pulled half-way, from 10⁴ it sits within a centimetre of the hard anchor (section 4).
 
 # %%
 from lago_cvx import course, course_sliders
