@@ -89,9 +89,14 @@ def figure_dir() -> Path | None:
 
 
 def _in_notebook() -> bool:
+    """True in a Jupyter kernel: its shell is ipykernel's ZMQInteractiveShell or a subclass (Colab's)."""
     shell = sys.modules.get("IPython")
     ip = shell.get_ipython() if shell is not None and hasattr(shell, "get_ipython") else None
-    return ip is not None and ip.__class__.__name__ == "ZMQInteractiveShell"
+    if ip is None:
+        return False
+    zmqshell = sys.modules.get("ipykernel.zmqshell")
+    return (zmqshell is not None and isinstance(ip, zmqshell.ZMQInteractiveShell)) or \
+        ip.__class__.__name__ == "ZMQInteractiveShell"
 
 
 def show(fig, name: str) -> None:

@@ -49,6 +49,22 @@ def test_static_when_asked_even_in_a_kernel(monkeypatch):
     assert course._static()
 
 
+def test_a_kernel_shell_subclass_counts_as_a_notebook(monkeypatch):
+    """Colab's shell subclasses ipykernel's ZMQInteractiveShell under another name: still a notebook."""
+    zmqshell = pytest.importorskip("ipykernel.zmqshell")
+    import IPython
+
+    class Shell(zmqshell.ZMQInteractiveShell):
+        pass
+
+    monkeypatch.setattr(IPython, "get_ipython", lambda: object.__new__(Shell))
+    assert course._in_notebook()
+    monkeypatch.setattr(IPython, "get_ipython", lambda: object.__new__(IPython.core.interactiveshell.InteractiveShell))
+    assert not course._in_notebook()
+    monkeypatch.setattr(IPython, "get_ipython", lambda: None)
+    assert not course._in_notebook()
+
+
 def test_live_mode_shows_sliders_that_redraw(monkeypatch):
     widgets = pytest.importorskip("ipywidgets")
     monkeypatch.delenv("LAGO_CVX_FIGURES", raising=False)
@@ -77,3 +93,63 @@ def test_live_mode_shows_sliders_that_redraw(monkeypatch):
 def test_a_malformed_slider_is_an_option_error(spec):
     with pytest.raises(OptionError, match="slider sigma="):
         course.interactive(lambda ax, sigma: ax, "bad", sigma=spec)
+
+
+# ----------------------------------------------------------------------------- the lectures' draw functions
+def _title(draw, **values) -> str:
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots()
+    try:
+        assert draw(ax, **values) is ax
+        assert ax.lines or ax.patches or ax.collections, f"{draw.__name__} drew nothing"
+        return ax.get_title()
+    finally:
+        plt.close(fig)
+
+
+def _numbers(text: str) -> list[float]:
+    import re
+
+    return [float(x) for x in re.findall(r"-?\d+(?:\.\d+)?(?:e[+-]?\d+)?", text)]
+
+
+@pytest.mark.parametrize("name", __import__("lago_cvx.course_sliders", fromlist=["__all__"]).__all__)
+def test_each_draw_function_draws_at_its_defaults_quickly(name):
+    from lago_cvx import course_sliders
+
+    draw = getattr(course_sliders, name)
+    _title(draw)                                       # warm-up: imports, caches
+    start = time.perf_counter()
+    _title(draw)
+    seconds = time.perf_counter() - start
+    assert seconds < 5.0, f"{name} takes {seconds:.1f} s per redraw (a slider wants well under 1 s)"
+
+
+def test_the_rounding_fails_first_on_the_odometric_tree():
+    """Lecture 5's slider: wrong circuits grow with σ_θ, and the BFS tree's short circuits fail later."""
+    import matplotlib.pyplot as plt
+
+    from lago_cvx.course_sliders import rounding_failure
+
+    wrong = {}
+    for sigma in (0.05, 0.3, 0.5):
+        fig, ax = plt.subplots()
+        rounding_failure(ax, sigma_theta=sigma)
+        wrong[sigma] = [int(_numbers(t.get_text())[0]) for t in ax.get_legend().get_texts()]  # [odometry, bfs]
+        plt.close(fig)
+    assert wrong[0.05] == [0, 0]
+    assert 0 < wrong[0.3][0] < wrong[0.5][0] and wrong[0.3][1] < wrong[0.3][0] and wrong[0.5][1] < wrong[0.5][0]
+
+
+def test_the_prior_tends_to_the_anchor_and_the_relaxations_loosen_with_noise():
+    from lago_cvx import course_sliders as cs
+
+    miss = [_numbers(_title(cs.prior_weight, log10_information=v))[-1] for v in (0.0, 2.0, 6.0)]
+    assert miss[0] > miss[1] > miss[2] and miss[2] < 1e-3 and miss[0] > 1.0
+    ratio_2d = [_numbers(_title(cs.chordal_tightness, sigma_theta=s))[-1] for s in (0.01, 0.1, 0.3)]
+    ratio_3d = [_numbers(_title(cs.chordal_gap_3d, sigma_r=s))[-1] for s in (0.01, 0.1, 0.3)]
+    for ratio in (ratio_2d, ratio_3d):
+        assert 1.0 <= ratio[0] < 1.05 < ratio[1] < ratio[2], ratio
+    gap = [_numbers(_title(cs.anisotropy_gap, log10_ratio=v))[-1] for v in (0.0, 2.0)]
+    assert abs(gap[0] - 1.0) < 1e-3 and gap[1] > 1.1, gap
