@@ -173,7 +173,7 @@ def _widget(draw, name, figsize, sliders):
     return widgets.interactive(lambda **values: _draw_once(draw, name, figsize, values), **controls)
 
 
-def interactive(draw, name: str, /, *, figsize=(7.0, 4.0), **sliders) -> None:
+def interactive(draw, name: str, /, *, figsize=(8.0, 4.5), **sliders) -> None:
     """A figure to play with: ``draw(ax, **values) -> ax`` draws on one matplotlib axes for the slider values.
 
     ``sliders``: name → ``(low, high, step, default)`` (integers throughout: an integer slider). In a live Jupyter

@@ -27,6 +27,7 @@ TWO_PI = 2 * np.pi
 
 
 def _path(ax, poses, style="-", **kw):
+    """A trajectory (n, 3) on ``ax``; the legends of the map figures stand to the right of the map."""
     ax.plot(poses[:, 0], poses[:, 1], style, **{"markersize": 3, "linewidth": 1.2, **kw})
 
 
@@ -46,7 +47,7 @@ def two_minima(ax, *, sigma_theta=0.2, draw=11):
     verdict = ("one minimum" if same else "two minima") if all(r.converged for r in runs.values()) else \
         "a run stopped after 100 steps"
     ax.set(xlabel="x [m]", ylabel="y [m]", aspect="equal", title=f"σ_θ = {sigma_theta:.2f} rad, world {draw}: {verdict}")
-    ax.legend(fontsize=8, loc="best")
+    ax.legend(fontsize=8, loc="center left", bbox_to_anchor=(1.02, 0.5))
     return ax
 
 
@@ -121,7 +122,7 @@ def phase3_correction(ax, *, sigma_theta=0.05):
     _path(ax, t.poses(t.x_star), ".-", color="tab:blue", label=f"ρ* (phase 3): χ² = {t.chi2_phase3:.1f}")
     ax.set(xlabel="x [m]", ylabel="y [m]", aspect="equal",
            title=f"σ_θ = {sigma_theta:.2f} rad: max |θ̃| = {np.abs(t.theta_correction).max():.3f} rad")
-    ax.legend(fontsize=8, loc="best")
+    ax.legend(fontsize=8, loc="center left", bbox_to_anchor=(1.02, 0.5))
     return ax
 
 
@@ -223,7 +224,7 @@ def prior_weight(ax, *, log10_information=2.0):
     miss = np.linalg.norm(soft[40, :2] - target[:2])
     ax.set(xlabel="x [m]", ylabel="y [m]", aspect="equal",
            title=f"prior information 10^{log10_information:g}·I₃: pose 40 is {miss:.3f} m from the mean")
-    ax.legend(fontsize=8, loc="best")
+    ax.legend(fontsize=8, loc="center left", bbox_to_anchor=(1.02, 0.5))
     return ax
 
 
