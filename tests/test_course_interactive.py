@@ -153,3 +153,26 @@ def test_the_prior_tends_to_the_anchor_and_the_relaxations_loosen_with_noise():
         assert 1.0 <= ratio[0] < 1.05 < ratio[1] < ratio[2], ratio
     gap = [_numbers(_title(cs.anisotropy_gap, log10_ratio=v))[-1] for v in (0.0, 2.0)]
     assert abs(gap[0] - 1.0) < 1e-3 and gap[1] > 1.1, gap
+
+
+def test_the_rendered_lectures_store_each_interactive_figure_as_a_plain_figure():
+    """``lectures/render.py`` runs the kernel with ``LAGO_CVX_STATIC=1``: each lecture's ``course.interactive`` cell
+    stores a PNG (what the site shows), never a widget that the site could not draw."""
+    import importlib.util
+    from pathlib import Path
+
+    nbformat = pytest.importorskip("nbformat")
+    lectures = Path(__file__).resolve().parents[1] / "lectures"
+    spec = importlib.util.spec_from_file_location("lectures_render", lectures / "render.py")
+    render = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(render)
+    assert render.kernel_environment()["LAGO_CVX_STATIC"] == "1"
+    notebooks = sorted(lectures.glob("[0-9][0-9]*_*.ipynb"))
+    assert notebooks
+    for path in notebooks:
+        nb = nbformat.read(path, as_version=4)
+        cells = [c for c in nb.cells if c.cell_type == "code" and "course.interactive(" in c.source]
+        assert len(cells) == 1, f"{path.name}: {len(cells)} interactive figures (one per lecture)"
+        kinds = [set(o.get("data", {})) for o in cells[0].get("outputs", [])]
+        assert any("image/png" in k for k in kinds), f"{path.name}: the interactive cell stores no figure"
+        assert not any("application/vnd.jupyter.widget-view+json" in k for k in kinds), f"{path.name}: a widget stored"
