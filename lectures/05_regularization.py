@@ -601,7 +601,7 @@ if intel is not None:
 # ### Try it: when the rounding fails
 # Drag σ_θ: each point is one circuit's accumulated noise $(C\nu)_c$; the rounding is right inside the dashed band
 # $(-\pi, \pi]$. The long circuits of the odometric tree leave it from σ_θ ≈ 0.15 rad, the BFS tree's short ones much
-# later.
+# later (section 7).
 
 # %%
 from lago_cvx import course, course_sliders

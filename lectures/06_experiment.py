@@ -600,7 +600,7 @@ if INTEL is not None:
 # %% [markdown]
 # ### Try it: noise level and Table II's ratios
 # Drag the noise of a 150-pose Section V world (isotropic noise, proportional information assumed): how far odometry
-# and LAGO stay from the minimum of χ² in Table II's metric.
+# and LAGO stay from the minimum of χ² in Table II's metric (below 1: nearer the truth than the minimum).
 
 # %%
 from lago_cvx import course, course_sliders

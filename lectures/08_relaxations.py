@@ -581,7 +581,7 @@ for rel, (c0, c1) in certs.items():
 # %% [markdown]
 # ### Try it: how tight is the relaxation?
 # Drag σ_θ: the relaxed lengths ‖r_i‖ of (C) fall below 1 away from the anchor as the cycles grow inconsistent, and
-# the cost of the unit vectors over the relaxed minimum grows with them.
+# the cost of the unit vectors over the relaxed minimum grows with them (section 2).
 
 # %%
 from lago_cvx import course, course_sliders
