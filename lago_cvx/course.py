@@ -22,6 +22,10 @@ level INFO, and ``setup`` — called by the lecture, the application — attache
 records as lines of the cell's output (the current ``sys.stdout``, which is the notebook cell's stream in
 Jupyter). Code that does not call ``setup`` sees nothing unless it configures logging itself. The exercises'
 checks (``lago_cvx.exercises``) return what they find instead: a ``Feedback`` the notebook displays.
+
+``interactive(draw, name, **sliders)`` is a figure with sliders in a live Jupyter kernel that has ipywidgets (the
+``course`` extra), and the same figure drawn once at the sliders' defaults everywhere else: a script, the tests,
+and the rendered notebooks and site (``python lectures/render.py`` sets ``LAGO_CVX_STATIC=1``).
 """
 
 from __future__ import annotations
@@ -40,8 +44,8 @@ from lago_cvx import course_figures as _figures
 from lago_cvx.course_figures import *  # noqa: F401,F403 — the lectures' figures, named here for them
 from lago_cvx.datasets import DatasetNotFound, dataset
 
-__all__ = ["FULL", "S", "CLAIMS", "setup", "check", "show", "real", "paper_lago", "figure_dir", "section_v_world",
-           "running_example", "intuition_figure", "quiet", *_figures.__all__]
+__all__ = ["FULL", "S", "CLAIMS", "setup", "check", "show", "interactive", "real", "paper_lago", "figure_dir",
+           "section_v_world", "running_example", "intuition_figure", "quiet", *_figures.__all__]
 
 #: Bigger sweeps (more seeds, sizes, noise levels) run only with ``LAGO_CVX_FULL=1``.
 FULL = os.environ.get("LAGO_CVX_FULL", "") not in ("", "0")
@@ -115,9 +119,14 @@ def figure_dir() -> Path | None:
 
 
 def _in_notebook() -> bool:
+    """True in a Jupyter kernel: its shell is ipykernel's ZMQInteractiveShell or a subclass (Colab's)."""
     shell = sys.modules.get("IPython")
     ip = shell.get_ipython() if shell is not None and hasattr(shell, "get_ipython") else None
-    return ip is not None and ip.__class__.__name__ == "ZMQInteractiveShell"
+    if ip is None:
+        return False
+    zmqshell = sys.modules.get("ipykernel.zmqshell")
+    return (zmqshell is not None and isinstance(ip, zmqshell.ZMQInteractiveShell)) or \
+        ip.__class__.__name__ == "ZMQInteractiveShell"
 
 
 def show(fig, name: str) -> None:
@@ -146,6 +155,69 @@ def show(fig, name: str) -> None:
     elif _interactive_backend():
         plt.show()                     # a script with a GUI backend: the figure in a window
     plt.close(fig)
+
+
+def _static() -> bool:
+    """True unless a live Jupyter kernel with ipywidgets runs the lecture and ``$LAGO_CVX_STATIC`` is unset or 0."""
+    if os.environ.get("LAGO_CVX_STATIC", "") not in ("", "0") or not _in_notebook():
+        return True
+    try:
+        import ipywidgets  # noqa: F401  (the ``course`` extra; the package itself does not need it)
+    except ImportError:
+        return True
+    return False
+
+
+def _slider_values(sliders: dict) -> dict:
+    """The defaults of ``sliders`` (name → ``(low, high, step, default)``), after checking each spec."""
+    from lago_cvx.errors import OptionError
+
+    values = {}
+    for key, spec in sliders.items():
+        if not (isinstance(spec, tuple) and len(spec) == 4 and spec[0] <= spec[3] <= spec[1] and spec[2] > 0):
+            raise OptionError(f"slider {key}={spec!r}: give (low, high, step, default) with low <= default <= high "
+                              "and step > 0")
+        values[key] = spec[3]
+    return values
+
+
+def _draw_once(draw, name, figsize, values) -> None:
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=figsize)
+    draw(ax, **values)
+    fig.tight_layout()
+    show(fig, name)
+
+
+def _widget(draw, name, figsize, sliders):
+    """The ipywidgets ``interactive`` of ``draw``: one slider per entry of ``sliders``, redrawn on release."""
+    import ipywidgets as widgets
+
+    controls = {}
+    for key, (low, high, step, default) in sliders.items():
+        integer = all(isinstance(v, (int, np.integer)) for v in (low, high, step, default))
+        kind = widgets.IntSlider if integer else widgets.FloatSlider
+        controls[key] = kind(min=low, max=high, step=step, value=default, description=key,
+                             continuous_update=False, style={"description_width": "initial"})
+    return widgets.interactive(lambda **values: _draw_once(draw, name, figsize, values), **controls)
+
+
+def interactive(draw, name: str, /, *, figsize=(8.0, 4.5), **sliders) -> None:
+    """A figure to play with: ``draw(ax, **values) -> ax`` draws on one matplotlib axes for the slider values.
+
+    ``sliders``: name → ``(low, high, step, default)`` (integers throughout: an integer slider). In a live Jupyter
+    kernel with ipywidgets, shows the sliders and the figure, redrawn when a slider is released; anywhere else (a
+    script, the tests, ``python lectures/render.py``, which sets ``LAGO_CVX_STATIC=1``, hence the rendered notebook
+    and the site) draws the figure once at the defaults with ``show(fig, name)``. Raises ``OptionError`` for a
+    malformed slider."""
+    values = _slider_values(sliders)
+    if _static():
+        _draw_once(draw, name, figsize, values)
+        return
+    from IPython.display import display
+
+    display(_widget(draw, name, figsize, sliders))
 
 
 def _interactive_backend() -> bool:

@@ -53,7 +53,6 @@ import matplotlib.pyplot as plt
 import numpy as np
 from scipy.stats import chi2 as chi2_law
 from scipy.stats import multivariate_normal
-
 import lago_cvx as lc
 from lago_cvx.course import (S, check, compounding_figure, incidence_figure, intuition_figure, real,
                              running_example, setup, show, two_minima_figure)
@@ -63,7 +62,6 @@ from lago_cvx.phases import design_matrix
 from lago_cvx.posegraph import between, compose, rot2, wrap_angle
 from lago_cvx.refinement import odometry_guess, refine
 from lago_cvx.synthetic import add_noise
-
 setup("01_problem")
 rng = np.random.default_rng(0)
 
@@ -97,7 +95,6 @@ N = 10_000
 
 def random_poses(k):
     return np.column_stack([rng.uniform(-50, 50, (k, 2)), rng.uniform(-3 * np.pi, 3 * np.pi, k)])
-
 pi_, pj_, pk_, t_ = random_poses(N), random_poses(N), random_poses(N), random_poses(N)
 eq1 = np.column_stack([np.einsum("kba,kb->ka", rot2(pi_[:, 2]), pj_[:, :2] - pi_[:, :2]), pj_[:, 2] - pi_[:, 2]])
 errors = {
@@ -180,7 +177,6 @@ z_f = (f_truth - 3 * m) / np.sqrt(6 * m)
 z_half = (f_truth / 2 - 3 * m) / np.sqrt(6 * m)
 print(f"m = {m}: 3m = {3 * m}, √(6m) = {np.sqrt(6 * m):.1f}; f(truth) = {f_truth:.1f} → {z_f:+.2f}σ; "
       f"f/2 → {z_half:+.2f}σ; predicted offset of a factor ½: −√(3m/8) = {-sigmas_half:.2f}σ")
-
 draws = []
 for _ in range(400):
     meas, info = add_noise(world.truth, g.tails, g.heads, sigma_xy=0.1, sigma_theta=0.05, rng=rng, information="full")
@@ -226,7 +222,6 @@ from lago_cvx.exercises import check_half_offset
 def half_offset(m):
     """The offset of a factor-½ cost below 3m, in standard deviations √(6m) (a float)."""
     raise NotImplementedError
-
 check_half_offset(half_offset)
 
 # %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
@@ -238,7 +233,6 @@ from lago_cvx.exercises import check_half_offset
 
 def half_offset(m):
     return (3 * m - 3 * m / 2) / np.sqrt(6 * m)
-
 check_half_offset(half_offset).require()
 
 # %% [markdown]
@@ -326,7 +320,6 @@ if intel_full is not None:
           f"true cost at the minimum of the block-diagonal cost: {f_at_approx:.4f} "
           f"(+{100 * (f_at_approx / f_exact - 1):.2f} %), positions moved by {lc.ate(approx_opt.poses, exact_opt.poses):.3f} m RMS")
     lateral, forward = np.median(np.abs(corr[:, 1])), np.median(np.abs(corr[:, 0]))
-
     fig, ax = plt.subplots(figsize=(7, 3.6))
     for c, name in ((0, "x"), (1, "y")):
         ax.hist(corr[:, c], bins=40, alpha=0.6, label=f"corr({name}, θ)")
@@ -404,7 +397,6 @@ def residual_7(p, theta):
     """Residual of the first equation of eq. (7), A₂ᵀp − R(θ)Δˡ, pose 0 at the origin."""
     th_all = np.concatenate([[0.0], theta])
     return A2_8_red.T @ p - np.einsum("kab,kb->ka", rot2(th_all[tails8]), square.delta_l).ravel()
-
 p_rand, t1, t2 = rng.normal(size=2 * n8), rng.normal(size=n8), rng.normal(size=n8)
 superposition = residual_7(p_rand, t1 + t2) - residual_7(p_rand, t1) - residual_7(p_rand, t2) + residual_7(p_rand, 0 * t1)
 p_lin = residual_7(2 * p_rand, t1) - 2 * residual_7(p_rand, t1) + residual_7(0 * p_rand, t1)
@@ -437,7 +429,6 @@ graph, poses = eq6_case()          # the data the check uses
 def cost_eq6(graph, poses):
     """Eq. (6) at poses (n + 1, 3), pose 0 at the origin (a float)."""
     raise NotImplementedError
-
 check_cost_eq6(cost_eq6)
 
 # %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
@@ -598,6 +589,15 @@ check(from_dr.converged and from_lago.converged, "both runs converged")
 check(from_dr.chi2 > 1.01 * from_lago.chi2, f"from dead reckoning: a different minimum, {from_dr.chi2 / from_lago.chi2:.1f}× worse")
 check(abs(from_lago.chi2 - from_truth.chi2) < 1e-6 * from_truth.chi2, "from LAGO: the same minimum as from the truth")
 check(np.max(segment - chord) > 0, f"the cost rises {np.max(segment - chord):.0f} above the chord between them")
+
+# %% [markdown]
+# ### Try it: noise and the two minima
+# Drag the heading noise σ_θ and the world: at small σ_θ both starts of Gauss–Newton end in one minimum, as on the
+# running example; as it grows, dead reckoning's start more and more often ends in a worse one.
+
+# %%
+from lago_cvx import course, course_sliders
+course.interactive(course_sliders.two_minima, "try_minima", sigma_theta=(0.02, 0.4, 0.02, 0.2), draw=(0, 20, 1, 11))
 
 # %% [markdown]
 # **Summary.** Maximum likelihood on a pose graph is the non-linear least-squares problem eq. (3); with

@@ -49,7 +49,6 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.sparse import csgraph
-
 import lago_cvx as lc
 from lago_cvx.course import check, intuition_figure, paper_lago, real, running_example, setup, show
 from lago_cvx import phases
@@ -60,7 +59,6 @@ from lago_cvx.regularization import regularize
 from lago_cvx.solvers import LEAST_SQUARES, solve
 from lago_cvx.synthetic import add_noise
 from lago_cvx.uncertainty import edge_uncertainty
-
 setup("02_phase1")
 INTEL = real("carlone/INTEL_P_toro.graph")
 
@@ -97,7 +95,6 @@ def regularized(graph, tree="odometry"):
     """δ_reg by the paper's rounding along a spanning tree (the odometric path, as in the paper), and the
     per-edge uncertainty."""
     return regularize(graph, spanning_tree(graph, tree)), edge_uncertainty(graph)
-
 
 # own world: noiseless, three laps — the raw δ miss eq. (8) by exact multiples of 2π
 w0 = lc.circle_world(60, laps=3, seed=0, sigma_xy=0.0, sigma_theta=0.0)
@@ -184,8 +181,6 @@ def proposition1(graph):
     w = 1.0 / edge_uncertainty(graph).var_delta
     return (lc.connected_components(graph)[0], np.linalg.matrix_rank(full), np.linalg.matrix_rank(reduced),
             np.linalg.eigvalsh((reduced * w) @ reduced.T).min(), np.linalg.eigvalsh((full * w) @ full.T).min())
-
-
 base = running_example().graph
 cases = {
     "running example": base,
@@ -221,7 +216,6 @@ if INTEL is not None:
         A = lc.reduced_incidence(graph)
         info = (A @ sp.diags(1.0 / edge_uncertainty(graph).var_delta) @ A.T).tocsc()
         return spla.eigsh(info, k=1, sigma=-1.0, which="LM", return_eigenvectors=False)[0]
-
     half = INTEL.n_poses // 2
     cut = INTEL.subgraph_edges((INTEL.tails < half) == (INTEL.heads < half))
     lam, lam_cut = lambda_min(INTEL), lambda_min(cut)
@@ -261,7 +255,6 @@ g = world.graph
 reg, unc = regularized(g)
 A = lc.reduced_incidence(g)
 n, m = A.shape
-
 θ = cp.Variable(n, name="θ")
 w_δ = cp.Parameter(m, nonneg=True, name="w_δ")
 At = cp.Constant(A.T.tocsr(), name="Aᵀ")
@@ -280,7 +273,6 @@ def agreement(theta_cvx, weights):
     f_hat = np.sum((weights * (A.T @ theta_hat - reg.delta_reg)) ** 2)
     gap = LEAST_SQUARES.tol_gap_abs + LEAST_SQUARES.tol_gap_rel * f_hat
     return np.abs(theta_cvx - theta_hat).max(), np.sqrt(gap / np.linalg.eigvalsh(info)[0])
-
 w_δ.value = np.sqrt(1.0 / unc.var_delta)
 solve(phase1)
 package = phases.phase1_closed_form(g, reg.delta_reg, unc)
@@ -364,7 +356,6 @@ from lago_cvx.exercises import check_chain_covariance
 def chain_covariance(sigma):
     """P_θ (n, n) of the chain 0 → … → n whose edge k has standard deviation sigma[k]."""
     raise NotImplementedError
-
 check_chain_covariance(chain_covariance)
 
 # %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
@@ -378,7 +369,6 @@ def chain_covariance(sigma):
     n = len(sigma)
     cum = np.cumsum(np.asarray(sigma) ** 2)
     return cum[np.minimum.outer(np.arange(n), np.arange(n))]
-
 check_chain_covariance(chain_covariance).require()
 
 # %% [markdown]
@@ -568,6 +558,16 @@ show(fig, "montecarlo")
 # %% tags=["remove-input"]
 check(fast_path < 1e-9, "the loop's θ̂ = K δ_reg is the package's phase1_closed_form")
 check(rel < 3 * expected, f"sample covariance = P_θ: ‖S − P_θ‖/‖P_θ‖ = {rel:.3f} (sampling level {expected:.3f})")
+
+# %% [markdown]
+# ### Try it: the BLUE against the noise
+# Drag σ_θ: phase 1's errors stay inside the band of Proposition 1's $P_\theta$ while dead reckoning drifts out of it;
+# from σ_θ ≈ 0.2 rad, wrong $2k\pi$ corrections (lecture 5) throw the estimate out of its own band: the covariance
+# assumes the integers right.
+
+# %%
+from lago_cvx import course, course_sliders
+course.interactive(course_sliders.phase1_blue, "try_blue", sigma_theta=(0.01, 0.4, 0.01, 0.05))
 
 # %% [markdown]
 # **Summary.** After the $2k\pi$ regularization, the relative orientations obey the linear model

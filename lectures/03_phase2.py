@@ -500,6 +500,16 @@ check(abs(small_noise["total"] - small_noise["floor"]) < 0.1 * small_noise["floo
 check(large["nonlin"] > 0.5 * large["floor"], "at σ_θ = 0.3 rad the non-linearity is visible above the sampling noise")
 
 # %% [markdown]
+# ### Try it: the covariance grows along the chain
+# Drag σ_θ and σ_xy: position noise alone grows the ellipses as √j; heading noise stretches them across the path, more
+# after the turn; from σ_θ ≈ 0.2 rad the draws bend into bananas that the first-order ellipses of eq. (10) no longer
+# follow (section 6).
+
+# %%
+from lago_cvx import course, course_sliders
+course.interactive(course_sliders.chain_covariance, "try_chain", sigma_theta=(0.0, 0.4, 0.01, 0.05), sigma_xy=(0.0, 0.2, 0.01, 0.05), n=(4, 30, 1, 15))
+
+# %% [markdown]
 # **Summary.** Phase 2 is a change of variables, not an optimization: it rotates the relative positions
 # into the global frame with phase 1's orientations (eq. (9)) and propagates the uncertainty to first
 # order (eqs. (10)–(11)). The covariance $P_z$ contains $P_\theta$, which is entrywise positive exactly

@@ -49,12 +49,10 @@ except ImportError:
 
 # %%
 import time
-
 import cvxpy as cp
 import matplotlib.pyplot as plt
 import numpy as np
 import scipy.linalg as sla
-
 import lago_cvx as lc
 from lago_cvx import phases as P
 from lago_cvx.metrics import relative_difference
@@ -65,7 +63,6 @@ from lago_cvx.solvers import LEAST_SQUARES, ClarabelSettings
 from lago_cvx.theorem1 import theorem1
 from lago_cvx.course import (S, check, intuition_figure, paper_lago, real, remark1_figure, running_example,
                              setup, show, structure_figure)
-
 setup("04a_phase3")
 
 def solve_qp(problem):
@@ -142,9 +139,7 @@ e = cp.Variable(2 * m + n, name="e")
 residual = e == z - Bt @ rho
 phase3 = cp.Problem(cp.Minimize(cp.sum_squares(W @ e)), [residual])
 print(phase3)
-
 W.value, z.value, Bt.value = res.phase2.W.toarray(), res.phase2.z, P.design_matrix(g).toarray()
-
 TOL = 1e-8   # accepted relative disagreement with the closed form, for an "optimal" status at 1e-12 gaps
 try:
     phase3.solve(solver=cp.CLARABEL)                                    # Clarabel's defaults
@@ -157,7 +152,6 @@ status_1e7, e_1e7 = phase3.status, relative_difference(rho.value, res.phase3.x_s
 print(f"phase3.solve(solver=cp.CLARABEL, static_regularization_constant=1e-7) → {status_1e7}, "
       f"relative difference from the closed form {e_1e7:.1e}")
 status = solve_qp(phase3)                                 # the same, with tolerances 1e-12 (top of the lecture)
-
 P_z = res.phase2.covariance_z()                           # dense, for this small graph only
 Bd = Bt.value.T                                           # B
 info15 = Bd @ np.linalg.solve(P_z, Bd.T)                  # B P_z⁻¹ Bᵀ
@@ -193,7 +187,6 @@ lam = residual.dual_value
 lam_D, lam_th = lam[:2 * m].reshape(m, 2), lam[2 * m:]
 force = lam_D / 2
 e_lam = np.abs(lam + 2 * np.linalg.solve(P_z, res.phase2.z - Bd.T @ rho.value)).max() / np.abs(lam).max()
-
 p_s = np.vstack([[0.0, 0.0], rho.value[:2 * n].reshape(n, 2)])       # p* with pose 0 at the origin
 th_s = np.concatenate([[0.0], rho.value[2 * n:]])
 th_h = res.phase1.theta
@@ -272,7 +265,6 @@ print(eq14)
 W.value = res.phase2.W.toarray()
 theta_hat.value = res.phase1.theta_free
 status14 = solve_qp(eq14)
-
 A = lc.reduced_incidence(g).toarray()                     # n × m (the package's "A2")
 A2 = np.kron(A, np.eye(2))                                # the paper's A₂ = A ⊗ I₂, 2n × 2m
 R = sla.block_diag(*rot2(th_h[g.tails]))
@@ -281,7 +273,6 @@ P_dg = R @ sla.block_diag(*res.uncertainty.cov_delta_l) @ R.T
 Pdg_inv = np.linalg.inv(P_dg)
 P_phat = np.linalg.inv(A2 @ Pdg_inv @ A2.T)               # covariance of p̂
 p_hat = P_phat @ A2 @ Pdg_inv @ RDl                       # eq. (14)
-
 t1 = theorem1(g, result=res)
 p_pkg = resolve_positions(g, th_h, res.uncertainty).poses[1:, :2].ravel()
 grad_theta = (-2 * Bd @ np.linalg.solve(P_z, res.phase2.z - Bd.T @ rho.value))[2 * n:]   # ∇_θ of the cost at ρ̂
@@ -553,6 +544,15 @@ if intel is not None:
 # example and the Manhattan world its estimate is already within a percent of the minimum; on INTEL, with the paper's
 # procedure, its χ² is more than ten times the minimum (lecture 4b explains why), and still Gauss–Newton
 # from it needs fewer steps than from dead reckoning.
+
+# %% [markdown]
+# ### Try it: phase 3's correction against the rotation noise
+# Drag σ_θ on the running example: the correction $\tilde\theta$ of eq. (16) grows with the heading noise, and so does
+# the drop of χ² from $\hat\rho$ to $\rho^*$.
+
+# %%
+from lago_cvx import course, course_sliders
+course.interactive(course_sliders.phase3_correction, "try_phase3", sigma_theta=(0.01, 0.3, 0.01, 0.05))
 
 # %% [markdown]
 # **Summary.** Phase 3 is a linear least-squares problem: given $\hat\theta$ and the phase-2 vector $z$, eq. (12)

@@ -525,6 +525,16 @@ if intel is not None and peers.have_gtsam():
 # frame, and, like phase 3's frozen weights, it matters only where the information is anisotropic.
 
 # %% [markdown]
+# ### Try it: anisotropy and Theorem 1's curve
+# Drag $\log_{10}\rho$, the anisotropy of each edge's translational information (its determinant kept): for ρ = 1 the
+# step lands on the minimum of the curve and of χ²; as ρ grows $\rho^*$ (α = 1) moves above both — the frozen weights
+# of section 2.
+
+# %%
+from lago_cvx import course, course_sliders
+course.interactive(course_sliders.anisotropy_gap, "try_anisotropy", log10_ratio=(0.0, 3.0, 0.25, 2.0))
+
+# %% [markdown]
 # **Summary.** On real graphs Theorem 1's correction can move away from the minimum of χ², because phase 3 freezes
 # the weights of the relative positions at $\hat\theta$ and a near-rigid rotation of the map escapes the first-order
 # model; the repair (`positions="resolve"`) re-solves the positions with the true weights along a guarded step.

@@ -118,7 +118,6 @@ wrapped = np.count_nonzero(np.rint((w4.truth[g4.heads, 2] - w4.truth[g4.tails, 2
 print(f"{g4!r}: {wrapped} measurements differ from the true orientation change by a multiple of 2π")
 
 show(wraparound_figure(w4.truth, raw3.poses, res4.poses), "wraparound")
-
 # %% tags=["remove-input"]
 check(err_raw > 1.0, f"without regularization: max position error {err_raw:.2f} m")
 check(err_reg < 1e-9, f"with regularization ({res4.regularization.n_regularized} chords corrected): "
@@ -160,7 +159,6 @@ for name, c in (("loop 0-1-2-3", loop_a), ("loop 3-4-5-6", loop_b), ("both loops
     deg = degrees(eight, c)
     kind = "circuit" if set(deg[deg > 0]) == {2} else "cycle, not a circuit"
     print(f"{name:13s}: degrees {deg}, A c = {A8 @ c} → {kind}")
-
 # %% tags=["remove-input"]
 check(np.all(A8 @ eight_cycle == 0) and degrees(eight, eight_cycle)[3] == 4 and np.all(degrees(eight, eight_cycle) % 2 == 0),
       "both loops together: every degree even, pose 3 has degree 4 — a cycle that is not a circuit")
@@ -200,7 +198,6 @@ print("odometric tree edges:", tree8.tree_edges, " chords:", tree8.chords)
 print("fundamental circuits, one row per chord (graph edge order):\n", C8)
 coef = eight_cycle[tree8.chords]
 show(circuits_figure(eight, truth8, eight_cycle, C8, tree8.chords), "circuits")
-
 # %% tags=["remove-input"]
 for row, k in zip(C8, tree8.chords):
     deg = degrees(eight, row)
@@ -234,7 +231,6 @@ for name, gr, kinds in CASES:
         spans = np.abs(cycles[:, tree.chords] @ C - cycles).max() == 0
         print(f"{name:28s} {kind:8s} {gr.n_edges:5d} {gr.n_poses - 1:5d} {C.shape[0]:4d} {rank:6d} {ACt:9.0f} {spans!s:>5s}")
         spanning.append((name, kind, C.shape[0] == rank == gr.n_edges - (gr.n_poses - 1) and ACt == 0 and spans))
-
 # %% tags=["remove-input"]
 for name, kind, holds in spanning:
     check(holds, f"{name}, {kind} tree: l = m − n independent circuits that span the cycles")
@@ -254,7 +250,6 @@ for name, kind, holds in spanning:
 
 # %%
 print("C in the order [chords | tree edges] (eq. (19)):\n", C8[:, tree8.edge_order])
-
 # %% tags=["remove-input"]
 for name, gr, kinds in CASES:
     for kind in kinds:
@@ -305,7 +300,6 @@ q = C @ gn.delta / TWO_PI
 v = np.zeros(gn.n_edges)
 v[tree.chords] = -(C @ gn.delta)                                   # eq. (23), in the graph's edge order
 reg = regularize(gn, tree)
-
 # %% tags=["remove-input"]
 check(np.abs(q - np.rint(q)).max() < 1e-9, f"2π-multiple property: C δ / 2π integer on exact data "
       f"({np.count_nonzero(np.rint(q))} of {q.size} non-zero)")
@@ -355,7 +349,6 @@ diffs = lc.reduced_incidence(gq).T @ ph1.theta_free
 e_ph1 = np.abs(regq.delta_reg + v_reg - diffs).max()
 nu_formula = 2 * np.linalg.solve(Cq @ np.diag(uq.var_delta) @ Cq.T, Cq @ regq.delta_reg)
 show(circuit_sums_figure(Cq @ gq.delta, Cq @ regq.delta_reg), "circuit_sums")
-
 # %% tags=["remove-input"]
 check(np.allclose(np.abs(nu_reg), np.abs(nu_formula), rtol=1e-6, atol=1e-9 * np.abs(nu_formula).max()),
       "|ν| = |2 (C P_δ Cᵀ)⁻¹ C δ_reg|: one tension per fundamental circuit")
@@ -383,7 +376,6 @@ check(np.abs(Cq @ regq.delta_reg).max() < np.pi, f"after rounding every circuit 
 # %%
 reg4 = regularize(g4, lc.spanning_tree(g4, "odometry"))             # the 4-lap circle of section 1
 turns = np.rint((w4.truth[g4.heads, 2] - w4.truth[g4.tails, 2] - g4.delta) / TWO_PI).astype(int)
-
 # %% tags=["remove-input"]
 for name, gr in [("circle 120 poses, 4 laps", g4), ("running example", running_example().graph)] + \
         ([("INTEL_P_toro (real)", intel)] if intel is not None else []):
@@ -454,7 +446,6 @@ for i, sig in enumerate(SIGMAS):
     print(f"{sig:5.2f} " + " ".join(f"{wrong[k][i]:16.1f}" for k in wrong) + " " +
           " ".join(f"{ambiguous[k][i]:20.1f}" for k in TREES))
 first_bad = {k: next((s for s, x in zip(SIGMAS, wrong[k]) if x > 0), np.inf) for k in wrong}
-
 # %% tags=["remove-input"]
 check(all(wrong[k][0] == 0 for k in wrong), f"σ_θ = {SIGMAS[0]}: every k right with every regularizer")
 check(margin_ok, f"circuit noise margin: k wrong ⇔ |C ν| > π, verified on {verified} chords")
@@ -507,7 +498,6 @@ if m3500a is not None:
                      fontsize=10)
     fig.tight_layout()
     show(fig, "m3500a")
-
 # %% tags=["remove-input"]
 if m3500a is not None:
     check(runs["odometric tree"].regularization.ambiguous.size > 0 and disagree > 0
@@ -554,6 +544,16 @@ if intel is not None:
     check(computed == TABLE_I, "Table I reproduced on INTEL_P_toro with the odometric tree")
     check(same == 0, "on INTEL the two trees' corrections are equivalent: the count depends on the tree, "
           "the regularized graph does not")
+
+# %% [markdown]
+# ### Try it: when the rounding fails
+# Drag σ_θ: each point is one circuit's accumulated noise $(C\nu)_c$; the rounding is right inside the dashed band
+# $(-\pi, \pi]$. The long circuits of the odometric tree leave it from σ_θ ≈ 0.15 rad, the BFS tree's short ones much
+# later (section 7).
+
+# %%
+from lago_cvx import course, course_sliders
+course.interactive(course_sliders.rounding_failure, "try_rounding", sigma_theta=(0.02, 0.6, 0.02, 0.2))
 
 # %% [markdown]
 # **Summary.** Measured angles are known only modulo $2\pi$, and phase 1 needs them on one branch: around every cycle

@@ -104,7 +104,6 @@ if INTEL is not None:
     ax.set(xlabel="cycle residual (Cδ)_c / 2π  [turns]", ylabel="chords",
            title="INTEL, odometric tree: cycle residuals cluster at whole turns")
     show(fig, "cycle_residuals")
-
 # %% tags=["remove-input"]
 check(np.array_equal(run_k, run_paper.regularization.k_chords) and run_row["chords needing regularization"] > 0,
       "running example: the hand count equals the package's regularization")
@@ -151,7 +150,6 @@ if INTEL is not None:
     status = solve(phase1)
     theta_reg, cost_reg = theta.value.copy(), phase1.value
     err = np.abs(theta_reg - paper.phase1.theta).max()
-
 # %% tags=["remove-input"]
 if INTEL is not None:
     check(status == "optimal" and err < 1e-8, f"cvxpy ({status}) = the closed form of eq. (13): max |Δθ| = {err:.1e} rad")
@@ -178,7 +176,6 @@ if INTEL is not None:
         ax.set_title(title)
     fig.suptitle("INTEL: the three phases with and without step (ii)")
     show(fig, "regularization_matters")
-
 # %% tags=["remove-input"]
 if INTEL is not None:
     check(cost_raw > 100 * cost_reg and lc.chi2(g, raw_poses) > 100 * paper.chi2,
@@ -206,7 +203,6 @@ if INTEL is not None:
     ax.set_title("Fig. 1 — INTEL: odometric trajectory, loop closures dotted")
     ax.legend(loc="lower left")
     show(fig, "fig1")
-
 # %% tags=["remove-input"]
 if INTEL is not None:
     check(dxy < 1e-5 and dth < 1e-5, f"dead reckoning = the file's vertices to their 6 printed decimals "
@@ -253,7 +249,6 @@ if INTEL is not None:
     show(fig, "fig2b_substitute")
     areas["minimum"] = swept_grid(optimum.poses)[2]
     print({k: f"{v:.1f} m²" for k, v in areas.items()})
-
 # %% tags=["remove-input"]
 if INTEL is not None:
     check(optimum.converged and abs(optimum.chi2 - REFERENCE_CHI2["carlone/INTEL_P_toro.graph"]) < 1e-5 * optimum.chi2,
@@ -297,7 +292,6 @@ if INTEL is not None:
 # %%
 intel_table, intel_paths = section_v.table_ii_intel(g) if INTEL is not None else ({}, {})
 print(section_v.format_table_ii_intel(intel_table, intel_paths))
-
 # %% tags=["remove-input"]
 if INTEL is not None:
     prop, iden = intel_table["proportional"], intel_table["P = I₃"]
@@ -321,7 +315,6 @@ for (noise, (tables, _)), name in zip(sweeps.items(), ("A — noise proportional
     print(section_v.format_table_ii(section_v.spread(tables), title=f"\nWorld {name}: median [min, max] over "
                                     f"{len(tables)} worlds"))
     print(section_v.format_findings(section_v.findings(tables)))
-
 # %% tags=["remove-input"]
 M, L, G = "minimum of χ² (from LAGO)", "LAGO, the paper's procedure", "Gauss–Newton, 1000 it."
 (ta, ca), (tb, cb) = sweeps["proportional"], sweeps["isotropic"]
@@ -402,7 +395,6 @@ axs[0, 0].legend(fontsize=8)
 fig.suptitle("Fig. 3 — errors versus iterations, proportional P (Gauss–Newton standing in for TORO; black: the paper)")
 fig.tight_layout()
 show(fig, "fig3")
-
 # %% tags=["remove-input"]
 for noise, (tables, curves) in sweeps.items():
     K = [len(c[s]) - 1 for c in curves.values() for s in c]
@@ -456,7 +448,6 @@ if files:
     print(f"above it on {len(fails)}: {fails}")
     trapped = sorted(rel for rel, r in files.items() if r["odo"] > 1.5)
     print(f"from odometry Gauss–Newton stops in a local minimum (> 1.5× the minimum) on {trapped}")
-
 # %% tags=["remove-input"]
 check(rows["running example"]["paper"] < 1.01, "running example: the paper's procedure within 1 % of the minimum")
 if files:
@@ -603,6 +594,15 @@ if INTEL is not None:
 # dozen stiff edges.
 #
 # **Summary.** Section V re-run: Table I; Figs. 1–2; Table II's two scenarios on INTEL and over generated worlds; Fig. 3 to 1000 iterations; the abstract's claim on every real graph; INTEL's 67.6× read edge by edge.
+
+# %% [markdown]
+# ### Try it: noise level and Table II's ratios
+# Drag the noise of a 150-pose Section V world (isotropic noise, proportional information assumed): how far odometry
+# and LAGO stay from the minimum of χ² in Table II's metric (below 1: nearer the truth than the minimum).
+
+# %%
+from lago_cvx import course, course_sliders
+course.interactive(course_sliders.table_ii_noise, "try_table_ii", sigma_xy=(0.005, 0.1, 0.005, 0.02), sigma_theta=(0.002, 0.1, 0.002, 0.01))
 
 # %% [markdown]
 # ## Exercise 1 — The metric needs no alignment

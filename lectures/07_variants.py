@@ -575,6 +575,15 @@ if gi is not None:
     check(not three.strained, f"anchors at the minimum are not strained (χ² {[round(s.chi2, 3) for s in three.strain]})")
 
 # %% [markdown]
+# ### Try it: how hard is a soft anchor?
+# Drag the prior's information on pose 40 (mean 1.4 m off LAGO's estimate): from 10⁰ the estimate hardly moves, around
+# 10² it is pulled half-way, from 10⁴ it sits within a centimetre of the hard anchor (section 4).
+
+# %%
+from lago_cvx import course, course_sliders
+course.interactive(course_sliders.prior_weight, "try_prior", log10_information=(0.0, 8.0, 0.5, 2.0))
+
+# %% [markdown]
 # **Summary.** The linear phases take extra knowledge without losing their closed form: several anchors (whose
 # multipliers are the forces the data exert on them, and whose strain tests whether they are consistent), priors as
 # soft anchors, convex constraints with meaningful multipliers, and convex robust losses that bound the pull of

@@ -164,7 +164,6 @@ c.value, s.value = np.cos(g.delta), np.sin(g.delta)
 status = solve(chordal)
 closed = chordal_closed_form(g, edge_uncertainty(g).info_delta)
 err = np.abs(np.column_stack([X.value, Y.value]) - closed.vectors).max()
-
 # %% tags=["remove-input"]
 check(status == "optimal" and err < 1e-8, f"cvxpy ({status}) = the sparse closed form: max |Δr| = {err:.1e}")
 check(np.ptp(w_d.value) == 0, "the weights are the same on every edge of this world (one σ_θ)")
@@ -193,7 +192,6 @@ Lc = sp.csr_matrix((np.sqrt(omega), (np.arange(m), g.heads)), shape=(m, n)) \
     - sp.csr_matrix((np.sqrt(omega) * np.exp(1j * g.delta), (np.arange(m), g.tails)), shape=(m, n))
 col = spla.spsolve((Lc.conj().T @ Lc).tocsc(), u0)
 z = X.value + 1j * Y.value
-
 # %% tags=["remove-input"]
 check(np.abs(col / col[0] - z).max() < 1e-8 and abs(1 / col[0].real - chordal.value) < 1e-8 * chordal.value,
       "(G): the relaxed solution is the anchor's column of L⁻¹, its cost 1/(L⁻¹)₀₀")
@@ -222,7 +220,6 @@ print(f"anchor moved from pose 0 to pose {n - 1}: ‖r_i‖ change by factors {r
 print(f"shortest vector (pose {i_short}, ‖r‖ = {closed.norms[i_short]:.2f}): its direction differs from phase 1's "
       f"θ̂ by {gap_blue:.1e} rad, while θ̂'s own error there is {abs(wrap_angle(phase1[i_short] - base.truth[i_short, 2])):.2f} rad")
 show(chordal_lengths_figure(hops, profiles, closed.norms, other.norms, n - 1), "chordal_lengths")
-
 # %% tags=["remove-input"]
 for sig, same in same_graph.items():
     check(same, f"σ_θ = {sig}: same graph")
@@ -292,7 +289,6 @@ by = {(r["sigma_theta"], r["regularizer"]): r for r in sweep}
 
 # %%
 show(sweep_figure(sweep_sigmas, regs, by), "sweep")
-
 # %% tags=["remove-input"]
 check(all(by[(sg, "chordal")]["optimal"] >= by[(sg, "tree (odometry)")]["optimal"]
           and by[(sg, "integer program")]["optimal"] >= by[(sg, "tree (odometry)")]["optimal"] for sg in sweep_sigmas),
@@ -319,7 +315,6 @@ for rel in ["se-sync/MIT.g2o"] + (["carlone/input_M3500a_g2o.g2o"] if FULL else 
         ends[rel, name] = lc.refine(gr, res.poses, max_iterations=100).chi2
         print(f"{rel}, odometric tree, {name:13s}: ambiguous {res.regularization.ambiguous.size:3d}, "
               f"χ²(LAGO) {res.chi2:10.6g} → Gauss–Newton {ends[rel, name]:.6g} (lowest known {REFERENCE_CHI2[rel]})")
-
 # %% tags=["remove-input"]
 for rel in dict.fromkeys(rel for rel, _ in ends):
     check(ends[rel, "tree rounding"] > 1.5 * REFERENCE_CHI2[rel] and abs(ends[rel, "chordal"] - REFERENCE_CHI2[rel]) < 1e-5 * REFERENCE_CHI2[rel],
@@ -364,7 +359,6 @@ for cc in sel:
     print(f"  chord {cc}: r = {data.r[cc]:+.2f}; corrected by rounding {data.r[cc] + 2 * np.pi * data.k_round[cc]:+.2f}, "
           f"by (IP) {data.r[cc] + 2 * np.pi * exact.k_chords[cc]:+.2f}; σ_c = {np.sqrt(data.S[cc, cc]):.2f} rad; "
           f"largest |correlation| with another cycle {np.abs(np.delete(corr[cc], cc)).max():.2f}")
-
 # %% tags=["remove-input"]
 if "SCIP" in cp.installed_solvers():
     check(np.array_equal(np.rint(q.value).astype(int), exact.k_chords),
@@ -391,7 +385,6 @@ print(f"{'σ_θ':>5s} {'IP = rounding (bfs / odometry)':>32s} {'rounding = truth
 for rb, ro in zip(ip_rows["bfs"], ip_rows["odometry"]):
     print(f"{rb['sigma_theta']:5.2f} {rb['ip_eq_round']:20.2f} / {ro['ip_eq_round']:4.2f} {rb['round_eq_true']:23.2f} / "
           f"{ro['round_eq_true']:4.2f} {rb['ip_eq_true']:11.2f} {rb['truth_above_ip']:17.2f}")
-
 # %% tags=["remove-input"]
 for rb, ro in zip(ip_rows["bfs"], ip_rows["odometry"]):
     check(rb["ip_eq_true"] == ro["ip_eq_true"], f"σ_θ = {rb['sigma_theta']}: the optimum of (IP) does not depend on the tree")
@@ -446,7 +439,6 @@ local = refine_sesync(gs, lc.refine(gs, lc.lago(gs).poses).poses)
 print(f"rounded SDP solution f = {sd.cost_rounded:.9f}; local minimum from LAGO f = {local.cost:.9f}; accuracy of "
       f"the solve {sdp_accuracy(sd):.1e}; eigenvalues of Z_RR {np.array2string(sd.z_eigenvalues, precision=3)}")
 tol = sdp_accuracy(sd) + 1e-8 * abs(sd.value)       # Clarabel's default relative gap tolerance, 1e-8
-
 # %% tags=["remove-input"]
 check(all(st == "optimal" for _, st in values.values()) and abs(values["primal"][0] - values["dual"][0]) <= tol,
       "primal and dual forms agree to the accuracy of the solve")
@@ -478,7 +470,6 @@ for t in tight:
     print(f"{t['sigma']:5.2f} {t['world']:5d} {t['status']:>10s} {t['gap']:16.2e} {t['acc']:9.1e} {t['rank']:11.1e} "
           f"{t['reflected']:11d} {t['cert_bound']:27.1e}")
 show(sdp_tightness_figure(tight), "sdp_tightness")
-
 # %% tags=["remove-input"]
 check(all(t["bracket"] >= -1e-9 * t["f"] for t in tight), "always: proven lower bound ≤ f_local (the bracket holds)")
 check(all(t["gap"] <= t["acc"] and t["cert_bound"] < 1e-5 for t in tight if t["sigma"] <= 0.2),
@@ -617,6 +608,15 @@ for rel, (c0, c1) in certs.items():
 # | integer program (IP) | mixed-integer least squares (exact enumeration, SCIP) | the integers phase 1 fits best; rounding is optimal at low noise |
 # | SDP relaxation | semidefinite program (Clarabel) | a proven lower bound on $f^\star$; tight ⟹ the global optimum |
 # | certificate (B) | one sparse $LDL^\top$ and the spectrum of $S_Q$ | a proof of global optimality, or a bound |
+
+# %% [markdown]
+# ### Try it: how tight is the relaxation?
+# Drag σ_θ: the relaxed lengths ‖r_i‖ of (C) fall below 1 away from the anchor as the cycles grow inconsistent, and
+# the cost of the unit vectors over the relaxed minimum grows with them (section 2).
+
+# %%
+from lago_cvx import course, course_sliders
+course.interactive(course_sliders.chordal_tightness, "try_tightness", sigma_theta=(0.01, 0.4, 0.01, 0.1))
 
 # %% [markdown]
 # **Summary.** In the plane the rotations' non-convexity sits in the integers $k$: Theorem 3's rounding fails when a

@@ -532,6 +532,15 @@ if sphere is not None:
 # | certificate | one sparse $LDL^\top$ of $S_\Lambda = M - \Lambda$ | a proof of global optimality for (S1), or a bound |
 
 # %% [markdown]
+# ### Try it: rotation noise and the projection's gap
+# Drag σ_r on a 60-pose sphere: the singular values of the relaxed $\hat R_i$ leave 1 and the ratio (C)(ΠR̂)/(C)(R̂)
+# of section 3 grows.
+
+# %%
+from lago_cvx import course, course_sliders
+course.interactive(course_sliders.chordal_gap_3d, "try_gap", sigma_r=(0.01, 0.4, 0.01, 0.1))
+
+# %% [markdown]
 # **Summary.** In 3-D the orientations need no $2k\pi$: the chordal relaxation (C) is a linear least-squares problem
 # in the rotation matrices (one factorization, three right-hand sides), projected onto SO(3); its near-0 cost is
 # $2\psi^2$ (D). The positions are then exact for those rotations, one guarded joint step removes most of the

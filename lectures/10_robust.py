@@ -304,7 +304,7 @@ def tls_weights(r2, mu, c2):
 
 check_tls_weights(tls_weights)
 
-# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false}
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
 # Solution and Discussion. d/dw [w r² + μc̄²(1 − w)/(μ + w)] = r² − μc̄²(μ + 1)/(μ + w)² = 0 gives
 # μ + w = c̄ √(μ(μ + 1)) / r, i.e. w = c̄/r·√(μ(μ+1)) − μ, clipped to [0, 1]: it reaches 1 at r² = μ/(μ+1)·c̄² and 0 at
 # r² = (μ+1)/μ·c̄². As μ → ∞ the band shrinks to r² = c̄²: the binary weights of TLS itself.
@@ -500,6 +500,16 @@ if rows:
 # robust`). There MIT is where GNC is weakest: 20 true loop closures against 82 false ones at 10 %.
 
 # %% [markdown]
+# ### Try it: how many false loop closures can GNC take?
+# Drag the fraction of false loop closures (and the world): plain LAGO's ATE grows with the first one, GNC-TLS keeps
+# the truth's shape as long as it rejects the false edges — the title counts them, and the true edges rejected with
+# them (sections 2 and 5).
+
+# %%
+from lago_cvx import course, course_sliders
+course.interactive(course_sliders.false_closures, "try_false_closures", fraction=(0.0, 0.5, 0.05, 0.1), draw=(0, 9, 1, 0))
+
+# %% [markdown]
 # ## Exercise 2 — Which integers a tree edge decides
 #
 # Section 1's count, in general: write `circuits_through(graph, tree_edges, f)`, the edge indices of the chords
@@ -520,7 +530,7 @@ def circuits_through(graph, tree_edges, f):
 
 check_circuits_through(circuits_through)
 
-# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false}
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
 # Solution and Discussion. Row c of C is chord c's circuit; its non-zero entries in column f say that the tree
 # path of chord c runs through f. A tree edge near the root of a BFS tree lies on many circuits: a false edge there
 # decides many integers, and a false edge that BFS takes as a shortcut is exactly such an edge.

@@ -175,7 +175,7 @@ def tail_information(info_f, delta):
 
 check_tail_information(tail_information)
 
-# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false}
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
 # Solution and Discussion. e_g2o = Tᵀe, so e_g2oᵀ Ω_f e_g2o = eᵀ (T Ω_f Tᵀ) e for every e: the moved matrix is the
 # information of eq. (3)'s error, exactly, not to first order. Only the translational block and the cross terms
 # turn; Ω_θθ stays. An isotropic Ω_tt with zero cross terms is unchanged: R λI Rᵀ = λI.
@@ -396,6 +396,16 @@ if intel["g2o"] is not None:
     check(np.array_equal(lc.lago(g).poses, lc.lago(intel["gtsam"]).poses), "LAGO: the same estimate from both readings")
 
 # %% [markdown]
+# ### Try it: when do the costs part?
+# Drag the anisotropy $\sigma_y/\sigma_x$ of every edge's translational information (log scale): at 0 (isotropic) the
+# paper's and g2o's minima are one (section 3), and they part as the information turns anisotropic; GTSAM's differs
+# from g2o's at second order in the error only.
+
+# %%
+from lago_cvx import course, course_sliders
+course.interactive(course_sliders.cost_minima, "try_cost_minima", log10_anisotropy=(0.0, 2.0, 0.25, 1.0))
+
+# %% [markdown]
 # ## Exercise 2 — GTSAM's Logmap
 #
 # Write `se2_logmap(rel)`: for relative poses `rel` (m, 3) $= (x, y, \theta)$, $\theta\in(-\pi,\pi]$, the local
@@ -416,7 +426,7 @@ def se2_logmap(rel):
 
 check_se2_logmap(se2_logmap)
 
-# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false}
+# %% tags=["solution", "hide-cell"] jupyter={"source_hidden": true, "outputs_hidden": false} mystnb={"code_prompt_show": "Solution and Discussion", "code_prompt_hide": "Hide the solution"}
 # Solution and Discussion. V(θ) = (sin θ/θ) I + ((1 − cos θ)/θ) S, S the 90° rotation; its inverse is α I + β J with
 # α = (θ/2) cot(θ/2), β = θ/2, J = −S — a rotation by −θ/2 scaled by (θ/2)/sin(θ/2). The series avoids 0/0 near θ = 0.
 # That scale is 1 + θ²/24 + …, so with an isotropic Ω_tt GTSAM's χ² and g2o's differ at second order in the rotation

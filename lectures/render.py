@@ -11,6 +11,8 @@ The kernel runs with
 
 * ``LAGO_CVX_FIGURES=<project>/figures``: every ``lago_cvx.course.show`` also writes ``NN_*.png`` and ``.svg``
   there (the lecture's old ``NN_*`` figure files are removed first, so none goes stale);
+* ``LAGO_CVX_STATIC=1``: a ``lago_cvx.course.interactive`` figure is drawn once at its sliders' defaults, so the
+  notebook and the site store a plain figure (a reader's live kernel shows the sliders);
 * ``SOURCE_DATE_EPOCH=0`` and ``PYTHONHASHSEED=0``: no dates in the figure files, a fixed set order;
 * ``PYTHONPATH`` starting with the project root: this checkout's ``lago_cvx`` is the one executed;
 * ``MPLBACKEND`` unset: the kernel's inline backend shows the figures.
@@ -70,6 +72,7 @@ def kernel_environment(figures: Path | None = FIGURES) -> dict[str, str]:
     """The environment the kernel inherits (see the module docstring)."""
     env = dict(os.environ)
     env.pop("MPLBACKEND", None)
+    env["LAGO_CVX_STATIC"] = "1"
     env["SOURCE_DATE_EPOCH"] = "0"
     env["PYTHONHASHSEED"] = "0"
     env["PYTHONPATH"] = os.pathsep.join([str(ROOT)] + [p for p in env.get("PYTHONPATH", "").split(os.pathsep) if p])

@@ -30,7 +30,8 @@ LAYERS = [
     ["pipeline"],
     ["refinement", "refine_variants"],
     ["certification"],
-    ["experiments", "plotting", "peers", "theorem1", "course_figures", "course", "section_v", "exercises"],
+    ["experiments", "plotting", "peers", "theorem1", "course_figures", "course", "course_sliders", "section_v",
+     "exercises"],
     ["cli", "__main__", "__init__"],
 ]
 LAYER = {name: i for i, names in enumerate(LAYERS) for name in names}

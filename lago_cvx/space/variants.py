@@ -4,8 +4,8 @@ r"""LAGO in space with anchors, priors and linear constraints on rotations
 Each stage of ``pipeline`` carries over, in closed form (sparse least squares, ``sparse.solve_least_squares``) and
 as a cvxpy problem (Clarabel), the same problem both ways:
 
-(C′) the chordal relaxation over X = [R_0ᵀ; …; R_{n−1}ᵀ] (3n × 3), min Σ_ij ‖S_ij (X_j − R̃_ijᵀ X_i)‖²_F
-     + Σ_q κ_q ‖X_v − R̄_vᵀ‖²_F (rotation priors, κ_q = 3 / (2 tr Λ_q,rr⁻¹), SE-Sync's isotropic weight of
+(C′) the chordal relaxation over X = [R_0ᵀ; …; R_{n−1}ᵀ] (3n × 3), min Σ_ij ‖S_ij (X_j − R̃_ijᵀ X_i)‖²_F +
+     Σ_q κ_q ‖X_v − R̄_vᵀ‖²_F (rotation priors, κ_q = 3 / (2 tr Λ_q,rr⁻¹), SE-Sync's isotropic weight of
      ``chordal``) subject to X_k = R_kᵀ (known rotations: anchors, or the reference's when no rotation is known)
      and aᵀX_i = bᵀ (R_i a = b, ``space.constraints``). In closed form the constraints are eliminated:
      X = T Z + X₀ with T = blkdiag(I₃ for a free pose, N_a (3 × 2) for a constrained one, nothing for a known one)
