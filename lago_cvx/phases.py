@@ -64,8 +64,8 @@ from functools import partial
 import numpy as np
 import scipy.sparse as sp
 
-from .sparse import (EdgeSystem, Factor, GraphElimination, marginal_blocks, RenumberedFactor, rotate, row_blocks,
-                     solve_least_squares)
+from .sparse import EdgeSystem, Factor, GraphElimination, marginal_blocks, RenumberedFactor, solve_least_squares
+from .stacks import rotate, row_blocks
 from .graph import _reduced_incidence, free_poses
 from .posegraph import PoseGraph, rot2
 from .errors import OptionError, check_choice
@@ -385,7 +385,7 @@ def phase3_edge_system(graph: PoseGraph, theta: np.ndarray, unc: EdgeUncertainty
     full = information == "full"
     if full:
         delta_reg = np.asarray(delta_reg, dtype=float)
-    for k in row_blocks(m):  # (arrays.row_blocks: temporaries a block long, recycled)
+    for k in row_blocks(m):  # (stacks.row_blocks: temporaries a block long, recycled)
         th_i = theta[graph.tails[k]]
         if full:  # the 3×3 products written out (NumPy's stacked matmul is slow on 3×3): U upper triangular
             U = unc.sqrt_info[k]

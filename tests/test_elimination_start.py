@@ -11,10 +11,10 @@ import pytest
 import lago_cvx as lc
 from lago_cvx import graph as G
 from lago_cvx.sparse import EdgeSystem, linalg
-from lago_cvx.sparse.arrays import unique_sorted
+from lago_cvx.stacks import unique_sorted
 from lago_cvx.errors import GraphError
 from lago_cvx.sparse.normal_equations import GraphElimination
-from lago_cvx.sparse.smallmat import spd_inverse
+from lago_cvx.stacks import spd_inverse
 from lago_cvx.uncertainty import _sym, edge_uncertainty
 
 

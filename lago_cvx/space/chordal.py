@@ -46,7 +46,7 @@ import numpy as np
 from ..errors import check_choice
 from ..posegraph3d import information_in_log_coordinates
 from ..so3 import project_so3
-from ..sparse import spd_inverse
+from ..stacks import spd_inverse
 from .blocks import block_diagonal, edge_matrix, free_index, solve, without_anchor
 
 __all__ = ["WEIGHTINGS", "ANISOTROPIC_FLOOR", "rotation_weights", "chordal_system", "edge_system", "chordal_closed_form",

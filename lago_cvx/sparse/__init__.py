@@ -17,10 +17,6 @@ The door, in the spirit of scikit-sparse's ``cholesky(A) -> Factor``:
 * ``factorize(N) -> Factor`` and ``solve_least_squares(M, b)`` for a sparse matrix of any other pattern;
 * ``Factor`` — ``solve(rhs)``; ``marginal_blocks(N, var_index, factor=…)`` the diagonal blocks of N⁻¹ by
   selected inversion (``block_diagonal_inverse`` by column solves for small blocks of any factor);
-* small per-edge kernels the mathematics calls by name: ``row_blocks`` (per-edge arithmetic a block of
-  edges at a time), ``unique_sorted``, the closed-form 2×2 / 3×3 inverses and Cholesky factors
-  (``spd_inverse``, ``spd_inverse_corner``, ``cholesky``), ``rotate`` (R(α_k) v_k, m rotations at once),
-  ``whitening_2x2``;
 * threads: ``cores()`` the engine's own threads; ``engine_threads(workers=…, blas_threads=…)`` caps them (SciPy's
   name) and, only when asked, the process's BLAS threads while the engine runs (left alone by default);
   ``threads_option`` runs a function with those keyword options inside it (``lago(…, workers=…)``).
@@ -28,19 +24,16 @@ The door, in the spirit of scikit-sparse's ``cholesky(A) -> Factor``:
 
 from __future__ import annotations
 
-from .arrays import row_blocks, unique_sorted
 from .block_factor import inverse_blocks
 from .linalg import (SOLVER_BACKENDS, Factor, augmented_least_squares, block_diagonal_inverse, factorize,
-                     refine_normal_equations, solve_least_squares, whitening_2x2)
+                     refine_normal_equations, solve_least_squares)
 from .edge_system import EdgeSystem
 from .normal_equations import GraphElimination, RenumberedFactor, factor_wide, marginal_blocks, solve_wide
-from .smallmat import cholesky, rotate, spd_inverse, spd_inverse_corner
 from .threads import cores, engine_threads, threads_option
 
 __all__ = [
     "EdgeSystem", "GraphElimination", "Factor", "factorize", "solve_least_squares", "refine_normal_equations",
-    "augmented_least_squares", "block_diagonal_inverse", "inverse_blocks", "whitening_2x2", "SOLVER_BACKENDS",
-    "row_blocks", "unique_sorted", "cholesky", "spd_inverse", "spd_inverse_corner", "rotate",
+    "augmented_least_squares", "block_diagonal_inverse", "inverse_blocks", "SOLVER_BACKENDS",
     "RenumberedFactor", "marginal_blocks", "cores", "factor_wide", "solve_wide",
     "engine_threads", "threads_option",
 ]

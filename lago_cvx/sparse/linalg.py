@@ -21,7 +21,7 @@ import scipy.sparse as sp
 from ..errors import NumericalError, OptionError
 from .threads import blas_limit
 
-__all__ = ["blas_threads", "Factor", "factorize", "solve_least_squares", "refine_normal_equations", "augmented_least_squares", "refined_or_augmented", "REFINEMENT_STEPS", "REFINEMENT_STOP", "TRUST_TOLERANCE", "whitening_2x2", "block_diagonal_inverse", "SOLVER_BACKENDS"]
+__all__ = ["blas_threads", "Factor", "factorize", "solve_least_squares", "refine_normal_equations", "augmented_least_squares", "refined_or_augmented", "REFINEMENT_STEPS", "REFINEMENT_STOP", "TRUST_TOLERANCE", "block_diagonal_inverse", "SOLVER_BACKENDS"]
 
 log = logging.getLogger(__name__)
 
@@ -287,20 +287,6 @@ def refined_or_augmented(factor, matvec, rmatvec, b: np.ndarray, sparse):
         x = x.reshape((M.shape[1],) + b.shape[1:])
         stats["method"], f = "augmented system", None
     return x, f, stats
-
-
-def whitening_2x2(info: np.ndarray) -> np.ndarray:
-    """Upper-triangular square roots U (m, 2, 2) with UᵀU = info for SPD 2×2 ``info`` (m, 2, 2).
-
-    U = Lᵀ for the Cholesky factor L of ``info``; ‖U r‖² = rᵀ info r. Vectorized closed form."""
-    a = np.sqrt(info[:, 0, 0])
-    b = info[:, 1, 0] / a
-    c = np.sqrt(info[:, 1, 1] - b * b)
-    U = np.zeros_like(info)
-    U[:, 0, 0] = a
-    U[:, 0, 1] = b
-    U[:, 1, 1] = c
-    return U
 
 
 def block_diagonal_inverse(factor: Factor, index_blocks: np.ndarray, *, batch: int = 512) -> np.ndarray:
