@@ -129,11 +129,11 @@ _MALFORMED = """
     huge = i64(0, 2**31)
     t = i64(0, 10**12)
     cases = {
-        "heights": lambda: K["heights"](i64(10**12)),
+        "postorder": lambda: K["postorder"](i64(10**12)),
         "subtrees": lambda: K["subtrees"](i64(-7, 0), np.zeros(2)),
         "stack_peak": lambda: K["stack_peak"](i64(5), i64(0), i64(0)),
         "parent": lambda: compiled.CompiledLayout(dataclasses.replace(plan, parent=bad_parent), 3),
-        "postorder": lambda: compiled.CompiledLayout(dataclasses.replace(plan, parent=not_post), 3),
+        "unordered": lambda: compiled.CompiledLayout(dataclasses.replace(plan, parent=not_post), 3),
         "rows": lambda: compiled.CompiledLayout(dataclasses.replace(plan, rows=bad_rows), 3),
         "fptr": lambda: compiled.CompiledLayout(dataclasses.replace(plan, fptr=bad_fptr), 3),
         "position": lambda: compiled.CompiledLayout(dataclasses.replace(plan, position=bad_pos), 3),

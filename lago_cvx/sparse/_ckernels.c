@@ -442,18 +442,6 @@ CK_API void ck_relax(i64 *k, const i64 *r, i64 *true_nnz, const i64 *sparent, i6
     }
 }
 
-/* supernodes.heights: h (n,) out. */
-CK_API void ck_heights(const i64 *parent, i64 n, i64 *h)
-{
-    for (i64 f = 0; f < n; f++)
-        h[f] = 0;
-    for (i64 f = 0; f < n; f++) {
-        i64 p = parent[f];
-        if (p >= 0 && h[p] < h[f] + 1)
-            h[p] = h[f] + 1;
-    }
-}
-
 /* supernodes.postorder: order (n,) out; size, free (n + 1,) scratch. */
 CK_API void ck_postorder(const i64 *parent, i64 n, i64 *size, i64 *free_, i64 *order)
 {

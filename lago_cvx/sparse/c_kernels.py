@@ -99,8 +99,7 @@ SIGNATURES = dict(assemble="iiipppppppppppiippppp", finish="-iippppppppp", run="
                   one="iiippip", forward="-piipiippppppp", backward="-piipiippppppp", pose_local="-ppipppp",
                   block_count="ippippip", block_fill="-ppipppppipppppp", edge_matvec="-ppiiipppip",
                   edge_rmatvec="-ppiiipppip", stack_peak="ipippp", subtrees="-ppipp", push="ipiipipppi",
-                  relax="-ppppiiiidddp", heights="-pip",
-                  postorder="-pippp")
+                  relax="-ppppiiiidddp", postorder="-pippp")
 _C = {name: _c(name, sig) for name, sig in SIGNATURES.items()}
 
 
@@ -293,15 +292,6 @@ def relax(k, r, true_nnz, sparent, n0, n1, n2, z0, z1, z2):
     return top
 
 
-def heights(parent):
-    """``multifrontal.heights``."""
-    h = np.empty(np.size(parent), np.int64)
-    address = _p(parent, _I64, "parent")
-    chk.forest(parent)
-    _C["heights"](address, h.size, h.ctypes.data)
-    return h
-
-
 def postorder(parent):
     """``multifrontal.postorder``."""
     n = np.size(parent)
@@ -330,5 +320,5 @@ def _addresses() -> np.ndarray:
 #: The kernels by name, and ``fn`` the LAPACK/BLAS addresses.
 KERNELS = dict(assemble=assemble, finish=finish, run=run, forward=forward, backward=backward, stack_peak=stack_peak,
                one=one, subtrees=subtrees, push=push, pose_local=pose_local, block_map=block_map,
-               edge_matvec=edge_matvec, edge_rmatvec=edge_rmatvec, relax=relax, heights=heights, postorder=postorder,
+               edge_matvec=edge_matvec, edge_rmatvec=edge_rmatvec, relax=relax, postorder=postorder,
                fn=_addresses())

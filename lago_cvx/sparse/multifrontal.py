@@ -65,19 +65,19 @@ def _seg_arange(lengths: np.ndarray) -> np.ndarray:
 def _postorder(parent: np.ndarray) -> np.ndarray:
     """``postorder`` of an elimination tree (parent[i] > i, −1 at roots), O(n) at every shape (a star
     as a chain; ``csgraph.depth_first_order`` is quadratic on a star)."""
-    return _loops()[2](np.ascontiguousarray(parent, np.int64))
+    return _loops()[1](np.ascontiguousarray(parent, np.int64))
 
 
 def _loops():
-    """``relax``, ``heights`` and ``postorder``, the symbolic analysis's sequential loops: in C when the kernels are
+    """``relax`` and ``postorder``, the symbolic analysis's sequential loops: in C when the kernels are
     built (``compiled.available()``), else as the Python below (the same integer loops and floating-point operations:
     the same plan either way, tested)."""
     from . import compiled
 
     if compiled.available():
         K = compiled.kernels()
-        return K["relax"], K["heights"], K["postorder"]
-    return relax, heights, postorder
+        return K["relax"], K["postorder"]
+    return relax, postorder
 
 
 def relax(k, r, true_nnz, sparent, n0, n1, n2, z0, z1, z2):
@@ -99,18 +99,6 @@ def relax(k, r, true_nnz, sparent, n0, n1, n2, z0, z1, z2):
             true_nnz[p] += true_nnz[c]
             top[c] = p
     return top
-
-
-def heights(parent):
-    """(F,) the height of each front of the forest ``parent`` (fronts in topological order, −1 at a
-    root): 0 at a leaf, else 1 + the largest height of its children."""
-    n = parent.size
-    h = np.zeros(n, np.int64)
-    for f in range(n):
-        p = parent[f]
-        if p >= 0 and h[p] < h[f] + 1:
-            h[p] = h[f] + 1
-    return h
 
 
 def postorder(parent):
@@ -142,8 +130,7 @@ class EliminationPlan:
 
     ``d`` poses; ``position`` (d,) each pose's place in the elimination order; fronts f = 0 … F−1 in
     elimination order (children before parents): pivots are the positions ``fptr[f] … fptr[f+1]−1``,
-    update rows ``rows[rptr[f]:rptr[f+1]]`` (positions, increasing), ``parent`` (F,) (−1 at a root),
-    ``height`` (F,) (0 at leaves). ``nnz`` the pose-level entries of L including the explicit zeros of
+    update rows ``rows[rptr[f]:rptr[f+1]]`` (positions, increasing), ``parent`` (F,) (−1 at a root). ``nnz`` the pose-level entries of L including the explicit zeros of
     the amalgamation; ``flops(b)`` the multiply–adds of (MF) with b×b blocks (Σ over the columns of L of
     colcount², the Cholesky flop count)."""
 
@@ -153,7 +140,6 @@ class EliminationPlan:
     rptr: np.ndarray
     rows: np.ndarray
     parent: np.ndarray
-    height: np.ndarray
 
     @property
     def n_fronts(self) -> int:
@@ -212,7 +198,7 @@ def plan_from_qdldl(L: sp.csc_matrix, perm: np.ndarray, *, relaxation=None) -> E
     last = ends - 1
     sparent = np.where(parent_p[last] >= 0, snode_of[np.maximum(parent_p[last], 0)], -1)
     # relaxed amalgamation: children first (supernodes are in topological order)
-    relax, heights, _ = _loops()
+    relax = _loops()[0]
     k = (ends - starts).astype(np.int64)
     true_nnz = np.add.reduceat(cnt_p + 1, starts).astype(np.int64) if d else np.zeros(0, np.int64)
     top = relax(k, cnt_p[last].astype(np.int64), true_nnz, sparent.astype(np.int64), *nrelax, *zrelax)
@@ -241,11 +227,9 @@ def plan_from_qdldl(L: sp.csc_matrix, perm: np.ndarray, *, relaxation=None) -> E
     rptr = np.r_[0, np.cumsum(lens)].astype(np.int64)
     sp_top = sparent[fronts]
     fparent = np.where(sp_top >= 0, fid[top[np.maximum(sp_top, 0)]], -1)
-    height = np.asarray(heights(fparent.astype(np.int64)), np.int64)
     position = np.empty(d, np.int64)
     position[np.asarray(perm, np.int64)] = newpos[post]  # pose → old position → postorder → final
-    return EliminationPlan(d=d, position=position, fptr=fptr, rptr=rptr, rows=rows, parent=fparent,
-                           height=height)
+    return EliminationPlan(d=d, position=position, fptr=fptr, rptr=rptr, rows=rows, parent=fparent)
 
 
 def plan_from_pattern(d: int, rows: np.ndarray, cols: np.ndarray, *, relaxation=None) -> EliminationPlan:

@@ -156,7 +156,7 @@ class GraphElimination:
         self._building = None
         if self.d == 0:
             z = np.zeros(0, np.int64)
-            self._plan = EliminationPlan(0, z, np.zeros(1, np.int64), np.zeros(1, np.int64), z, z, z)
+            self._plan = EliminationPlan(0, z, np.zeros(1, np.int64), np.zeros(1, np.int64), z, z)
         elif _background and self.d >= OVERLAP_MIN and not alone:
             self._building = Ahead(self._make_plan)
             spawn(self._building.run, name="lago-elimination")
