@@ -347,9 +347,6 @@ def test_the_wrappers_refuse_what_the_c_code_cannot_read():
     A, B = np.ascontiguousarray(system.A), np.ascontiguousarray(system.B)
     with pytest.raises(ValueError, match="x must be"):
         CK["edge_matvec"](A, B, system.tails, system.heads, np.zeros((el.d, lay.b + 1, 1)))
-    with pytest.raises(ValueError, match="beyond"):
-        CK["push"](np.zeros(5), 2, 4, np.zeros(9), np.zeros(2, np.int64), np.zeros(3, np.int64),
-                   np.zeros(1, np.int64), 0)
 
 
 def test_threads_factoring_at_once_give_the_sequential_results(monkeypatch):
@@ -384,3 +381,19 @@ def test_threads_factoring_at_once_give_the_sequential_results(monkeypatch):
         (L, x), *rest = got[i]
         assert len(rest) == 6
         assert all(np.array_equal(L, L2) and np.array_equal(x, x2) for L2, x2 in rest)
+
+
+def test_the_ctypes_signatures_are_the_c_prototypes():
+    """``c_kernels.SIGNATURES`` (result, then each argument: i int64, d double, p pointer, - void) is every exported
+    function of ``_ckernels.c``, read from its prototypes."""
+    import re
+    from pathlib import Path
+
+    from lago_cvx.sparse import c_kernels
+
+    source = (Path(c_kernels.__file__).parent / "_ckernels.c").read_text()
+    found = {}
+    for ret, name, params in re.findall(r"CK_API (\w+) ck_(\w+)\(([^)]*)\)", source):
+        kinds = ["p" if "*" in a else "d" if "double" in a else "i" for a in params.split(",")]
+        found[name] = ("-" if ret == "void" else "d" if ret == "double" else "i") + "".join(kinds)
+    assert found == c_kernels.SIGNATURES
