@@ -16,6 +16,7 @@ from lago_cvx.sparse import compiled as C
 from lago_cvx.sparse import engine_threads
 from lago_cvx.sparse import multifrontal as mf
 from lago_cvx.sparse import normal_equations as ne
+from lago_cvx.sparse.edge_system import EdgeOperator
 from lago_cvx.sparse.normal_equations import GraphElimination
 
 
@@ -288,7 +289,7 @@ def test_compiled_edge_operator_is_the_numpy_operator(b, q, anchor):
     m = g.n_edges
     system = ne.EdgeSystem(el.tails, el.heads, rng.standard_normal((m, q, b)), rng.standard_normal((m, q, b)),
                            rng.standard_normal((m, q)), el.d)
-    ref, op = ne.EdgeOperator(system), C.CompiledEdgeOperator(system)
+    ref, op = EdgeOperator(system), C.CompiledEdgeOperator(system)
     x, r = rng.standard_normal((el.d, b)), rng.standard_normal((m, q))
     assert np.array_equal(op.matvec(x), ref.matvec(x))
     assert np.array_equal(op.rmatvec(r), ref.rmatvec(r))
@@ -298,12 +299,12 @@ def test_compiled_edge_operator_is_the_numpy_operator(b, q, anchor):
 
 
 def test_the_operator_is_compiled_unless_the_kernels_are_missing(numpy_engine):
-    """``normal_equations.edge_operator`` is compiled whenever the C kernels load, NumPy's without them."""
+    """``EdgeSystem.operator()`` is compiled whenever the C kernels load, NumPy's without them."""
     g = lc.manhattan_world(300, seed=0).graph
     el, system = _random_system(g, 3)
-    assert isinstance(ne.edge_operator(system), ne.EdgeOperator)
+    assert isinstance(system.operator(), EdgeOperator)
     C._C_KERNELS[:] = []
-    assert isinstance(ne.edge_operator(system), C.CompiledEdgeOperator)
+    assert isinstance(system.operator(), C.CompiledEdgeOperator)
 
 
 @pytest.mark.parametrize("q", [1, 2, 4])

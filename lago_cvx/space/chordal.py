@@ -141,8 +141,8 @@ def _system_cost(system):
 
 def chordal_closed_form(graph, *, weighting: str = "isotropic", anchor_index: int = 0, elimination=None) -> Chordal:
     """(C) by one sparse factorization of its normal matrix and three solves, on the pose-level elimination shared
-    by the closed forms (``normal_equations.GraphElimination``, through ``sparse.solve_wide``: the engine chooses
-    the factorization of the 3-D systems; corrected semi-normal equations). ``elimination``: one built already for
+    by the closed forms (``sparse.GraphElimination.solve``: the engine's factorization; corrected semi-normal
+    equations). ``elimination``: one built already for
     this graph and anchor."""
     from ..sparse import GraphElimination
 

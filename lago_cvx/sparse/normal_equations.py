@@ -28,14 +28,14 @@ import scipy.sparse as sp
 
 from . import block_factor, compiled
 from .block_factor import inverse_blocks
-from .edge_system import EdgeOperator, EdgeSystem
+from .edge_system import EdgeSystem
 from .linalg import Factor, refined_or_augmented
 from .multifrontal import COMPILED_RELAX, EliminationPlan, plan_from_pattern
 from ..progress import Progress
 from .threads import Ahead, cores, engine_threads, in_engine_threads, spawn, thread_settings
 
 __all__ = ["EdgeSystem", "GraphElimination", "PoseFactor", "RenumberedFactor", "marginal_blocks", "matrix_blocks",
-           "factor_wide", "solve_wide", "OVERLAP_MIN"]
+           "OVERLAP_MIN"]
 
 log = logging.getLogger(__name__)
 
@@ -77,12 +77,6 @@ class RenumberedFactor(Factor):
             return out
 
         super().__init__(solve, vi.size, factor.backend)
-
-
-def edge_operator(system: EdgeSystem):
-    """M and Mᵀ of ``system`` with their set-up done once: by the C loops when they are built (the same sums in
-    the same order), else an ``EdgeOperator``."""
-    return compiled.CompiledEdgeOperator(system) if compiled.available() else EdgeOperator(system)
 
 
 def matrix_blocks(N: sp.spmatrix, var_index: np.ndarray):
@@ -259,11 +253,6 @@ class GraphElimination:
         spawn(job.run, name="lago-prepare")
         self._preparing[b] = job
 
-    def cost(self, system: EdgeSystem, x: np.ndarray) -> float:
-        """‖M x − c‖² of ``system`` at x (d, b[, r])."""
-        r = edge_operator(system).matvec(x) - system.c
-        return float(np.sum(r * r))
-
     @in_engine_threads
     def solve(self, system: EdgeSystem, *, factor: Factor | None = None, stage: str = "solve", progress=None):
         """Minimise (E): returns ``(x (d, b), factor, stats)`` with ``stats`` as ``linalg.solve_least_squares``
@@ -281,7 +270,7 @@ class GraphElimination:
 
         def M():
             if not op:
-                op.append(edge_operator(system))
+                op.append(system.operator())
             return op[0]
 
         x, factor, stats = refined_or_augmented(
@@ -294,13 +283,3 @@ class GraphElimination:
             tracker.finish()
         self._prepare_next(b)
         return x.reshape((d, b) + extra), factor, stats
-
-
-def factor_wide(elimination: GraphElimination, system: EdgeSystem) -> Factor:
-    """``elimination.factor(system)`` (the 3-D systems take the same path as the planar ones)."""
-    return elimination.factor(system)
-
-
-def solve_wide(elimination: GraphElimination, system: EdgeSystem):
-    """``elimination.solve(system)``: (x, factor, stats)."""
-    return elimination.solve(system)
