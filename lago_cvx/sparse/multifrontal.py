@@ -38,7 +38,7 @@ import scipy.sparse as sp
 from .block_factor import inverse_blocks
 from .linalg import NotPositiveDefinite
 
-__all__ = ["EliminationPlan", "plan_from_qdldl", "plan_from_pattern", "NotPositiveDefinite", "inverse_blocks",
+__all__ = ["EliminationPlan", "plan_from_pattern", "NotPositiveDefinite", "inverse_blocks",
            "NRELAX", "ZRELAX", "COMPILED_RELAX"]
 
 #: Relaxed amalgamation (CHOLMOD's defaults): a child front is merged into its parent when the merged
@@ -50,16 +50,6 @@ ZRELAX = (0.8, 0.1, 0.05)
 #: The amalgamation for the C kernels, whose cost per front is a few hundred nanoseconds, not a Python call:
 #: fewer explicit zeros, so a smaller L for the same factorization time (``benchmarks/million.md``).
 COMPILED_RELAX = ((2, 8, 32), (0.8, 0.1, 0.05))
-
-
-def _seg_arange(lengths: np.ndarray) -> np.ndarray:
-    """Concatenated aranges: [0..l₀−1, 0..l₁−1, …] for ``lengths`` (k,)."""
-    lengths = np.asarray(lengths, np.int64)
-    total = int(lengths.sum())
-    if total == 0:
-        return np.zeros(0, np.int64)
-    starts = np.cumsum(lengths) - lengths
-    return np.arange(total, dtype=np.int64) - np.repeat(starts, lengths)
 
 
 def _postorder(parent: np.ndarray) -> np.ndarray:
@@ -166,13 +156,23 @@ class EliminationPlan:
         return float((k * (k + 1) * (2 * k + 1) / 6 + k * (k + 1) * r + k * r * r).sum())
 
 
-def plan_from_qdldl(L: sp.csc_matrix, perm: np.ndarray, *, relaxation=None) -> EliminationPlan:
-    """The plan from a pose-level factorization ``P A Pᵀ = (I + L) D (I + L)ᵀ`` as ``qdldl.Solver.factors()``
-    returns it: ``L`` (d, d) strictly lower (CSC, columns and rows in elimination order, any row order
-    within a column), ``perm`` (d,) the pose eliminated at each position. ``relaxation`` (nrelax, zrelax)
-    of the amalgamation, default (``NRELAX``, ``ZRELAX``); ``COMPILED_RELAX`` for the compiled engine."""
+def plan_from_pattern(d: int, rows: np.ndarray, cols: np.ndarray, *, relaxation=None) -> EliminationPlan:
+    """The plan of the d × d pose pattern with off-diagonal entries (rows[k], cols[k]) (either orientation,
+    duplicates allowed). ``relaxation`` (nrelax, zrelax) of the amalgamation, default (``NRELAX``, ``ZRELAX``);
+    ``COMPILED_RELAX`` for the compiled engine."""
+    import qdldl
+
     nrelax, zrelax = (NRELAX, ZRELAX) if relaxation is None else relaxation
-    d = int(perm.size)
+    d, rows, cols = int(d), np.asarray(rows, np.int64), np.asarray(cols, np.int64)
+    keep = rows != cols
+    lo, hi = np.minimum(rows[keep], cols[keep]), np.maximum(rows[keep], cols[keep])
+    deg = np.bincount(np.r_[lo, hi], minlength=d).astype(float)
+    A = sp.csc_matrix((np.r_[-np.ones(lo.size), deg + 1.0], (np.r_[lo, np.arange(d)], np.r_[hi, np.arange(d)])),
+                      shape=(d, d))
+    A.sum_duplicates()
+    # AMD and P A Pᵀ = (I + L) D (I + L)ᵀ of a diagonally dominant A of the pattern: L (d, d) strictly lower, columns
+    # and rows in elimination order, perm (d,) the pose eliminated at each position
+    L, _, perm = qdldl.Solver(A, upper=True).factors()
     L = sp.csc_matrix(L)
     ip, ix = L.indptr.astype(np.int64), L.indices.astype(np.int64)
     cnt = np.diff(ip)
@@ -220,7 +220,7 @@ def plan_from_qdldl(L: sp.csc_matrix, perm: np.ndarray, *, relaxation=None) -> E
     # rows of a front: structure of the last column of its surviving supernode
     col_old = order[last[fronts]]  # old position of that column
     lens = cnt[col_old]
-    src = np.repeat(ip[col_old], lens) + _seg_arange(lens)
+    src = np.repeat(ip[col_old] - (np.cumsum(lens) - lens), lens) + np.arange(int(lens.sum()))
     fr = np.repeat(np.arange(n_fronts), lens)
     key = np.sort(fr * max(d, 1) + newpos[post[ix[src]]])
     rows = key - fr * max(d, 1)
@@ -230,22 +230,3 @@ def plan_from_qdldl(L: sp.csc_matrix, perm: np.ndarray, *, relaxation=None) -> E
     position = np.empty(d, np.int64)
     position[np.asarray(perm, np.int64)] = newpos[post]  # pose → old position → postorder → final
     return EliminationPlan(d=d, position=position, fptr=fptr, rptr=rptr, rows=rows, parent=fparent)
-
-
-def plan_from_pattern(d: int, rows: np.ndarray, cols: np.ndarray, *, relaxation=None) -> EliminationPlan:
-    """The plan of the d × d pose pattern with off-diagonal entries (rows[k], cols[k]) (either
-    orientation, duplicates allowed): AMD and the factor's pattern from QDLDL on a diagonally dominant
-    matrix of that pattern; ``relaxation`` as in ``plan_from_qdldl``."""
-    import qdldl
-
-    rows = np.asarray(rows, np.int64)
-    cols = np.asarray(cols, np.int64)
-    keep = rows != cols
-    lo, hi = np.minimum(rows[keep], cols[keep]), np.maximum(rows[keep], cols[keep])
-    deg = np.bincount(np.r_[lo, hi], minlength=d).astype(float)
-    A = sp.csc_matrix((np.r_[-np.ones(lo.size), deg + 1.0], (np.r_[lo, np.arange(d)], np.r_[hi, np.arange(d)])),
-                      shape=(d, d))
-    A.sum_duplicates()
-    s = qdldl.Solver(A, upper=True)
-    L, _, perm = s.factors()
-    return plan_from_qdldl(L, perm, relaxation=relaxation)
