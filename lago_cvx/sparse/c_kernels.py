@@ -1,13 +1,10 @@
-r"""The kernels of ``lago_cvx.sparse.compiled`` in C (``_ckernels.c``, built at install as an optional extension
-module), called through ctypes; importing this module raises ImportError when it was not built.
+r"""The kernels of ``compiled`` in C (``_ckernels.c``, an optional extension module built at install), called through
+ctypes (which releases the GIL); importing this module raises ImportError when it was not built.
 
-Each wrapper checks what the C code relies on — the dtype (float64, int64, bool) and C order of every array, the
-arrays written in place writable, the shapes of the edge blocks — and raises TypeError or ValueError otherwise;
-nothing is copied. The indices it reads are checked by ``kernel_checks``: the plan once (O(n), when its layout is
-built), then per call in O(1) that the plan arrays are those of a checked layout and that the fronts, buffers and
-stacks fit it; trees, sequences and edge ends handed over alone are checked in full. Outputs and scratch are
-allocated here, so the C functions keep no state: threads may call them at once on different data (ctypes releases
-the GIL during a call). LAPACK's ``dpotrf`` and BLAS's ``dtrsm``, ``dsyrk`` are SciPy's, by address.
+Each wrapper checks the dtype, C order and writability of every array and the shapes of the edge blocks (TypeError,
+ValueError; nothing is copied), and through ``kernel_checks`` every index the C code reads: plan arrays in O(1) as
+those of a checked layout, trees, sequences and edge ends handed over alone in full. Outputs and scratch are
+allocated here: the C functions keep no state, so threads may call them at once on different data.
 """
 
 from __future__ import annotations

@@ -1,12 +1,11 @@
-r"""The multifrontal block Cholesky (MF) of ``multifrontal``, front by front in C — the engine's one numeric
-factorization — with its NumPy fallback (``block_factor``) on the same storage.
+r"""The multifrontal block Cholesky (MF) of ``multifrontal`` — the engine's one numeric factorization — front by
+front in C, or, where no compiler was present at install (``available()`` False, said once as a warning), in NumPy
+(``block_factor``) on the same storage.
 
-The whole loop over the fronts (postorder, children's updates on a stack popped by their parent) is one C call
-(``c_kernels``: ``_ckernels.c``, built at install, loaded by ctypes in milliseconds): a few hundred nanoseconds per
-front where NumPy pays Python calls. A front's dense kernel is a right-looking loop for small fronts and LAPACK's
-``potrf`` with BLAS's ``trsm``/``syrk`` for large ones (SciPy's own, called by address through
-``cython_lapack``/``cython_blas``). Where no compiler was present at install, ``available()`` is False (said once,
-as a warning) and ``block_factor`` runs the same equations front by front in NumPy.
+The loop over the fronts (postorder, children's updates on a stack popped by their parent) is one C call
+(``c_kernels``): a few hundred nanoseconds per front where NumPy pays Python calls. A front's dense kernel is a
+right-looking loop for small fronts and LAPACK's ``potrf`` with BLAS's ``trsm``/``syrk`` (SciPy's, by address) for
+large ones.
 
 **Storage** (``CompiledLayout``). Variables are numbered by elimination slot, pose-major: slot = position·b +
 component. Front f has k = |P_f|·b pivot and r = |R_f|·b update variables, D = k + r; its block column

@@ -1,5 +1,5 @@
 """Sparse linear algebra shared by the closed forms: SPD solves, least squares with the corrected semi-normal
-equations, whitening, the BLAS thread guard.
+equations, the BLAS thread guard.
 
 ``factorize(N)`` factors a sparse SPD matrix of any pattern once and returns a ``Factor``: ``"qdldl"`` (the
 ``qdldl`` package's public ``Solver``, LDLᵀ after AMD; the default), ``"superlu"`` (SciPy, symmetric mode: many

@@ -1,22 +1,13 @@
-r"""Least squares on the pose graph, edge by edge, solved through the shared pose-level elimination.
-
-Every closed form of LAGO (the chordal relaxation (C2), phase 1 eq. (13), phase 3 eqs. (12)/(15), the
-positions (P), the 3-D systems) minimises a sum of per-edge terms over the free poses x_i ∈ ℝ^b
-(i = 0 … d−1, the anchor held fixed):
-
-    minimise_x  Σ_k ‖A_k x_{t_k} + B_k x_{h_k} − c_k‖²,    A_k, B_k (q × b),  c_k (q,)            (E)
-
-(t_k, h_k the free-pose indices of edge k's ends, −1 for the anchor, whose term is dropped). Written as
-‖M x − c‖², its normal matrix N = MᵀM has the b×b blocks
+r"""Every closed form of LAGO (the chordal relaxation (C2), phase 1 eq. (13), phase 3 eqs. (12)/(15), the positions
+(P), the 3-D systems) is a least-squares problem (E) (``edge_system``) on the free poses; written as ‖M x − c‖², its
+normal matrix N = MᵀM has the b×b blocks
 
     N_ii = Σ_{k: t_k = i} A_kᵀA_k + Σ_{k: h_k = i} B_kᵀB_k,    N_{h_k t_k} += B_kᵀA_k,              (N)
 
-the anchor-reduced pose graph's pattern for every b. ``GraphElimination`` holds the pose-level symbolic analysis
-of one graph and anchor (``multifrontal.EliminationPlan``, O(n)), computed once and shared by every system solved
-on it, and factors (N) by the one numeric factorization of the engine: the multifrontal block Cholesky (MF) in C
-(``compiled``), or, where the C kernels were not built, the same equations in NumPy (``block_factor``).
-(E) is then solved by the corrected semi-normal equations (``linalg.refine_normal_equations``), falling back to
-the augmented system as ``linalg.solve_least_squares`` does.
+the anchor-reduced pose graph's pattern for every b. ``GraphElimination`` holds the pose-level symbolic analysis of
+one graph and anchor (``multifrontal.EliminationPlan``), shared by every system on it, factors (N) by (MF) (in C,
+``compiled``, or in NumPy, ``block_factor``) and solves (E) by the corrected semi-normal equations, falling back to
+the augmented system (``linalg.refined_or_augmented``).
 """
 
 from __future__ import annotations
