@@ -209,8 +209,7 @@ def phase1_closed_form(graph: PoseGraph, delta_reg, unc: EdgeUncertainty, *, anc
         M = (W @ A2.T).tocsc()  # whitened design, (m, d)
         theta_free, info, factor, stats = solve_least_squares(M, unc.sqrt_info_delta * d_reg, backend=backend)
         return Phase1(_full(graph.n_poses, a, theta_free), theta_free, info.tocsr(), a, factor, stats)
-    elim = elimination if elimination is not None and elimination.anchor_index == a else \
-        GraphElimination(graph, a, weights=unc.info_delta)
+    elim = elimination if elimination is not None and elimination.anchor_index == a else GraphElimination(graph, a)
     system = phase1_system(graph, delta_reg, unc, elim)
     x, factor, stats = elim.solve(system, stage="phase 1")  # by Ω_θ's factorization, made with the elimination
     info = partial(_normal_matrix, system)

@@ -148,7 +148,7 @@ def chordal_closed_form(graph, *, weighting: str = "isotropic", anchor_index: in
 
     if graph.n_poses == 1:
         return _finish(graph, np.zeros((0, 3)), anchor_index, {"method": "trivial"}, lambda X: 0.0)
-    el = GraphElimination(graph, anchor_index, wide=(3,)) if elimination is None else elimination
+    el = GraphElimination(graph, anchor_index) if elimination is None else elimination
     system = edge_system(graph, el, weighting=weighting)
     x, _, stats = solve(el, system)
     return _finish(graph, x.reshape(-1, 3), anchor_index, stats, _system_cost(system))

@@ -112,9 +112,8 @@ class GraphElimination:
     """The pose-level elimination of one graph and anchor (index ``anchor_index``), shared by its systems.
 
     ``d`` free poses; ``free_of`` (n,) each pose's free index (−1 at the anchor); ``tails``, ``heads`` (m,) edges'
-    ends as free indices; ``plan`` the ``EliminationPlan`` (AMD on the pose graph, built once, on first use).
-    ``weights`` and ``wide`` are accepted for the callers that describe their systems (the plan depends on the
-    pattern alone). ``GraphElimination.start(…)`` builds the plan in a worker thread while the caller goes on
+    ends as free indices; ``plan`` the ``EliminationPlan`` (AMD on the pose graph's pattern, built once, on first
+    use). ``GraphElimination.start(…)`` builds the plan in a worker thread while the caller goes on
     (a failure there is raised to whoever waits); ``expect`` announces the block sizes of the systems to come, in
     order: each one's layout and memory are prepared in a worker (``prepare``) once the previous one is factored.
     ``ahead(task)`` hands over work needed later (an ``Ahead``), run beside the next factorization or when first
@@ -122,9 +121,8 @@ class GraphElimination:
     ``blas_threads`` lets the engine hold the process's BLAS to that many threads while it factors (None, the
     default: the BLAS settings are left alone; ``threads.engine_threads``)."""
 
-    def __init__(self, graph, anchor_index: int, *, weights: np.ndarray | None = None, expect: tuple = (),
-                 wide: tuple = (), workers: int | None = None, blas_threads: int | None = None,
-                 _background: bool = False):
+    def __init__(self, graph, anchor_index: int, *, expect: tuple = (), workers: int | None = None,
+                 blas_threads: int | None = None, _background: bool = False):
         with engine_threads(workers=workers, blas_threads=blas_threads):  # checks both; None: the caller's context
             self.workers, self.blas_threads, alone = thread_settings() + (cores() == 1,)
         n = graph.n_poses
@@ -147,11 +145,10 @@ class GraphElimination:
             spawn(self._building.run, name="lago-elimination")
 
     @classmethod
-    def start(cls, graph, anchor_index: int, *, weights: np.ndarray | None = None, expect: tuple = (),
-              workers: int | None = None, blas_threads: int | None = None) -> "GraphElimination":
+    def start(cls, graph, anchor_index: int, *, expect: tuple = (), workers: int | None = None,
+              blas_threads: int | None = None) -> "GraphElimination":
         """The elimination built in a worker thread while the caller goes on (class docstring)."""
-        return cls(graph, anchor_index, weights=weights, expect=expect, workers=workers, blas_threads=blas_threads,
-                   _background=True)
+        return cls(graph, anchor_index, expect=expect, workers=workers, blas_threads=blas_threads, _background=True)
 
     def _make_plan(self) -> EliminationPlan:
         both = (self.tails >= 0) & (self.heads >= 0)
