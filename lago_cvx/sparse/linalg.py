@@ -56,7 +56,7 @@ def blas_threads(n: int | None):
     when the last such block ends, also when blocks of several threads overlap."""
     limit = blas_limit()
     if limit is None:
-        yield _leave_blas
+        yield lambda k: None  # the setter does nothing: the process's BLAS is left alone
         return
     n = limit if n is None else min(n, limit)
     if not _BLAS:
@@ -93,10 +93,6 @@ def blas_threads(n: int | None):
             if _BLAS_USERS[0] == 0:
                 for lib, on_entry in libs:
                     lib.set_num_threads(on_entry)
-
-
-def _leave_blas(k: int | None) -> None:
-    """``blas_threads``'s setter when the engine leaves the BLAS alone: nothing."""
 
 
 class NotPositiveDefinite(NumericalError):
