@@ -30,7 +30,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import scipy.sparse as sp
 
-from .sparse import unique_sorted
+from .stacks import unique_sorted
 from .errors import GraphError, OptionError
 from .posegraph import PoseGraph, rot2
 

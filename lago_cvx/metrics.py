@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .sparse import row_blocks
+from .stacks import row_blocks
 from .errors import OptionError
 from .posegraph import PoseGraph, logmap_translation, rot2, wrap_angle
 
@@ -30,7 +30,7 @@ def edge_errors(graph: PoseGraph, poses) -> np.ndarray:
     [V(ε)⁻¹ e_t ; ε] for cost ``"gtsam"``), shape (m, 3), for ``poses`` of shape (n, 3)."""
     poses = _check_poses(graph, poses)
     e = np.empty((graph.n_edges, 3))
-    for k in row_blocks(graph.n_edges):  # (arrays.row_blocks: temporaries a block long)
+    for k in row_blocks(graph.n_edges):  # (stacks.row_blocks: temporaries a block long)
         e[k] = _errors(graph, poses, k)
     return e
 

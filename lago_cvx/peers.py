@@ -30,7 +30,7 @@ import numpy as np
 
 from .errors import MissingSolverError
 from .posegraph import PoseGraph
-from .sparse import spd_inverse
+from .stacks import spd_inverse
 
 __all__ = ["have_gtsam", "gtsam_factor_graph", "gtsam_lago", "have_g2o", "g2o_chi2", "gtsam_chi2"]
 

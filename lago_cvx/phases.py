@@ -64,8 +64,8 @@ from functools import partial
 import numpy as np
 import scipy.sparse as sp
 
-from .sparse import (EdgeSystem, Factor, GraphElimination, marginal_blocks, RenumberedFactor, rotate, row_blocks,
-                     solve_least_squares)
+from .sparse import EdgeSystem, Factor, GraphElimination, marginal_blocks, RenumberedFactor, solve_least_squares
+from .stacks import rotate, row_blocks
 from .graph import _reduced_incidence, free_poses
 from .posegraph import PoseGraph, rot2
 from .errors import OptionError, check_choice
@@ -209,8 +209,7 @@ def phase1_closed_form(graph: PoseGraph, delta_reg, unc: EdgeUncertainty, *, anc
         M = (W @ A2.T).tocsc()  # whitened design, (m, d)
         theta_free, info, factor, stats = solve_least_squares(M, unc.sqrt_info_delta * d_reg, backend=backend)
         return Phase1(_full(graph.n_poses, a, theta_free), theta_free, info.tocsr(), a, factor, stats)
-    elim = elimination if elimination is not None and elimination.anchor_index == a else \
-        GraphElimination(graph, a, weights=unc.info_delta)
+    elim = elimination if elimination is not None and elimination.anchor_index == a else GraphElimination(graph, a)
     system = phase1_system(graph, delta_reg, unc, elim)
     x, factor, stats = elim.solve(system, stage="phase 1")  # by Ω_θ's factorization, made with the elimination
     info = partial(_normal_matrix, system)
@@ -385,7 +384,7 @@ def phase3_edge_system(graph: PoseGraph, theta: np.ndarray, unc: EdgeUncertainty
     full = information == "full"
     if full:
         delta_reg = np.asarray(delta_reg, dtype=float)
-    for k in row_blocks(m):  # (arrays.row_blocks: temporaries a block long, recycled)
+    for k in row_blocks(m):  # (stacks.row_blocks: temporaries a block long, recycled)
         th_i = theta[graph.tails[k]]
         if full:  # the 3×3 products written out (NumPy's stacked matmul is slow on 3×3): U upper triangular
             U = unc.sqrt_info[k]

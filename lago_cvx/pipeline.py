@@ -224,7 +224,7 @@ def _elimination(graph: PoseGraph, a: int, unc, choice: dict) -> GraphEliminatio
     expect = ((2,) if choice["regularization"] == "chordal" else ()) + (3,)
     if choice["positions"] == "resolve":
         expect += (1 if isotropic(unc) else 2,)
-    return GraphElimination.start(graph, a, weights=unc.info_delta, expect=expect)
+    return GraphElimination.start(graph, a, expect=expect)
 
 
 class _Clock:

@@ -40,7 +40,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .sparse import row_blocks, spd_inverse
+from .stacks import row_blocks, spd_inverse
 from .conventions import check_cost
 from .errors import GraphError, OptionError
 from .posegraph_base import PoseGraphBase, pose_ids, readonly
@@ -224,12 +224,12 @@ class PoseGraph(PoseGraphBase):
     # ------------------------------------------------------------ covariances
     @property
     def covariance(self) -> np.ndarray:
-        """Per-edge covariance Ω⁻¹, shape (m, 3, 3) (closed form, ``lago_cvx.sparse.smallmat``)."""
+        """Per-edge covariance Ω⁻¹, shape (m, 3, 3) (closed form, ``lago_cvx.stacks``)."""
         return spd_inverse(self.information)
 
     def delta_variance(self, edges=None) -> np.ndarray:
         """P_δ = (Ω⁻¹)[2, 2] of the edges ``edges`` (indices, default all), shape (len(edges),): the same
-        numbers as ``covariance[edges, 2, 2]``, a block of edges at a time (``arrays.row_blocks``)."""
+        numbers as ``covariance[edges, 2, 2]``, a block of edges at a time (``stacks.row_blocks``)."""
         idx = np.arange(self.n_edges) if edges is None else np.asarray(edges, np.int64)
         out = np.empty(idx.size)
         for k in row_blocks(idx.size):

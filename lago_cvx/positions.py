@@ -30,7 +30,8 @@ from functools import partial
 import numpy as np
 import scipy.sparse as sp
 
-from .sparse import EdgeSystem, Factor, GraphElimination, rotate, solve_least_squares
+from .sparse import EdgeSystem, Factor, GraphElimination, solve_least_squares
+from .stacks import rotate
 from .graph import _reduced_incidence, free_poses
 from .phases import Lazy, _normal_matrix
 from .posegraph import PoseGraph, rot2, wrap_angle

@@ -26,7 +26,7 @@ from functools import cached_property
 
 import numpy as np
 
-from .sparse import cholesky, row_blocks, spd_inverse, spd_inverse_corner, whitening_2x2
+from .stacks import cholesky, row_blocks, spd_inverse, spd_inverse_corner, whitening_2x2
 from .posegraph import PoseGraph
 from .routes import INFORMATION_MODES
 
@@ -53,8 +53,8 @@ class EdgeUncertainty:
     h = Ω_pp⁻¹Ω_pθ.
 
     Each form is computed when first read (a route uses some of them: the seed's the marginal ones, the
-    default the full and conditional ones), a block of edges at a time (``arrays.row_blocks``), with the
-    closed forms of ``lago_cvx.sparse.smallmat``."""
+    default the full and conditional ones), a block of edges at a time (``stacks.row_blocks``), with the
+    closed forms of ``lago_cvx.stacks``."""
 
     def __init__(self, information: np.ndarray):
         self.information = np.asarray(information, dtype=float)
@@ -71,7 +71,7 @@ class EdgeUncertainty:
 
     @cached_property
     def var_delta(self) -> np.ndarray:
-        """P_δ = Σ[2, 2] (m,): ``smallmat.spd_inverse_corner``, the one entry of Σ = Ω⁻¹ needed."""
+        """P_δ = Σ[2, 2] (m,): ``stacks.spd_inverse_corner``, the one entry of Σ = Ω⁻¹ needed."""
         return self._per_edge(lambda om: (spd_inverse_corner(om),), ())[0]
 
     @cached_property

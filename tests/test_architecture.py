@@ -18,7 +18,8 @@ PKG = Path(lago_cvx.__file__).resolve().parent
 
 #: The layers of docs/ARCHITECTURE.md, bottom first. A module may import from its own layer or below.
 LAYERS = [
-    ["_version", "errors", "progress", "solvers", "cvxpy_names", "routes", "conventions", "optimality", "reports"],
+    ["_version", "errors", "progress", "solvers", "cvxpy_names", "routes", "conventions", "optimality", "reports",
+     "stacks"],
     ["sparse"],
     ["posegraph_base", "posegraph", "so3", "posegraph3d"],
     ["io", "graph", "metrics", "metrics3d", "synthetic", "datasets"],

@@ -16,6 +16,7 @@ from lago_cvx.sparse import compiled as C
 from lago_cvx.sparse import engine_threads
 from lago_cvx.sparse import multifrontal as mf
 from lago_cvx.sparse import normal_equations as ne
+from lago_cvx.sparse.edge_system import EdgeOperator
 from lago_cvx.sparse.normal_equations import GraphElimination
 
 
@@ -200,7 +201,7 @@ def test_factor_reports_its_progress(monkeypatch):
 
 
 def test_symbolic_loops_in_c_and_in_python_give_the_same_plan(numpy_engine):
-    """The amalgamation, height and postorder loops (lago_cvx.sparse.multifrontal) in C and in Python give the same
+    """The amalgamation and postorder loops (lago_cvx.sparse.multifrontal) in C and in Python give the same
     plan, array for array, on a 3000-pose world."""
     g = lc.manhattan_world(3000, seed=1).graph
     el = GraphElimination(g, 0)
@@ -208,7 +209,7 @@ def test_symbolic_loops_in_c_and_in_python_give_the_same_plan(numpy_engine):
     p1 = mf.plan_from_pattern(el.d, el.tails[both], el.heads[both], relaxation=mf.COMPILED_RELAX)
     C._C_KERNELS[:] = []
     p2 = mf.plan_from_pattern(el.d, el.tails[both], el.heads[both], relaxation=mf.COMPILED_RELAX)
-    for name in ("position", "fptr", "rptr", "rows", "parent", "height"):
+    for name in ("position", "fptr", "rptr", "rows", "parent"):
         assert np.array_equal(getattr(p1, name), getattr(p2, name)), name
 
 
@@ -288,7 +289,7 @@ def test_compiled_edge_operator_is_the_numpy_operator(b, q, anchor):
     m = g.n_edges
     system = ne.EdgeSystem(el.tails, el.heads, rng.standard_normal((m, q, b)), rng.standard_normal((m, q, b)),
                            rng.standard_normal((m, q)), el.d)
-    ref, op = ne.EdgeOperator(system), C.CompiledEdgeOperator(system)
+    ref, op = EdgeOperator(system), C.CompiledEdgeOperator(system)
     x, r = rng.standard_normal((el.d, b)), rng.standard_normal((m, q))
     assert np.array_equal(op.matvec(x), ref.matvec(x))
     assert np.array_equal(op.rmatvec(r), ref.rmatvec(r))
@@ -298,12 +299,12 @@ def test_compiled_edge_operator_is_the_numpy_operator(b, q, anchor):
 
 
 def test_the_operator_is_compiled_unless_the_kernels_are_missing(numpy_engine):
-    """``normal_equations.edge_operator`` is compiled whenever the C kernels load, NumPy's without them."""
+    """``EdgeSystem.operator()`` is compiled whenever the C kernels load, NumPy's without them."""
     g = lc.manhattan_world(300, seed=0).graph
     el, system = _random_system(g, 3)
-    assert isinstance(ne.edge_operator(system), ne.EdgeOperator)
+    assert isinstance(system.operator(), EdgeOperator)
     C._C_KERNELS[:] = []
-    assert isinstance(ne.edge_operator(system), C.CompiledEdgeOperator)
+    assert isinstance(system.operator(), C.CompiledEdgeOperator)
 
 
 @pytest.mark.parametrize("q", [1, 2, 4])
@@ -347,9 +348,6 @@ def test_the_wrappers_refuse_what_the_c_code_cannot_read():
     A, B = np.ascontiguousarray(system.A), np.ascontiguousarray(system.B)
     with pytest.raises(ValueError, match="x must be"):
         CK["edge_matvec"](A, B, system.tails, system.heads, np.zeros((el.d, lay.b + 1, 1)))
-    with pytest.raises(ValueError, match="beyond"):
-        CK["push"](np.zeros(5), 2, 4, np.zeros(9), np.zeros(2, np.int64), np.zeros(3, np.int64),
-                   np.zeros(1, np.int64), 0)
 
 
 def test_threads_factoring_at_once_give_the_sequential_results(monkeypatch):
@@ -384,3 +382,19 @@ def test_threads_factoring_at_once_give_the_sequential_results(monkeypatch):
         (L, x), *rest = got[i]
         assert len(rest) == 6
         assert all(np.array_equal(L, L2) and np.array_equal(x, x2) for L2, x2 in rest)
+
+
+def test_the_ctypes_signatures_are_the_c_prototypes():
+    """``c_kernels.SIGNATURES`` (result, then each argument: i int64, d double, p pointer, - void) is every exported
+    function of ``_ckernels.c``, read from its prototypes."""
+    import re
+    from pathlib import Path
+
+    from lago_cvx.sparse import c_kernels
+
+    source = (Path(c_kernels.__file__).parent / "_ckernels.c").read_text()
+    found = {}
+    for ret, name, params in re.findall(r"CK_API (\w+) ck_(\w+)\(([^)]*)\)", source):
+        kinds = ["p" if "*" in a else "d" if "double" in a else "i" for a in params.split(",")]
+        found[name] = ("-" if ret == "void" else "d" if ret == "double" else "i") + "".join(kinds)
+    assert found == c_kernels.SIGNATURES

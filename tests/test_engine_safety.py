@@ -126,18 +126,17 @@ _MALFORMED = """
     bad_rows = plan.rows.copy(); bad_rows[0] = -5
     bad_fptr = plan.fptr.copy(); bad_fptr[1], bad_fptr[2] = bad_fptr[2], bad_fptr[1]
     bad_pos = plan.position.copy(); bad_pos[0] = bad_pos[1]
-    huge = i64(0, 2**31)
     t = i64(0, 10**12)
     cases = {
-        "heights": lambda: K["heights"](i64(10**12)),
+        "postorder": lambda: K["postorder"](i64(10**12)),
         "subtrees": lambda: K["subtrees"](i64(-7, 0), np.zeros(2)),
         "stack_peak": lambda: K["stack_peak"](i64(5), i64(0), i64(0)),
         "parent": lambda: compiled.CompiledLayout(dataclasses.replace(plan, parent=bad_parent), 3),
-        "postorder": lambda: compiled.CompiledLayout(dataclasses.replace(plan, parent=not_post), 3),
+        "unordered": lambda: compiled.CompiledLayout(dataclasses.replace(plan, parent=not_post), 3),
         "rows": lambda: compiled.CompiledLayout(dataclasses.replace(plan, rows=bad_rows), 3),
         "fptr": lambda: compiled.CompiledLayout(dataclasses.replace(plan, fptr=bad_fptr), 3),
         "position": lambda: compiled.CompiledLayout(dataclasses.replace(plan, position=bad_pos), 3),
-        "int": lambda: K["one"](0, 1, huge, i64(0, 0), i64(0, 0), np.zeros(1), np.zeros(1), 2**31, K["fn"]),
+        "int": lambda: compiled.CompiledLayout(plan, 2**31),
         "edges": lambda: K["edge_matvec"](np.zeros((2, 1, 1)), np.zeros((2, 1, 1)), t, t, np.zeros((3, 1, 1))),
         "sweep": lambda: K["forward"](np.zeros((1, 4)), i64(3), 1, i64(0, 4), i64(0, 0), i64(), i64(0, 10),
                                       np.zeros(10), 0),

@@ -1,4 +1,4 @@
-"""Per-edge arithmetic done a block of edges at a time (``lago_cvx.sparse.arrays.row_blocks``): the lazily
+"""Per-edge arithmetic done a block of edges at a time (``lago_cvx.stacks.row_blocks``): the lazily
 computed edge uncertainties equal NumPy's dense linear algebra, and the phase-3 edge system, the errors
 and χ² are the same whether the edges come in one block or in many (blocks of 7 here)."""
 
@@ -9,7 +9,7 @@ import pytest
 
 import lago_cvx as lc
 from lago_cvx import phases as P
-from lago_cvx.sparse import arrays
+from lago_cvx import stacks
 from lago_cvx.metrics import chi2, edge_errors
 from lago_cvx.posegraph import PoseGraph, rot2
 from lago_cvx.uncertainty import edge_uncertainty
@@ -26,8 +26,8 @@ def _full_info_graph(n=60, seed=3) -> PoseGraph:
 
 
 def test_row_blocks_cover_the_rows_in_order():
-    assert [(s.start, s.stop) for s in arrays.row_blocks(10, 4)] == [(0, 4), (4, 8), (8, 10)]
-    assert list(arrays.row_blocks(0)) == []
+    assert [(s.start, s.stop) for s in stacks.row_blocks(10, 4)] == [(0, 4), (4, 8), (8, 10)]
+    assert list(stacks.row_blocks(0)) == []
 
 
 @pytest.mark.parametrize("block", [7, None])
@@ -36,7 +36,7 @@ def test_edge_uncertainty_equals_dense_algebra(block, monkeypatch):
     numpy.linalg on each edge's Ω: Σ = Ω⁻¹, P_Δ = Σ[:2, :2], P_δ = Σ[2, 2], UᵀU = P_Δ⁻¹, UᵀU = Ω,
     UᵀU = Ω_pp, h = Ω_pp⁻¹Ω_pθ — to 1e-12 relative."""
     if block is not None:
-        monkeypatch.setattr(arrays, "BLOCK", block)
+        monkeypatch.setattr(stacks, "BLOCK", block)
     g = _full_info_graph()
     unc = edge_uncertainty(g)
     om = g.information
@@ -76,7 +76,7 @@ def test_phase3_edge_system_is_the_same_in_blocks(information, monkeypatch):
                                     delta_reg=delta_reg), unc, dg
 
     one, unc, dg = build()
-    monkeypatch.setattr(arrays, "BLOCK", 7)
+    monkeypatch.setattr(stacks, "BLOCK", 7)
     many, _, _ = build()
     for name in ("A", "B", "c"):
         assert np.array_equal(getattr(one, name), getattr(many, name)), name
@@ -99,7 +99,7 @@ def test_errors_and_chi2_are_the_same_in_blocks(monkeypatch):
     g = _full_info_graph(70, seed=2)
     poses = np.random.default_rng(0).standard_normal((g.n_poses, 3))
     e1, c1 = edge_errors(g, poses), chi2(g, poses)
-    monkeypatch.setattr(arrays, "BLOCK", 7)
+    monkeypatch.setattr(stacks, "BLOCK", 7)
     e2, c2 = edge_errors(g, poses), chi2(g, poses)
     assert np.array_equal(e1, e2)
     assert c2 == pytest.approx(c1, rel=1e-13)

@@ -1,14 +1,14 @@
-"""The closed-form 2×2 / 3×3 kernels (``lago_cvx.sparse.smallmat``) against ``numpy.linalg``: same inverses and
+"""The closed-form 2×2 / 3×3 kernels (``lago_cvx.stacks``) against ``numpy.linalg``: same inverses and
 Cholesky factors on well- and ill-conditioned stacks, LAPACK's answer where the closed form breaks down
 (overflow), and the same ``LinAlgError`` on a matrix that is not positive definite; and
-``arrays.unique_sorted`` against ``numpy.unique``."""
+``stacks.unique_sorted`` against ``numpy.unique``."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from lago_cvx.sparse.smallmat import cholesky, spd_inverse
+from lago_cvx.stacks import cholesky, spd_inverse
 
 
 def _stack(k, m=2000, seed=0):
@@ -54,7 +54,7 @@ def test_other_sizes_go_to_numpy():
 
 
 def test_unique_sorted_is_numpys_unique():
-    from lago_cvx.sparse.arrays import unique_sorted
+    from lago_cvx.stacks import unique_sorted
 
     rng = np.random.default_rng(3)
     for a in (rng.integers(0, 50, 1000), rng.integers(0, 10**12, 5000), np.zeros(0, np.int64),
@@ -63,14 +63,14 @@ def test_unique_sorted_is_numpys_unique():
 
 
 def test_rotate_is_eq_9_written_with_rotation_matrices():
-    """``sparse.rotate`` (the kernel of eq. (9), Δᵍ = R(θ̂_i)Δˡ, and of the position targets) gives the
+    """``stacks.rotate`` (the kernel of eq. (9), Δᵍ = R(θ̂_i)Δˡ, and of the position targets) gives the
     numbers of the equation written with the stacked 2×2 rotations, blocks of rows included."""
     from lago_cvx.posegraph import rot2
-    from lago_cvx.sparse import rotate
-    from lago_cvx.sparse import arrays
+    from lago_cvx import stacks
+    from lago_cvx.stacks import rotate
 
     rng = np.random.default_rng(4)
-    for m in (0, 1, 7, arrays.BLOCK + 3):
+    for m in (0, 1, 7, stacks.BLOCK + 3):
         ang, v = rng.uniform(-40, 40, m), rng.standard_normal((m, 2)) * 10.0 ** rng.integers(-3, 4, (m, 1))
         ref = np.einsum("kab,kb->ka", rot2(ang), v)
         np.testing.assert_allclose(rotate(ang, v), ref, rtol=1e-15, atol=1e-15 * np.abs(v).max(initial=0.0))

@@ -25,7 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..sparse import cores, unique_sorted
+from ..sparse import cores
+from ..stacks import unique_sorted
 from ..errors import OptionError
 from ..posegraph import PoseGraph, wrap_angle
 from .floatfmt import int_fields, join_fields, repr_fields

@@ -196,7 +196,7 @@ def chordal_closed_form(graph: PoseGraph, info_delta, *, anchor=None, backend: s
     elim = elimination if elimination is not None and elimination.anchor_index == a else GraphElimination(graph, a)
     system = chordal_edge_system(graph, info_delta, elim)
     x, _, stats = elim.solve(system, stage="chordal relaxation")
-    return _estimate(graph.n_poses, a, x.reshape(-1), elim.cost(system, x), stats)
+    return _estimate(graph.n_poses, a, x.reshape(-1), system.cost(x), stats)
 
 
 def chordal_from_problem(graph: PoseGraph, info_delta, *, anchor=None,

@@ -5,7 +5,7 @@ Every 3-D least-squares problem here has a residual per edge that depends on two
 ``edge_matrix`` stacks them into the sparse M (m·r × n·d) of ‖M x − b‖²; ``without_anchor`` drops the anchor's
 columns (its unknowns are known), moving their contribution to the right-hand side. ``factor`` and ``solve`` are the
 closed forms' way to the engine (``lago_cvx.sparse``) for the same problems written edge by edge (``EdgeSystem``):
-its ``factor_wide`` / ``solve_wide``, for systems that fill more per pose than the planar ones.
+``GraphElimination.factor`` / ``solve``, the path of the planar systems.
 """
 
 from __future__ import annotations
@@ -15,7 +15,6 @@ import weakref
 import numpy as np
 import scipy.sparse as sp
 
-from ..sparse import factor_wide, solve_wide
 
 __all__ = ["edge_matrix", "without_anchor", "free_index", "block_diagonal", "factor", "solve", "per_graph"]
 
@@ -59,13 +58,13 @@ def block_diagonal(blocks: np.ndarray, offset: int = 0) -> sp.csc_matrix:
 
 
 def factor(elimination, system):
-    """The factor of ``system``'s normal matrix (an ``EdgeSystem`` on ``elimination``): ``sparse.factor_wide``."""
-    return factor_wide(elimination, system)
+    """The factor of ``system``'s normal matrix (an ``EdgeSystem`` on ``elimination``): ``elimination.factor``."""
+    return elimination.factor(system)
 
 
 def solve(elimination, system):
-    """``(x, factor, stats)`` of ``system`` on ``elimination``: ``sparse.solve_wide``."""
-    return solve_wide(elimination, system)
+    """``(x, factor, stats)`` of ``system`` on ``elimination``: ``elimination.solve``."""
+    return elimination.solve(system)
 
 
 _PER_GRAPH: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()

@@ -46,7 +46,7 @@ import numpy as np
 from ..errors import check_choice
 from ..posegraph3d import information_in_log_coordinates
 from ..so3 import project_so3
-from ..sparse import spd_inverse
+from ..stacks import spd_inverse
 from .blocks import block_diagonal, edge_matrix, free_index, solve, without_anchor
 
 __all__ = ["WEIGHTINGS", "ANISOTROPIC_FLOOR", "rotation_weights", "chordal_system", "edge_system", "chordal_closed_form",
@@ -141,14 +141,14 @@ def _system_cost(system):
 
 def chordal_closed_form(graph, *, weighting: str = "isotropic", anchor_index: int = 0, elimination=None) -> Chordal:
     """(C) by one sparse factorization of its normal matrix and three solves, on the pose-level elimination shared
-    by the closed forms (``normal_equations.GraphElimination``, through ``sparse.solve_wide``: the engine chooses
-    the factorization of the 3-D systems; corrected semi-normal equations). ``elimination``: one built already for
+    by the closed forms (``sparse.GraphElimination.solve``: the engine's factorization; corrected semi-normal
+    equations). ``elimination``: one built already for
     this graph and anchor."""
     from ..sparse import GraphElimination
 
     if graph.n_poses == 1:
         return _finish(graph, np.zeros((0, 3)), anchor_index, {"method": "trivial"}, lambda X: 0.0)
-    el = GraphElimination(graph, anchor_index, wide=(3,)) if elimination is None else elimination
+    el = GraphElimination(graph, anchor_index) if elimination is None else elimination
     system = edge_system(graph, el, weighting=weighting)
     x, _, stats = solve(el, system)
     return _finish(graph, x.reshape(-1, 3), anchor_index, stats, _system_cost(system))

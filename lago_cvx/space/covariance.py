@@ -26,7 +26,7 @@ def pose_covariances3d(graph, t, R, *, anchor=None) -> np.ndarray:
     out = np.zeros((graph.n_poses, 6, 6))
     if graph.n_poses == 1:
         return out
-    el = GraphElimination(graph, a, wide=(6,))
+    el = GraphElimination(graph, a)
     L = whitening(graph)
     e, Ji, Jj = jacobians(graph, t, R)
     system = EdgeSystem(el.tails, el.heads, L @ Ji, L @ Jj, -np.einsum("kij,kj->ki", L, e), el.d)

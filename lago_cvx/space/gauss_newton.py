@@ -82,7 +82,7 @@ def gauss_newton_step(graph, t, R, *, anchor_index: int = 0, L=None, elimination
     from ..sparse import EdgeSystem, GraphElimination
 
     L = whitening(graph) if L is None else L
-    el = GraphElimination(graph, anchor_index, wide=(6,)) if elimination is None else elimination
+    el = GraphElimination(graph, anchor_index) if elimination is None else elimination
     e, Ji, Jj = jacobians(graph, t, R)
     system = EdgeSystem(el.tails, el.heads, L @ Ji, L @ Jj, -np.einsum("kij,kj->ki", L, e), el.d)
     # One factorization and one solve of the normal equations: a step needs no refinement to rounding (near a

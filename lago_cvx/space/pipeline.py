@@ -173,7 +173,7 @@ def lago3d(graph, *, route: str = "default", method: str = "closed_form", weight
     if method == "closed_form":
         from ..sparse import GraphElimination
 
-        el = GraphElimination(graph, a, wide=(3, 6) if route == "default" else (3,))  # every system of the route
+        el = GraphElimination(graph, a)  # every system of the route
         ch = None if rotations is not None else chordal_closed_form(graph, weighting=weighting, anchor_index=a,
                                                                     elimination=el)
 

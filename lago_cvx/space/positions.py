@@ -85,7 +85,7 @@ def positions_closed_form(graph, R, *, anchor_index: int = 0, anchor_position=(0
 
     if graph.n_poses == 1:
         return np.array([anchor_position], dtype=float), {"method": "trivial"}
-    el = GraphElimination(graph, anchor_index, wide=(3,)) if elimination is None else elimination
+    el = GraphElimination(graph, anchor_index) if elimination is None else elimination
     LB, Lc = _whitened_edges(graph, R)
     p = np.asarray(anchor_position, dtype=float)
     ta, he = el.tails < 0, el.heads < 0

@@ -379,7 +379,7 @@ def refine_space(graph, t, R, *, method: str, max_iterations: int, tolerance: fl
     if prob.dim == 0 or graph.n_edges == 0:
         res.converged, res.reason = True, "nothing to optimize"
         return res
-    el = GraphElimination(graph, prob.reference, wide=(6,)) if prob.plain else None
+    el = GraphElimination(graph, prob.reference) if prob.plain else None
     tiny = np.finfo(float).tiny
     lam = initial_lambda
     res.reason = "max_iterations reached"

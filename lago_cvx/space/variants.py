@@ -33,7 +33,8 @@ import scipy.sparse as sp
 
 from ..errors import OptionError
 from ..so3 import exp_so3, project_so3
-from ..sparse import solve_least_squares, spd_inverse
+from ..sparse import solve_least_squares
+from ..stacks import spd_inverse
 from .blocks import block_diagonal, edge_matrix
 from .chordal import rotation_weights
 from .constraints import check_rotation_constraints, frame_of, null_basis, project_constrained

@@ -1,46 +1,31 @@
 """The sparse engine behind one door.
 
-Everything that makes LAGO's closed forms fast — the pose-level ordering and symbolic analysis, the one numeric
-factorization (the multifrontal block Cholesky in C, with its NumPy fallback), selected inversion, worker threads —
-lives in this subpackage. The mathematics (phases, positions, regularizers, variants, refinement, certification)
-imports only the names below, never a submodule: ``tests/test_architecture.py`` holds that.
+The pose-level ordering and symbolic analysis, the one numeric factorization (the multifrontal block Cholesky in C,
+with its NumPy fallback), selected inversion and worker threads live here. The mathematics imports only the names
+below, never a submodule (``tests/test_architecture.py``). In the spirit of scikit-sparse's ``cholesky(A) -> Factor``:
 
-The door, in the spirit of scikit-sparse's ``cholesky(A) -> Factor``:
-
-* ``EdgeSystem(tails, heads, A, B, c, d)`` — a least-squares problem Σ_k ‖A_k x_{t_k} + B_k x_{h_k} − c_k‖²
-  on the pose graph's pattern, b unknowns per pose (b = 1, 2, 3, 6, 9 …), q rows per edge;
-* ``GraphElimination(graph, anchor_index, weights=…)`` — the symbolic analysis of one graph and anchor,
-  shared by every system solved on it: ``.factor(system) -> Factor``, ``.solve(system) -> (x, factor, stats)``;
-  ``GraphElimination.start(…, expect=…)`` builds it in a worker while the caller goes on, and
-  ``.ahead(task)`` hands over work needed later (overlap and prefetching live here, not in the caller);
-* ``factor_wide(elimination, system)`` / ``solve_wide`` — the same for the 3-D systems (the same path);
+* ``EdgeSystem(tails, heads, A, B, c, d)`` — Σ_k ‖A_k x_{t_k} + B_k x_{h_k} − c_k‖² on the pose graph's pattern,
+  b unknowns per pose (b = 1, 2, 3, 6, 9 …), q rows per edge;
+* ``GraphElimination(graph, anchor_index)`` — the symbolic analysis of one graph and anchor, shared by every system
+  on it: ``.factor(system) -> Factor``, ``.solve(system) -> (x, factor, stats)``; ``.start(…, expect=…)`` builds it
+  in a worker while the caller goes on, ``.ahead(task)`` hands over work needed later;
 * ``factorize(N) -> Factor`` and ``solve_least_squares(M, b)`` for a sparse matrix of any other pattern;
-* ``Factor`` — ``solve(rhs)``; ``marginal_blocks(N, var_index, factor=…)`` the diagonal blocks of N⁻¹ by
-  selected inversion (``block_diagonal_inverse`` by column solves for small blocks of any factor);
-* small per-edge kernels the mathematics calls by name: ``row_blocks`` (per-edge arithmetic a block of
-  edges at a time), ``unique_sorted``, the closed-form 2×2 / 3×3 inverses and Cholesky factors
-  (``spd_inverse``, ``spd_inverse_corner``, ``cholesky``), ``rotate`` (R(α_k) v_k, m rotations at once),
-  ``whitening_2x2``;
-* threads: ``cores()`` the engine's own threads; ``engine_threads(workers=…, blas_threads=…)`` caps them (SciPy's
-  name) and, only when asked, the process's BLAS threads while the engine runs (left alone by default);
-  ``threads_option`` runs a function with those keyword options inside it (``lago(…, workers=…)``).
+* ``Factor.solve(rhs)``; ``marginal_blocks(N, var_index, factor=…)`` the diagonal blocks of N⁻¹ by selected inversion;
+* ``cores()`` the engine's threads; ``engine_threads(workers=…, blas_threads=…)`` caps them (SciPy's name) and, only
+  when asked, the process's BLAS threads; ``threads_option`` runs a function inside those of its keyword options.
 """
 
 from __future__ import annotations
 
-from .arrays import row_blocks, unique_sorted
 from .block_factor import inverse_blocks
-from .linalg import (SOLVER_BACKENDS, Factor, augmented_least_squares, block_diagonal_inverse, factorize,
-                     refine_normal_equations, solve_least_squares, whitening_2x2)
 from .edge_system import EdgeSystem
-from .normal_equations import GraphElimination, RenumberedFactor, factor_wide, marginal_blocks, solve_wide
-from .smallmat import cholesky, rotate, spd_inverse, spd_inverse_corner
+from .linalg import (SOLVER_BACKENDS, Factor, augmented_least_squares, factorize, refine_normal_equations,
+                     solve_least_squares)
+from .normal_equations import GraphElimination, RenumberedFactor, marginal_blocks
 from .threads import cores, engine_threads, threads_option
 
 __all__ = [
     "EdgeSystem", "GraphElimination", "Factor", "factorize", "solve_least_squares", "refine_normal_equations",
-    "augmented_least_squares", "block_diagonal_inverse", "inverse_blocks", "whitening_2x2", "SOLVER_BACKENDS",
-    "row_blocks", "unique_sorted", "cholesky", "spd_inverse", "spd_inverse_corner", "rotate",
-    "RenumberedFactor", "marginal_blocks", "cores", "factor_wide", "solve_wide",
+    "augmented_least_squares", "inverse_blocks", "SOLVER_BACKENDS", "RenumberedFactor", "marginal_blocks", "cores",
     "engine_threads", "threads_option",
 ]

@@ -26,7 +26,7 @@ typedef void (*syrk_t)(char *, char *, int *, int *, double *, double *, int *, 
 /* Front f's matrix in F (column-major D x D, lower triangle): N's blocks in its pivot columns from the
  * edges' A_k, B_k (m, nq, b), then the extend-add of its children's updates popped from the stack.
  * Returns D. */
-CK_API i64 ck_assemble(i64 f, i64 b, const i64 *fptr, const i64 *rptr, const i64 *rel, const i64 *nchild,
+static i64 ck_assemble(i64 f, i64 b, const i64 *fptr, const i64 *rptr, const i64 *rel, const i64 *nchild,
                        const i64 *bptr, const i64 *border, const i64 *bli, const i64 *blj, const uint8_t *btr,
                        const double *A, const double *B, i64 m, i64 nq, double *F, const double *stack,
                        const i64 *st_front, const i64 *st_off, i64 *state)
@@ -87,7 +87,7 @@ CK_API i64 ck_assemble(i64 f, i64 b, const i64 *fptr, const i64 *rptr, const i64
 }
 
 /* Keep front f's block column [L_PP; X] in L (packed columns), push its update U on the stack. */
-CK_API void ck_finish(i64 f, i64 b, const i64 *fptr, const i64 *rptr, const i64 *Lptr, double *L, const double *F,
+static void ck_finish(i64 f, i64 b, const i64 *fptr, const i64 *rptr, const i64 *Lptr, double *L, const double *F,
                       double *stack, i64 *st_front, i64 *st_off, i64 *state)
 {
     i64 k = (fptr[f + 1] - fptr[f]) * b;
@@ -117,7 +117,7 @@ CK_API void ck_finish(i64 f, i64 b, const i64 *fptr, const i64 *rptr, const i64 
 
 /* Partial Cholesky of the column-major D x D front F, right-looking. Returns 0, or j + 1 when pivot j
  * is not positive. */
-CK_API i64 ck_dense(double *F, i64 D, i64 k)
+static i64 ck_dense(double *F, i64 D, i64 k)
 {
     for (i64 j = 0; j < k; j++) {
         i64 cj = j * D;
@@ -143,7 +143,7 @@ CK_API i64 ck_dense(double *F, i64 D, i64 k)
 
 /* The same by LAPACK/BLAS at the addresses fn (potrf, trsm, syrk): L_PP = potrf(F_PP),
  * X = trsm(F_RP, L_PP), U = syrk(F_RR, X), in place. Returns LAPACK's info (0: done). */
-CK_API i64 ck_dense_blas(double *F, i64 D, i64 k, const i64 *fn)
+static i64 ck_dense_blas(double *F, i64 D, i64 k, const i64 *fn)
 {
     int kk = (int)k, dd = (int)D, r = (int)(D - k), info = 0;
     char cL = 'L', cR = 'R', cT = 'T', cN = 'N';
@@ -180,12 +180,6 @@ CK_API i64 ck_run(i64 f0, i64 f1, const uint8_t *big, i64 b, const i64 *fptr, co
         ck_finish(f, b, fptr, rptr, Lptr, L, F, stack, st_front, st_off, state);
     }
     return f1;
-}
-
-/* A front already assembled in F, by LAPACK/BLAS. */
-CK_API i64 ck_one(i64 f, i64 b, const i64 *fptr, double *F, i64 D, const i64 *fn)
-{
-    return ck_dense_blas(F, D, (fptr[f + 1] - fptr[f]) * b, fn);
 }
 
 /* Front f's sizes for the sweeps, the slots of its update variables written to slot. */
@@ -404,23 +398,6 @@ CK_API void ck_subtrees(const i64 *parent, const double *work, i64 n, double *to
     }
 }
 
-/* Push front f's update src[off:off + size] onto this stack (cap its length). Returns 0, or -1 when it
- * does not fit. */
-CK_API i64 ck_push(const double *src, i64 off, i64 size, double *stack, i64 cap, i64 *st_front, i64 *st_off,
-                   i64 *state, i64 f)
-{
-    i64 top = state[0];
-    i64 o = st_off[top];
-    if (o < 0 || size < 0 || o + size > cap)
-        return -1;
-    if (size > 0)
-        memmove(stack + o, src + off, (size_t)size * sizeof(double));
-    st_front[top] = f;
-    st_off[top + 1] = o + size;
-    state[0] = top + 1;
-    return 0;
-}
-
 /* supernodes.relax: relaxed amalgamation (k, true_nnz updated in place; top (ns,) out). */
 CK_API void ck_relax(i64 *k, const i64 *r, i64 *true_nnz, const i64 *sparent, i64 ns, i64 n0, i64 n1, i64 n2,
                      double z0, double z1, double z2, i64 *top)
@@ -439,18 +416,6 @@ CK_API void ck_relax(i64 *k, const i64 *r, i64 *true_nnz, const i64 *sparent, i6
             true_nnz[p] += true_nnz[c];
             top[c] = p;
         }
-    }
-}
-
-/* supernodes.heights: h (n,) out. */
-CK_API void ck_heights(const i64 *parent, i64 n, i64 *h)
-{
-    for (i64 f = 0; f < n; f++)
-        h[f] = 0;
-    for (i64 f = 0; f < n; f++) {
-        i64 p = parent[f];
-        if (p >= 0 && h[p] < h[f] + 1)
-            h[p] = h[f] + 1;
     }
 }
 

@@ -1,16 +1,7 @@
-r"""The multifrontal factor read and written front by front in NumPy: the fallback of the C kernels (``compiled``)
-where no compiler was present at install, and the selected inversion (T) of marginal covariances for both.
-
-Storage is the compiled engine's (``compiled.CompiledLayout``): front f has k pivot and r update variables,
-D = k + r; its block column [L_PP; X] (D × k, eq. (MF) of ``multifrontal``) is packed column by column from
-``L[Lptr[f]]``, column j holding rows j … D − 1 — i.e. the upper trapezoid of its transpose, row by row.
-
-* ``factor`` — (MF) front by front in postorder: assemble N's blocks and the children's updates (extend-add),
-  L_PP = chol(F_PP), X = F_RP L_PP⁻ᵀ, U = F_RR − X Xᵀ;
-* ``solve`` — forward L_PP z_P = y_P, y_R −= X z_P (leaves up); back x_P = L_PP⁻ᵀ(z_P − Xᵀx_R) (root down);
-* ``inverse_blocks`` — Σ = N⁻¹ on the pattern of L by Takahashi's recurrences (T), root down: with
-  Y = X L_PP⁻¹ and Σ_RR read from the parent's front (R_f ⊂ P_parent ∪ R_parent),
-  Σ_RP = −Σ_RR Y,  Σ_PP = L_PP⁻ᵀ L_PP⁻¹ − Yᵀ Σ_RP.
+r"""The multifrontal factor (MF) front by front in NumPy, on the storage of ``compiled.CompiledLayout`` (front f's
+block column [L_PP; X] (D × k) packed column by column from ``L[Lptr[f]]``: the upper trapezoid of its transpose, row
+by row): the fallback of the C kernels (``factor``, ``solve``), and the selected inversion (T) for both
+(``inverse_blocks``).
 """
 
 from __future__ import annotations
@@ -77,7 +68,8 @@ def factor(lay, asm, blocks: np.ndarray, L: np.ndarray, progress=None) -> None:
 
 
 def solve(lay, L: np.ndarray, Y: np.ndarray) -> None:
-    """N x = y in place for Y (N, r) in elimination slots: forward then back, front by front."""
+    """N x = y in place for Y (N, r) in elimination slots: forward L_PP z_P = y_P, y_R −= X z_P (leaves up), then back
+    x_P = L_PP⁻ᵀ(z_P − Xᵀx_R) (root down)."""
     F = lay.plan.n_fronts
     for f in range(F):
         C, (piv, rows, _) = _column(lay, L, f), _vars(lay, f)
@@ -95,7 +87,8 @@ def solve(lay, L: np.ndarray, Y: np.ndarray) -> None:
 def inverse_blocks(factor, prow=None, pcol=None, *, progress=None):
     """Blocks of Σ = N⁻¹ by selected inversion (T) on ``factor`` (a ``compiled.CompiledFactor``): ``diag`` (d, b, b)
     each pose's b×b block (in pose order) and, when ``prow``/``pcol`` (q,) are given — pose pairs on the pattern of
-    L, e.g. the ends of edges — ``pairs`` (q, b, b), pairs[t] = Σ[prow[t], pcol[t]]. Returns ``(diag, pairs)``."""
+    L, e.g. the ends of edges — ``pairs`` (q, b, b), pairs[t] = Σ[prow[t], pcol[t]]. Returns ``(diag, pairs)``. Root
+    down, Σ_RR read from the parent's front and Y = X L_PP⁻¹: Σ_RP = −Σ_RR Y, Σ_PP = L_PP⁻ᵀ L_PP⁻¹ − Yᵀ Σ_RP."""
     lay, L = factor.layout, factor.L
     plan, b, F = lay.plan, lay.b, lay.plan.n_fronts
     pose_at = np.empty(plan.d, np.int64)

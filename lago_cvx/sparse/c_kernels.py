@@ -1,13 +1,10 @@
-r"""The kernels of ``lago_cvx.sparse.compiled`` in C (``_ckernels.c``, built at install as an optional extension
-module), called through ctypes; importing this module raises ImportError when it was not built.
+r"""The kernels of ``compiled`` in C (``_ckernels.c``, an optional extension module built at install), called through
+ctypes (which releases the GIL); importing this module raises ImportError when it was not built.
 
-Each wrapper checks what the C code relies on — the dtype (float64, int64, bool) and C order of every array, the
-arrays written in place writable, the shapes of the edge blocks — and raises TypeError or ValueError otherwise;
-nothing is copied. The indices it reads are checked by ``kernel_checks``: the plan once (O(n), when its layout is
-built), then per call in O(1) that the plan arrays are those of a checked layout and that the fronts, buffers and
-stacks fit it; trees, sequences and edge ends handed over alone are checked in full. Outputs and scratch are
-allocated here, so the C functions keep no state: threads may call them at once on different data (ctypes releases
-the GIL during a call). LAPACK's ``dpotrf`` and BLAS's ``dtrsm``, ``dsyrk`` are SciPy's, by address.
+Each wrapper checks the dtype, C order and writability of every array and the shapes of the edge blocks (TypeError,
+ValueError; nothing is copied), and through ``kernel_checks`` every index the C code reads: plan arrays in O(1) as
+those of a checked layout, trees, sequences and edge ends handed over alone in full. Outputs and scratch are
+allocated here: the C functions keep no state, so threads may call them at once on different data.
 """
 
 from __future__ import annotations
@@ -81,81 +78,33 @@ def _edges(A, B, b=None) -> tuple[int, int, int]:
     return np.shape(A)
 
 
-def _fronts_args(b, fptr, rptr, rel, nchild, bptr, border, bli, blj, btr, A, B):
-    m, q, _ = _edges(A, B, b)
-    return (int(b), *_i(fptr=fptr, rptr=rptr, rel=rel, nchild=nchild, bptr=bptr, border=border, bli=bli, blj=blj),
-            _p(btr, _BOOL, "transposed"), _p(A, _F64, "A"), _p(B, _F64, "B"), m, q)
-
-
-def _stack(stack, st_front, st_off, state):
-    """The addresses of a stack of updates: its entries, fronts, offsets and (1,) top."""
-    return (_p(stack, _F64, "stack", True), _p(st_front, _I64, "st_front", True),
-            _p(st_off, _I64, "st_off", True), _p(state, _I64, "state", True))
-
-
 #: Each C function's result then its arguments, one letter each (i int64, d double, p pointer, - no result);
 #: tests hold this table to the prototypes of _ckernels.c.
-SIGNATURES = dict(assemble="iiipppppppppppiippppp", finish="-iippppppppp", run="iiipippppppppppppiippppppip",
-                  one="iiippip", forward="-piipiippppppp", backward="-piipiippppppp", pose_local="-ppipppp",
-                  block_count="ippippip", block_fill="-ppipppppipppppp", edge_matvec="-ppiiipppip",
-                  edge_rmatvec="-ppiiipppip", stack_peak="ipippp", subtrees="-ppipp", push="ipiipipppi",
-                  relax="-ppppiiiidddp", heights="-pip",
-                  postorder="-pippp")
+SIGNATURES = dict(run="iiipippppppppppppiippppppip", forward="-piipiippppppp", backward="-piipiippppppp",
+                  pose_local="-ppipppp", block_count="ippippip", block_fill="-ppipppppipppppp", edge_matvec="-ppiiipppip",
+                  edge_rmatvec="-ppiiipppip", stack_peak="ipippp", subtrees="-ppipp",
+                  relax="-ppppiiiidddp", postorder="-pippp")
 _C = {name: _c(name, sig) for name, sig in SIGNATURES.items()}
-
-
-def _frontal(f, b, fptr, rptr, rel, nchild, bptr, border, F, st_front, st_off, state, A, pop=0, **more):
-    """The checked sizes of a call on front(s) from ``f``: its layout's arrays, the assembler against the edges,
-    the front buffer and the update stack's arrays and top (``pop`` entries to pop)."""
-    info = chk.arrays(b, fptr, rptr=rptr, rel=rel, nchild=nchild, **more)
-    chk.need(0 <= int(f) <= info["F"], f"front {f} is not in [0, {info['F']}]")
-    chk.need(np.size(bptr) == info["F"] + 1 and int(bptr[-1]) == np.size(border)
-             and (not np.size(border) or int(np.max(border)) < 3 * np.shape(A)[0]), "the assembler does not fit")
-    top = int(state[0]) if np.size(state) else -1
-    chk.need(np.size(F) >= info["maxD"] ** 2 and np.size(st_front) >= info["F"] + 1
-             and np.size(st_off) >= info["F"] + 2 and pop <= top <= info["F"], f"buffers or stack top {top} too small")
-    return info
-
-
-def assemble(f, b, fptr, rptr, rel, nchild, bptr, border, bli, blj, btr, A, B, F, stack, st_front, st_off, state):
-    """Front f's matrix in F: N's blocks in its pivot columns, then its children's updates. Returns D."""
-    args = _fronts_args(b, fptr, rptr, rel, nchild, bptr, border, bli, blj, btr, A, B)
-    out = (_p(F, _F64, "F", True), *_stack(stack, st_front, st_off, state))
-    info = _frontal(f, b, fptr, rptr, rel, nchild, bptr, border, F, st_front, st_off, state, A)
-    chk.need(int(f) < info["F"] and int(state[0]) >= int(nchild[int(f)]), f"front {f}: nothing to assemble")
-    return _C["assemble"](int(f), *args, *out)
-
-
-def finish(f, b, fptr, rptr, Lptr, L, F, stack, st_front, st_off, state):
-    """Keep front f's block column in L, push its update."""
-    args = (int(b), *_i(fptr=fptr, rptr=rptr, Lptr=Lptr), _p(L, _F64, "L", True), _p(F, _F64, "F"),
-            *_stack(stack, st_front, st_off, state))
-    info = chk.arrays(b, fptr, rptr=rptr, Lptr=Lptr)
-    chk.need(0 <= int(f) < info["F"] and np.size(L) >= info["Lsize"] and np.size(F) >= info["maxD"] ** 2
-             and np.size(st_front) >= info["F"] + 1 and np.size(st_off) >= info["F"] + 2
-             and 0 <= int(state[0]) < info["F"], f"front {f}, its buffers or its stack do not fit the plan")
-    _C["finish"](int(f), *args)
 
 
 def run(f0, f1, big, b, fptr, rptr, rel, nchild, Lptr, bptr, border, bli, blj, btr, A, B, L, F, stack,
         st_front, st_off, state, small_work, fn):
-    """Fronts f0 … f1 − 1 up to the first ``big`` one. Returns where it stopped, −1 − f if front f is not SPD."""
-    args = _fronts_args(b, fptr, rptr, rel, nchild, bptr, border, bli, blj, btr, A, B)
-    out = (_p(L, _F64, "L", True), _p(F, _F64, "F", True), *_stack(stack, st_front, st_off, state))
-    big_p, Lptr_p, fn_p = _p(big, _BOOL, "big"), _p(Lptr, _I64, "Lptr"), _p(fn, _I64, "fn")
-    info = _frontal(f0, b, fptr, rptr, rel, nchild, bptr, border, F, st_front, st_off, state, A, Lptr=Lptr)
-    chk.need(int(f0) <= int(f1) <= info["F"] and np.size(big) >= info["F"] and np.size(L) >= info["Lsize"]
-             and np.size(fn) == 3, f"fronts {f0} … {f1}, big, L or fn do not fit the plan")
-    return _C["run"](int(f0), int(f1), big_p, *args[:5], Lptr_p, *args[5:], *out, int(small_work), fn_p)
-
-
-def one(f, b, fptr, rptr, Lptr, L, F, D, fn):
-    """A front assembled in F, by LAPACK/BLAS. Returns LAPACK's info."""
-    args = (int(f), int(b), _p(fptr, _I64, "fptr"), _p(F, _F64, "F", True), int(D), _p(fn, _I64, "fn"))
-    info = chk.arrays(b, fptr, rptr=rptr, Lptr=Lptr)
-    chk.need(0 <= int(f) < info["F"] and int(D) == int(info["D"][int(f)]) <= chk.INT_MAX
-             and np.size(F) >= int(D) ** 2 and np.size(fn) == 3, f"front {f} of order {D} does not fit the plan")
-    return _C["one"](*args)
+    """Fronts f0 … f1 − 1 up to the first ``big`` one, each assembled in F (N's blocks, then its children's updates
+    popped), factored (LAPACK/BLAS at ``fn`` once k·D² ≥ ``small_work``), kept in L, its update pushed. Returns
+    where it stopped, −1 − f if front f is not SPD."""
+    m, q, _ = _edges(A, B, b)
+    args = (_p(big, _BOOL, "big"), int(b), *_i(fptr=fptr, rptr=rptr, rel=rel, nchild=nchild, Lptr=Lptr, bptr=bptr,
+                                                border=border, bli=bli, blj=blj),
+            _p(btr, _BOOL, "transposed"), _p(A, _F64, "A"), _p(B, _F64, "B"), m, q, _p(L, _F64, "L", True),
+            _p(F, _F64, "F", True), _p(stack, _F64, "stack", True), _p(st_front, _I64, "st_front", True),
+            _p(st_off, _I64, "st_off", True), _p(state, _I64, "state", True), int(small_work), _p(fn, _I64, "fn"))
+    info, top = chk.arrays(b, fptr, rptr=rptr, rel=rel, nchild=nchild, Lptr=Lptr), int(state[0]) if state.size else -1
+    chk.need(0 <= int(f0) <= int(f1) <= info["F"] and np.size(big) >= info["F"] and np.size(L) >= info["Lsize"]
+             and np.size(fn) == 3 and np.size(bptr) == info["F"] + 1 and int(bptr[-1]) == np.size(border)
+             and (not np.size(border) or int(np.max(border)) < 3 * m) and np.size(F) >= info["maxD"] ** 2
+             and np.size(st_front) >= info["F"] + 1 and np.size(st_off) >= info["F"] + 2 and 0 <= top <= info["F"],
+             f"fronts {f0} … {f1}, the assembler, the buffers or the stack top {top} do not fit the plan")
+    return _C["run"](int(f0), int(f1), *args)
 
 
 def _sweep(kernel, Y, seq, b, fptr, rptr, rows, Lptr, L, rmax):
@@ -269,18 +218,6 @@ def subtrees(parent, work):
     return total, first
 
 
-def push(src, off, size, stack, st_front, st_off, state, f):
-    """Push ``src[off:off + size]`` onto this stack as front f's update."""
-    off, size = int(off), int(size)
-    if off < 0 or size < 0 or off + size > np.size(src):
-        raise chk.PlanError(f"C kernels: push of src[{off}:{off + size}] beyond its {np.size(src)} entries")
-    top = int(state[0]) if np.size(state) else -1
-    chk.need(0 <= top < min(np.size(st_front), np.size(st_off) - 1), f"update stack top {top} outside its arrays")
-    if _C["push"](_p(src, _F64, "src"), off, size, _p(stack, _F64, "stack", True), stack.size,
-                  *_stack(stack, st_front, st_off, state)[1:], int(f)) != 0:
-        raise ValueError("C kernels: the update does not fit on the stack")
-
-
 def relax(k, r, true_nnz, sparent, n0, n1, n2, z0, z1, z2):
     """``multifrontal.relax`` (``k``, ``true_nnz`` updated in place)."""
     top = np.empty(np.size(k), np.int64)
@@ -291,15 +228,6 @@ def relax(k, r, true_nnz, sparent, n0, n1, n2, z0, z1, z2):
                 _p(sparent, _I64, "sparent"), top.size, int(n0), int(n1), int(n2), float(z0), float(z1), float(z2),
                 top.ctypes.data)
     return top
-
-
-def heights(parent):
-    """``multifrontal.heights``."""
-    h = np.empty(np.size(parent), np.int64)
-    address = _p(parent, _I64, "parent")
-    chk.forest(parent)
-    _C["heights"](address, h.size, h.ctypes.data)
-    return h
 
 
 def postorder(parent):
@@ -328,7 +256,6 @@ def _addresses() -> np.ndarray:
 
 
 #: The kernels by name, and ``fn`` the LAPACK/BLAS addresses.
-KERNELS = dict(assemble=assemble, finish=finish, run=run, forward=forward, backward=backward, stack_peak=stack_peak,
-               one=one, subtrees=subtrees, push=push, pose_local=pose_local, block_map=block_map,
-               edge_matvec=edge_matvec, edge_rmatvec=edge_rmatvec, relax=relax, heights=heights, postorder=postorder,
+KERNELS = dict(run=run, forward=forward, backward=backward, stack_peak=stack_peak, subtrees=subtrees, pose_local=pose_local, block_map=block_map,
+               edge_matvec=edge_matvec, edge_rmatvec=edge_rmatvec, relax=relax, postorder=postorder,
                fn=_addresses())

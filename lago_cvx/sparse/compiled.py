@@ -1,12 +1,11 @@
-r"""The multifrontal block Cholesky (MF) of ``multifrontal``, front by front in C — the engine's one numeric
-factorization — with its NumPy fallback (``block_factor``) on the same storage.
+r"""The multifrontal block Cholesky (MF) of ``multifrontal`` — the engine's one numeric factorization — front by
+front in C, or, where no compiler was present at install (``available()`` False, said once as a warning), in NumPy
+(``block_factor``) on the same storage.
 
-The whole loop over the fronts (postorder, children's updates on a stack popped by their parent) is one C call
-(``c_kernels``: ``_ckernels.c``, built at install, loaded by ctypes in milliseconds): a few hundred nanoseconds per
-front where NumPy pays Python calls. A front's dense kernel is a right-looking loop for small fronts and LAPACK's
-``potrf`` with BLAS's ``trsm``/``syrk`` for large ones (SciPy's own, called by address through
-``cython_lapack``/``cython_blas``). Where no compiler was present at install, ``available()`` is False (said once,
-as a warning) and ``block_factor`` runs the same equations front by front in NumPy.
+The loop over the fronts (postorder, children's updates on a stack popped by their parent) is one C call
+(``c_kernels``): a few hundred nanoseconds per front where NumPy pays Python calls. A front's dense kernel is a
+right-looking loop for small fronts and LAPACK's ``potrf`` with BLAS's ``trsm``/``syrk`` (SciPy's, by address) for
+large ones.
 
 **Storage** (``CompiledLayout``). Variables are numbered by elimination slot, pose-major: slot = position·b +
 component. Front f has k = |P_f|·b pivot and r = |R_f|·b update variables, D = k + r; its block column
@@ -208,9 +207,11 @@ class CompiledLayout:
                     where[int(w.st_front[t])] = (w, int(w.st_off[t]), int(w.st_off[t + 1] - w.st_off[t]))
             main = _Front(self, kern, data, L, self.plan.n_fronts, top, ext=(ext, where))
             for f in top.tolist():
-                for c in ext.get(f, ()):
+                for c in ext.get(f, ()):  # pushed onto this thread's stack (NumPy refuses one that does not fit)
                     w, off, size = where[c]
-                    kern["push"](w.stack, off, size, main.stack, main.st_front, main.st_off, main.state, c)
+                    t, o = int(main.state[0]), int(main.st_off[main.state[0]])
+                    main.stack[o:o + size] = w.stack[off:off + size]
+                    main.st_front[t], main.st_off[t + 1], main.state[0] = c, o + size, t + 1
                 main.fronts(f, f + 1, threads, done, report)
         return CompiledFactor(self, L, n_threads)
 
@@ -305,22 +306,12 @@ class _Front:
         self.layout, self.kern, self.data, self.L = layout, kern, data, L
         R = layout.plan.n_rows.astype(np.int64) * layout.b
         sizes = R * R
-        seq = np.asarray(seq, np.int64)
-        if ext is None:
-            need = int(kern["stack_peak"](seq, layout.nchild, sizes))
-        else:  # the top fronts: their subtree-root children's updates pushed just before them
-            peak = 0
-            used = [0]  # the stack's entry ends, bottom first
-            for f in seq.tolist():
-                for c in ext[0].get(f, ()):
-                    used.append(used[-1] + int(sizes[c]))
-                peak = max(peak, used[-1])
-                pop = int(layout.nchild[f])
-                del used[len(used) - pop:]
-                if sizes[f]:
-                    used.append(used[-1] + int(sizes[f]))
-                peak = max(peak, used[-1])
-            need = peak
+        seq, nchild = np.asarray(seq, np.int64), layout.nchild
+        if ext is not None:  # the top fronts, each after its subtree-root children (pushed, popping nothing)
+            seq = np.array([g for f in seq.tolist() for g in (*ext[0].get(f, ()), f)], np.int64)
+            nchild = nchild.copy()
+            nchild[[c for cs in ext[0].values() for c in cs]] = 0
+        need = int(kern["stack_peak"](seq, nchild, sizes))
         self.F = np.empty(max(layout.max_front, 1))
         self.stack = np.empty(max(need, 1))
         self.st_front = np.zeros(nf + 1, np.int64)
@@ -331,32 +322,26 @@ class _Front:
         """Fronts f0 … f1 − 1 (whole subtrees, or a top front whose children's updates are on this
         stack): small runs inside one compiled call (``CHUNK`` of the fronts per call when ``report`` wants
         progress between calls, else as many as run before a large one); with ``threads`` (this thread sets
-        the BLAS thread count) a large front alone, on every BLAS thread. ``done[0]`` += their work."""
-        lay, kern = self.layout, self.kern
-        run, assemble, finish, one, fn = kern["run"], kern["assemble"], kern["finish"], kern["one"], kern["fn"]
-        b = lay.b
-        common = (b, lay.fptr, lay.rptr, lay.rel, lay.nchild)
+        the BLAS thread count) a large front alone, by LAPACK/BLAS on every BLAS thread. ``done[0]`` += their work."""
+        lay = self.layout
         own = blas_limit() is not None  # the engine holds the BLAS threads: LAPACK/BLAS from SMALL_WORK on
         big = lay.big if threads is not None and own else lay.none_big
         step = max(int(lay.plan.n_fronts * CHUNK), 1) if report is not None else max(f1 - f0, 1)
-        bufs = (self.F, self.stack, self.st_front, self.st_off, self.state)
+        args = (lay.b, lay.fptr, lay.rptr, lay.rel, lay.nchild, lay.Lptr, *self.data, self.L, self.F, self.stack,
+                self.st_front, self.st_off, self.state)
         f = f0
         while f < f1:
-            stop = run(f, min(f + step, f1), big, *common, lay.Lptr, *self.data, self.L, *bufs,
-                       SMALL_WORK if own else ALONE_WORK, fn)
+            alone = bool(big[f])
+            if alone:
+                threads(None)
+            stop = self.kern["run"](f, f + 1 if alone else min(f + step, f1), lay.none_big if alone else big, *args,
+                                    0 if alone else SMALL_WORK if own else ALONE_WORK, self.kern["fn"])
+            if alone:
+                threads(1)
             if stop < 0:
                 raise NotPositiveDefinite(f"the matrix is not positive definite (front {-stop - 1})")
             done[0] += float(lay.work[f:stop].sum())
             f = stop
-            if f < f1 and big[f]:
-                D = assemble(f, *common, *self.data, *bufs)
-                threads(None)
-                if one(f, b, lay.fptr, lay.rptr, lay.Lptr, self.L, self.F, D, fn) != 0:
-                    raise NotPositiveDefinite(f"the matrix is not positive definite (front {f})")
-                threads(1)
-                finish(f, b, lay.fptr, lay.rptr, lay.Lptr, self.L, *bufs)
-                done[0] += float(lay.work[f])
-                f += 1
             if report is not None:
                 report()
 

@@ -33,10 +33,12 @@ class EdgeSystem:
     def b(self) -> int:
         return self.A.shape[2]
 
-    def operator(self) -> "EdgeOperator":
-        """M and Mᵀ of this system with their set-up done once (``normal_equations.edge_operator`` picks
-        the compiled products for large systems)."""
-        return EdgeOperator(self)
+    def operator(self):
+        """M and Mᵀ of this system with their set-up done once: by the C loops when they are built
+        (``compiled.CompiledEdgeOperator``: the same sums in the same order), else an ``EdgeOperator``."""
+        from . import compiled
+
+        return compiled.CompiledEdgeOperator(self) if compiled.available() else EdgeOperator(self)
 
     def matvec(self, x: np.ndarray) -> np.ndarray:
         """M x (m, q[, r]) for x (d, b[, r]): A_k x_{t_k} + B_k x_{h_k} (anchor terms 0)."""
@@ -69,6 +71,7 @@ class EdgeSystem:
                              shape=(m * q, self.d * b))
 
     def cost(self, x: np.ndarray) -> float:
+        """‖M x − c‖² at x (d, b[, r])."""
         r = self.matvec(x) - self.c
         return float(np.sum(r * r))
 

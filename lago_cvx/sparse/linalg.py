@@ -1,5 +1,5 @@
 """Sparse linear algebra shared by the closed forms: SPD solves, least squares with the corrected semi-normal
-equations, whitening, the BLAS thread guard.
+equations, the BLAS thread guard.
 
 ``factorize(N)`` factors a sparse SPD matrix of any pattern once and returns a ``Factor``: ``"qdldl"`` (the
 ``qdldl`` package's public ``Solver``, LDLᵀ after AMD; the default), ``"superlu"`` (SciPy, symmetric mode: many
@@ -21,7 +21,9 @@ import scipy.sparse as sp
 from ..errors import NumericalError, OptionError
 from .threads import blas_limit
 
-__all__ = ["blas_threads", "Factor", "factorize", "solve_least_squares", "refine_normal_equations", "augmented_least_squares", "refined_or_augmented", "REFINEMENT_STEPS", "REFINEMENT_STOP", "TRUST_TOLERANCE", "whitening_2x2", "block_diagonal_inverse", "SOLVER_BACKENDS"]
+__all__ = ["blas_threads", "Factor", "factorize", "solve_least_squares", "refine_normal_equations",
+           "augmented_least_squares", "refined_or_augmented", "REFINEMENT_STEPS", "REFINEMENT_STOP", "TRUST_TOLERANCE",
+           "SOLVER_BACKENDS"]
 
 log = logging.getLogger(__name__)
 
@@ -54,7 +56,7 @@ def blas_threads(n: int | None):
     when the last such block ends, also when blocks of several threads overlap."""
     limit = blas_limit()
     if limit is None:
-        yield _leave_blas
+        yield lambda k: None  # the setter does nothing: the process's BLAS is left alone
         return
     n = limit if n is None else min(n, limit)
     if not _BLAS:
@@ -93,35 +95,21 @@ def blas_threads(n: int | None):
                     lib.set_num_threads(on_entry)
 
 
-def _leave_blas(k: int | None) -> None:
-    """``blas_threads``'s setter when the engine leaves the BLAS alone: nothing."""
-
-
-def _not_kept():
-    """What engine state becomes when it is pickled or deep-copied: nothing (see ``EngineState``)."""
-    return None
-
-
 class NotPositiveDefinite(NumericalError):
     """A pivot block was not numerically positive definite (the matrix is not SPD in floating point)."""
 
 
-class EngineState:
-    """Engine state — factors, orderings, C pointers, worker threads — is not data: ``pickle`` and
-    ``copy.deepcopy`` turn it into None. Results keep the data (matrices, edge systems) from which whoever
-    needs a factor after a copy rebuilds it (``Phase3.pose_covariances`` factors ``info`` anew)."""
-
-    def __reduce__(self):
-        return _not_kept, ()
-
-
-class Factor(EngineState):
+class Factor:
     """A factored sparse SPD matrix N of shape (dim, dim): ``factor.solve(rhs)`` solves N x = rhs
     for rhs of shape (dim,) or (dim, r); ``factor.backend`` names the library used.
 
     ``matrix`` is N itself — whole and symmetric, in the factor's own numbering — or None when it is not
-    kept; it may be given as a function that builds it on first use. A factor is engine state: pickled or
-    deep-copied, it becomes None (``EngineState``)."""
+    kept; it may be given as a function that builds it on first use. A factor is engine state, not data: pickled
+    or deep-copied, it becomes None (results keep the matrices from which it is rebuilt, as
+    ``Phase3.pose_covariances`` factors ``info`` anew)."""
+
+    def __reduce__(self):
+        return type(None), ()
 
     def __init__(self, solve: Callable[[np.ndarray], np.ndarray], dim: int, backend: str, matrix=None):
         self._solve = solve
@@ -187,22 +175,16 @@ REFINEMENT_STOP = 1e-9
 TRUST_TOLERANCE = 1e-8
 
 
-def _augmented_solve(M: sp.csc_matrix, b: np.ndarray) -> np.ndarray:
-    """Solve min ‖Mx − b‖ through the augmented system [[I, M], [Mᵀ, 0]] [r; x] = [b; 0] by sparse LU
-    with partial pivoting: its conditioning is that of M, not cond(M)² as for MᵀM."""
-    r, c = M.shape
-    K = sp.bmat([[sp.identity(r, format="csc"), M], [M.T, None]], format="csc")
+def augmented_least_squares(M: sp.spmatrix, b: np.ndarray) -> np.ndarray:
+    """min ‖Mx − b‖ through the augmented system [[I, M], [Mᵀ, 0]] [r; x] = [b; 0] by sparse LU with partial
+    pivoting (its conditioning that of M, not cond(M)² as for MᵀM); ``NumericalError`` if it gives no finite
+    answer. The fallback of every normal-equation solve of the package."""
     import scipy.sparse.linalg as spla
 
-    sol = spla.splu(K).solve(np.concatenate([b, np.zeros(c)]))
-    return sol[r:]
-
-
-def augmented_least_squares(M: sp.spmatrix, b: np.ndarray) -> np.ndarray:
-    """min ‖Mx − b‖ by the augmented system (``_augmented_solve``); ``NumericalError`` if it gives no finite
-    answer. The fallback of every normal-equation solve of the package."""
     try:
-        x = _augmented_solve(sp.csc_matrix(M), np.asarray(b, dtype=float))
+        M = sp.csc_matrix(M)
+        K = sp.bmat([[sp.identity(M.shape[0], format="csc"), M], [M.T, None]], format="csc")
+        x = spla.splu(K).solve(np.concatenate([np.asarray(b, dtype=float), np.zeros(M.shape[1])]))[M.shape[0]:]
     except Exception as exc:
         raise NumericalError(f"the least-squares system is numerically singular ({exc}); check for "
                              "information matrices spanning more than ~1e15") from None
@@ -254,7 +236,7 @@ def solve_least_squares(M: sp.spmatrix, b: np.ndarray, *, backend: str = "auto")
 
     The solver checks itself: if the factorization of N fails (N singular in floating point although M
     is not, e.g. one edge with information 1e16 and the others 1) or the last correction is still
-    larger than ``TRUST_TOLERANCE``, it solves the augmented system instead (``_augmented_solve``);
+    larger than ``TRUST_TOLERANCE``, it solves the augmented system instead (``augmented_least_squares``);
     if that gives no finite answer it raises ``NumericalError`` (a ``GraphError``).
 
     Returns ``(x, N, factor, stats)``; ``factor`` is None when the augmented system was used; ``stats``
@@ -287,40 +269,3 @@ def refined_or_augmented(factor, matvec, rmatvec, b: np.ndarray, sparse):
         x = x.reshape((M.shape[1],) + b.shape[1:])
         stats["method"], f = "augmented system", None
     return x, f, stats
-
-
-def whitening_2x2(info: np.ndarray) -> np.ndarray:
-    """Upper-triangular square roots U (m, 2, 2) with UᵀU = info for SPD 2×2 ``info`` (m, 2, 2).
-
-    U = Lᵀ for the Cholesky factor L of ``info``; ‖U r‖² = rᵀ info r. Vectorized closed form."""
-    a = np.sqrt(info[:, 0, 0])
-    b = info[:, 1, 0] / a
-    c = np.sqrt(info[:, 1, 1] - b * b)
-    U = np.zeros_like(info)
-    U[:, 0, 0] = a
-    U[:, 0, 1] = b
-    U[:, 1, 1] = c
-    return U
-
-
-def block_diagonal_inverse(factor: Factor, index_blocks: np.ndarray, *, batch: int = 512) -> np.ndarray:
-    """Diagonal blocks of N⁻¹ without forming N⁻¹.
-
-    ``index_blocks`` (p, b) integer indices into N's rows; returns (p, b, b) with entry
-    [q, r, s] = (N⁻¹)[index_blocks[q, r], index_blocks[q, s]]. Computed by solving N X = E for batches
-    of unit columns (``batch`` blocks at a time), keeping only the wanted entries: memory
-    O(dim·batch·b), time O(p·b·nnz(factor))."""
-    index_blocks = np.asarray(index_blocks, dtype=np.int64)
-    p, b = index_blocks.shape
-    if factor.backend == "qdldl" and factor.matrix is not None:
-        factor = factorize(factor.matrix, backend="superlu")  # multi-RHS solves are SuperLU's strength
-    out = np.empty((p, b, b))
-    for s in range(0, p, batch):
-        idx = index_blocks[s:s + batch]
-        q = idx.shape[0]
-        cols = idx.reshape(-1)
-        E = np.zeros((factor.dim, q * b))
-        E[cols, np.arange(q * b)] = 1.0
-        X = factor.solve(E)[cols].reshape(q, b, q, b)
-        out[s:s + q] = X[np.arange(q), :, np.arange(q), :]
-    return out

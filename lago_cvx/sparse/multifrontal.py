@@ -38,7 +38,7 @@ import scipy.sparse as sp
 from .block_factor import inverse_blocks
 from .linalg import NotPositiveDefinite
 
-__all__ = ["EliminationPlan", "plan_from_qdldl", "plan_from_pattern", "NotPositiveDefinite", "inverse_blocks",
+__all__ = ["EliminationPlan", "plan_from_pattern", "NotPositiveDefinite", "inverse_blocks",
            "NRELAX", "ZRELAX", "COMPILED_RELAX"]
 
 #: Relaxed amalgamation (CHOLMOD's defaults): a child front is merged into its parent when the merged
@@ -52,32 +52,22 @@ ZRELAX = (0.8, 0.1, 0.05)
 COMPILED_RELAX = ((2, 8, 32), (0.8, 0.1, 0.05))
 
 
-def _seg_arange(lengths: np.ndarray) -> np.ndarray:
-    """Concatenated aranges: [0..l₀−1, 0..l₁−1, …] for ``lengths`` (k,)."""
-    lengths = np.asarray(lengths, np.int64)
-    total = int(lengths.sum())
-    if total == 0:
-        return np.zeros(0, np.int64)
-    starts = np.cumsum(lengths) - lengths
-    return np.arange(total, dtype=np.int64) - np.repeat(starts, lengths)
-
-
 def _postorder(parent: np.ndarray) -> np.ndarray:
     """``postorder`` of an elimination tree (parent[i] > i, −1 at roots), O(n) at every shape (a star
     as a chain; ``csgraph.depth_first_order`` is quadratic on a star)."""
-    return _loops()[2](np.ascontiguousarray(parent, np.int64))
+    return _loops()[1](np.ascontiguousarray(parent, np.int64))
 
 
 def _loops():
-    """``relax``, ``heights`` and ``postorder``, the symbolic analysis's sequential loops: in C when the kernels are
+    """``relax`` and ``postorder``, the symbolic analysis's sequential loops: in C when the kernels are
     built (``compiled.available()``), else as the Python below (the same integer loops and floating-point operations:
     the same plan either way, tested)."""
     from . import compiled
 
     if compiled.available():
         K = compiled.kernels()
-        return K["relax"], K["heights"], K["postorder"]
-    return relax, heights, postorder
+        return K["relax"], K["postorder"]
+    return relax, postorder
 
 
 def relax(k, r, true_nnz, sparent, n0, n1, n2, z0, z1, z2):
@@ -99,18 +89,6 @@ def relax(k, r, true_nnz, sparent, n0, n1, n2, z0, z1, z2):
             true_nnz[p] += true_nnz[c]
             top[c] = p
     return top
-
-
-def heights(parent):
-    """(F,) the height of each front of the forest ``parent`` (fronts in topological order, −1 at a
-    root): 0 at a leaf, else 1 + the largest height of its children."""
-    n = parent.size
-    h = np.zeros(n, np.int64)
-    for f in range(n):
-        p = parent[f]
-        if p >= 0 and h[p] < h[f] + 1:
-            h[p] = h[f] + 1
-    return h
 
 
 def postorder(parent):
@@ -142,8 +120,7 @@ class EliminationPlan:
 
     ``d`` poses; ``position`` (d,) each pose's place in the elimination order; fronts f = 0 … F−1 in
     elimination order (children before parents): pivots are the positions ``fptr[f] … fptr[f+1]−1``,
-    update rows ``rows[rptr[f]:rptr[f+1]]`` (positions, increasing), ``parent`` (F,) (−1 at a root),
-    ``height`` (F,) (0 at leaves). ``nnz`` the pose-level entries of L including the explicit zeros of
+    update rows ``rows[rptr[f]:rptr[f+1]]`` (positions, increasing), ``parent`` (F,) (−1 at a root). ``nnz`` the pose-level entries of L including the explicit zeros of
     the amalgamation; ``flops(b)`` the multiply–adds of (MF) with b×b blocks (Σ over the columns of L of
     colcount², the Cholesky flop count)."""
 
@@ -153,7 +130,6 @@ class EliminationPlan:
     rptr: np.ndarray
     rows: np.ndarray
     parent: np.ndarray
-    height: np.ndarray
 
     @property
     def n_fronts(self) -> int:
@@ -180,13 +156,23 @@ class EliminationPlan:
         return float((k * (k + 1) * (2 * k + 1) / 6 + k * (k + 1) * r + k * r * r).sum())
 
 
-def plan_from_qdldl(L: sp.csc_matrix, perm: np.ndarray, *, relaxation=None) -> EliminationPlan:
-    """The plan from a pose-level factorization ``P A Pᵀ = (I + L) D (I + L)ᵀ`` as ``qdldl.Solver.factors()``
-    returns it: ``L`` (d, d) strictly lower (CSC, columns and rows in elimination order, any row order
-    within a column), ``perm`` (d,) the pose eliminated at each position. ``relaxation`` (nrelax, zrelax)
-    of the amalgamation, default (``NRELAX``, ``ZRELAX``); ``COMPILED_RELAX`` for the compiled engine."""
+def plan_from_pattern(d: int, rows: np.ndarray, cols: np.ndarray, *, relaxation=None) -> EliminationPlan:
+    """The plan of the d × d pose pattern with off-diagonal entries (rows[k], cols[k]) (either orientation,
+    duplicates allowed). ``relaxation`` (nrelax, zrelax) of the amalgamation, default (``NRELAX``, ``ZRELAX``);
+    ``COMPILED_RELAX`` for the compiled engine."""
+    import qdldl
+
     nrelax, zrelax = (NRELAX, ZRELAX) if relaxation is None else relaxation
-    d = int(perm.size)
+    d, rows, cols = int(d), np.asarray(rows, np.int64), np.asarray(cols, np.int64)
+    keep = rows != cols
+    lo, hi = np.minimum(rows[keep], cols[keep]), np.maximum(rows[keep], cols[keep])
+    deg = np.bincount(np.r_[lo, hi], minlength=d).astype(float)
+    A = sp.csc_matrix((np.r_[-np.ones(lo.size), deg + 1.0], (np.r_[lo, np.arange(d)], np.r_[hi, np.arange(d)])),
+                      shape=(d, d))
+    A.sum_duplicates()
+    # AMD and P A Pᵀ = (I + L) D (I + L)ᵀ of a diagonally dominant A of the pattern: L (d, d) strictly lower, columns
+    # and rows in elimination order, perm (d,) the pose eliminated at each position
+    L, _, perm = qdldl.Solver(A, upper=True).factors()
     L = sp.csc_matrix(L)
     ip, ix = L.indptr.astype(np.int64), L.indices.astype(np.int64)
     cnt = np.diff(ip)
@@ -212,7 +198,7 @@ def plan_from_qdldl(L: sp.csc_matrix, perm: np.ndarray, *, relaxation=None) -> E
     last = ends - 1
     sparent = np.where(parent_p[last] >= 0, snode_of[np.maximum(parent_p[last], 0)], -1)
     # relaxed amalgamation: children first (supernodes are in topological order)
-    relax, heights, _ = _loops()
+    relax = _loops()[0]
     k = (ends - starts).astype(np.int64)
     true_nnz = np.add.reduceat(cnt_p + 1, starts).astype(np.int64) if d else np.zeros(0, np.int64)
     top = relax(k, cnt_p[last].astype(np.int64), true_nnz, sparent.astype(np.int64), *nrelax, *zrelax)
@@ -234,34 +220,13 @@ def plan_from_qdldl(L: sp.csc_matrix, perm: np.ndarray, *, relaxation=None) -> E
     # rows of a front: structure of the last column of its surviving supernode
     col_old = order[last[fronts]]  # old position of that column
     lens = cnt[col_old]
-    src = np.repeat(ip[col_old], lens) + _seg_arange(lens)
+    src = np.repeat(ip[col_old] - (np.cumsum(lens) - lens), lens) + np.arange(int(lens.sum()))
     fr = np.repeat(np.arange(n_fronts), lens)
     key = np.sort(fr * max(d, 1) + newpos[post[ix[src]]])
     rows = key - fr * max(d, 1)
     rptr = np.r_[0, np.cumsum(lens)].astype(np.int64)
     sp_top = sparent[fronts]
     fparent = np.where(sp_top >= 0, fid[top[np.maximum(sp_top, 0)]], -1)
-    height = np.asarray(heights(fparent.astype(np.int64)), np.int64)
     position = np.empty(d, np.int64)
     position[np.asarray(perm, np.int64)] = newpos[post]  # pose → old position → postorder → final
-    return EliminationPlan(d=d, position=position, fptr=fptr, rptr=rptr, rows=rows, parent=fparent,
-                           height=height)
-
-
-def plan_from_pattern(d: int, rows: np.ndarray, cols: np.ndarray, *, relaxation=None) -> EliminationPlan:
-    """The plan of the d × d pose pattern with off-diagonal entries (rows[k], cols[k]) (either
-    orientation, duplicates allowed): AMD and the factor's pattern from QDLDL on a diagonally dominant
-    matrix of that pattern; ``relaxation`` as in ``plan_from_qdldl``."""
-    import qdldl
-
-    rows = np.asarray(rows, np.int64)
-    cols = np.asarray(cols, np.int64)
-    keep = rows != cols
-    lo, hi = np.minimum(rows[keep], cols[keep]), np.maximum(rows[keep], cols[keep])
-    deg = np.bincount(np.r_[lo, hi], minlength=d).astype(float)
-    A = sp.csc_matrix((np.r_[-np.ones(lo.size), deg + 1.0], (np.r_[lo, np.arange(d)], np.r_[hi, np.arange(d)])),
-                      shape=(d, d))
-    A.sum_duplicates()
-    s = qdldl.Solver(A, upper=True)
-    L, _, perm = s.factors()
-    return plan_from_qdldl(L, perm, relaxation=relaxation)
+    return EliminationPlan(d=d, position=position, fptr=fptr, rptr=rptr, rows=rows, parent=fparent)

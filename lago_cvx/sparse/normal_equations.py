@@ -1,22 +1,13 @@
-r"""Least squares on the pose graph, edge by edge, solved through the shared pose-level elimination.
-
-Every closed form of LAGO (the chordal relaxation (C2), phase 1 eq. (13), phase 3 eqs. (12)/(15), the
-positions (P), the 3-D systems) minimises a sum of per-edge terms over the free poses x_i ∈ ℝ^b
-(i = 0 … d−1, the anchor held fixed):
-
-    minimise_x  Σ_k ‖A_k x_{t_k} + B_k x_{h_k} − c_k‖²,    A_k, B_k (q × b),  c_k (q,)            (E)
-
-(t_k, h_k the free-pose indices of edge k's ends, −1 for the anchor, whose term is dropped). Written as
-‖M x − c‖², its normal matrix N = MᵀM has the b×b blocks
+r"""Every closed form of LAGO (the chordal relaxation (C2), phase 1 eq. (13), phase 3 eqs. (12)/(15), the positions
+(P), the 3-D systems) is a least-squares problem (E) (``edge_system``) on the free poses; written as ‖M x − c‖², its
+normal matrix N = MᵀM has the b×b blocks
 
     N_ii = Σ_{k: t_k = i} A_kᵀA_k + Σ_{k: h_k = i} B_kᵀB_k,    N_{h_k t_k} += B_kᵀA_k,              (N)
 
-the anchor-reduced pose graph's pattern for every b. ``GraphElimination`` holds the pose-level symbolic analysis
-of one graph and anchor (``multifrontal.EliminationPlan``, O(n)), computed once and shared by every system solved
-on it, and factors (N) by the one numeric factorization of the engine: the multifrontal block Cholesky (MF) in C
-(``compiled``), or, where the C kernels were not built, the same equations in NumPy (``block_factor``).
-(E) is then solved by the corrected semi-normal equations (``linalg.refine_normal_equations``), falling back to
-the augmented system as ``linalg.solve_least_squares`` does.
+the anchor-reduced pose graph's pattern for every b. ``GraphElimination`` holds the pose-level symbolic analysis of
+one graph and anchor (``multifrontal.EliminationPlan``), shared by every system on it, factors (N) by (MF) (in C,
+``compiled``, or in NumPy, ``block_factor``) and solves (E) by the corrected semi-normal equations, falling back to
+the augmented system (``linalg.refined_or_augmented``).
 """
 
 from __future__ import annotations
@@ -28,14 +19,14 @@ import scipy.sparse as sp
 
 from . import block_factor, compiled
 from .block_factor import inverse_blocks
-from .edge_system import EdgeOperator, EdgeSystem
+from .edge_system import EdgeSystem
 from .linalg import Factor, refined_or_augmented
 from .multifrontal import COMPILED_RELAX, EliminationPlan, plan_from_pattern
 from ..progress import Progress
 from .threads import Ahead, cores, engine_threads, in_engine_threads, spawn, thread_settings
 
 __all__ = ["EdgeSystem", "GraphElimination", "PoseFactor", "RenumberedFactor", "marginal_blocks", "matrix_blocks",
-           "factor_wide", "solve_wide", "OVERLAP_MIN"]
+           "OVERLAP_MIN"]
 
 log = logging.getLogger(__name__)
 
@@ -77,12 +68,6 @@ class RenumberedFactor(Factor):
             return out
 
         super().__init__(solve, vi.size, factor.backend)
-
-
-def edge_operator(system: EdgeSystem):
-    """M and Mᵀ of ``system`` with their set-up done once: by the C loops when they are built (the same sums in
-    the same order), else an ``EdgeOperator``."""
-    return compiled.CompiledEdgeOperator(system) if compiled.available() else EdgeOperator(system)
 
 
 def matrix_blocks(N: sp.spmatrix, var_index: np.ndarray):
@@ -127,9 +112,8 @@ class GraphElimination:
     """The pose-level elimination of one graph and anchor (index ``anchor_index``), shared by its systems.
 
     ``d`` free poses; ``free_of`` (n,) each pose's free index (−1 at the anchor); ``tails``, ``heads`` (m,) edges'
-    ends as free indices; ``plan`` the ``EliminationPlan`` (AMD on the pose graph, built once, on first use).
-    ``weights`` and ``wide`` are accepted for the callers that describe their systems (the plan depends on the
-    pattern alone). ``GraphElimination.start(…)`` builds the plan in a worker thread while the caller goes on
+    ends as free indices; ``plan`` the ``EliminationPlan`` (AMD on the pose graph's pattern, built once, on first
+    use). ``GraphElimination.start(…)`` builds the plan in a worker thread while the caller goes on
     (a failure there is raised to whoever waits); ``expect`` announces the block sizes of the systems to come, in
     order: each one's layout and memory are prepared in a worker (``prepare``) once the previous one is factored.
     ``ahead(task)`` hands over work needed later (an ``Ahead``), run beside the next factorization or when first
@@ -137,9 +121,8 @@ class GraphElimination:
     ``blas_threads`` lets the engine hold the process's BLAS to that many threads while it factors (None, the
     default: the BLAS settings are left alone; ``threads.engine_threads``)."""
 
-    def __init__(self, graph, anchor_index: int, *, weights: np.ndarray | None = None, expect: tuple = (),
-                 wide: tuple = (), workers: int | None = None, blas_threads: int | None = None,
-                 _background: bool = False):
+    def __init__(self, graph, anchor_index: int, *, expect: tuple = (), workers: int | None = None,
+                 blas_threads: int | None = None, _background: bool = False):
         with engine_threads(workers=workers, blas_threads=blas_threads):  # checks both; None: the caller's context
             self.workers, self.blas_threads, alone = thread_settings() + (cores() == 1,)
         n = graph.n_poses
@@ -156,17 +139,16 @@ class GraphElimination:
         self._building = None
         if self.d == 0:
             z = np.zeros(0, np.int64)
-            self._plan = EliminationPlan(0, z, np.zeros(1, np.int64), np.zeros(1, np.int64), z, z, z)
+            self._plan = EliminationPlan(0, z, np.zeros(1, np.int64), np.zeros(1, np.int64), z, z)
         elif _background and self.d >= OVERLAP_MIN and not alone:
             self._building = Ahead(self._make_plan)
             spawn(self._building.run, name="lago-elimination")
 
     @classmethod
-    def start(cls, graph, anchor_index: int, *, weights: np.ndarray | None = None, expect: tuple = (),
-              workers: int | None = None, blas_threads: int | None = None) -> "GraphElimination":
+    def start(cls, graph, anchor_index: int, *, expect: tuple = (), workers: int | None = None,
+              blas_threads: int | None = None) -> "GraphElimination":
         """The elimination built in a worker thread while the caller goes on (class docstring)."""
-        return cls(graph, anchor_index, weights=weights, expect=expect, workers=workers, blas_threads=blas_threads,
-                   _background=True)
+        return cls(graph, anchor_index, expect=expect, workers=workers, blas_threads=blas_threads, _background=True)
 
     def _make_plan(self) -> EliminationPlan:
         both = (self.tails >= 0) & (self.heads >= 0)
@@ -259,11 +241,6 @@ class GraphElimination:
         spawn(job.run, name="lago-prepare")
         self._preparing[b] = job
 
-    def cost(self, system: EdgeSystem, x: np.ndarray) -> float:
-        """‖M x − c‖² of ``system`` at x (d, b[, r])."""
-        r = edge_operator(system).matvec(x) - system.c
-        return float(np.sum(r * r))
-
     @in_engine_threads
     def solve(self, system: EdgeSystem, *, factor: Factor | None = None, stage: str = "solve", progress=None):
         """Minimise (E): returns ``(x (d, b), factor, stats)`` with ``stats`` as ``linalg.solve_least_squares``
@@ -281,7 +258,7 @@ class GraphElimination:
 
         def M():
             if not op:
-                op.append(edge_operator(system))
+                op.append(system.operator())
             return op[0]
 
         x, factor, stats = refined_or_augmented(
@@ -294,13 +271,3 @@ class GraphElimination:
             tracker.finish()
         self._prepare_next(b)
         return x.reshape((d, b) + extra), factor, stats
-
-
-def factor_wide(elimination: GraphElimination, system: EdgeSystem) -> Factor:
-    """``elimination.factor(system)`` (the 3-D systems take the same path as the planar ones)."""
-    return elimination.factor(system)
-
-
-def solve_wide(elimination: GraphElimination, system: EdgeSystem):
-    """``elimination.solve(system)``: (x, factor, stats)."""
-    return elimination.solve(system)

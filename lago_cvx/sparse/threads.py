@@ -95,30 +95,23 @@ def spawn(target, *args, name: str | None = None, start: bool = True) -> threadi
     return t
 
 
-def threads_option(fn):
+def threads_option(fn, settings=lambda args, kw: (kw.get("workers"), kw.get("blas_threads"))):
     """A function with the keyword-only options ``workers`` (and ``blas_threads`` where it has one), run inside
     ``engine_threads`` of them: every engine call it makes, in any thread the engine starts for it, sees them."""
     import functools
 
     @functools.wraps(fn)
     def run(*args, **kwargs):
-        with engine_threads(workers=kwargs.get("workers"), blas_threads=kwargs.get("blas_threads")):
+        workers, blas = settings(args, kwargs)
+        with engine_threads(workers=workers, blas_threads=blas):
             return fn(*args, **kwargs)
 
     return run
 
 
 def in_engine_threads(method):
-    """A method of an object with ``workers`` and ``blas_threads`` attributes, run inside
-    ``engine_threads(workers=…, blas_threads=…)`` of them."""
-    import functools
-
-    @functools.wraps(method)
-    def run(self, *args, **kwargs):
-        with engine_threads(workers=self.workers, blas_threads=self.blas_threads):
-            return method(self, *args, **kwargs)
-
-    return run
+    """A method run inside ``engine_threads`` of its object's ``workers`` and ``blas_threads`` attributes."""
+    return threads_option(method, lambda args, kw: (args[0].workers, args[0].blas_threads))
 
 
 class Ahead:

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import OptionError
-from ..sparse import whitening_2x2
+from ..stacks import whitening_2x2
 from ..posegraph import PoseGraph
 from ..rounding import TWO_PI, branch, edge_integers
 

@@ -1,20 +1,47 @@
-r"""Closed forms on stacks of small symmetric matrices: one per edge, (m, k, k) with k = 2 or 3.
+r"""Arithmetic on per-edge stacks (m, …): one small matrix or vector per edge, for graphs of millions of edges.
 
-NumPy's ``linalg`` calls LAPACK once per matrix of a stack, a Python-level cost per matrix on graphs of millions of
-edges (``benchmarks/million.md``); the closed forms below do each in a few vectorized passes. Symmetric positive definite input is assumed;
-a matrix whose closed form breaks down (a pivot ≤ 0 or not finite) is handed to ``numpy.linalg``
-instead, which gives the same answer or raises ``numpy.linalg.LinAlgError`` as before.
+Not the sparse engine's business (no sparse matrix, no factorization): the mathematics calls these by name on its
+(m, k, k) stacks of information and covariance blocks and on its (m, …) per-edge arrays.
 
-* ``spd_inverse(A)`` — A⁻¹ = adj(A)/det(A) (cofactors of the symmetric matrix; the result symmetric);
-  ``spd_inverse_corner(A)`` its (2, 2) entry alone (P_δ of an edge's 3×3 information).
-* ``cholesky(A)`` — lower L with L Lᵀ = A (the column-by-column recurrences of an unblocked Cholesky).
+* ``spd_inverse(A)`` — A⁻¹ = adj(A)/det(A) of symmetric positive definite A (m, k, k), k = 2, 3 (the cofactors of
+  the symmetric matrix; the result symmetric); ``spd_inverse_corner(A)`` its (2, 2) entry alone (P_δ of an edge's
+  3×3 information); ``cholesky(A)`` — lower L with L Lᵀ = A (the column recurrences of an unblocked Cholesky);
+  ``whitening_2x2(info)`` — U = Lᵀ, UᵀU = info. NumPy's ``linalg`` calls LAPACK once per matrix of a stack; these
+  closed forms take a few vectorized passes. ``spd_inverse`` and ``cholesky`` hand a matrix whose closed form breaks
+  down (a pivot ≤ 0 or not finite) to ``numpy.linalg``, which gives the same answer or raises ``LinAlgError``.
+* ``rotate(α, v)`` — R(α_k) v_k for m rotations at once.
+* ``row_blocks(m)`` — per-edge arithmetic a block of ``BLOCK`` rows at a time: NumPy makes a fresh temporary for
+  every operation; on a whole 1 786 812-edge stack each is 14–130 MB of memory handed over (and zeroed) anew, while
+  in blocks the temporaries stay in cache and are recycled by the allocator (``benchmarks/million.md``).
+* ``unique_sorted(a)`` — ``numpy.unique(a)`` by a sort: NumPy 2.4's hash-based path for a plain integer array is far
+  slower on large arrays of distinct keys such as the pose-pair keys of a 1 000 000-pose graph.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["spd_inverse", "spd_inverse_corner", "cholesky", "rotate"]
+__all__ = ["spd_inverse", "spd_inverse_corner", "cholesky", "whitening_2x2", "rotate", "row_blocks", "unique_sorted",
+           "BLOCK"]
+
+#: Rows per block of ``row_blocks`` (a (BLOCK, 3, 3) float stack is 1.2 MB).
+BLOCK = 1 << 14
+
+
+def unique_sorted(a) -> np.ndarray:
+    """The distinct values of ``a`` (any shape, flattened), ascending: ``numpy.unique(a)`` by a sort."""
+    v = np.sort(np.asarray(a).reshape(-1))
+    if v.size:
+        v = v[np.concatenate(([True], v[1:] != v[:-1]))]
+    return v
+
+
+def row_blocks(m: int, block: int | None = None):
+    """Slices ``lo:hi`` covering ``range(m)`` in order, ``block`` rows each (default ``BLOCK``, read at
+    the call; the last one shorter)."""
+    block = BLOCK if block is None else int(block)
+    for lo in range(0, m, block):
+        yield slice(lo, min(lo + block, m))
 
 
 def _closed_form(A, kernel, lapack) -> np.ndarray:
@@ -106,9 +133,7 @@ def _cholesky(A: np.ndarray, L: np.ndarray) -> np.ndarray:
 def rotate(angles: np.ndarray, v: np.ndarray) -> np.ndarray:
     """R(α_k) v_k for angles (m,) and vectors v (m, 2) → (m, 2): the same numbers as
     ``np.einsum("kab,kb->ka", rot2(angles), v)``, written out a block of rows at a time (no (m, 2, 2)
-    stack of rotations; temporaries that stay in cache: ``arrays.row_blocks``)."""
-    from .arrays import row_blocks
-
+    stack of rotations; temporaries that stay in cache: ``row_blocks``)."""
     angles = np.asarray(angles, dtype=float)
     v = np.asarray(v, dtype=float)
     out = np.empty((angles.shape[0], 2))
@@ -118,3 +143,17 @@ def rotate(angles: np.ndarray, v: np.ndarray) -> np.ndarray:
         out[k, 0] = cs * x - sn * y
         out[k, 1] = sn * x + cs * y
     return out
+
+
+def whitening_2x2(info: np.ndarray) -> np.ndarray:
+    """Upper-triangular square roots U (m, 2, 2) with UᵀU = info for SPD 2×2 ``info`` (m, 2, 2).
+
+    U = Lᵀ for the Cholesky factor L of ``info``; ‖U r‖² = rᵀ info r. Vectorized closed form."""
+    a = np.sqrt(info[:, 0, 0])
+    b = info[:, 1, 0] / a
+    c = np.sqrt(info[:, 1, 1] - b * b)
+    U = np.zeros_like(info)
+    U[:, 0, 0] = a
+    U[:, 0, 1] = b
+    U[:, 1, 1] = c
+    return U
