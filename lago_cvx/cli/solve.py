@@ -134,6 +134,9 @@ def cmd_info(args) -> int:
 def cmd_solve(args) -> int:
     out = output_target(args)
     graph = read_input(args)
+    args.robust = f"gnc-{args.robust_loss or 'tls'}" if (args.robust or args.robust_loss) else None
+    if args.robust and args.check:
+        raise UsageError("--check and --robust do not combine: --check compares one least-squares run both ways")
     if graph.dim == 3:
         from .space import solve3d
 
@@ -147,9 +150,6 @@ def cmd_solve(args) -> int:
 
     anchor, anchors = _parse_anchors(args.anchor)
     check_regularization(graph, args.regularization)
-    args.robust = f"gnc-{args.robust_loss or 'tls'}" if (args.robust or args.robust_loss) else None
-    if args.robust and args.check:
-        raise UsageError("--check and --robust do not combine: --check compares one least-squares run both ways")
     kw = dict(route=args.route, spanning_tree=args.spanning_tree, anchor=anchor, regularization=args.regularization,
               information=route_information(args), positions=args.positions, integer_search=integer_search(args))
     if anchors:

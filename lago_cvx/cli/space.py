@@ -52,9 +52,14 @@ def solve3d(args, graph, out) -> int:
     anchor = _anchor(args.anchor)
     if args.check:
         res, report = compare_methods3d(graph, route=args.route, anchor=anchor)
+    elif args.robust:  # GNC around lago3d (lago_cvx.variants.robust3d): χ² and --refine over the accepted edges
+        from ..pipeline import lago
+
+        res, report = lago(graph, robust=args.robust, route=args.route, method=args.method, anchor=anchor), None
     else:
         res, report = lago3d(graph, route=args.route, method=args.method, anchor=anchor), None
     check_finite(res.chi2, res.t, what="LAGO estimate")
+    solved = res.graph if args.robust else graph  # the accepted edges of a robust run
     payload = {"file": str(args.file), "dim": 3, "cost": graph.cost, "n_poses": graph.n_poses,
                "n_edges": graph.n_edges, "method": "closed_form" if args.check else args.method, "route": res.route,
                "weighting": res.weighting,
@@ -63,14 +68,18 @@ def solve3d(args, graph, out) -> int:
     if graph.initial is not None:
         from ..posegraph3d import chi2_3d
 
-        payload["chi2_initial"] = chi2_3d(graph, *graph.initial)
+        payload["chi2_initial"] = chi2_3d(solved, *graph.initial)
+    if args.robust:
+        payload.update(robust=args.robust, chi2_edges="accepted", n_rejected=int(res.rejected_edges.size),
+                       rejected_edges=res.rejected_edges.tolist(), robust_iterations=res.iterations,
+                       robust_threshold=res.settings.c2_for(3))
     if report is not None:
         payload["max_rel_diff"] = report["max_rel_diff"]
         payload["cvxpy_timings"] = report["cvxpy_timings"]
     final = (res.t, res.R)
     if args.refine:
         method = "levenberg-marquardt" if args.refine_method == "levenberg-marquardt" else "gauss-newton"
-        ref = refine3d(graph, res.t, res.R, method=method, anchor=anchor, max_iterations=args.max_iterations)
+        ref = refine3d(solved, res.t, res.R, method=method, anchor=anchor, max_iterations=args.max_iterations)
         check_finite(ref.chi2, ref.t, what="refined estimate")
         final = (ref.t, ref.R)
         payload.update(chi2_refined=ref.chi2, refine_iterations=ref.iterations, refine_converged=ref.converged)
@@ -83,6 +92,10 @@ def solve3d(args, graph, out) -> int:
              f"({res.weighting} weights) → positions" + (" → joint step" if res.route == "default" else "")
              + f") on {args.file}",
              f"  poses {graph.n_poses}, edges {graph.n_edges}; cost {graph.cost}: {COST_DESCRIPTION[graph.cost]}",
+             *([f"  robust ({args.robust}, c̄² = {payload['robust_threshold']:.4g}): {res.rejected_edges.size} of "
+                f"{graph.n_edges} edges rejected as outliers after {res.iterations} GNC iterations "
+                f"({res.timings['robust']:.3f} s); every chi2 below is over the {solved.n_edges} accepted edges"]
+               if args.robust else []),
              f"  chi2 = {res.chi2:.6g}  (cost {graph.cost}: {CHI2_CONVENTION})"
              + ("" if res.route == "seed" else f"; chordal + positions {res.chi2_seed:.6g}, step α = {res.alpha}")
              + (f"; at the file's initial guess {payload['chi2_initial']:.6g}" if "chi2_initial" in payload else ""),
@@ -127,7 +140,9 @@ def _frame3d(specs, graph):
     return pid, (np.asarray(values[:3]), quat_to_rot(q[None])[0])
 
 
-def certify3d_cmd(args, graph, out) -> int:
+def certify3d_cmd(args, graph, out, *, written=None, robust=None) -> int:
+    """``certify`` on a 3-D graph; with ``robust`` (a ``Robust3DResult``) ``graph`` is its accepted edges and
+    ``written`` the graph read (what ``-o`` writes)."""
     from ..posegraph3d import chi2_3d
     from ..space import lago3d
     from ..space.certify import certify3d, sesync_cost3d
@@ -147,6 +162,10 @@ def certify3d_cmd(args, graph, out) -> int:
                "relative_suboptimality_bound": cert.relative_suboptimality_bound, "tol": cert.tol, "eta": cert.eta,
                "shift": cert.shift, "n_negative": cert.n_negative, "lambda_min": cert.lambda_min,
                "residual_rel": cert.residual_rel, "times": cert.times}
+    if robust is not None:
+        from .certify import robust_payload
+
+        payload.update(robust_payload(args, written, robust), robust_seconds=robust.timings["robust"])
     lines = [f"certify (3-D): LAGO → SE-Sync Newton → SE-Sync certificate, on {args.file}",
              f"  poses {graph.n_poses}, edges {graph.n_edges}; chi2 (cost {graph.cost}, {CHI2_CONVENTION}) of LAGO "
              f"{res.chi2:.6g}, at the certified point {payload['chi2_certified_point']:.6g}",
@@ -157,8 +176,12 @@ def certify3d_cmd(args, graph, out) -> int:
              f"f* ≥ {cert.lower_bound:.12g}; relative suboptimality ≤ {cert.relative_suboptimality_bound:.3g} "
              f"(tol {cert.tol:.3g}); η = {cert.eta:.3g}, negative pivots {cert.n_negative}",
              f"    verdict: {cert.verdict}"]
+    if robust is not None:
+        lines.insert(1, f"  robust ({args.robust}): {robust.rejected_edges.size} of {written.n_edges} edges rejected "
+                        f"as outliers ({robust.timings['robust']:.2f} s); everything below, the certificate too, is "
+                        f"about the {graph.n_edges} accepted edges")
     if out is not None:
-        write_estimate(out, graph, (cert.t, cert.R))
+        write_estimate(out, graph if written is None else written, (cert.t, cert.R))
         payload["output"] = "<stdout>" if out == "-" else str(out)
         lines.append("  estimate written to " + ("standard output" if out == "-" else str(out)))
     status = EXIT_OK if cert.certified else EXIT_NOT_CERTIFIED

@@ -34,8 +34,6 @@ def cmd_generate(args) -> int:
     if truth_path == out:
         raise UsageError("--truth and -o name the same file")
     if args.world in WORLDS3D:
-        if args.outliers:
-            raise UsageError("--outliers: planar worlds only")
         from .space import world3d
 
         world = world3d(args.world, args.poses, args.seed, args.sigma_xy, args.sigma_theta)
@@ -148,8 +146,8 @@ def add_parsers(sub) -> None:
     s.add_argument("-o", "--output", required=True, metavar="OUT",
                    help="graph file (vertices = dead-reckoning guess); - for standard output (then give --truth)")
     s.add_argument("--outliers", type=nonneg_float, default=0.0, metavar="FRACTION",
-                   help="append FRACTION × (number of edges) false loop closures (planar worlds): random pairs of "
-                        "poses, a uniform relative pose (translation in a 20 m square, any rotation), the "
+                   help="append FRACTION × (number of edges) false loop closures: random pairs of "
+                        "poses, a uniform relative pose (translation in a 20 m square, 3-D: cube; any rotation), the "
                         "information of a real edge; seeded by --seed; --json lists them as outlier_edges")
     s.add_argument("--truth", help="ground-truth file (default: OUT with .truth before the suffix)")
     s.add_argument("--json", action="store_true")
