@@ -106,7 +106,8 @@ class RobustSettings:
     clique_seconds — time allowed to the exact maximum-clique search (then the largest clique found);
     local_search — after GNC, at most this many LAGO runs of single-edge moves that lower the truncated cost
       (accept a rejected edge or reject an accepted one; ``_local_search``), 0: none. Only where GNC ran, the
-      odometric chain is complete and trusted, and there are at most ``LOCAL_SEARCH_MAX_EDGES`` loop closures.
+      odometric chain is complete and trusted, and there are at most ``LOCAL_SEARCH_MAX_EDGES`` loop closures;
+      planar graphs only.
     """
 
     loss: str = "tls"
@@ -271,7 +272,7 @@ def gnc_lago(graph: PoseGraph, settings: RobustSettings, *, solve: Callable) -> 
         runs.append(_gnc_run(graph, settings, solve, known, w0, first if start == "lago" else None) + (start,))
     w, keep, final, it, history, cost, start = min(runs, key=lambda r: r[5])
     moves = 0
-    if (settings.local_search and it > 0 and trust and odometric_chain_complete(graph)
+    if (settings.local_search and it > 0 and trust and graph.dim == 2 and odometric_chain_complete(graph)
             and int((~known).sum()) <= LOCAL_SEARCH_MAX_EDGES):
         keep, final, cost, moves = _local_search(graph, keep, final, cost, known, settings, solve)
     rejected = np.flatnonzero(~keep).astype(np.int64)
