@@ -61,6 +61,9 @@ def add_arguments(group) -> None:
     group.add_argument("--robust-3d-files", nargs="*", default=list(FILES3D), metavar="FILE")
     group.add_argument("--robust-3d-gtsam-seeds", nargs="*", type=int, default=[], metavar="SEED",
                        help="seeds on which GTSAM's GNC runs too (default none)")
+    group.add_argument("--robust-3d-keep", action="store_true",
+                       help="keep the 3-D rows of the existing robust.md for the files not in --robust-3d-files (one "
+                            "file's runs at a time; each kept row as it was measured)")
     group.add_argument("--robust-3d-gtsam-timeout", type=float, default=1800.0, metavar="S",
                        help="seconds after which a GTSAM run is stopped (reported as such)")
 
@@ -120,6 +123,28 @@ def gtsam_run(go, idx, graph, clean, clean_gtsam, timeout) -> dict:
                 gnc_s=rep["gnc_s"], ours=ours)
 
 
+def kept_rows(folder: Path, files) -> dict:
+    """The rows of the 3-D tables of ``folder``/robust.md whose file is not in ``files`` (``--robust-3d-keep``):
+    ``{"summary": [...], "runs": [...], "gtsam": [...]}``, each row its list of cells."""
+    kept = {"summary": [], "runs": [], "gtsam": []}
+    path = Path(folder) / "robust.md"
+    text = path.read_text(encoding="utf-8") if path.is_file() else ""
+    if "\n## 3-D graphs" not in text:
+        return kept
+    key = None
+    for line in text.split("\n## 3-D graphs", 1)[1].splitlines():
+        if line.startswith("### "):
+            key = next((k for head, k in (("### Summary", "summary"), ("### Every run", "runs"), ("### GTSAM", "gtsam"))
+                        if line.startswith(head)), None)
+        elif line.startswith("## "):
+            break
+        elif key and line.startswith("| ") and not line.startswith("| file "):
+            cells = [c.strip() for c in line.strip().strip("|").split("|")]
+            if cells[0] not in files:
+                kept[key].append(cells)
+    return kept
+
+
 def section(args) -> str:
     """The 3-D tables (module docstring) as Markdown."""
     rows, gtsam_rows, summary = [], [], []
@@ -159,10 +184,16 @@ def section(args) -> str:
         summary.append([rel, f"{FRACTION:.0%}", sum(r["ok"] for r in runs), sum(r["recall"] == 1.0 for r in runs),
                         len(runs), sum(r["wrong"] for r in runs), f"{max(r['ate_robust'] for r in runs):.3g}",
                         f"{max(r['ratio'] for r in runs):.6g}", f"{np.median([r['seconds'] for r in runs]):.2f}"])
+    # read at the end: a run of the other files may have written the file meanwhile
+    old = kept_rows(args.out, args.robust_3d_files) if args.robust_3d_keep else {"summary": [], "runs": [], "gtsam": []}
+    rows, gtsam_rows, summary = old["runs"] + rows, old["gtsam"] + gtsam_rows, old["summary"] + summary
+    kept_files = sorted({r[0] for r in rows + gtsam_rows + summary} - set(args.robust_3d_files))
     text = ["## 3-D graphs", "", __doc__.split("\n\n", 1)[1].strip(), "",
             "Robust LAGO in 3-D: `lago(graph3d, robust=True)` — GNC-TLS around `lago3d` (chordal relaxation, positions,",
             "joint step, each weighted by w_k Ω_k), c̄² = χ²₆(0.99) = 16.81, μ × 1.4 per iteration, odometric edges",
             "trusted (complete chains in every file here); no local search after GNC (planar only).", "",
+            *([f"The rows of {', '.join(kept_files)} were measured by an earlier run of this section "
+               "(`--robust-3d-files` on them alone) and kept (`--robust-3d-keep`).", ""] if kept_files else []),
             "### Summary per file", "",
             _bench.table(["file", "false edges", "runs passing", "runs with recall 1", "runs",
                           "true edges rejected (all runs)", "worst ATE robust [m]", "worst χ² clean edges / clean χ²",
