@@ -22,6 +22,7 @@ from .common import (
     nonneg_int,
     output_target,
     read_input,
+    robust_payload,
     write_estimate,
 )
 
@@ -173,14 +174,6 @@ def _robust_run(args, graph):
     check_regularization(graph, args.regularization)
     return lago(graph, robust=args.robust, route=args.route, spanning_tree=args.spanning_tree,
                 regularization=args.regularization, integer_search=integer_search(args))
-
-
-def robust_payload(args, graph, robust) -> dict:
-    """The JSON keys of a robust certification: the input's edge count, the rejected edges (file order), and that
-    the certificate is about the accepted edges."""
-    return {"robust": args.robust, "certified_edges": "accepted", "n_edges_input": graph.n_edges,
-            "n_edges": robust.graph.n_edges, "n_rejected": int(robust.rejected_edges.size),
-            "rejected_edges": robust.rejected_edges.tolist(), "robust_iterations": robust.iterations}
 
 
 def add_parser(sub) -> None:

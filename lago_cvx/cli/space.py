@@ -10,8 +10,8 @@ from dataclasses import replace
 import numpy as np
 
 from ..conventions import CHI2_CONVENTION, COST_DESCRIPTION
-from .common import (EXIT_NOT_CERTIFIED, EXIT_OK, UsageError, check_finite, emit, graph_lines, sigma_keywords,
-                     write_estimate)
+from .common import (EXIT_NOT_CERTIFIED, EXIT_OK, UsageError, check_finite, emit, graph_lines, robust_payload,
+                     sigma_keywords, write_estimate)
 
 WORLDS3D = ("sphere3d", "torus3d", "grid3d")
 
@@ -163,8 +163,6 @@ def certify3d_cmd(args, graph, out, *, written=None, robust=None) -> int:
                "shift": cert.shift, "n_negative": cert.n_negative, "lambda_min": cert.lambda_min,
                "residual_rel": cert.residual_rel, "times": cert.times}
     if robust is not None:
-        from .certify import robust_payload
-
         payload.update(robust_payload(args, written, robust), robust_seconds=robust.timings["robust"])
     lines = [f"certify (3-D): LAGO → SE-Sync Newton → SE-Sync certificate, on {args.file}",
              f"  poses {graph.n_poses}, edges {graph.n_edges}; chi2 (cost {graph.cost}, {CHI2_CONVENTION}) of LAGO "
