@@ -200,6 +200,7 @@ def test_cli_generate_outliers_and_solve_robust(tmp_path, capsys):
     _, recall, wrong = scores(d["rejected_edges"], gen["outlier_edges"])
     assert code == 0 and recall == 1.0 and wrong <= 3
     assert d["chi2_edges"] == "accepted" and d["n_rejected"] == len(d["rejected_edges"]) and d["robust"] == "gnc-tls"
+    assert d["robust_threshold"] == pytest.approx(11.345, abs=1e-3)
     assert d["chi2_refined"] <= d["chi2"]
     keep = np.setdiff1d(np.arange(g.n_edges), d["rejected_edges"])
     assert d["chi2"] == pytest.approx(chi2(g.subgraph_edges(keep), lc.lago(g, robust=True, anchor=4).poses))
@@ -514,6 +515,7 @@ def test_cli_3d_generate_outliers_solve_and_certify_robust(tmp_path, capsys):
     assert code == 0 and recall == 1.0 and wrong <= 0.01 * g.n_edges
     assert d["rejected_edges"] == sorted(d["rejected_edges"]) and d["chi2_edges"] == "accepted"
     assert d["dim"] == 3 and d["robust"] == "gnc-tls" and d["n_rejected"] == len(d["rejected_edges"])
+    assert d["robust_threshold"] == pytest.approx(16.812, abs=1e-3)
     keep = np.setdiff1d(np.arange(g.n_edges), d["rejected_edges"])
     written = read_graph(est)
     assert written.n_edges == g.n_edges  # every edge, the refined estimate as vertices

@@ -184,7 +184,8 @@ def cmd_solve(args) -> int:
         payload["chi2_initial"] = chi2(solved, graph.initial)
     if args.robust:
         payload.update(robust=args.robust, chi2_edges="accepted", n_rejected=int(res.rejected_edges.size),
-                       rejected_edges=res.rejected_edges.tolist(), robust_iterations=res.iterations)
+                       rejected_edges=res.rejected_edges.tolist(), robust_iterations=res.iterations,
+                       robust_threshold=res.settings.c2_for(2))
         payload["timings"]["robust"] = res.timings["robust"]
     strained = getattr(res, "strained", None)
     if anchors:
