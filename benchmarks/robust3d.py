@@ -201,8 +201,8 @@ def section(args) -> str:
             "", "### Every run", "", _bench.table(HEAD, rows)]
     if gtsam_rows:
         text += ["", "### GTSAM's GNC on the same corrupted graphs", "",
-                 f"Seeds {' '.join(map(str, args.robust_3d_gtsam_seeds))}; a run still going after "
-                 f"{args.robust_3d_gtsam_timeout:.0f} s is stopped and shown as such.", "",
+                 "On the seeds of `--robust-3d-gtsam-seeds` of the files shown; a run still going after its time "
+                 "limit (`--robust-3d-gtsam-timeout`) is stopped and shown as such.", "",
                  _bench.table(HEAD_GTSAM, gtsam_rows)]
     elif args.robust_3d_gtsam_seeds:
         text += ["", f"GTSAM's GNC: {gtsam_skipped or 'failed'}."]
