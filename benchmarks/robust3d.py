@@ -193,7 +193,7 @@ def section(args) -> str:
             "joint step, each weighted by w_k Ω_k), c̄² = χ²₆(0.99) = 16.81, μ × 1.4 per iteration, odometric edges",
             "trusted (complete chains in every file here); no local search after GNC (planar only).", "",
             *([f"The rows of {', '.join(kept_files)} were measured by an earlier run of this section "
-               "(`--robust-3d-files` on them alone) and kept (`--robust-3d-keep`).", ""] if kept_files else []),
+               "(`--robust-3d-files` naming them) and kept (`--robust-3d-keep`).", ""] if kept_files else []),
             "### Summary per file", "",
             _bench.table(["file", "false edges", "runs passing", "runs with recall 1", "runs",
                           "true edges rejected (all runs)", "worst ATE robust [m]", "worst χ² clean edges / clean χ²",
