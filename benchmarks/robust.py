@@ -27,6 +27,10 @@ pairwise-consistent loop closures (PCM), the result of the lower truncated cost 
 with truncated least squares and the odometric edges as known inliers) once on each file of
 ``--robust-gtsam-files`` at 10 %, seed 0, as a whole process on the same written graph, beside the whole
 process of ours on it (``python -m lago_cvx solve IN --robust --refine -o OUT``).
+
+``--robust-3d`` adds the 3-D files (``robust3d``: sphere2500, torus3D, parking-garage, smallGrid3D at 10 %, seeds
+0–2, GTSAM's GNC on ``--robust-3d-gtsam-seeds``); ``--robust-3d-only`` runs only them and keeps the planar tables
+of the existing result file.
 """
 
 from __future__ import annotations
@@ -41,6 +45,7 @@ from pathlib import Path
 import numpy as np
 
 import _bench
+import robust3d
 from lago_cvx import lago, refine
 from lago_cvx.io import read_graph, write_graph
 from lago_cvx.metrics import ate, chi2
@@ -67,6 +72,7 @@ HEAD = ["file", "false edges", "c̄²", "seed", "precision", "recall", "true rej
 
 
 def add_arguments(group) -> None:
+    robust3d.add_arguments(group)
     group.add_argument("--robust-gtsam", action="store_true",
                        help="also run GTSAM's GNC (../shared/bench/gtsam_gnc.py) at 10 %%, seed 0, on each file of "
                             "--robust-gtsam-files")
@@ -129,6 +135,15 @@ def run(args) -> str:
     skipped = _bench.datasets_skipped()
     if skipped:
         return f"# False loop closures: robust LAGO by graduated non-convexity\n\n{skipped}"
+    if getattr(args, "robust_3d_only", False):
+        return robust3d.kept_planar(args.out) + "\n\n" + robust3d.section(args)
+    text = _planar(args)
+    if getattr(args, "robust_3d", False):
+        text += "\n\n" + robust3d.section(args)
+    return text
+
+
+def _planar(args) -> str:
     files = QUICK_FILES if args.quick else FILES
     fractions = FRACTIONS[:1] if args.quick else FRACTIONS
     seeds = SEEDS[:1] if args.quick else SEEDS

@@ -53,8 +53,6 @@ def _robust_option(run):
         from .variants import gnc_lago, robust_settings
 
         settings = robust_settings(robust)
-        if getattr(graph, "dim", 2) == 3:
-            raise OptionError("robust: planar graphs only")
         return gnc_lago(graph, settings, solve=lambda g: run(g, **options))
 
     sig = inspect.signature(run)
@@ -119,7 +117,8 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
       robust — None / False (default): least squares. True, ``"gnc-tls"``, ``"gnc-gm"`` or a
         ``lago_cvx.variants.RobustSettings``: graduated non-convexity around weighted LAGO runs with the
         options above, rejecting false loop closures (``lago_cvx.variants.gnc``); returns a ``RobustResult``
-        (``rejected_edges``, ``weights``; its ``graph`` and ``chi2`` are those of the accepted edges).
+        (``rejected_edges``, ``weights``; its ``graph`` and ``chi2`` are those of the accepted edges); on a 3-D
+        graph GNC runs around ``lago3d`` and returns a ``Robust3DResult`` (``lago_cvx.variants.robust3d``).
     Raises ``GraphError`` for a disconnected graph (naming component sizes), a broken odometric chain,
     or an unknown anchor; ``OptionError`` for a bad option.
 

@@ -63,8 +63,6 @@ REFUSED = [
     ("solve", ["--max-shift", "1"], "--max-shift"),
     ("solve", ["--time-limit", "1"], "--time-limit"),
     ("solve", ["--edge2-order", "g2o"], "--edge2-order"),
-    ("solve", ["--robust"], "--robust"),
-    ("solve", ["--robust-loss", "gm"], "--robust"),
     ("info", ["--route", "seed"], "--route seed"),
     ("info", ["--regularization", "tree"], "--regularization"),
     ("info", ["--spanning-tree", "mst"], "--spanning-tree"),
@@ -83,9 +81,17 @@ def test_planar_only_options_are_refused_on_3d_files(world3d, tmp_path, capsys, 
 
 
 def test_generate_refuses_planar_world_options_for_3d_worlds(tmp_path, capsys):
-    for options, flag in ((["--laps", "2"], "--laps"), (["--outliers", "0.1"], "--outliers")):
+    for options, flag in ((["--laps", "2"], "--laps"),):
         err = _error(capsys, ["generate", "--world", "sphere3d", "-o", str(tmp_path / "s.g2o"), *options])
         assert flag in err and "sphere3d" in err
+
+
+def test_robust_with_full_pose_anchors_is_refused_on_3d_files(tmp_path, capsys):
+    """--robust holds one pose for the frame; with poses known exactly (ID:X,Y,Z,QX,QY,QZ,QW) it is refused."""
+    out = tmp_path / "w.g2o"
+    assert main(["generate", "--world", "grid3d", "--poses", "27", "-o", str(out)]) == 0
+    err = _error(capsys, ["solve", str(out), "--robust", "--anchor", "3:0,0,0,0,0,0,1"])
+    assert "--robust" in err and "ID:X,Y,Z,QX,QY,QZ,QW" in err
 
 
 def test_generate_3d_sigmas_reach_the_world(tmp_path, capsys):

@@ -1,5 +1,6 @@
 """Outlier-robust LAGO (graduated non-convexity around weighted LAGO runs, ``lago(graph, robust=...)``),
-false loop closures appended to any graph, and the CLI flags ``solve --robust`` / ``generate --outliers``."""
+false loop closures appended to any graph, planar or 3-D, and the CLI flags ``solve --robust`` /
+``certify --robust`` / ``generate --outliers``."""
 
 from __future__ import annotations
 
@@ -103,8 +104,8 @@ def test_robust_settings_and_options():
         lc.compare_methods(manhattan_world(50, seed=0).graph, robust=True)
     small = manhattan_world(60, seed=1).graph  # the cvxpy route inside GNC too
     assert lc.lago(small, robust=True, method="cvxpy").method == "cvxpy"
-    with pytest.raises(OptionError, match="planar"):
-        lc.lago(sphere_world(4, 6, seed=0).graph, robust=True)
+    with pytest.raises(OptionError, match="planar graphs only"):  # planar options on a 3-D graph, robust or not
+        lc.lago(sphere_world(4, 6, seed=0).graph, robust=True, regularization="tree")
 
 
 def test_too_few_iterations_are_said(caplog):
@@ -199,6 +200,7 @@ def test_cli_generate_outliers_and_solve_robust(tmp_path, capsys):
     _, recall, wrong = scores(d["rejected_edges"], gen["outlier_edges"])
     assert code == 0 and recall == 1.0 and wrong <= 3
     assert d["chi2_edges"] == "accepted" and d["n_rejected"] == len(d["rejected_edges"]) and d["robust"] == "gnc-tls"
+    assert d["robust_threshold"] == pytest.approx(11.345, abs=1e-3)
     assert d["chi2_refined"] <= d["chi2"]
     keep = np.setdiff1d(np.arange(g.n_edges), d["rejected_edges"])
     assert d["chi2"] == pytest.approx(chi2(g.subgraph_edges(keep), lc.lago(g, robust=True, anchor=4).poses))
@@ -411,3 +413,117 @@ def test_consistent_starts_reject_nothing_on_clean_graphs_and_find_the_false_edg
         RobustSettings(start="clique")
     with pytest.raises(OptionError):
         RobustSettings(local_search=-1)
+
+
+# ------------------------------------------------------------------------------------- 3-D
+@pytest.fixture(scope="module")
+def world3d():
+    """A generated 3-D world (sphere, 300 poses) with 10 % false loop closures: (world, corrupted graph, indices)."""
+    w = sphere_world(10, 30, seed=0)
+    go, idx = add_false_loop_closures(w.graph, 0.1, seed=0)
+    return w, go, idx
+
+
+def test_false_loop_closures_in_3d_are_appended_seeded_and_uniform(world3d):
+    w, go, idx = world3d
+    g = w.graph
+    assert idx.tolist() == list(range(g.n_edges, go.n_edges)) and idx.size == int(0.1 * g.n_edges)
+    for name in ("tails", "heads", "delta_t", "delta_R", "information"):
+        np.testing.assert_array_equal(getattr(go, name)[: g.n_edges], getattr(g, name))
+    assert not go.is_odometric[idx].any() and np.all(go.tails[idx] != go.heads[idx])
+    assert np.all(np.abs(go.delta_t[idx]) <= FALSE_LOOP_BOX / 2)
+    R = go.delta_R[idx]
+    np.testing.assert_allclose(R @ np.swapaxes(R, 1, 2), np.broadcast_to(np.eye(3), R.shape), atol=1e-12)
+    assert np.allclose(np.linalg.det(R), 1.0)
+    angles = np.arccos(np.clip((np.trace(R, axis1=1, axis2=2) - 1) / 2, -1, 1))
+    assert angles.max() > 2.0  # any rotation, not small ones: uniform on SO(3) has mean angle π/2 + 2/π ≈ 2.2
+    real = {m.tobytes() for m in g.information}
+    assert all(m.tobytes() in real for m in go.information[idx])
+    again, _ = add_false_loop_closures(g, 0.1, seed=0)
+    np.testing.assert_array_equal(again.delta_R, go.delta_R)
+
+
+def test_robust_3d_rejects_every_false_loop_closure(world3d):
+    w, go, idx = world3d
+    res = lc.lago(go, robust=True)
+    assert isinstance(res, lc.variants.Robust3DResult) and res.dim == 3
+    _, recall, wrong = scores(res.rejected_edges, idx)
+    assert recall == 1.0 and wrong <= 0.01 * w.graph.n_edges
+    assert res.settings.c2_for(3) == pytest.approx(16.812, abs=1e-3)  # χ²₆(0.99)
+    assert res.graph.n_edges == go.n_edges - res.rejected_edges.size
+    assert res.chi2 == pytest.approx(lc.posegraph3d.chi2_3d(res.graph, res.t, res.R))
+    plain = lc.lago(go)
+    assert plain.chi2 > 100 * res.chi2  # least squares bends to the false edges
+    back = pickle.loads(pickle.dumps(res))
+    np.testing.assert_array_equal(back.rejected_edges, res.rejected_edges)
+
+
+@pytest.mark.parametrize("cost", ["g2o", "gtsam"])
+def test_robust_3d_on_a_clean_graph_is_least_squares_after_refinement(cost):
+    g = sphere_world(8, 25, seed=3, cost=cost).graph  # its noise drawn in that cost (synthetic.space)
+    plain = lc.lago(g)
+    res = lc.lago(g, robust=True)
+    a = lc.space.refine3d(g, plain.t, plain.R)
+    b = lc.space.refine3d(res.graph, res.t, res.R)
+    assert res.rejected_edges.size <= 0.01 * g.n_edges
+    assert lc.posegraph3d.chi2_3d(g, b.t, b.R) <= 1.001 * a.chi2
+
+
+def test_weights_reach_the_chordal_relaxation():
+    """A weight w scales the edge's chordal weight S² (isotropic κ and anisotropic) by w: the information does."""
+    from dataclasses import replace
+
+    from lago_cvx.space.chordal import rotation_weights
+
+    g = sphere_world(4, 6, seed=0).graph
+    w = np.linspace(0.1, 1.0, g.n_edges)
+    gw = replace(g, information=g.information * w[:, None, None])
+    for weighting in ("isotropic", "anisotropic"):
+        S, Sw = rotation_weights(g, weighting), rotation_weights(gw, weighting)
+        np.testing.assert_allclose(Sw @ Sw, (S @ S) * w[:, None, None], rtol=1e-12, atol=1e-12)
+
+
+def test_cli_3d_generate_outliers_solve_and_certify_robust(tmp_path, capsys):
+    f = tmp_path / "t.g2o"
+    code, out, _ = run(capsys, "generate", "--world", "torus3d", "--poses", 300, "--seed", 1, "--outliers", 0.1,
+                       "-o", f, "--json")
+    gen = json.loads(out)
+    g = read_graph(f)
+    assert code == 0 and g.dim == 3 and gen["n_edges"] == g.n_edges
+    assert gen["outlier_edges"] == list(range(g.n_edges - len(gen["outlier_edges"]), g.n_edges))
+    assert len(gen["outlier_edges"]) == int(0.1 * (g.n_edges - len(gen["outlier_edges"])))
+    est = tmp_path / "est.g2o"
+    code, out, _ = run(capsys, "solve", f, "--robust", "--refine", "-o", est, "--json")
+    d = json.loads(out)
+    _, recall, wrong = scores(d["rejected_edges"], gen["outlier_edges"])
+    assert code == 0 and recall == 1.0 and wrong <= 0.01 * g.n_edges
+    assert d["rejected_edges"] == sorted(d["rejected_edges"]) and d["chi2_edges"] == "accepted"
+    assert d["dim"] == 3 and d["robust"] == "gnc-tls" and d["n_rejected"] == len(d["rejected_edges"])
+    assert d["robust_threshold"] == pytest.approx(16.812, abs=1e-3)
+    keep = np.setdiff1d(np.arange(g.n_edges), d["rejected_edges"])
+    written = read_graph(est)
+    assert written.n_edges == g.n_edges  # every edge, the refined estimate as vertices
+    chi2_written = lc.posegraph3d.chi2_3d(g.subgraph_edges(keep), *written.initial)
+    assert d["chi2_refined"] == pytest.approx(chi2_written, rel=1e-6) and d["chi2_refined"] <= d["chi2"]
+    code, _, err = run(capsys, "solve", f, "--robust", "--check")
+    assert code == 2 and "--robust" in err and len(err.strip().splitlines()) == 1
+    code, out, _ = run(capsys, "certify", f, "--robust", "--json")
+    c = json.loads(out)
+    assert code == c["exit_status"] == 0 and c["certified"] and c["certified_edges"] == "accepted"
+    assert c["rejected_edges"] == d["rejected_edges"] and c["n_edges"] == keep.size and c["n_edges_input"] == g.n_edges
+    code, out, _ = run(capsys, "certify", f)  # the same file without --robust: the false edges are kept
+    assert "accepted" not in out
+
+
+def test_cli_certify_robust_planar(tmp_path, capsys):
+    f = tmp_path / "p.g2o"
+    code, out, _ = run(capsys, "generate", "--poses", 300, "--seed", 1, "--outliers", 0.05, "-o", f, "--json")
+    gen = json.loads(out)
+    code, out, _ = run(capsys, "certify", f, "--robust", "--json")
+    c = json.loads(out)
+    _, recall, wrong = scores(c["rejected_edges"], gen["outlier_edges"])
+    assert code == c["exit_status"] == 0 and c["certified"] and recall == 1.0 and wrong <= 3
+    assert c["certified_edges"] == "accepted" and c["n_edges"] == c["n_edges_input"] - c["n_rejected"]
+    assert "robust" in c["timings"]
+    code, out, _ = run(capsys, "certify", f, "--robust")
+    assert code == 0 and "the accepted edges of" in out and "robust GNC" in out

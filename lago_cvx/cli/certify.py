@@ -24,6 +24,7 @@ from .common import (
     nonneg_int,
     output_target,
     read_input,
+    robust_payload,
     write_estimate,
 )
 
@@ -60,6 +61,8 @@ def _certify_lines(file, payload: dict) -> list[str]:
         f"certify: LAGO ({p['spanning_tree']} spanning tree, {p['regularization']} regularization) → χ² "
         f"Gauss–Newton → SE-Sync Newton → SE-Sync certificate, on {file}",
         f"  poses {p['n_poses']}, edges {p['n_edges']}"
+        + (f" (the accepted edges of {p['n_edges_input']}: robust {p['robust']} rejected {p['n_rejected']} as "
+           "outliers; everything below, the certificate too, is about the accepted edges)" if "robust" in p else "")
         + (f"; frame: pose {p['anchor']} as anchored (one anchor is a choice of frame)" if p["anchor"] is not None
            else ""),
         f"  chi2 (cost {p['cost']}, sum e'Ωe): LAGO estimate {p['chi2_lago']:.6g}, χ²-refined estimate "
@@ -91,7 +94,7 @@ def _certify_lines(file, payload: dict) -> list[str]:
                if abs(lc["f"] - p["f_lago"]) > 1e-9 * max(abs(p["f_lago"]), 1e-300) else
                "(= f at LAGO's estimate above: its translations are already the optimal ones for its rotations)"),
             f"    verdict: {_reason(lc['verdict'])}"]
-    steps = [("LAGO", "lago"), ("χ² GN", "refine"), ("SE-Sync Newton", "refine_sesync"), ("certificate", "certify"),
+    steps = [("robust GNC", "robust"), ("LAGO", "lago"), ("χ² GN", "refine"), ("SE-Sync Newton", "refine_sesync"), ("certificate", "certify"),
              ("comparison certificate", "certify_lago")]
     lines.append("  time: " + ", ".join(f"{name} {_seconds(tm[key])}" for name, key in steps if key in tm)
                  + f"; total {_seconds(sum(tm.values()))}")
@@ -131,10 +134,14 @@ def cmd_certify(args) -> int:
     graph = read_input(args)
     if graph.n_edges == 0:
         raise GraphError(f"{args.file}: the graph has {graph.n_poses} pose(s) and no edges: nothing to certify")
+    written, robust = graph, None
+    if args.robust or args.robust_loss:  # certify LAGO on the edges GNC accepts (-o still writes every edge)
+        robust = _robust_run(args, graph)
+        graph = robust.graph
     if graph.dim == 3:  # --anchor ID or ID:X,Y,Z,QX,QY,QZ,QW (cli/space.py)
         from .space import certify3d_cmd
 
-        return certify3d_cmd(args, graph, out)
+        return certify3d_cmd(args, graph, out, written=written, robust=robust)
     anchors = _certify_anchors(args.anchor)
     check_regularization(graph, args.regularization)
     payload, cert = certify_estimate(graph, route=args.route, spanning_tree=args.spanning_tree,
@@ -142,9 +149,12 @@ def cmd_certify(args) -> int:
                                      tol=args.tol, abs_tol=args.abs_tol, max_iterations=args.max_iterations,
                                      compare_lago=args.compare_lago, anchors=anchors)
     payload = {"file": str(args.file), "cost": graph.cost, **payload}
+    if robust is not None:
+        payload.update(robust_payload(args, written, robust))
+        payload["timings"] = {"robust": robust.timings["robust"], **payload["timings"]}
     lines = _certify_lines(args.file, payload)
     if out is not None:
-        write_estimate(out, graph, cert.poses)
+        write_estimate(out, written, cert.poses)
         payload["output"] = "<stdout>" if out == "-" else str(out)
         lines.append(f"  {'certified' if cert.certified else 'refined (NOT certified)'} estimate written to "
                      + ("standard output" if out == "-" else str(out)))
@@ -156,6 +166,18 @@ def cmd_certify(args) -> int:
     payload["exit_status"] = status
     emit(args, payload, lines, stdout_taken=out == "-")
     return status
+
+
+def _robust_run(args, graph):
+    """``--robust``: GNC around LAGO with the command's route options (``lago(graph, robust=...)``), planar or 3-D."""
+    from ..pipeline import lago
+
+    args.robust = f"gnc-{args.robust_loss or 'tls'}"
+    if graph.dim == 3:
+        return lago(graph, robust=args.robust, route=args.route)
+    check_regularization(graph, args.regularization)
+    return lago(graph, robust=args.robust, route=args.route, spanning_tree=args.spanning_tree,
+                regularization=args.regularization, integer_search=integer_search(args))
 
 
 def add_parser(sub) -> None:
@@ -195,6 +217,12 @@ def add_parser(sub) -> None:
                    help="at most one: the pose ID (at the origin) or ID:X,Y,THETA (empty fields keep the estimate's "
                         "own; 3-D: ID:X,Y,Z,QX,QY,QZ,QW) fixes the frame of the written estimate; several poses are "
                         "refused")
+    s.add_argument("--robust", action="store_true",
+                   help="first reject false loop closures as solve --robust does (graduated non-convexity), then "
+                        "certify LAGO on the accepted edges: chi2, f and the certificate are about them (JSON "
+                        "certified_edges = accepted, rejected_edges in file order); -o still writes every edge")
+    s.add_argument("--robust-loss", choices=["tls", "gm"], default=None,
+                   help="the loss of --robust (implies it): tls (default) or gm")
     s.add_argument("--overwrite-input", action="store_true", help="allow -o to name the input file")
     s.add_argument("--json", action="store_true", help="print one JSON object")
     s.set_defaults(func=cmd_certify)

@@ -376,3 +376,11 @@ def progress_callback(args):
     except (AttributeError, ValueError):
         tty = False
     return ProgressBar() if tty else None
+
+
+def robust_payload(args, graph, robust) -> dict:
+    """The JSON keys of ``certify --robust``: the input's edge count, the rejected edges (file order), and that the
+    certificate is about the accepted edges (``robust`` a ``RobustResult`` or ``Robust3DResult`` of ``graph``)."""
+    return {"robust": args.robust, "certified_edges": "accepted", "n_edges_input": graph.n_edges,
+            "n_edges": robust.graph.n_edges, "n_rejected": int(robust.rejected_edges.size),
+            "rejected_edges": robust.rejected_edges.tolist(), "robust_iterations": robust.iterations}

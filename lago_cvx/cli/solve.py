@@ -134,6 +134,9 @@ def cmd_info(args) -> int:
 def cmd_solve(args) -> int:
     out = output_target(args)
     graph = read_input(args)
+    args.robust = f"gnc-{args.robust_loss or 'tls'}" if (args.robust or args.robust_loss) else None
+    if args.robust and args.check:
+        raise UsageError("--check and --robust do not combine: --check compares one least-squares run both ways")
     if graph.dim == 3:
         from .space import solve3d
 
@@ -147,9 +150,6 @@ def cmd_solve(args) -> int:
 
     anchor, anchors = _parse_anchors(args.anchor)
     check_regularization(graph, args.regularization)
-    args.robust = f"gnc-{args.robust_loss or 'tls'}" if (args.robust or args.robust_loss) else None
-    if args.robust and args.check:
-        raise UsageError("--check and --robust do not combine: --check compares one least-squares run both ways")
     kw = dict(route=args.route, spanning_tree=args.spanning_tree, anchor=anchor, regularization=args.regularization,
               information=route_information(args), positions=args.positions, integer_search=integer_search(args))
     if anchors:
@@ -184,7 +184,8 @@ def cmd_solve(args) -> int:
         payload["chi2_initial"] = chi2(solved, graph.initial)
     if args.robust:
         payload.update(robust=args.robust, chi2_edges="accepted", n_rejected=int(res.rejected_edges.size),
-                       rejected_edges=res.rejected_edges.tolist(), robust_iterations=res.iterations)
+                       rejected_edges=res.rejected_edges.tolist(), robust_iterations=res.iterations,
+                       robust_threshold=res.settings.c2_for(2))
         payload["timings"]["robust"] = res.timings["robust"]
     strained = getattr(res, "strained", None)
     if anchors:

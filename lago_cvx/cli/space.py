@@ -11,6 +11,7 @@ import numpy as np
 
 from ..conventions import CHI2_CONVENTION, COST_DESCRIPTION
 from .common import (EXIT_NOT_CERTIFIED, EXIT_OK, UsageError, abs_tol_hint, check_finite, emit, graph_lines,
+                     robust_payload,
                      sigma_keywords, write_estimate)
 
 WORLDS3D = ("sphere3d", "torus3d", "grid3d")
@@ -113,9 +114,10 @@ def solve3d(args, graph, out) -> int:
     from ..space import compare_methods3d, lago3d, refine3d
 
     refuse_planar_options(args)
-    if args.robust or args.robust_loss:  # graduated non-convexity runs weighted planar LAGO
-        raise UsageError(f"--robust applies to planar graphs only: {args.file} is 3-D")
     anchor, fixed = _anchors3d(args.anchor, graph)
+    if args.robust and fixed:
+        raise UsageError("--robust with --anchor ID:X,Y,Z,QX,QY,QZ,QW on a 3-D graph: graduated non-convexity holds "
+                         "one pose for the frame (a bare --anchor ID)")
     if fixed:  # poses known exactly (space.fixed): closed form; the refinement holds every one of them
         for given, flag in ((args.check, "--check"), (args.method != "closed_form", "--method cvxpy")):
             if given:
@@ -123,9 +125,14 @@ def solve3d(args, graph, out) -> int:
                                  "poses known exactly are solved in closed form only")
     if args.check:
         res, report = compare_methods3d(graph, route=args.route, anchor=anchor)
+    elif args.robust:  # GNC around lago3d (lago_cvx.variants.robust3d): χ² and --refine over the accepted edges
+        from ..pipeline import lago
+
+        res, report = lago(graph, robust=args.robust, route=args.route, method=args.method, anchor=anchor), None
     else:
         res, report = lago3d(graph, route=args.route, method=args.method, anchor=anchor, fixed=fixed or None), None
     check_finite(res.chi2, res.t, what="LAGO estimate")
+    solved = res.graph if args.robust else graph  # the accepted edges of a robust run
     payload = {"file": str(args.file), "dim": 3, "cost": graph.cost, "n_poses": graph.n_poses,
                "n_edges": graph.n_edges, "method": "closed_form" if args.check else args.method, "route": res.route,
                "weighting": res.weighting,
@@ -134,7 +141,11 @@ def solve3d(args, graph, out) -> int:
     if graph.initial is not None:
         from ..posegraph3d import chi2_3d
 
-        payload["chi2_initial"] = chi2_3d(graph, *graph.initial)
+        payload["chi2_initial"] = chi2_3d(solved, *graph.initial)
+    if args.robust:
+        payload.update(robust=args.robust, chi2_edges="accepted", n_rejected=int(res.rejected_edges.size),
+                       rejected_edges=res.rejected_edges.tolist(), robust_iterations=res.iterations,
+                       robust_threshold=res.settings.c2_for(3))
     if report is not None:
         payload["max_rel_diff"] = report["max_rel_diff"]
         payload["cvxpy_timings"] = report["cvxpy_timings"]
@@ -147,7 +158,7 @@ def solve3d(args, graph, out) -> int:
     if args.refine:
         method = "levenberg-marquardt" if args.refine_method == "levenberg-marquardt" else "gauss-newton"
         held = {"anchors": fixed} if fixed else {"anchor": anchor if anchor is not None else res.anchor}
-        ref = refine3d(graph, res.t, res.R, method=method, max_iterations=args.max_iterations, **held)
+        ref = refine3d(solved, res.t, res.R, method=method, max_iterations=args.max_iterations, **held)
         check_finite(ref.chi2, ref.t, what="refined estimate")
         final = (ref.t, ref.R)
         payload.update(chi2_refined=ref.chi2, refine_iterations=ref.iterations, refine_converged=ref.converged)
@@ -160,6 +171,10 @@ def solve3d(args, graph, out) -> int:
              f"({res.weighting} weights) → positions" + (" → joint step" if res.route == "default" else "")
              + f") on {args.file}",
              f"  poses {graph.n_poses}, edges {graph.n_edges}; cost {graph.cost}: {COST_DESCRIPTION[graph.cost]}",
+             *([f"  robust ({args.robust}, c̄² = {payload['robust_threshold']:.4g}): {res.rejected_edges.size} of "
+                f"{graph.n_edges} edges rejected as outliers after {res.iterations} GNC iterations "
+                f"({res.timings['robust']:.3f} s); every chi2 below is over the {solved.n_edges} accepted edges"]
+               if args.robust else []),
              f"  chi2 = {res.chi2:.6g}  (cost {graph.cost}: {CHI2_CONVENTION})"
              + ("" if res.route == "seed" else f"; chordal + positions {res.chi2_seed:.6g}, step α = {res.alpha}")
              + (f"; at the file's initial guess {payload['chi2_initial']:.6g}" if "chi2_initial" in payload else ""),
@@ -191,7 +206,9 @@ def _frame3d(specs, graph):
     return parse_anchor3d(specs[0], graph)
 
 
-def certify3d_cmd(args, graph, out) -> int:
+def certify3d_cmd(args, graph, out, *, written=None, robust=None) -> int:
+    """``certify`` on a 3-D graph; with ``robust`` (a ``Robust3DResult``) ``graph`` is its accepted edges and
+    ``written`` the graph read (what ``-o`` writes)."""
     from ..posegraph3d import chi2_3d
     from ..space import lago3d
     from ..space.certify import certify3d, sesync_cost3d
@@ -224,6 +241,8 @@ def certify3d_cmd(args, graph, out) -> int:
                    "lower_bound": cert_lago.lower_bound, "lambda_min": cert_lago.lambda_min,
                    "n_negative": cert_lago.n_negative,
                    "relative_suboptimality_bound": cert_lago.relative_suboptimality_bound, "times": cert_lago.times}}
+    if robust is not None:
+        payload.update(robust_payload(args, written, robust), robust_seconds=robust.timings["robust"])
     lines = [f"certify (3-D): LAGO → SE-Sync Newton → SE-Sync certificate, on {args.file}",
              f"  poses {graph.n_poses}, edges {graph.n_edges}; chi2 (cost {graph.cost}, {CHI2_CONVENTION}) of LAGO "
              f"{res.chi2:.6g}, at the certified point {payload['chi2_certified_point']:.6g}",
@@ -241,8 +260,12 @@ def certify3d_cmd(args, graph, out) -> int:
         lines += ["  comparison certificate of the raw LAGO estimate (--compare-lago): "
                   + ("certified" if cert_lago.certified else "NOT certified") + f", f = {cert_lago.cost:.10g}",
                   f"    verdict: {cert_lago.verdict}"]
+    if robust is not None:
+        lines.insert(1, f"  robust ({args.robust}): {robust.rejected_edges.size} of {written.n_edges} edges rejected "
+                        f"as outliers ({robust.timings['robust']:.2f} s); everything below, the certificate too, is "
+                        f"about the {graph.n_edges} accepted edges")
     if out is not None:
-        write_estimate(out, graph, (cert.t, cert.R))
+        write_estimate(out, graph if written is None else written, (cert.t, cert.R))
         payload["output"] = "<stdout>" if out == "-" else str(out)
         lines.append("  estimate written to " + ("standard output" if out == "-" else str(out)))
     status = EXIT_OK if cert.certified else EXIT_NOT_CERTIFIED

@@ -35,8 +35,6 @@ def cmd_generate(args) -> int:
     if truth_path == out:
         raise UsageError("--truth and -o name the same file")
     if args.world in WORLDS3D:
-        if args.outliers:
-            raise UsageError(f"--outliers applies to planar worlds only (--world {args.world} is 3-D)")
         if args.laps != 3.0:
             raise UsageError(f"--laps applies to the circle world only (--world {args.world} is 3-D)")
         from .space import world3d
@@ -158,8 +156,8 @@ def add_parsers(sub) -> None:
     s.add_argument("-o", "--output", required=True, metavar="OUT",
                    help="graph file (vertices = dead-reckoning guess); - for standard output (then give --truth)")
     s.add_argument("--outliers", type=nonneg_float, default=0.0, metavar="FRACTION",
-                   help="append FRACTION × (number of edges) false loop closures (planar worlds): random pairs of "
-                        "poses, a uniform relative pose (translation in a 20 m square, any rotation), the "
+                   help="append FRACTION × (number of edges) false loop closures: random pairs of "
+                        "poses, a uniform relative pose (translation in a 20 m square, 3-D: cube; any rotation), the "
                         "information of a real edge; seeded by --seed; --json lists them as outlier_edges")
     s.add_argument("--truth", help="ground-truth file (default: OUT with .truth before the suffix)")
     s.add_argument("--json", action="store_true")

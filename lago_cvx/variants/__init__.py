@@ -54,6 +54,7 @@ from .anchors import Anchor, AnchorRegularization, Prior, normalize_anchors, nor
 from .constraints import (NamedConstraint, PoseVariables, box_constraint, halfplane_constraint, orientation_bounds,
                           polygon_constraint)
 from .engine import VariantOptions, VariantPhase1, VariantPhase3, VariantResult, lago_variant
+from .robust3d import Robust3DResult
 from .gnc import (ROBUST_LOSSES, RobustResult, RobustSettings, RobustVariantResult, gnc_lago, gnc_threshold,
                   gnc_weights, odometric_chain_complete, robust_settings)
 from .strain import STRAIN_LEVEL, AnchorStrain
@@ -67,7 +68,7 @@ __all__ = [
     "WeightedSystem", "phase1_system", "anchored_phase2", "phase3_system", "system_problem", "solve_system",
     "solve_system_cvxpy", "PoseVariables", "NamedConstraint", "box_constraint", "polygon_constraint",
     "halfplane_constraint", "orientation_bounds", "LOSSES", "DEFAULT_THRESHOLD", "STRAIN_LEVEL",
-    "RobustSettings", "RobustResult", "RobustVariantResult", "ROBUST_LOSSES", "robust_settings", "gnc_lago",
+    "RobustSettings", "RobustResult", "RobustVariantResult", "Robust3DResult", "ROBUST_LOSSES", "robust_settings", "gnc_lago",
     "gnc_threshold", "gnc_weights", "odometric_chain_complete",
 ]
 

@@ -20,12 +20,20 @@ Black–Rangarajan duality each surrogate is minimized by alternating
       GM:   w_k = (μ c̄² / (r_k² + μ c̄²))²,
             μ₀ = 2 r_max² / c̄², μ ← max(1, μ / 1.4) (ρ_μ → GM at μ = 1);
 
-  with r_max the largest residual of the first (unweighted) LAGO. c̄² is the χ² quantile of 3 dof at
-  ``confidence`` (0.99 → 11.34): an inlier's whitened residual exceeds it with probability 1 − confidence.
+  with r_max the largest residual of the first (unweighted) LAGO. c̄² is the χ² quantile of the edge's
+  degrees of freedom (3 planar, 6 in 3-D) at ``confidence`` (0.99 → 11.34 planar, 16.81 in 3-D): an inlier's
+  whitened residual exceeds it with probability 1 − confidence.
   GNC stops when the weights no longer change (TLS: all binary, the same set twice; GM: μ = 1 and the
   weights moved by less than ``weight_tolerance``) or after ``max_iterations``. The rejected edges — TLS:
   final weight < ½; GM, whose weights never reach 0: r_k² > c̄² at GNC's estimate, where the GM weight
   at μ = 1 is below ¼ — leave, and LAGO runs once more, unweighted, on the accepted edges: the result.
+
+In 3-D (a ``PoseGraph3D``, ``lago_cvx.space``) the same loop runs around ``lago3d``: r_k² = e_kᵀ Ω_k e_k with
+e_k (6,) the error of the graph's cost (g2o's or GTSAM's, ``lago_cvx.conventions``), and the weighted solve is
+``lago3d`` on the graph with w_k Ω_k. There is no 2kπ to redo; the weights reach every stage through the
+information: the chordal relaxation's S_ij² (isotropic κ_ij = 3 / (2 tr Ω_rr⁻¹) scales by w_k, and so does the
+anisotropic weight), the positions' Ω_tt and the joint step's Ω (``robust3d``). Pairwise consistency and the
+local search are planar (a 3-D run logs that it starts from LAGO).
 
 Known inliers. Odometric edges (between consecutive ids) are never false loop closures in the usual
 protocol; ``trust_odometry=None`` holds their weight at 1 whenever the odometric chain 0–1–…–(n−1) is
@@ -62,7 +70,7 @@ from ..result import LagoResult
 from .engine import VariantResult
 
 __all__ = ["RobustSettings", "RobustResult", "RobustVariantResult", "ROBUST_LOSSES", "robust_settings", "gnc_lago", "gnc_threshold",
-           "gnc_weights", "odometric_chain_complete"]
+           "gnc_weights", "odometric_chain_complete", "edge_r2", "truncated_cost"]
 
 log = logging.getLogger("lago_cvx.variants")
 
@@ -83,7 +91,8 @@ class RobustSettings:
     """Settings of GNC (module docstring).
 
     loss — ``"tls"`` (truncated least squares, default) or ``"gm"`` (Geman–McClure);
-    confidence — c̄² = χ²₃ quantile at this probability (default 0.99 → 11.34);
+    confidence — c̄² = the χ² quantile of 3 dof (3-D graphs: 6) at this probability (default 0.99 → 11.34; 3-D
+      16.81);
     threshold — c̄² given directly (whitened, squared; overrides ``confidence``);
     trust_odometry — None: hold odometric edges at weight 1 when the odometric chain is complete; True / False;
     mu_factor — μ's factor per iteration (1.4, Yang et al.);
@@ -97,7 +106,8 @@ class RobustSettings:
     clique_seconds — time allowed to the exact maximum-clique search (then the largest clique found);
     local_search — after GNC, at most this many LAGO runs of single-edge moves that lower the truncated cost
       (accept a rejected edge or reject an accepted one; ``_local_search``), 0: none. Only where GNC ran, the
-      odometric chain is complete and trusted, and there are at most ``LOCAL_SEARCH_MAX_EDGES`` loop closures.
+      odometric chain is complete and trusted, and there are at most ``LOCAL_SEARCH_MAX_EDGES`` loop closures;
+      planar graphs only.
     """
 
     loss: str = "tls"
@@ -138,8 +148,14 @@ class RobustSettings:
 
     @property
     def c2(self) -> float:
-        """c̄², the squared whitened residual at which TLS truncates."""
-        return gnc_threshold(self.confidence) if self.threshold is None else float(self.threshold)
+        """c̄², the squared whitened residual at which TLS truncates, for planar edges (3 dof)."""
+        return self.c2_for(2)
+
+    def c2_for(self, dim: int) -> float:
+        """c̄² for the edges of a ``dim``-dimensional graph: 3 dof planar, 6 in 3-D (``threshold`` when given)."""
+        if self.threshold is not None:
+            return float(self.threshold)
+        return gnc_threshold(self.confidence, 3 if dim == 2 else 6)
 
 
 def robust_settings(robust) -> RobustSettings | None:
@@ -230,13 +246,16 @@ def gnc_lago(graph: PoseGraph, settings: RobustSettings, *, solve: Callable) -> 
     of the unweighted LAGO; ``"best"`` runs from both and keeps the result of the lower truncated cost
     Σ_k min(r_k², c̄²) over every edge (``RobustSettings``). Returns a ``RobustResult``."""
     t0 = time.perf_counter()
-    m, c2 = graph.n_edges, settings.c2
+    m, c2 = graph.n_edges, settings.c2_for(graph.dim)
     trust = settings.trust_odometry
     if trust is None:
         trust = odometric_chain_complete(graph)
     known = graph.is_odometric.copy() if trust else np.zeros(m, bool)
     starts = {"lago": ("lago",), "pcm": ("pcm",), "best": ("lago", "pcm")}[settings.start]
-    if "pcm" in starts and not (trust and odometric_chain_complete(graph)):
+    if "pcm" in starts and graph.dim == 3:
+        log.info("GNC: pairwise consistency is planar: GNC on a 3-D graph starts from LAGO")
+        starts = ("lago",)
+    elif "pcm" in starts and not (trust and odometric_chain_complete(graph)):
         log.info("GNC: no complete trusted odometric chain, so no pairwise consistency: GNC starts from LAGO")
         starts = ("lago",)
     elif "pcm" in starts and int((~known).sum()) > PCM_MAX_EDGES:
@@ -245,7 +264,7 @@ def gnc_lago(graph: PoseGraph, settings: RobustSettings, *, solve: Callable) -> 
         starts = ("lago",)
     with _quiet():  # the unweighted LAGO: where it fits every edge within c̄², nothing is rejected, from any start
         first = solve(graph)
-    if (~known).any() and float((whitened_errors(graph, first.poses)[~known] ** 2).max()) <= c2:
+    if (~known).any() and float(edge_r2(graph, first.poses)[~known].max()) <= c2:
         starts = ("lago",)
     runs = []
     for start in starts:
@@ -253,7 +272,7 @@ def gnc_lago(graph: PoseGraph, settings: RobustSettings, *, solve: Callable) -> 
         runs.append(_gnc_run(graph, settings, solve, known, w0, first if start == "lago" else None) + (start,))
     w, keep, final, it, history, cost, start = min(runs, key=lambda r: r[5])
     moves = 0
-    if (settings.local_search and it > 0 and trust and odometric_chain_complete(graph)
+    if (settings.local_search and it > 0 and trust and graph.dim == 2 and odometric_chain_complete(graph)
             and int((~known).sum()) <= LOCAL_SEARCH_MAX_EDGES):
         keep, final, cost, moves = _local_search(graph, keep, final, cost, known, settings, solve)
     rejected = np.flatnonzero(~keep).astype(np.int64)
@@ -274,10 +293,10 @@ def _local_search(graph, keep, final, cost, known, settings, solve):
     tried once per round in the order of its residual at the current estimate (rejected ones from the smallest,
     accepted ones from the largest), the first that lowers the cost taken; rounds until none does or
     ``settings.local_search`` LAGO runs are spent. Returns (keep, final LagoResult, cost, moves taken)."""
-    c2, budget, moves = settings.c2, settings.local_search, 0
+    c2, budget, moves = settings.c2_for(graph.dim), settings.local_search, 0
     poses = final.poses
     while budget > 0:
-        r2 = whitened_errors(graph, poses) ** 2
+        r2 = edge_r2(graph, poses)
         rejected = np.flatnonzero(~keep)
         accepted = np.flatnonzero(keep & ~known)
         order = np.r_[rejected[np.argsort(r2[rejected], kind="stable")],
@@ -301,9 +320,20 @@ def _local_search(graph, keep, final, cost, known, settings, solve):
     return keep, final, cost, moves
 
 
-def truncated_cost(graph: PoseGraph, poses: np.ndarray, c2: float) -> float:
-    """The TLS cost Σ_k min(r_k², c̄²) of every edge at ``poses`` (n, 3), r_k² = e_kᵀ Ω_k e_k."""
-    return float(np.minimum(whitened_errors(graph, poses) ** 2, c2).sum())
+def edge_r2(graph, poses) -> np.ndarray:
+    """r_k² = e_kᵀ Ω_k e_k (m,) of every edge at ``poses``: planar (n, 3), eq. (3)'s error in the graph's cost; 3-D
+    (t (n, 3), R (n, 3, 3)), the 6-vector error of the graph's cost (``posegraph3d.edge_errors3d``)."""
+    if graph.dim == 3:
+        from ..posegraph3d import edge_errors3d
+
+        e = edge_errors3d(graph, *poses)
+        return np.einsum("ka,kab,kb->k", e, graph.information, e)
+    return whitened_errors(graph, poses) ** 2
+
+
+def truncated_cost(graph: PoseGraph, poses, c2: float) -> float:
+    """The TLS cost Σ_k min(r_k², c̄²) of every edge at ``poses`` (``edge_r2``)."""
+    return float(np.minimum(edge_r2(graph, poses), c2).sum())
 
 
 def consistent_start(graph: PoseGraph, known: np.ndarray, settings: RobustSettings) -> np.ndarray:
@@ -319,7 +349,7 @@ def consistent_start(graph: PoseGraph, known: np.ndarray, settings: RobustSettin
     I, J = np.triu_indices(q, 1)
     for s in range(0, I.size, 200_000):  # bounded temporaries
         sl = slice(s, s + 200_000)
-        ok = pairwise_consistency(graph, chain, free[I[sl]], free[J[sl]]) <= settings.c2
+        ok = pairwise_consistency(graph, chain, free[I[sl]], free[J[sl]]) <= settings.c2_for(graph.dim)
         adj[I[sl][ok], J[sl][ok]] = True
     adj |= adj.T
     clique = maximum_clique(adj, time_limit=settings.clique_seconds)
@@ -333,10 +363,10 @@ def _gnc_run(graph, settings, solve, known, w0, first=None):
     """One GNC from the unweighted LAGO (``w0`` None; ``first`` that LAGO when already run) or from the weighted
     one with weights ``w0``: (w, keep, final LagoResult on the accepted edges, iterations, history, truncated
     cost at the final estimate)."""
-    m, c2 = graph.n_edges, settings.c2
+    m, c2 = graph.n_edges, settings.c2_for(graph.dim)
     with _quiet():  # the inner runs' warnings (ambiguous 2kπ roundings of false edges) are not the result's
         res = first if first is not None else solve(graph if w0 is None else _weighted(graph, w0, settings.drop_below))
-        r2 = whitened_errors(graph, res.poses) ** 2
+        r2 = edge_r2(graph, res.poses)
     free = ~known
     r_max2 = float(r2[free].max()) if free.any() else 0.0
     w = np.ones(m)
@@ -361,7 +391,7 @@ def _gnc_run(graph, settings, solve, known, w0, first=None):
             prev = w
             with _quiet():
                 res = solve(_weighted(graph, w, settings.drop_below))
-            r2 = whitened_errors(graph, res.poses) ** 2
+            r2 = edge_r2(graph, res.poses)
             history.append(dict(mu=mu, n_outliers=int((w < 0.5).sum()), seconds=time.perf_counter() - t))
             mu = mu * settings.mu_factor if settings.loss == "tls" else max(1.0, mu / settings.mu_factor)
         else:
@@ -415,7 +445,8 @@ def _weighted(graph: PoseGraph, w: np.ndarray, drop_below: float) -> PoseGraph:
         keep[minimum_spanning_edges(graph, 1.0 - w)] = True
     ww = np.maximum(w[keep], drop_below or 1e-6)
     sub = graph.subgraph_edges(keep)
-    return replace(sub, information=sub.information * ww[:, None, None], given_information=None)
+    kept = {"given_information": None} if "given_information" in sub.OPTIONAL_MEASUREMENTS else {}
+    return replace(sub, information=sub.information * ww[:, None, None], **kept)
 
 
 @dataclass(eq=False)
@@ -424,6 +455,11 @@ class RobustVariantResult(RobustResult, VariantResult):
     ``VariantResult`` (anchors, strain …) and of a ``RobustResult``."""
 
 
-def _result_type(final: LagoResult) -> type:
-    """``RobustVariantResult`` for a ``VariantResult``, else ``RobustResult``."""
+def _result_type(final) -> type:
+    """``RobustVariantResult`` for a ``VariantResult``, ``Robust3DResult`` for a ``Lago3DResult``, else
+    ``RobustResult``."""
+    from .robust3d import Robust3DResult
+
+    if getattr(final, "dim", 2) == 3:
+        return Robust3DResult
     return RobustVariantResult if isinstance(final, VariantResult) else RobustResult
