@@ -24,7 +24,7 @@ FILES = ("se-sync-3d/sphere2500.g2o", "se-sync-3d/torus3D.g2o", "se-sync-3d/park
 GTSAM_SCRIPT = _bench.HERE.parent.parent / "shared" / "bench" / "gtsam_init3d.py"
 BIG_POSES = 100_000
 _START = "import numpy as np, lago_cvx.cli.main, lago_cvx.io, lago_cvx.space; from lago_cvx.sparse import compiled; "
-_CALL = "z = np.zeros(1, np.int64); compiled.kernels()['pose_local'](z, z, np.array([0, 1]), np.zeros(2, np.int64), z)"
+_CALL = "z = np.zeros(1, np.int64); compiled.kernels()['pose_local'](z, z, np.array([0, 1]), np.array([0, 1]), z)"
 STARTS = {
     "Python alone": "pass",
     "ours: NumPy + SciPy's sparse modules": "import numpy, scipy.sparse, scipy.sparse.linalg, scipy.linalg",
