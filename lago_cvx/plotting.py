@@ -72,11 +72,17 @@ def plot_edges(ax: Axes, graph: PoseGraph, poses, *, which: str = "loop_closures
     ``linewidth``/``alpha`` default to ``edge_style`` of the number drawn (round caps: a segment shorter
     than its width still shows as a dot); ``zorder`` 3 draws them above a trajectory (``plot_trajectory``'s
     lines are at 2), where loop closures between nearby poses would otherwise be hidden under it."""
-    poses = np.asarray(poses, dtype=float)
+    xy = np.asarray(poses, dtype=float)[:, :2]
+    return _segments(ax, graph, xy, which, color, linewidth, alpha, label, zorder)
+
+
+def _segments(ax: Axes, graph, xy: np.ndarray, which: str, color, linewidth, alpha, label, zorder) -> Axes:
+    """The edges ``which`` of ``graph`` as segments between the plotted positions ``xy`` (n, 2) of their
+    endpoints (``plot_edges``, ``plot_edges3d``)."""
     odo = graph.is_odometric
     sel = {"loop_closures": ~odo, "odometric": odo, "all": np.ones_like(odo)}[which]
     style = edge_style(int(np.count_nonzero(sel)))
-    seg = np.stack([poses[graph.tails[sel], :2], poses[graph.heads[sel], :2]], axis=1)
+    seg = np.stack([xy[graph.tails[sel]], xy[graph.heads[sel]]], axis=1)
     ax.add_collection(LineCollection(seg, colors=color, label=label, zorder=zorder, capstyle="round",
                                      linewidths=style["linewidth"] if linewidth is None else linewidth,
                                      alpha=style["alpha"] if alpha is None else alpha))
@@ -167,18 +173,8 @@ def plot_edges3d(ax: Axes, graph, t, *, plane: str = "xy", which: str = "loop_cl
                  zorder: float = 3.0) -> Axes:
     """``plot_edges`` for a 3-D graph: segments between the endpoints' positions ``t`` (n, 3), projected on
     ``plane``; ``which`` ``"loop_closures"`` (non-consecutive ids), ``"odometric"`` or ``"all"``."""
-    t = np.asarray(t, dtype=float)
     a, b = _plane(plane)
-    odo = graph.is_odometric
-    sel = {"loop_closures": ~odo, "odometric": odo, "all": np.ones_like(odo)}[which]
-    style = edge_style(int(np.count_nonzero(sel)))
-    seg = np.stack([t[graph.tails[sel]][:, [a, b]], t[graph.heads[sel]][:, [a, b]]], axis=1)
-    ax.add_collection(LineCollection(seg, colors=color, label=label, zorder=zorder, capstyle="round",
-                                     linewidths=style["linewidth"] if linewidth is None else linewidth,
-                                     alpha=style["alpha"] if alpha is None else alpha))
-    ax.autoscale_view()
-    ax.set_aspect("equal", adjustable="datalim")
-    return ax
+    return _segments(ax, graph, np.asarray(t, dtype=float)[:, [a, b]], which, color, linewidth, alpha, label, zorder)
 
 
 def plot_covariances3d(ax: Axes, t, covariances, *, R=None, plane: str = "xy", every: int = 1,

@@ -136,3 +136,14 @@ class LagoResult:
         ``chi2``, ``anchor``, ``timings``) that prints as a small table (``print(result.summary())``)."""
         return Summary(f"{type(self).__name__}: LAGO on {self.graph.name or 'a pose graph'}"[:78],
                        self._summary_rows(), timings=self.timings)
+
+
+class AcceptedEdges:
+    """What a GNC result of either dimension derives from its ``input_graph`` and ``rejected_edges``."""
+
+    @property
+    def accepted_edges(self) -> np.ndarray:
+        """Indices (m − r,) of the accepted edges in the input graph."""
+        keep = np.ones(self.input_graph.n_edges, bool)
+        keep[self.rejected_edges] = False
+        return np.flatnonzero(keep)

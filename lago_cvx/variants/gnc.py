@@ -66,7 +66,7 @@ from ..errors import OptionError
 from ..graph import connected_components, minimum_spanning_edges
 from ..metrics import whitened_errors
 from ..posegraph import PoseGraph
-from ..result import LagoResult
+from ..result import AcceptedEdges, LagoResult
 from .engine import VariantResult
 
 __all__ = ["RobustSettings", "RobustResult", "RobustVariantResult", "ROBUST_LOSSES", "robust_settings", "gnc_lago", "gnc_threshold",
@@ -202,7 +202,7 @@ def odometric_chain_complete(graph) -> bool:
 
 
 @dataclass(eq=False)
-class RobustResult(LagoResult):
+class RobustResult(AcceptedEdges, LagoResult):
     """A ``LagoResult`` of LAGO on the **accepted** edges (``graph`` is that subgraph, so ``chi2`` is over
     them; the poses are indexed as in the input), plus the GNC record: ``input_graph`` the graph given;
     ``rejected_edges`` (r,) int64 indices into its edges (file order); ``weights`` (m,) the final GNC
@@ -217,12 +217,6 @@ class RobustResult(LagoResult):
     known_inliers: np.ndarray | None = None
     history: list = field(default_factory=list)
 
-    @property
-    def accepted_edges(self) -> np.ndarray:
-        """Indices (m − r,) of the accepted edges in the input graph."""
-        keep = np.ones(self.input_graph.n_edges, bool)
-        keep[self.rejected_edges] = False
-        return np.flatnonzero(keep)
 
     def _describe(self) -> tuple[str, list[str]]:
         head, lines = super()._describe()

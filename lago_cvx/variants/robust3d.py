@@ -22,12 +22,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..space import Lago3DResult
+from ..result import AcceptedEdges
 
 __all__ = ["Robust3DResult"]
 
 
 @dataclass(frozen=True, eq=False)
-class Robust3DResult(Lago3DResult):
+class Robust3DResult(AcceptedEdges, Lago3DResult):
     """A ``Lago3DResult`` of ``lago3d`` on the **accepted** edges (``chi2`` and ``chi2_seed`` are over them; poses
     indexed as in the input), plus GNC's record as ``gnc.RobustResult``: ``input_graph`` the graph given,
     ``rejected_edges`` (r,) int64 indices into its edges (file order), ``weights`` (m,) the final GNC weights,
@@ -40,13 +41,6 @@ class Robust3DResult(Lago3DResult):
     iterations: int = 0
     known_inliers: np.ndarray | None = None
     history: list = field(default_factory=list)
-
-    @property
-    def accepted_edges(self) -> np.ndarray:
-        """Indices (m − r,) of the accepted edges in the input graph."""
-        keep = np.ones(self.input_graph.n_edges, bool)
-        keep[self.rejected_edges] = False
-        return np.flatnonzero(keep)
 
     def __post_init__(self):
         # ``graph``: the accepted edges of the input graph with their information as given (the graph ``chi2`` is
