@@ -87,6 +87,16 @@ def test_compiled_factor_solves_like_dense_algebra(b, kernel, threads):
     assert np.abs(f.solve(R) - refR).max() <= 1e-10 * np.abs(refR).max()
 
 
+def test_the_dense_algebra_test_reaches_every_part_of_the_blocked_loop():
+    """The 300-pose world above reaches every part of the compiled loop (``ck_dense``: panels of 16 pivots, then
+    the columns right of them in 4-column tiles of 2W rows plus a remainder): fronts with more than two panels,
+    fronts whose width is not a multiple of 8 (row remainders) nor of 4 (a column remainder), and small fronts."""
+    g = lc.manhattan_world(300, seed=5).graph
+    lay = C.CompiledLayout.of(GraphElimination(g, 0).plan, 3)
+    assert lay.K.max() > 32 and (lay.K < 16).any()
+    assert ((lay.D - lay.K) % 8 != 0).any() and ((lay.D - lay.K) % 4 != 0).any()
+
+
 def test_compiled_factor_is_the_numpy_engines_factor(threads):
     """The same plan factored by both engines: the C kernels' L, read front by front as [L_PP; X], is a Cholesky
     factor of N (eq. (MF)), and the NumPy fallback writes the same L (to rounding) and solves alike."""

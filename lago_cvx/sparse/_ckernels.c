@@ -115,28 +115,81 @@ static void ck_finish(i64 f, i64 b, const i64 *fptr, const i64 *rptr, const i64 
     }
 }
 
-/* Partial Cholesky of the column-major D x D front F, right-looking. Returns 0, or j + 1 when pivot j
- * is not positive. */
+/* F[i, c] -= sum_{p0 <= p < p1} F[i, p] F[c, p] for the columns c0 <= c < c1, rows i >= max(i0, c). */
+static void ck_update_rest(double *F, i64 D, i64 p0, i64 p1, i64 c0, i64 c1, i64 i0)
+{
+    for (i64 c = c0; c < c1; c++) {
+        for (i64 i = i0 > c ? i0 : c; i < D; i++) {
+            double v = F[c * D + i];
+            for (i64 p = p0; p < p1; p++)
+                v -= F[p * D + i] * F[p * D + c];
+            F[c * D + i] = v;
+        }
+    }
+}
+
+#if defined(__GNUC__)
+/* The same for every column c >= c0, four columns by 2W rows at a time in vectors of W doubles held in
+ * registers (the few entries above the diagonal this touches are never read). */
+#define CK_TILE(OP) OP(a0, 0, 0); OP(b0, 0, w); OP(a1, 1, 0); OP(b1, 1, w); OP(a2, 2, 0); OP(b2, 2, w); OP(a3, 3, 0); OP(b3, 3, w)
+#define CK_LOAD(v, q, o) memcpy(&v, F + (c + q) * D + i + o, sizeof(V))
+#define CK_STORE(v, q, o) memcpy(F + (c + q) * D + i + o, &v, sizeof(V))
+#define CK_SUB(v, q, o) v -= (o ? y : x) * P[c + q]
+#define CK_UPDATE(NAME, W)                                                                                   \
+    static void NAME(double *F, i64 D, i64 p0, i64 p1, i64 c0)                                               \
+    {                                                                                                        \
+        typedef double V __attribute__((vector_size(8 * W)));                                               \
+        const i64 w = W;                                                                                     \
+        i64 c = c0, i = 0;                                                                                   \
+        for (; c + 4 <= D; c += 4) {                                                                         \
+            for (i = c; i + 2 * W <= D; i += 2 * W) {                                                        \
+                V a0, b0, a1, b1, a2, b2, a3, b3, x, y;                                                      \
+                CK_TILE(CK_LOAD);                                                                            \
+                for (const double *P = F + p0 * D; P < F + p1 * D; P += D) {                                 \
+                    memcpy(&x, P + i, sizeof(V));                                                            \
+                    memcpy(&y, P + i + W, sizeof(V));                                                        \
+                    CK_TILE(CK_SUB);                                                                         \
+                }                                                                                            \
+                CK_TILE(CK_STORE);                                                                           \
+            }                                                                                                \
+            ck_update_rest(F, D, p0, p1, c, c + 4, i);                                                       \
+        }                                                                                                    \
+        ck_update_rest(F, D, p0, p1, c, D, 0);                                                               \
+    }
+CK_UPDATE(ck_update2, 2)
+#if defined(__x86_64__) || defined(__i386__)
+__attribute__((target("avx2"))) CK_UPDATE(ck_update4, 4)
+#define CK_UPDATE_ANY(...) (__builtin_cpu_supports("avx2") ? ck_update4(__VA_ARGS__) : ck_update2(__VA_ARGS__))
+#else
+#define CK_UPDATE_ANY ck_update2
+#endif
+#else
+#define CK_UPDATE_ANY(F, D, p0, p1, c0) ck_update_rest(F, D, p0, p1, c0, D, 0)
+#endif
+
+/* Partial Cholesky of the column-major D x D front F, right-looking by panels of CK_PANEL columns: a panel's
+ * columns one by one (updating the panel), then the columns right of it at once (CK_UPDATE_ANY). Every entry
+ * gets its subtractions in pivot order, without fused multiply-add, so the bits are those of the column-by-column
+ * loop on every processor. Returns 0, or j + 1 when pivot j is not positive. */
+#define CK_PANEL 16
 static i64 ck_dense(double *F, i64 D, i64 k)
 {
-    for (i64 j = 0; j < k; j++) {
-        i64 cj = j * D;
-        double djj = F[cj + j];
-        if (!(djj > 0.0))
-            return j + 1;
-        djj = sqrt(djj);
-        F[cj + j] = djj;
-        double inv = 1.0 / djj;
-        for (i64 i = j + 1; i < D; i++)
-            F[cj + i] *= inv;
-        for (i64 c = j + 1; c < D; c++) {
-            double a = F[cj + c];
-            if (a != 0.0) {
-                i64 cc = c * D;
-                for (i64 i = c; i < D; i++)
-                    F[cc + i] -= F[cj + i] * a;
-            }
+    for (i64 j0 = 0; j0 < k; j0 += CK_PANEL) {
+        i64 j1 = j0 + CK_PANEL < k ? j0 + CK_PANEL : k;
+        for (i64 j = j0; j < j1; j++) {
+            i64 cj = j * D;
+            double djj = F[cj + j];
+            if (!(djj > 0.0))
+                return j + 1;
+            djj = sqrt(djj);
+            F[cj + j] = djj;
+            double inv = 1.0 / djj;
+            for (i64 i = j + 1; i < D; i++)
+                F[cj + i] *= inv;
+            ck_update_rest(F, D, j, j + 1, j + 1, j1, 0);
         }
+        if (j1 < D)
+            CK_UPDATE_ANY(F, D, j0, j1, j1);
     }
     return 0;
 }
