@@ -10,6 +10,7 @@ allocated here: the C functions keep no state, so threads may call them at once 
 from __future__ import annotations
 
 import ctypes
+import functools
 import importlib.util
 
 import numpy as np
@@ -81,8 +82,8 @@ def _edges(A, B, b=None) -> tuple[int, int, int]:
 #: Each C function's result then its arguments, one letter each (i int64, d double, p pointer, - no result);
 #: tests hold this table to the prototypes of _ckernels.c.
 SIGNATURES = dict(run="iiipippppppppppppiippppppip", forward="-piipiippppppp", backward="-piipiippppppp",
-                  pose_local="-ppipppp", block_count="ippippip", block_fill="-ppipppppipppppp", edge_matvec="-ppiiipppip",
-                  edge_rmatvec="-ppiiipppip", stack_peak="ipippp", subtrees="-ppipp",
+                  pose_local="-ppipppp", block_count="ippippip", block_fill="-ppipppppipppppp",
+                  edge_matvec="-ppiiipppip", edge_rmatvec="-ppiiipppip", stack_peak="ipippp", subtrees="-ppipp",
                   relax="-ppppiiiidddp", postorder="-pippp")
 _C = {name: _c(name, sig) for name, sig in SIGNATURES.items()}
 
@@ -108,6 +109,7 @@ def run(f0, f1, big, b, fptr, rptr, rel, nchild, Lptr, bptr, border, bli, blj, b
 
 
 def _sweep(kernel, Y, seq, b, fptr, rptr, rows, Lptr, L, rmax):
+    """L z = y (``forward``) or Lᵀ x = z (``backward``) in place for Y (nrhs, slots), fronts in the order ``seq``."""
     if np.ndim(Y) != 2:
         raise ValueError(f"C kernels: Y must be (right-hand sides, slots), not of shape {np.shape(Y)}")
     y, sq = _p(Y, _F64, "Y", True), _p(seq, _I64, "seq")
@@ -121,14 +123,7 @@ def _sweep(kernel, Y, seq, b, fptr, rptr, rows, Lptr, L, rmax):
            *_i(fptr=fptr, rptr=rptr, rows=rows, Lptr=Lptr), _p(L, _F64, "L"), slot.ctypes.data, t.ctypes.data)
 
 
-def forward(Y, seq, b, fptr, rptr, rows, Lptr, L, rmax):
-    """L z = y in place for Y (nrhs, slots)."""
-    _sweep(_C["forward"], Y, seq, b, fptr, rptr, rows, Lptr, L, rmax)
-
-
-def backward(Y, seq, b, fptr, rptr, rows, Lptr, L, rmax):
-    """Lᵀ x = z in place for Y (nrhs, slots)."""
-    _sweep(_C["backward"], Y, seq, b, fptr, rptr, rows, Lptr, L, rmax)
+forward, backward = functools.partial(_sweep, _C["forward"]), functools.partial(_sweep, _C["backward"])
 
 
 def pose_local(f, pos, fptr, rptr, rows):
@@ -256,6 +251,6 @@ def _addresses() -> np.ndarray:
 
 
 #: The kernels by name, and ``fn`` the LAPACK/BLAS addresses.
-KERNELS = dict(run=run, forward=forward, backward=backward, stack_peak=stack_peak, subtrees=subtrees, pose_local=pose_local, block_map=block_map,
-               edge_matvec=edge_matvec, edge_rmatvec=edge_rmatvec, relax=relax, postorder=postorder,
-               fn=_addresses())
+KERNELS = dict(run=run, forward=forward, backward=backward, stack_peak=stack_peak, subtrees=subtrees,
+               pose_local=pose_local, block_map=block_map, edge_matvec=edge_matvec, edge_rmatvec=edge_rmatvec,
+               relax=relax, postorder=postorder, fn=_addresses())

@@ -1,22 +1,14 @@
 r"""The multifrontal block Cholesky (MF) of ``multifrontal`` — the engine's one numeric factorization — front by
 front in C, or, where no compiler was present at install (``available()`` False, said once as a warning), in NumPy
-(``block_factor``) on the same storage.
-
-The loop over the fronts (postorder, children's updates on a stack popped by their parent) is one C call
-(``c_kernels``): a few hundred nanoseconds per front where NumPy pays Python calls. A front's dense kernel is a
-right-looking loop for small fronts and LAPACK's ``potrf`` with BLAS's ``trsm``/``syrk`` (SciPy's, by address) for
-large ones.
+(``block_factor``) on the same storage. The loop over the fronts (postorder, children's updates on a stack popped by
+their parent) is one C call (``c_kernels``), a few hundred nanoseconds per front where NumPy pays Python calls.
 
 **Storage** (``CompiledLayout``). Variables are numbered by elimination slot, pose-major: slot = position·b +
 component. Front f has k = |P_f|·b pivot and r = |R_f|·b update variables, D = k + r; its block column
 [L_PP; X_f] is kept column by column from ``L[Lptr[f]]``, column j holding rows j … D − 1.
 
 **Solve** N x = y (``CompiledFactor.solve_slots``): forward L z = y front by front (leaves up), back Lᵀ x = z.
-
-**Two cores.** The C loop releases the GIL: the front tree's largest subtrees are split until none holds more than
-1/16 of the work, dealt to one worker thread per core (``threads.cores()``; each with its own front buffer and stack,
-one BLAS thread), and the fronts above them are factored afterwards in the calling thread, the children's updates
-copied across from the workers' stacks (``CompiledLayout.schedule_for``).
+**Two cores**: the C loop releases the GIL, so disjoint subtrees run at once (``CompiledLayout.schedule_for``).
 """
 
 from __future__ import annotations
@@ -35,13 +27,12 @@ __all__ = ["available", "kernels", "CompiledLayout", "CompiledAssembler", "Compi
 
 log = logging.getLogger(__name__)
 
-#: A front whose k·D² (twice its multiply–adds) is below this is factored by a compiled right-looking
-#: loop; a larger one by LAPACK/BLAS (potrf, trsm, syrk), called by address from the compiled loop.
+#: A front whose k·D² (twice its multiply–adds) is below this is factored by a compiled right-looking loop; a
+#: larger one by LAPACK's ``potrf`` and BLAS's ``trsm``/``syrk`` (SciPy's), called by address from the compiled loop.
 SMALL_WORK = 50_000
 
-#: The same bound while the process's BLAS is left alone (no ``engine_threads(blas_threads=…)``): its threads, which
-#: the engine may not limit, cost far more than they give on the fronts of a busy machine (``benchmarks/perf.md``),
-#: so only fronts beyond this call LAPACK/BLAS, where the right-looking loop would lose more.
+#: The same bound while the process's BLAS is left alone (no ``engine_threads(blas_threads=…)``): its threads cost
+#: far more than they give on a busy machine (docs/performance.md, "The engine: one path").
 ALONE_WORK = 1e10
 
 #: Fronts with at least this many pivot variables run BLAS on every thread; the others on one.
@@ -112,17 +103,14 @@ class CompiledLayout:
         self.fptr = np.ascontiguousarray(plan.fptr, np.int64)
         self.rptr = np.ascontiguousarray(plan.rptr, np.int64)
         self.rows = np.ascontiguousarray(plan.rows, np.int64)
-        K, R = k * b, r * b
-        D = K + R
+        K, R, D = k * b, r * b, (k + r) * b
         self.Lptr = np.r_[0, np.cumsum(D * K - K * (K - 1) // 2)].astype(np.int64)
         self.nchild = np.bincount(plan.parent[plan.parent >= 0], minlength=F).astype(np.int64)
-        rf = np.repeat(np.arange(F), r)
-        par = plan.parent[rf]
-        rel = np.full(rf.size, -1, np.int64)
+        par = plan.parent[np.repeat(np.arange(F), r)]  # (|rows|,) the parent of each update row's front
+        self.rel = rel = np.full(par.size, -1, np.int64)
         ok = par >= 0
         if ok.any():
             rel[ok] = self._pose_local(par[ok], self.rows[ok])
-        self.rel = rel
         self.K, self.D = K, D
         self.work = K.astype(float) * D * D  # (F,) twice each front's multiply–adds
         self.max_front = int(D.max() ** 2) if F else 0
@@ -147,13 +135,13 @@ class CompiledLayout:
 
     def factor(self, assembler: "CompiledAssembler", A: np.ndarray, B: np.ndarray, *,
                progress=None) -> "CompiledFactor":
-        """Factor the normal matrix (N) of the edge system with blocks ``A``, ``B`` (m, q, b) (its ends
-        those the assembler was built on) by (MF), fronts in postorder. With more than one core (``threads.cores()``) and enough
-        work, disjoint subtrees of the front tree are factored at once in worker threads (the compiled
-        loop releases the GIL; one BLAS thread each), then the fronts above them (``schedule``) in this
-        thread, large ones with every BLAS thread. ``progress(done, total)`` gets the multiply–adds done.
-        Raises ``multifrontal.NotPositiveDefinite`` if a pivot block is not positive definite. Without the C
-        kernels, ``block_factor.factor`` (NumPy, front by front) fills the same L."""
+        """Factor the normal matrix (N) of the edge system with blocks ``A``, ``B`` (m, q, b) (its ends those the
+        assembler was built on) by (MF), fronts in postorder: with several cores (``threads.cores()``) and enough work,
+        the subtrees of ``schedule_for`` in worker threads (one BLAS thread each, each with its own front buffer and
+        stack), then the fronts above them in this thread, the children's updates copied across from the workers'
+        stacks, large fronts with every BLAS thread. Without the C kernels, ``block_factor.factor`` fills the same L.
+        ``progress(done, total)`` gets the multiply–adds done. Raises ``multifrontal.NotPositiveDefinite`` if a pivot
+        block is not positive definite."""
         A = np.ascontiguousarray(A, dtype=float)
         B = np.ascontiguousarray(B, dtype=float)
         L = self.__dict__.pop("_reserved", None)
@@ -166,7 +154,7 @@ class CompiledLayout:
             return CompiledFactor(self, L, 1)
         kern = kernels()
         data = (assembler.bptr, assembler.order, assembler.li, assembler.lj, assembler.transposed, A, B)
-        n_threads = cores()
+        n_threads, nf = cores(), self.plan.n_fronts
         sched = self.schedule_for(n_threads)
         total = float(self.work.sum())
         done = [0.0]
@@ -179,11 +167,10 @@ class CompiledLayout:
 
         with blas_threads(1) as threads:
             if sched is None:
-                _Front(self, kern, data, L, self.plan.n_fronts, np.arange(self.plan.n_fronts)).fronts(
-                    0, self.plan.n_fronts, threads, done, report)
+                _Front(self, kern, data, L, nf, np.arange(nf)).fronts(0, nf, threads, done, report)
                 return CompiledFactor(self, L, n_threads)
             roots_of, top, first, ext = sched
-            workers = [_Front(self, kern, data, L, self.plan.n_fronts, seq) for seq in self.worker_fronts_for(n_threads)]
+            workers = [_Front(self, kern, data, L, nf, seq) for seq in self.worker_fronts_for(n_threads)]
             errors: list = []
 
             def work(w, roots):
@@ -205,7 +192,7 @@ class CompiledLayout:
             for w in workers:
                 for t in range(int(w.state[0])):
                     where[int(w.st_front[t])] = (w, int(w.st_off[t]), int(w.st_off[t + 1] - w.st_off[t]))
-            main = _Front(self, kern, data, L, self.plan.n_fronts, top, ext=(ext, where))
+            main = _Front(self, kern, data, L, nf, top, ext=(ext, where))
             for f in top.tolist():
                 for c in ext.get(f, ()):  # pushed onto this thread's stack (NumPy refuses one that does not fit)
                     w, off, size = where[c]
@@ -216,11 +203,10 @@ class CompiledLayout:
         return CompiledFactor(self, L, n_threads)
 
     def schedule_for(self, n_threads: int):
-        """How the fronts are shared among ``n_threads`` threads, or None to factor them in one: the front
-        tree's largest subtrees are split (their root joins ``top``, the fronts left to this thread) until
-        none holds more than 1/16 of the work, then dealt to the threads largest first. Returns
-        (roots per thread, top fronts in postorder, first front of each subtree, {top front: its children
-        that are subtree roots})."""
+        """How the fronts are shared among ``n_threads`` threads, or None to factor them in one: the front tree's
+        largest subtrees are split (their root joins ``top``, the fronts left to this thread) until none holds more
+        than 1/16 of the work, then dealt to the threads largest first. Returns (roots per thread, top fronts in
+        postorder, first front of each subtree, {top front: its children that are subtree roots})."""
         known = self.__dict__.setdefault("_schedules", {})
         if n_threads in known:
             return known[n_threads]
@@ -262,9 +248,9 @@ class CompiledLayout:
         return sched
 
     def reserve(self, *, threads: int | None = None) -> None:
-        """Allocate the next factorization's L and touch every page of it now (from ``threads`` threads at
-        once, default one per core, called where there is time: ``GraphElimination.prepare``), so that the factorization writes
-        to memory already mapped."""
+        """Allocate the next factorization's L and touch every page of it now (from ``threads`` threads at once,
+        default one per core, called where there is time: ``GraphElimination.prepare``), so that the factorization
+        writes to memory already mapped."""
         if "_reserved" in self.__dict__:
             return
         threads = cores() if threads is None else max(1, int(threads))
@@ -319,10 +305,10 @@ class _Front:
         self.state = np.zeros(1, np.int64)
 
     def fronts(self, f0: int, f1: int, threads, done: list, report) -> None:
-        """Fronts f0 … f1 − 1 (whole subtrees, or a top front whose children's updates are on this
-        stack): small runs inside one compiled call (``CHUNK`` of the fronts per call when ``report`` wants
-        progress between calls, else as many as run before a large one); with ``threads`` (this thread sets
-        the BLAS thread count) a large front alone, by LAPACK/BLAS on every BLAS thread. ``done[0]`` += their work."""
+        """Fronts f0 … f1 − 1 (whole subtrees, or a top front whose children's updates are on this stack): small
+        runs inside one compiled call (``CHUNK`` of the fronts per call when ``report`` wants progress between calls,
+        else as many as run before a large one); with ``threads`` (this thread sets the BLAS thread count) a large
+        front alone, by LAPACK/BLAS on every BLAS thread. ``done[0]`` += their work."""
         lay = self.layout
         own = blas_limit() is not None  # the engine holds the BLAS threads: LAPACK/BLAS from SMALL_WORK on
         big = lay.big if threads is not None and own else lay.none_big
@@ -428,11 +414,10 @@ class CompiledFactor:
 
 
 class CompiledEdgeOperator:
-    """M x and Mᵀ r of an edge system (E) (``normal_equations.EdgeSystem``) by compiled loops over its
-    edges, reading A, B (m, q, b) where they are: no transposed copies and no temporaries of length m
-    (at a million poses the NumPy ``EdgeOperator``'s copies and temporaries are 0.3 GiB of fresh memory:
-    ``benchmarks/million.md``). The same sums in the same order as the NumPy operator, for one
-    right-hand side or several (a trailing axis)."""
+    """M x and Mᵀ r of an edge system (E) (``edge_system.EdgeSystem``) by compiled loops over its edges, reading A, B
+    (m, q, b) where they are: no transposed copies and no temporaries of length m (at a million poses the NumPy
+    ``EdgeOperator``'s are 0.3 GiB of fresh memory: ``benchmarks/million.md``). The same sums in the same order as
+    the NumPy operator, for one right-hand side or several (a trailing axis)."""
 
     def __init__(self, system):
         self.d = system.d

@@ -16,6 +16,7 @@ import scipy.sparse as sp
 
 __all__ = ["EdgeSystem", "EdgeOperator"]
 
+
 @dataclass(frozen=True, eq=False)
 class EdgeSystem:
     """The least-squares problem (E): ``tails``, ``heads`` (m,) free-pose indices (−1: the anchor),

@@ -1,10 +1,6 @@
-"""Sparse linear algebra shared by the closed forms: SPD solves, least squares with the corrected semi-normal
-equations, the BLAS thread guard.
-
-``factorize(N)`` factors a sparse SPD matrix of any pattern once and returns a ``Factor``: ``"qdldl"`` (the
-``qdldl`` package's public ``Solver``, LDLᵀ after AMD; the default), ``"superlu"`` (SciPy, symmetric mode: many
-right-hand sides at once), ``"cholmod"`` (scikit-sparse, an optional extra). The pose-graph systems of the closed
-forms do not come through here: they go through ``normal_equations.GraphElimination`` (the multifrontal engine).
+"""Sparse linear algebra shared by the closed forms: SPD solves of any pattern (``factorize``), least squares with
+the corrected semi-normal equations, the BLAS thread guard. The pose-graph systems of the closed forms do not come
+through ``factorize``: they go through ``normal_equations.GraphElimination`` (the multifrontal engine).
 """
 
 from __future__ import annotations
@@ -30,8 +26,6 @@ log = logging.getLogger(__name__)
 SOLVER_BACKENDS = ("auto", "qdldl", "superlu", "cholmod")
 
 _BLAS: list = []  # threadpoolctl's controllers of the loaded BLAS libraries, found on first use
-
-
 _BLAS_LOCK = threading.Lock()
 _BLAS_USERS: list = [0, None]  # [blocks inside blas_threads now, the counts on entry of the first]
 
@@ -49,11 +43,10 @@ if hasattr(os, "register_at_fork"):
 @contextlib.contextmanager
 def blas_threads(n: int | None):
     """Run a block with at most ``n`` BLAS threads (None: as many as on entry) and yield a setter ``threads(k)``
-    that changes it inside the block (k None: back to the count on entry) — only when a caller asked the engine to
-    (``threads.engine_threads(blas_threads=m)``, which also caps every count at m). Otherwise (the default) the
-    process's BLAS settings are left untouched and the setter does nothing: the count is process-wide, seen by every
-    other thread meanwhile. When set (through threadpoolctl, every loaded BLAS), the process's count is restored
-    when the last such block ends, also when blocks of several threads overlap."""
+    that changes it inside the block (k None: back to the count on entry) — only inside
+    ``threads.engine_threads(blas_threads=m)``, which also caps every count at m; otherwise the setter does nothing
+    (``threads``: the count is process-wide). Through threadpoolctl, every loaded BLAS; the process's count is
+    restored when the last such block ends, also when blocks of several threads overlap."""
     limit = blas_limit()
     if limit is None:
         yield lambda k: None  # the setter does nothing: the process's BLAS is left alone
@@ -100,13 +93,11 @@ class NotPositiveDefinite(NumericalError):
 
 
 class Factor:
-    """A factored sparse SPD matrix N of shape (dim, dim): ``factor.solve(rhs)`` solves N x = rhs
-    for rhs of shape (dim,) or (dim, r); ``factor.backend`` names the library used.
-
-    ``matrix`` is N itself — whole and symmetric, in the factor's own numbering — or None when it is not
-    kept; it may be given as a function that builds it on first use. A factor is engine state, not data: pickled
-    or deep-copied, it becomes None (results keep the matrices from which it is rebuilt, as
-    ``Phase3.pose_covariances`` factors ``info`` anew)."""
+    """A factored sparse SPD matrix N of shape (dim, dim): ``factor.solve(rhs)`` solves N x = rhs for rhs of shape
+    (dim,) or (dim, r); ``factor.backend`` names the library used; ``matrix`` is N itself — whole and symmetric, in
+    the factor's own numbering — or None when it is not kept (it may be given as a function that builds it on first
+    use). A factor is engine state, not data: pickled or deep-copied, it becomes None (results keep the matrices
+    from which it is rebuilt, as ``Phase3.pose_covariances`` factors ``info`` anew)."""
 
     def __reduce__(self):
         return type(None), ()
@@ -130,10 +121,10 @@ class Factor:
 
 
 def factorize(N: sp.spmatrix, *, backend: str = "auto") -> Factor:
-    """Factor the sparse SPD matrix ``N`` (shape (d, d)) once; return a ``Factor``.
-
-    ``backend``: ``"auto"`` and ``"qdldl"`` (QDLDL, a dependency), ``"superlu"``, ``"cholmod"`` (raises ImportError
-    naming the extra if missing)."""
+    """Factor the sparse SPD matrix ``N`` (shape (d, d)) once; return a ``Factor``. ``backend``: ``"auto"`` and
+    ``"qdldl"`` (the ``qdldl`` package's public ``Solver``, LDLᵀ after AMD), ``"superlu"`` (SciPy, symmetric mode:
+    many right-hand sides at once), ``"cholmod"`` (scikit-sparse, an optional extra: ImportError naming it if
+    missing)."""
     if backend not in SOLVER_BACKENDS:
         raise OptionError(f"unknown backend {backend!r}; expected one of {SOLVER_BACKENDS}")
     N = sp.csc_matrix(N)
@@ -164,10 +155,8 @@ def factorize(N: sp.spmatrix, *, backend: str = "auto") -> Factor:
 #: Maximum number of correction steps of the corrected semi-normal equations in ``solve_least_squares``.
 REFINEMENT_STEPS = 5
 
-
-#: The refinement stops once a correction is below this size relative to ‖x‖∞: each step shrinks the error by about
-#: the first solve's relative error ρ (κ²ε), so after a correction c the error left is about ρ·c — at rounding level
-#: (≤ 1e-14) below 1e-9 even with ρ a hundred times c (measured on city10000, M3500, INTEL: ``benchmarks/perf.md``).
+#: The refinement stops once a correction is below this size relative to ‖x‖∞: the error left is then at rounding
+#: level (docs/performance.md, "Refinement").
 REFINEMENT_STOP = 1e-9
 
 #: After refinement, a last correction larger than this (relative to ‖x‖∞) means the normal equations
@@ -197,17 +186,14 @@ def augmented_least_squares(M: sp.spmatrix, b: np.ndarray) -> np.ndarray:
 def refine_normal_equations(solve, matvec, rmatvec, b: np.ndarray, *, first: np.ndarray | None = None):
     """x = N⁻¹Mᵀb for a factored N = MᵀM (``solve``), then the corrected semi-normal equations
     x ← x + N⁻¹Mᵀ(b − Mx) while the correction shrinks (at most ``REFINEMENT_STEPS``, stopping below
-    ``REFINEMENT_STOP`` relative: the next one would be at rounding level). ``matvec(x) = Mx``,
-    ``rmatvec(r) = Mᵀr``. Returns ``(x, stats, trusted)``: ``stats``
-    with ``method``, ``refinement_steps``, ``relative_correction`` (the last correction relative to
-    ‖x‖∞); ``trusted`` False when x is not finite or that correction exceeds ``TRUST_TOLERANCE``.
-    ``first``, when given, is Mᵀb computed already."""
+    ``REFINEMENT_STOP`` relative). ``matvec(x) = Mx``, ``rmatvec(r) = Mᵀr``; ``first``, when given, is Mᵀb computed
+    already. Returns ``(x, stats, trusted)``: ``stats`` with ``method``, ``refinement_steps``, ``relative_correction``
+    (the last correction relative to ‖x‖∞); ``trusted`` False when x is not finite or that correction exceeds
+    ``TRUST_TOLERANCE``."""
     stats = {"method": "normal equations", "refinement_steps": 0, "relative_correction": 0.0}
     x = solve(rmatvec(b) if first is None else first)
     scale = max(np.max(np.abs(x)) if x.size else 0.0, np.finfo(float).tiny)
-    last = np.inf
-    rel = 0.0
-    steps = 0
+    last, rel, steps = np.inf, 0.0, 0
     for steps in range(1, REFINEMENT_STEPS + 1):
         dx = solve(rmatvec(b - matvec(x)))
         size = np.max(np.abs(dx)) if dx.size else 0.0
@@ -225,23 +211,14 @@ def refine_normal_equations(solve, matvec, rmatvec, b: np.ndarray, *, first: np.
 
 
 def solve_least_squares(M: sp.spmatrix, b: np.ndarray, *, backend: str = "auto"):
-    """Minimise ‖M x − b‖² for a sparse M (r × c) of full column rank.
-
-    Factor N = MᵀM once and solve the normal equations, then apply the *corrected semi-normal
-    equations*: x ← x + N⁻¹Mᵀ(b − Mx), repeated while the correction shrinks (at most
-    ``REFINEMENT_STEPS``; ``refine_normal_equations``). The residual b − Mx is formed in the original
-    space, so this recovers the accuracy a QR factorization would give even when cond(M)² ε ≈ 1 (real
-    files with information spanning 1e1 … 1e8, e.g. carlone/input_INTEL_g2o.g2o, lose 6 digits in the
-    plain normal equations).
-
-    The solver checks itself: if the factorization of N fails (N singular in floating point although M
-    is not, e.g. one edge with information 1e16 and the others 1) or the last correction is still
-    larger than ``TRUST_TOLERANCE``, it solves the augmented system instead (``augmented_least_squares``);
-    if that gives no finite answer it raises ``NumericalError`` (a ``GraphError``).
-
-    Returns ``(x, N, factor, stats)``; ``factor`` is None when the augmented system was used; ``stats``
-    has ``method`` ("normal equations" or "augmented system"), ``refinement_steps`` and
-    ``relative_correction`` (size of the last correction relative to ‖x‖∞)."""
+    """Minimise ‖M x − b‖² for a sparse M (r × c) of full column rank: N = MᵀM factored once, then the corrected
+    semi-normal equations (``refine_normal_equations``), whose residual b − Mx, formed in the original space,
+    recovers the accuracy of a QR factorization even when cond(M)² ε ≈ 1 (information spanning 1e1 … 1e8, as in
+    carlone/input_INTEL_g2o.g2o, loses 6 digits in the plain normal equations). Where N's factorization fails (N
+    singular in floating point although M is not, e.g. one edge with information 1e16 and the others 1) or the
+    answer is not trusted, the augmented system (``refined_or_augmented``); ``NumericalError`` (a ``GraphError``) if
+    that gives no finite answer. Returns ``(x, N, factor, stats)``: ``factor`` None after the augmented system;
+    ``stats`` as ``refine_normal_equations`` reports it, ``method`` "augmented system" after the fallback."""
     M = sp.csc_matrix(M)
     N = (M.T @ M).tocsc()
     if M.shape[1] == 0:  # nothing to estimate (a single pose)

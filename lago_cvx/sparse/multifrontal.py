@@ -59,9 +59,8 @@ def _postorder(parent: np.ndarray) -> np.ndarray:
 
 
 def _loops():
-    """``relax`` and ``postorder``, the symbolic analysis's sequential loops: in C when the kernels are
-    built (``compiled.available()``), else as the Python below (the same integer loops and floating-point operations:
-    the same plan either way, tested)."""
+    """``relax`` and ``postorder``, the symbolic analysis's sequential loops: in C when the kernels are built
+    (``compiled.available()``), else the Python below (the same operations: the same plan either way, tested)."""
     from . import compiled
 
     if compiled.available():
@@ -116,13 +115,11 @@ def postorder(parent):
 
 @dataclass(eq=False)
 class EliminationPlan:
-    """The pose-level symbolic analysis (module docstring) of a d × d pattern.
-
-    ``d`` poses; ``position`` (d,) each pose's place in the elimination order; fronts f = 0 … F−1 in
-    elimination order (children before parents): pivots are the positions ``fptr[f] … fptr[f+1]−1``,
-    update rows ``rows[rptr[f]:rptr[f+1]]`` (positions, increasing), ``parent`` (F,) (−1 at a root). ``nnz`` the pose-level entries of L including the explicit zeros of
-    the amalgamation; ``flops(b)`` the multiply–adds of (MF) with b×b blocks (Σ over the columns of L of
-    colcount², the Cholesky flop count)."""
+    """The pose-level symbolic analysis (module docstring) of a d × d pattern: ``d`` poses; ``position`` (d,) each
+    pose's place in the elimination order; fronts f = 0 … F−1 in elimination order (children before parents): pivots
+    the positions ``fptr[f] … fptr[f+1]−1``, update rows ``rows[rptr[f]:rptr[f+1]]`` (positions, increasing),
+    ``parent`` (F,) (−1 at a root). ``nnz`` the pose-level entries of L including the amalgamation's explicit zeros;
+    ``flops(b)`` the multiply–adds of (MF) with b×b blocks."""
 
     d: int
     position: np.ndarray
@@ -149,8 +146,8 @@ class EliminationPlan:
         return int((k * (k + 1) // 2 + k * r).sum())
 
     def flops(self, b: int = 1) -> float:
-        """Σ over the scalar columns of L (b×b-block expansion) of colcount²: the multiply–adds of a
-        Cholesky factorization."""
+        """Σ over the scalar columns of L (b×b-block expansion) of colcount²: the multiply–adds of a Cholesky
+        factorization."""
         k, r = self.pivots.astype(float) * b, self.n_rows.astype(float) * b
         # column t of a front (t = 0 … kb−1) has kb − t + rb entries (diagonal included)
         return float((k * (k + 1) * (2 * k + 1) / 6 + k * (k + 1) * r + k * r * r).sum())

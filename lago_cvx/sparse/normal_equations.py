@@ -1,6 +1,6 @@
-r"""Every closed form of LAGO (the chordal relaxation (C2), phase 1 eq. (13), phase 3 eqs. (12)/(15), the positions
-(P), the 3-D systems) is a least-squares problem (E) (``edge_system``) on the free poses; written as ‖M x − c‖², its
-normal matrix N = MᵀM has the b×b blocks
+r"""Every closed form of LAGO (the chordal relaxation (C2), phase 1 eq. (13), phase 3 eqs. (12)/(15), the
+positions (P), the 3-D systems) is a least-squares problem (E) (``edge_system``) on the free poses; written as
+‖M x − c‖², its normal matrix N = MᵀM has the b×b blocks
 
     N_ii = Σ_{k: t_k = i} A_kᵀA_k + Σ_{k: h_k = i} B_kᵀB_k,    N_{h_k t_k} += B_kᵀA_k,              (N)
 
@@ -12,6 +12,7 @@ the augmented system (``linalg.refined_or_augmented``).
 
 from __future__ import annotations
 
+import functools
 import logging
 
 import numpy as np
@@ -90,10 +91,10 @@ def matrix_blocks(N: sp.spmatrix, var_index: np.ndarray):
 
 
 def marginal_blocks(N, var_index: np.ndarray, *, factor: Factor | None = None, progress=None) -> np.ndarray:
-    """The diagonal b×b blocks (d, b, b) of N⁻¹ for the variables ``var_index`` (d, b) of each free pose — marginal
-    covariances when N is an information matrix — by selected inversion (eq. (T) of ``multifrontal``), never a
-    dense inverse: on ``factor`` when it is a ``PoseFactor`` (possibly renumbered), else on a factorization of N
-    (a sparse matrix, or a function that builds it) on its own pose-level plan."""
+    """The diagonal b×b blocks (d, b, b) of N⁻¹ for the variables ``var_index`` (d, b) of each free pose —
+    marginal covariances when N is an information matrix — by selected inversion (eq. (T) of ``multifrontal``),
+    never a dense inverse: on ``factor`` when it is a ``PoseFactor`` (possibly renumbered), else on a factorization
+    of N (a sparse matrix, or a function that builds it) on its own pose-level plan."""
     pm = getattr(factor, "pose_major", factor)
     if isinstance(pm, PoseFactor):
         return inverse_blocks(pm.numeric, progress=progress)[0]
@@ -109,17 +110,14 @@ def marginal_blocks(N, var_index: np.ndarray, *, factor: Factor | None = None, p
 
 
 class GraphElimination:
-    """The pose-level elimination of one graph and anchor (index ``anchor_index``), shared by its systems.
-
-    ``d`` free poses; ``free_of`` (n,) each pose's free index (−1 at the anchor); ``tails``, ``heads`` (m,) edges'
-    ends as free indices; ``plan`` the ``EliminationPlan`` (AMD on the pose graph's pattern, built once, on first
-    use). ``GraphElimination.start(…)`` builds the plan in a worker thread while the caller goes on
-    (a failure there is raised to whoever waits); ``expect`` announces the block sizes of the systems to come, in
-    order: each one's layout and memory are prepared in a worker (``prepare``) once the previous one is factored.
-    ``ahead(task)`` hands over work needed later (an ``Ahead``), run beside the next factorization or when first
-    asked for. ``workers`` caps the engine's own threads (None: ``threads.cores()``; 1: none besides the caller's);
-    ``blas_threads`` lets the engine hold the process's BLAS to that many threads while it factors (None, the
-    default: the BLAS settings are left alone; ``threads.engine_threads``)."""
+    """The pose-level elimination of one graph and anchor (index ``anchor_index``), shared by its systems: ``d`` free
+    poses; ``free_of`` (n,) each pose's free index (−1 at the anchor); ``tails``, ``heads`` (m,) edges' ends as free
+    indices; ``plan`` the ``EliminationPlan`` (AMD on the pose graph's pattern, built once, on first use).
+    ``start(…)`` builds the plan in a worker thread while the caller goes on (a failure there is raised to whoever
+    waits); ``expect`` announces the block sizes of the systems to come, in order, each prepared in a worker
+    (``prepare``) once the previous one is factored; ``ahead(task)`` hands over work needed later. ``workers`` caps
+    the engine's own threads (None: ``threads.cores()``; 1: none besides the caller's); ``blas_threads`` lets the
+    engine hold the process's BLAS to that many threads while it factors (None, the default: left alone)."""
 
     def __init__(self, graph, anchor_index: int, *, expect: tuple = (), workers: int | None = None,
                  blas_threads: int | None = None, _background: bool = False):
@@ -254,13 +252,7 @@ class GraphElimination:
         tracker = Progress(stage, callback=progress, logger=log) if progress is not None or d > 200_000 else None
         extra = system.c.shape[2:]  # several right-hand sides: (d·b, r)
         m, q = system.c.shape[:2]
-        given, op = factor, []  # M's operator, set up once, after the factorization
-
-        def M():
-            if not op:
-                op.append(system.operator())
-            return op[0]
-
+        given, M = factor, functools.cache(system.operator)  # M's operator, set up once, after the factorization
         x, factor, stats = refined_or_augmented(
             lambda: given if given is not None else self.factor(system, solving=True, progress=None if tracker is None
                                                                 else (lambda i, n: tracker.update(0.9 * i / n))),

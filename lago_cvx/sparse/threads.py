@@ -1,11 +1,7 @@
-"""How many threads the engine may use, and whether it may touch the process's BLAS thread count.
-
-``cores()`` — the engine's own threads (compiled subtrees, solves, background builds): the cores of this process's
-CPU affinity, capped by ``LAGO_CVX_THREADS`` and by ``workers`` (``engine_threads(workers=…)``; SciPy's name);
-``workers=1`` runs the engine in the calling thread alone. ``blas_limit()`` — None (the default) leaves the
-process's BLAS settings alone; only ``engine_threads(blas_threads=k)`` lets the engine hold every BLAS to at most k
-threads while it runs (``linalg.blas_threads``: a process-wide setting — OpenBLAS has no thread-local count — so
-never the default). Both are context variables, handed to the threads the engine starts (``spawn``).
+"""How many threads the engine may use (``cores()``: its compiled subtrees, solves, background builds; ``workers=1``
+runs it in the calling thread alone), and whether it may touch the process's BLAS thread count (``blas_limit()``:
+only inside ``engine_threads(blas_threads=k)``, never by default, as the count is process-wide — OpenBLAS has no
+thread-local count). Both are context variables, handed to the threads the engine starts (``spawn``).
 """
 
 from __future__ import annotations
@@ -18,8 +14,8 @@ import threading
 
 from ..errors import OptionError
 
-__all__ = ["cores", "engine_threads", "blas_limit", "spawn", "check_workers", "in_engine_threads", "Ahead", "thread_settings",
-           "threads_option"]
+__all__ = ["cores", "engine_threads", "blas_limit", "spawn", "check_workers", "in_engine_threads", "Ahead",
+           "thread_settings", "threads_option"]
 
 _WORKERS: contextvars.ContextVar = contextvars.ContextVar("lago_cvx_workers", default=None)
 _BLAS_LIMIT: contextvars.ContextVar = contextvars.ContextVar("lago_cvx_blas_threads", default=None)
@@ -39,9 +35,8 @@ def check_workers(value, name: str = "workers") -> int | None:
 
 
 def cores() -> int:
-    """Threads the engine may run at once: the CPUs this process may run on (``os.sched_getaffinity``;
-    ``os.cpu_count()`` where affinity is unknown), capped by ``LAGO_CVX_THREADS`` when it is set and by the
-    ``workers`` of ``engine_threads`` in this context."""
+    """Threads the engine may run at once: the CPUs this process may run on (``os.sched_getaffinity``, else
+    ``os.cpu_count()``), capped by ``LAGO_CVX_THREADS`` when set and by ``engine_threads(workers=…)`` (SciPy's name)."""
     try:
         n = len(os.sched_getaffinity(0))
     except (AttributeError, OSError):
