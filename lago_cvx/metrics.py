@@ -19,7 +19,10 @@ import numpy as np
 
 from .stacks import row_blocks
 from .errors import OptionError
+from .metrics3d import poses_of
 from .posegraph import PoseGraph, logmap_translation, rot2, wrap_angle
+from .posegraph3d import chi2_3d, edge_errors3d
+from .posegraph_base import as_graph
 
 __all__ = ["edge_errors", "chi2", "chi2_parts", "whitened_errors", "alignment_angle", "alignment", "ate", "rpe",
            "rotation_error", "relative_difference"]
@@ -27,19 +30,22 @@ __all__ = ["edge_errors", "chi2", "chi2_parts", "whitened_errors", "alignment_an
 
 def edge_errors(graph: PoseGraph, poses) -> np.ndarray:
     """Errors e_ij of the graph's cost weighed by ``graph.information`` (module docstring: eq. (3), or GTSAM's
-    [V(ε)⁻¹ e_t ; ε] for cost ``"gtsam"``), shape (m, 3), for ``poses`` of shape (n, 3)."""
-    poses = _check_poses(graph, poses)
+    [V(ε)⁻¹ e_t ; ε] for cost ``"gtsam"``), shape (m, 3), for ``poses`` (n, 3) or any planar result. For a 3-D graph
+    ``posegraph3d.edge_errors3d``'s (m, 6), translation first (arguments as ``chi2``)."""
+    graph, poses = _graph_poses(graph, poses)
+    if graph.dim == 3:
+        return edge_errors3d(graph, *poses)
     e = np.empty((graph.n_edges, 3))
     for k in row_blocks(graph.n_edges):  # (stacks.row_blocks: temporaries a block long)
         e[k] = _errors(graph, poses, k)
     return e
 
 
-def _check_poses(graph: PoseGraph, poses) -> np.ndarray:
-    poses = np.asarray(poses, dtype=float)
-    if poses.shape != (graph.n_poses, 3):
-        raise OptionError(f"poses must have shape ({graph.n_poses}, 3), got {poses.shape}")
-    return poses
+def _graph_poses(graph, poses):
+    """(graph, poses): the graph (a generated world's ``graph`` taken; ``posegraph_base.as_graph``) and ``poses``
+    as its poses, (n, 3) planar or (t, R) 3-D (``metrics3d.poses_of``: arrays, results, worlds' truths)."""
+    graph = as_graph(graph)
+    return graph, poses_of(graph, poses)
 
 
 def _errors(graph: PoseGraph, poses: np.ndarray, k: slice) -> np.ndarray:
@@ -57,8 +63,17 @@ def _errors(graph: PoseGraph, poses: np.ndarray, k: slice) -> np.ndarray:
 
 
 def chi2(graph: PoseGraph, poses) -> float:
-    """χ² = Σ eᵀΩe over all edges in the graph's cost (module docstring; no ½), a float."""
-    poses = _check_poses(graph, poses)
+    """χ² = Σ eᵀΩe over all edges of ``graph`` in its cost (module docstring; no ½), a float.
+
+    ``graph`` a ``PoseGraph`` or ``PoseGraph3D`` (or a generated world: its ``graph``); ``poses`` (n, 3) for a planar
+    graph, (t (n, 3), R (n, 3, 3)) for a 3-D one, or any result the package returns (LAGO's, a refinement's, GNC's,
+    SE-Sync's; a world: its truth). For a 3-D graph the value is ``chi2_3d(graph, t, R)``. A robust result's poses
+    are scored over **every** edge of the graph passed in, rejected ones included (its own ``chi2`` is over the
+    accepted edges only: pass ``result.graph`` for that). Poses of the other dimension, another length or another
+    type: a one-line ``OptionError``; a ``graph`` that is not a pose graph: ``GraphError``."""
+    graph, poses = _graph_poses(graph, poses)
+    if graph.dim == 3:
+        return chi2_3d(graph, *poses)
     total = 0.0
     for k in row_blocks(graph.n_edges):
         e = _errors(graph, poses, k)
@@ -67,18 +82,23 @@ def chi2(graph: PoseGraph, poses) -> float:
 
 
 def chi2_parts(graph: PoseGraph, poses) -> dict:
-    """χ² split into its translational part (e_tᵀΩ_tt e_t), rotational part (Ω_θθ e_θ²) and the
-    cross terms (2 e_tᵀΩ_tθ e_θ); the three add up to ``chi2``."""
+    """χ² split into its translational part (e_tᵀΩ_tt e_t), rotational part (e_rᵀΩ_rr e_r; planar Ω_θθ e_θ²) and the
+    cross terms (2 e_tᵀΩ_tr e_r); the three add up to ``chi2``. Arguments as ``chi2``, either dimension (3-D: e
+    of ``edge_errors3d``, translation first)."""
+    graph, poses = _graph_poses(graph, poses)
     e = edge_errors(graph, poses)
     Om = graph.information
-    t = float(np.einsum("ka,kab,kb->", e[:, :2], Om[:, :2, :2], e[:, :2]))
-    r = float(np.sum(Om[:, 2, 2] * e[:, 2] ** 2))
-    x = float(2.0 * np.einsum("ka,ka,k->", e[:, :2], Om[:, :2, 2], e[:, 2]))
+    b = 3 if graph.dim == 3 else 2  # the translational block
+    t = float(np.einsum("ka,kab,kb->", e[:, :b], Om[:, :b, :b], e[:, :b]))
+    r = float(np.einsum("ka,kab,kb->", e[:, b:], Om[:, b:, b:], e[:, b:]))
+    x = float(2.0 * np.einsum("ka,kab,kb->", e[:, :b], Om[:, :b, b:], e[:, b:]))
     return {"chi2": t + r + x, "translation": t, "rotation": r, "cross": x}
 
 
 def whitened_errors(graph: PoseGraph, poses) -> np.ndarray:
-    """Per-edge √(eᵀΩe), shape (m,): large values flag suspicious (e.g. false) loop closures."""
+    """Per-edge √(eᵀΩe), shape (m,): large values flag suspicious (e.g. false) loop closures. Arguments as
+    ``chi2``, either dimension."""
+    graph, poses = _graph_poses(graph, poses)
     e = edge_errors(graph, poses)
     return np.sqrt(np.einsum("ka,kab,kb->k", e, graph.information, e))
 

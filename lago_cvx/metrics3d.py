@@ -19,28 +19,54 @@ import numpy as np
 from .errors import OptionError
 from .posegraph import rot2
 
-__all__ = ["as_trajectory", "ate3d", "rpe3d", "rpe2d", "umeyama"]
+__all__ = ["as_trajectory", "poses_of", "ate3d", "rpe3d", "rpe2d", "umeyama"]
 
 
 def as_trajectory(x, what: str):
     """``x`` as planar poses (n, 3) or a 3-D pair (t (n, 3), R (n, 3, 3)): an array, a pair, a result (``poses``
-    planar, ``t`` and ``R`` 3-D) or a generated world (its ``truth``)."""
+    planar, ``t`` and ``R`` 3-D: LAGO's, a refinement's, GNC's, SE-Sync's) or a generated world (its ``truth``);
+    a one-line ``OptionError`` naming ``what`` for anything else."""
     if hasattr(x, "truth") and hasattr(x, "graph"):
         x = x.truth
     if hasattr(x, "t") and hasattr(x, "R"):
-        return np.asarray(x.t, dtype=float), np.asarray(x.R, dtype=float)
-    if hasattr(x, "poses") and not isinstance(x, (np.ndarray, tuple, list)):
+        x = (x.t, x.R)
+    elif hasattr(x, "poses") and not isinstance(x, (np.ndarray, tuple, list)):
         x = x.poses
-    if isinstance(x, (tuple, list)) and len(x) == 2 and np.ndim(x[1]) == 3:
-        t, R = np.asarray(x[0], dtype=float), np.asarray(x[1], dtype=float)
-        if t.ndim != 2 or t.shape[1] != 3 or R.shape != (t.shape[0], 3, 3) or t.shape[0] == 0:
-            raise OptionError(f"{what}: a 3-D trajectory is t (n, 3), R (n, 3, 3); got {t.shape} and {R.shape}")
-        return t, R
-    a = np.asarray(x, dtype=float)
+    try:
+        if isinstance(x, (tuple, list)) and len(x) == 2 and np.ndim(x[1]) == 3:
+            t, R = np.asarray(x[0], dtype=float), np.asarray(x[1], dtype=float)
+            if t.ndim != 2 or t.shape[1] != 3 or R.shape != (t.shape[0], 3, 3) or t.shape[0] == 0:
+                raise OptionError(f"{what}: a 3-D trajectory is t (n, 3), R (n, 3, 3); got {t.shape} and {R.shape}")
+            return t, R
+        a = np.asarray(x, dtype=float)
+    except (TypeError, ValueError) as exc:
+        if isinstance(exc, OptionError):
+            raise
+        raise OptionError(f"{what}: expected planar poses (n, 3), a pair (t (n, 3), R (n, 3, 3)) or a result; "
+                          f"got {type(x).__name__}") from None
     if a.ndim != 2 or a.shape[1] != 3 or a.shape[0] == 0:
         raise OptionError(f"{what}: expected planar poses (n, 3), a pair (t (n, 3), R (n, 3, 3)) or a result; "
-                          f"got shape {a.shape}")
+                          f"got {type(x).__name__ if a.ndim == 0 else f'shape {a.shape}'}")
     return a
+
+
+def poses_of(graph, x, what: str = "poses"):
+    """``x`` as the poses of ``graph`` (a ``PoseGraph`` or ``PoseGraph3D``): an (n, 3) array for a planar graph,
+    (t (n, 3), R (n, 3, 3)) for a 3-D one, n = ``graph.n_poses``; ``x`` anything ``as_trajectory`` takes. The one
+    place a result becomes poses for χ², the SE-Sync cost and the writer; a one-line ``OptionError`` for poses of
+    the other dimension or another length."""
+    x = as_trajectory(x, what)
+    three = graph.dim == 3
+    if isinstance(x, tuple) != three:
+        raise OptionError(f"{what}: a 3-D graph's poses are (t (n, 3), R (n, 3, 3)) or a 3-D result, not planar "
+                          "poses" if three else
+                          f"{what}: a planar graph's poses are an (n, 3) array or a planar result, not (t, R)")
+    n = (x[0] if three else x).shape[0]
+    if n != graph.n_poses:
+        shapes = f"({graph.n_poses}, 3) and ({graph.n_poses}, 3, 3)" if three else f"({graph.n_poses}, 3)"
+        got = f"{x[0].shape} and {x[1].shape}" if three else f"{x.shape}"
+        raise OptionError(f"{what} must have shape {shapes} (the graph's {graph.n_poses} poses), got {got}")
+    return x
 
 
 def umeyama(p: np.ndarray, q: np.ndarray):

@@ -16,7 +16,7 @@ import numpy as np
 
 from .errors import GraphError
 
-__all__ = ["nearest_spd", "REPAIR_FLOOR", "readonly", "edge_indices", "check_endpoints", "pose_ids", "PoseGraphBase"]
+__all__ = ["nearest_spd", "REPAIR_FLOOR", "readonly", "edge_indices", "check_endpoints", "pose_ids", "PoseGraphBase", "as_graph"]
 
 
 #: ``nearest_spd``'s eigenvalue floor, relative to each matrix's largest eigenvalue: the repaired matrix has a
@@ -162,3 +162,16 @@ class PoseGraphBase:
         return (f"<{type(self).__name__}{nm}: {self.n_poses} poses, {self.n_edges} edges "
                 f"({self.n_odometric} odometric, {self.n_loop_closures} loop closures)"
                 f"{', with initial guess' if self.initial is not None else ''}>")
+
+
+def as_graph(x, what: str = "graph"):
+    """``x`` itself when it is a pose graph (a ``PoseGraph`` or ``PoseGraph3D``), a generated world's ``graph``
+    (``SyntheticWorld``, ``SyntheticWorld3D``: anything with ``graph`` and ``truth``); a one-line ``GraphError``
+    naming ``what`` and the type given otherwise."""
+    if isinstance(x, PoseGraphBase):
+        return x
+    g = getattr(x, "graph", None)
+    if isinstance(g, PoseGraphBase) and hasattr(x, "truth"):
+        return g
+    raise GraphError(f"{what}: expected a pose graph (PoseGraph or PoseGraph3D: read_graph, a world's .graph), "
+                     f"got {type(x).__name__}")

@@ -83,6 +83,7 @@ from .reports import refine_repr, refine_summary
 from .conventions import REFINE_MAX_ITERATIONS, REFINE_METHOD, REFINE_TOLERANCE
 from .errors import OptionError, check_choice
 from .graph import accumulate_to_root, check_connected, spanning_tree as build_tree
+from .metrics3d import poses_of
 from .sparse import SOLVER_BACKENDS, factorize
 from .posegraph import PoseGraph, logmap_translation, rot2, wrap_angle
 from .rounding import TWO_PI
@@ -277,10 +278,11 @@ def check_iteration_args(max_iterations: int, tolerance: float) -> None:
 
 def prepare(graph: PoseGraph, poses, *, anchor, max_iterations: int, tolerance: float) -> tuple[np.ndarray, int]:
     """What both refinements (χ² here, the SE-Sync cost in ``lago_cvx.certification``) check first: the
-    starting poses as a new (n, 3) array and the anchor's index (``anchor`` a pose id, default the
-    smallest). ``OptionError`` for bad arguments, ``GraphError`` for a disconnected graph."""
+    starting poses as a new (n, 3) array (``poses`` an array or any planar result: ``metrics3d.poses_of``) and the
+    anchor's index (``anchor`` a pose id, default the smallest). ``OptionError`` for bad arguments, ``GraphError``
+    for a disconnected graph."""
     check_iteration_args(max_iterations, tolerance)
-    x = graph.check_poses(poses)
+    x = graph.check_poses(poses_of(graph, poses))
     a = graph.anchor_index(anchor)
     check_connected(graph)
     return x, a

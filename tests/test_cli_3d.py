@@ -258,3 +258,29 @@ def test_abs_tol_must_be_finite_and_nonnegative():
     for bad in (-1.0, float("nan"), float("inf")):
         with pytest.raises(OptionError, match="abs_tol"):
             certify_estimate(g, abs_tol=bad)
+
+
+def test_a_stray_choice_hints_at_the_option_it_belongs_to(world3d, tmp_path, capsys):
+    out = str(tmp_path / "x.g2o")
+    err = _usage_error(capsys, ["generate", "manhattan", "--poses", "100", "-o", out])
+    assert "usage: lago-cvx generate" in err and "did you mean --world manhattan?" in err and "-o manhattan" not in err
+    assert "did you mean --world sphere3d?" in _usage_error(capsys, ["generate", "--poses", "10", "-o", out, "sphere3d"])
+    err = _usage_error(capsys, ["solve", world3d, "default"])
+    assert "did you mean --route default?" in err and "-o default" not in err
+    assert "did you mean -o out.g2o?" in _usage_error(capsys, ["solve", world3d, "out.g2o"])  # no choice: still -o
+
+
+def test_every_choice_of_every_command_hints_at_its_options():
+    from lago_cvx.cli.main import _subcommands, build_parser, unrecognized_hint
+
+    parser = build_parser()
+    seen = 0
+    for name, command in _subcommands(parser).items():
+        for action in command._actions:
+            if not action.option_strings or action.choices is None:
+                continue
+            option = max(action.option_strings, key=len)
+            for choice in action.choices:
+                assert f"{option} {choice}" in unrecognized_hint(parser, name, [str(choice)]), (name, option, choice)
+                seen += 1
+    assert seen > 20  # generate's --world, solve's --route, … (most commands have some)

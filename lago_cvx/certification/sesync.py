@@ -57,7 +57,9 @@ import scipy.sparse as sp
 
 from ..graph import _reduced_incidence
 from ..sparse import factorize, solve_least_squares
+from ..metrics3d import poses_of
 from ..posegraph import PoseGraph, rot2, wrap_angle
+from ..posegraph_base import as_graph
 
 __all__ = ["edge_residuals", "sesync_weights", "sesync_cost", "stacked_variable", "poses_from_stacked", "data_matrix",
            "multipliers", "lambda_hat", "certificate_matrix", "reduced_certificate_matrix", "optimal_translations",
@@ -87,7 +89,15 @@ def edge_residuals(graph: PoseGraph, poses: np.ndarray):
 
 
 def sesync_cost(graph: PoseGraph, poses) -> float:
-    """f(x) of eq. (S1) (no ½) for ``poses`` (n, 3): Σ τ‖t_j − t_i − R_i t̃‖² + 4κ(1 − cos e)."""
+    """f(x) of eq. (S1) (no ½) for ``poses`` (n, 3): Σ τ‖t_j − t_i − R_i t̃‖² + 4κ(1 − cos e), over every edge of
+    ``graph``. ``poses`` may be any result (``metrics.chi2``'s arguments: arrays, LAGO's, a refinement's, GNC's,
+    SE-Sync's result); for a 3-D graph, (t, R) or a 3-D result, the value is ``space.certify.sesync_cost3d``'s."""
+    graph = as_graph(graph)
+    poses = poses_of(graph, poses)
+    if graph.dim == 3:
+        from ..space.certify import sesync_cost3d
+
+        return sesync_cost3d(graph, *graph.check_poses(*poses))
     poses = graph.check_poses(poses)
     kappa, tau = sesync_weights(graph)
     d, _, e = edge_residuals(graph, poses)

@@ -45,7 +45,8 @@ def _subcommands(parser: argparse.ArgumentParser) -> dict:
 def unrecognized_hint(parser: argparse.ArgumentParser, command: str, extra: list[str]) -> str:
     """A hint for arguments ``command`` does not take: an option that belongs to other commands (named) or is
     close to one of its own (difflib), or a stray file name where the command writes one with ``-o`` ("did you mean
-    -o OUT?"; not a value following an unknown option). "" when there is none."""
+    -o OUT?"; not a value following an unknown option), or a stray word that is one of the choices of the command's
+    options ("did you mean --world manhattan?"). "" when there is none."""
     import difflib
 
     commands = _subcommands(parser)
@@ -62,11 +63,20 @@ def unrecognized_hint(parser: argparse.ArgumentParser, command: str, extra: list
                 return f" (did you mean {close[0]}?)"
         elif k > 0 and extra[k - 1].startswith("-"):
             continue  # the value of an unknown option
+        elif choosers := _options_choosing(commands[command], arg):
+            return f" (did you mean {' or '.join(f'{o} {arg}' for o in choosers)}?)"
         elif "-o" in own:
             return f" (did you mean -o {arg}? {command} writes its output only where -o names it)"
         else:
             return f" ({command} takes one FILE)"
     return ""
+
+
+def _options_choosing(command: argparse.ArgumentParser, word: str) -> list[str]:
+    """The options of ``command`` (each by its longest name) among whose ``choices`` ``word`` is."""
+    return [max(a.option_strings, key=len) for a in command._actions
+            if a.option_strings and a.choices is not None and not isinstance(a, argparse._SubParsersAction)
+            and word in {str(c) for c in a.choices}]
 
 
 class _CliMessages(logging.Filter):

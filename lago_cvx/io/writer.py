@@ -28,7 +28,9 @@ import numpy as np
 from ..sparse import cores
 from ..stacks import unique_sorted
 from ..errors import OptionError
+from ..metrics3d import poses_of
 from ..posegraph import PoseGraph, wrap_angle
+from ..posegraph_base import as_graph
 from .floatfmt import int_fields, join_fields, repr_fields
 from .formats import check_format
 from .output import open_output, same_file
@@ -142,29 +144,20 @@ def _checked_poses(path, graph: PoseGraph, poses):
 
 
 def _pose_arrays(graph, poses):
-    """``poses`` as arrays: any result of either dimension (``.poses``; ``.t`` and ``.R``) or the arrays themselves;
-    ``OptionError`` for poses of the other dimension."""
-    if poses is None:
-        return None
-    if hasattr(poses, "t") and hasattr(poses, "R"):
-        poses = (poses.t, poses.R)
-    elif hasattr(poses, "poses"):
-        poses = poses.poses
-    three = getattr(graph, "dim", 2) == 3
-    pair = isinstance(poses, (tuple, list)) and len(poses) == 2 and np.ndim(poses[1]) == 3  # (t, R)
-    if three != pair:
-        raise OptionError("a 3-D graph's poses are (t (n, 3), R (n, 3, 3)) or a 3-D result; a planar graph's an "
-                          "(n, 3) array or a planar result" if three else
-                          "a planar graph's poses are an (n, 3) array or a planar result, not (t, R)")
-    return poses
+    """``poses`` as the graph's arrays ((n, 3), or (t, R) for a 3-D graph): any result of either dimension, a
+    generated world (its truth) or the arrays themselves (``metrics3d.poses_of``); ``OptionError`` for poses of
+    the other dimension, another length or another type."""
+    return None if poses is None else poses_of(graph, poses)
 
 
 def write_graph(path, graph: PoseGraph, poses=None, *, format: str = "g2o",
                 wrap_angles: bool = True) -> Path:
     """Write ``graph`` as a g2o (default) or TORO file and return ``Path(path)``.
 
-    Vertex lines come from ``poses`` ((n, 3); for a 3-D graph (t (n, 3), R (n, 3, 3)); or any result of LAGO or a
-    refinement) if given, else from ``graph.initial``; with neither the
+    ``graph`` a ``PoseGraph`` or ``PoseGraph3D``, or a generated world (``manhattan_world`` …, ``sphere_world`` …),
+    whose ``graph`` is written (its initial guess, dead reckoning, as the vertices unless ``poses`` is given).
+    Vertex lines come from ``poses`` ((n, 3); for a 3-D graph (t (n, 3), R (n, 3, 3)); or any result of LAGO, a
+    refinement, GNC or SE-Sync; a world: its truth) if given, else from ``graph.initial``; with neither the
     file has edge lines only (poses that appear in no edge are then not represented). Ids are the
     graph's original ``ids``. Numbers are written with ``repr`` (shortest exact round trip), so
     read → write → read reproduces the graph bit for bit. Vertex angles outside [−π, π) are wrapped
@@ -176,9 +169,11 @@ def write_graph(path, graph: PoseGraph, poses=None, *, format: str = "g2o",
     atomically, keeping an existing file's permissions), a symbolic link (written through to its
     target), a FIFO or character device (streamed), or ``"-"`` for standard output: the rules of
     :func:`~lago_cvx.io.output.open_output`. Everything is checked before the target is touched:
-    non-finite poses, a wrong shape or format raise ``OptionError`` and nothing is written; a target
-    that cannot be written raises ``OutputError``.
+    non-finite poses, poses of the other dimension, a wrong shape, type or format raise ``OptionError``, a
+    ``graph`` that is no pose graph ``GraphError``, and nothing is written; a target that cannot be written raises
+    ``OutputError``.
     """
+    graph = as_graph(graph, "write_graph")
     fmt = check_format(format)
     if fmt is None:
         raise OptionError("format must be 'g2o' or 'toro'")
