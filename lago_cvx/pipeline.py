@@ -26,6 +26,7 @@ from .errors import GraphError, OptionError, check_choice
 from .graph import spanning_tree as build_tree
 from .metrics import relative_difference
 from .posegraph import PoseGraph, compose
+from .posegraph_base import as_graph
 from .sparse import GraphElimination, threads_option
 from .positions import Polish, PositionSolver, isotropic, polish, positions_from_problem, resolve_positions
 from .regularization import REGULARIZATIONS, regularize
@@ -70,7 +71,8 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
          solver_settings: ClarabelSettings | None = None, backend: str = "auto", anchors=None,
          priors=None, integer_search: IntegerSearch | None = None, progress=None,
          workers: int | None = None, rotation_constraints=None) -> LagoResult:
-    """LAGO: the linear approximation of planar pose-graph optimization (the seed's Section IV).
+    """LAGO: the linear approximation of planar pose-graph optimization (the seed's Section IV), on ``graph`` (a
+    ``PoseGraph``, a ``PoseGraph3D``, or a generated world: its ``graph``).
 
     Parameters (keyword-only):
       cost — the cost the graph's information is read for, one of ``lago_cvx.conventions.COSTS``
@@ -128,6 +130,7 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
     options do not apply and must be left unset.
     """
     clock = _Clock()  # from the call's first line: ``timings["total"]`` is the whole call
+    graph = as_graph(graph)  # a generated world's graph; a one-line GraphError for anything else
     if getattr(graph, "dim", 2) == 3 or rotation_constraints is not None:
         return _in_space(graph, route=route, method=method, anchor=anchor, solver_settings=solver_settings,
                          anchors=anchors, priors=priors, rotation_constraints=rotation_constraints,

@@ -82,6 +82,7 @@ import scipy.sparse as sp
 from .reports import refine_repr, refine_summary
 from .conventions import REFINE_MAX_ITERATIONS, REFINE_METHOD, REFINE_TOLERANCE
 from .errors import OptionError, check_choice
+from .posegraph_base import as_graph
 from .graph import accumulate_to_root, check_connected, spanning_tree as build_tree
 from .metrics3d import poses_of
 from .sparse import SOLVER_BACKENDS, factorize
@@ -381,6 +382,7 @@ def refine(graph: PoseGraph, estimate, *, method: str = REFINE_METHOD, max_itera
     """
     check_choice("method", method, REFINE_METHODS)
     check_choice("backend", backend, SOLVER_BACKENDS)
+    graph = as_graph(graph)  # a generated world's graph; a one-line GraphError for anything else
     if getattr(graph, "dim", 2) == 3:
         from .space.refine import estimate3d, refine3d
 

@@ -66,3 +66,18 @@ def test_bad_arguments_are_one_line_errors_and_nothing_is_written(tmp_path, plan
         lc.write_graph(target, graph, poses)
     assert "\n" not in str(info.value) and words in str(info.value)
     assert not target.exists()
+
+
+@pytest.mark.parametrize("make", [lambda: lc.manhattan_world(40, seed=2), lambda: lc.sphere_world(40, seed=2)],
+                         ids=["planar", "3-D"])
+def test_lago_and_refine_take_a_generated_world_as_its_graph(make):
+    """``lago(world)`` and ``refine(world, …)`` run on ``world.graph`` (bit for bit), as ``write_graph`` and the
+    metrics take a world; anything else that is not a graph is a one-line GraphError."""
+    world = make()
+    a, b = lc.lago(world), lc.lago(world.graph)
+    assert a.chi2 == b.chi2
+    assert lc.refine(world, a).chi2 == lc.refine(world.graph, b).chi2
+    for bad in ("graph.g2o", None, world.truth):
+        with pytest.raises(lc.GraphError, match="expected a pose graph") as err:
+            lc.lago(bad)
+        assert "\n" not in str(err.value)
