@@ -1,7 +1,9 @@
 r"""The multifrontal block Cholesky (MF) of ``multifrontal`` — the engine's one numeric factorization — front by
 front in C, or, where no compiler was present at install (``available()`` False, said once as a warning), in NumPy
 (``block_factor``) on the same storage. The loop over the fronts (postorder, children's updates on a stack popped by
-their parent) is one C call (``c_kernels``), a few hundred nanoseconds per front where NumPy pays Python calls.
+their parent) is one C call (``c_kernels``), a few hundred nanoseconds per front where NumPy pays Python calls. A
+front's dense partial Cholesky is the C loop blocked by panels and register tiles (``ck_dense``), or LAPACK/BLAS for
+large fronts where the engine holds the BLAS threads (``SMALL_WORK``).
 
 **Storage** (``CompiledLayout``). Variables are numbered by elimination slot, pose-major: slot = position·b +
 component. Front f has k = |P_f|·b pivot and r = |R_f|·b update variables, D = k + r; its block column
@@ -27,7 +29,7 @@ __all__ = ["available", "kernels", "CompiledLayout", "CompiledAssembler", "Compi
 
 log = logging.getLogger(__name__)
 
-#: A front whose k·D² (twice its multiply–adds) is below this is factored by a compiled right-looking loop; a
+#: A front whose k·D² (twice its multiply–adds) is below this is factored by the compiled blocked loop; a
 #: larger one by LAPACK's ``potrf`` and BLAS's ``trsm``/``syrk`` (SciPy's), called by address from the compiled loop.
 SMALL_WORK = 50_000
 
