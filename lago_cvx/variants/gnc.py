@@ -32,8 +32,8 @@ In 3-D (a ``PoseGraph3D``, ``lago_cvx.space``) the same loop runs around ``lago3
 e_k (6,) the error of the graph's cost (g2o's or GTSAM's, ``lago_cvx.conventions``), and the weighted solve is
 ``lago3d`` on the graph with w_k Ω_k. There is no 2kπ to redo; the weights reach every stage through the
 information: the chordal relaxation's S_ij² (isotropic κ_ij = 3 / (2 tr Ω_rr⁻¹) scales by w_k, and so does the
-anisotropic weight), the positions' Ω_tt and the joint step's Ω (``robust3d``). Pairwise consistency and the
-local search are planar (a 3-D run logs that it starts from LAGO).
+anisotropic weight), the positions' Ω_tt and the joint step's Ω (``robust3d``). Pairwise consistency is planar
+(a 3-D run logs that it starts from LAGO).
 
 Known inliers. Odometric edges (between consecutive ids) are never false loop closures in the usual
 protocol; ``trust_odometry=None`` holds their weight at 1 whenever the odometric chain 0–1–…–(n−1) is
@@ -47,6 +47,8 @@ cost above the clean classification's. Two aids, ``RobustSettings``:
   single-edge moves — accept a rejected edge, reject an accepted one — each judged by a LAGO run on the new
   accepted set and taken when it lowers the truncated cost over every edge; the cost never rises, and where the
   unweighted LAGO fits every edge within c̄² nothing runs (a clean graph is never touched);
+* ``readmit`` (default κ = 9, every size): the rejected edges within κ c̄² of fitting tried back together, taken
+  when the truncated cost falls (on torus3D GNC rejects a group of 10 true loop closures that fit only together);
 * ``start="pcm"`` / ``"best"``: GNC from the odometry and a maximum clique of pairwise-consistent loop closures
   (``consistency``; Mangelson et al., ICRA 2018), or from both starts, the lower truncated cost kept.
 """
@@ -107,7 +109,9 @@ class RobustSettings:
     local_search — after GNC, at most this many LAGO runs of single-edge moves that lower the truncated cost
       (accept a rejected edge or reject an accepted one; ``_local_search``), 0: none. Only where GNC ran, the
       odometric chain is complete and trusted, and there are at most ``LOCAL_SEARCH_MAX_EDGES`` loop closures;
-      planar graphs only.
+    readmit — κ: after GNC (and the local search), the rejected edges with r_k² ≤ κ c̄² at the estimate are tried
+      back **together** (``_readmit``; one or two LAGO runs per round), the move kept when it lowers the truncated
+      cost; 0: never. A group of true loop closures that only fit together is out of reach of single-edge moves.
     """
 
     loss: str = "tls"
@@ -121,6 +125,7 @@ class RobustSettings:
     start: str = "lago"
     clique_seconds: float = 2.0
     local_search: int = 2000
+    readmit: float = 9.0
 
     def __post_init__(self):
         if self.loss not in ("tls", "gm"):
@@ -141,6 +146,8 @@ class RobustSettings:
             raise OptionError(f"robust start must be 'lago', 'pcm' or 'best', got {self.start!r}")
         if not (isinstance(self.local_search, int) and self.local_search >= 0):
             raise OptionError(f"local_search must be an integer ≥ 0, got {self.local_search!r}")
+        if not (math.isfinite(self.readmit) and self.readmit >= 0):
+            raise OptionError(f"readmit must be a finite number ≥ 0, got {self.readmit}")
         if not (math.isfinite(self.clique_seconds) and self.clique_seconds > 0):
             raise OptionError(f"clique_seconds must be a finite number > 0, got {self.clique_seconds}")
         if not 0.0 < self.weight_tolerance < 0.5:
@@ -269,6 +276,9 @@ def gnc_lago(graph: PoseGraph, settings: RobustSettings, *, solve: Callable) -> 
     if (settings.local_search and it > 0 and trust and graph.dim == 2 and odometric_chain_complete(graph)
             and int((~known).sum()) <= LOCAL_SEARCH_MAX_EDGES):
         keep, final, cost, moves = _local_search(graph, keep, final, cost, known, settings, solve)
+    if settings.readmit and it > 0:
+        keep, final, cost, regained = _readmit(graph, keep, final, cost, known, settings, solve)
+        moves += regained
     rejected = np.flatnonzero(~keep).astype(np.int64)
     timings = dict(final.timings)
     timings["robust"] = timings["total"] = time.perf_counter() - t0  # GNC's run, the final LAGO included
@@ -312,6 +322,36 @@ def _local_search(graph, keep, final, cost, known, settings, solve):
     if moves:
         final = solve(graph.subgraph_edges(keep))
     return keep, final, cost, moves
+
+
+def _readmit(graph, keep, final, cost, known, settings, solve):
+    """Rejected edges tried back together: C = {k rejected : r_k² ≤ κ c̄²} at the current estimate (κ =
+    ``settings.readmit``); LAGO on the accepted edges and C, then, where some of C still do not fit (r_k² > c̄²),
+    LAGO again on the accepted edges and those of C that fit. The move is kept when it lowers the truncated cost
+    Σ_k min(r_k², c̄²) over every edge; rounds until none does (at most 10). Returns (keep, final LagoResult, cost,
+    edges re-admitted)."""
+    c2, gained = settings.c2_for(graph.dim), 0
+    for _ in range(10):
+        cand = ~keep & (edge_r2(graph, final.poses) <= settings.readmit * c2)
+        if not cand.any():
+            break
+        with _quiet():
+            trial_keep = keep | cand
+            trial = solve(graph.subgraph_edges(trial_keep))
+            fits = cand & (edge_r2(graph, trial.poses) <= c2)
+            if not fits.any():
+                break
+            if not np.array_equal(fits, cand):
+                trial_keep = keep | fits
+                trial = solve(graph.subgraph_edges(trial_keep))
+        c = truncated_cost(graph, trial.poses, c2)
+        if not c < cost * (1.0 - 1e-12):
+            break
+        gained += int(trial_keep.sum() - keep.sum())
+        keep, final, cost = trial_keep, trial, c
+    if gained:
+        log.info("GNC: %d rejected edges re-admitted together (truncated cost %.6g)", gained, cost)
+    return keep, final, cost, gained
 
 
 def edge_r2(graph, poses) -> np.ndarray:
