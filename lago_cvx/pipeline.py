@@ -48,7 +48,7 @@ def _robust_option(run):
 
     @functools.wraps(run)
     def lago(graph, *, robust=None, cost=None, **options):
-        graph = graph if cost is None else graph.with_cost(cost)
+        graph = as_graph(graph) if cost is None else as_graph(graph).with_cost(cost)  # a world: its graph
         if robust is None or robust is False:
             return run(graph, **options)
         from .variants import gnc_lago, robust_settings
@@ -130,7 +130,6 @@ def lago(graph: PoseGraph, *, route: str = "default", method: str = "closed_form
     options do not apply and must be left unset.
     """
     clock = _Clock()  # from the call's first line: ``timings["total"]`` is the whole call
-    graph = as_graph(graph)  # a generated world's graph; a one-line GraphError for anything else
     if getattr(graph, "dim", 2) == 3 or rotation_constraints is not None:
         return _in_space(graph, route=route, method=method, anchor=anchor, solver_settings=solver_settings,
                          anchors=anchors, priors=priors, rotation_constraints=rotation_constraints,
