@@ -19,8 +19,10 @@ file passes when the ratio ≤ 1.001.
 
 For a file that fails, the diagnosis: the rejected edges (JSON ``rejected_edges``, file order) split into
 odometric (consecutive ids) and loop closures, their r² = eᵀΩe at the plain refined minimum against c̄² (the
-χ² quantile GNC truncates at: 3 dof planar, 6 in 3-D, confidence 0.99), and the truncated cost Σ min(r², c̄²)
-over every edge at both estimates (the cost GNC minimizes locally).
+χ² quantile GNC truncates at: 3 dof planar, 6 in 3-D, confidence 0.99), the χ² of the accepted and of the
+rejected edges at both estimates, and the truncated cost Σ min(r², c̄²) over every edge at both (the cost GNC
+minimizes locally: lower at the robust estimate means GNC did its job and the truncated cost itself prefers
+rejecting those true edges).
 """
 
 from __future__ import annotations
@@ -97,8 +99,12 @@ def _diagnosis(rel: str, graph, plain, robust, payload: dict) -> str:
         shown = ", ".join(f"{k} ({'odo' if o else 'loop'}, r² {v:.3g})" for k, o, v in zip(rejected[:12], odo, rr))
         lines.append(f"  Rejected edges (file order){' — the first 12' if rejected.size > 12 else ''}: {shown}.")
     r2_rob = edge_r2(graph, robust)
-    lines.append(f"  Truncated cost Σ min(r², c̄²) over every edge: plain {np.minimum(r2, c2).sum():.6g}, robust "
-                 f"{np.minimum(r2_rob, c2).sum():.6g}.")
+    kept = np.ones(graph.n_edges, dtype=bool)
+    kept[rejected] = False
+    lines.append(f"  χ² split, plain → robust estimate: accepted edges {r2[kept].sum():.6g} → {r2_rob[kept].sum():.6g}, "
+                 f"rejected edges {r2[~kept].sum():.6g} → {r2_rob[~kept].sum():.6g}.")
+    lines.append(f"  Truncated cost Σ min(r², c̄²) over every edge (what GNC lowers): plain {np.minimum(r2, c2).sum():.6g}, "
+                 f"robust {np.minimum(r2_rob, c2).sum():.6g}.")
     return "\n".join(lines)
 
 
