@@ -46,6 +46,8 @@ date):
 * ``robust``   — false loop closures appended to intel, M3500, CSAIL, MIT and city10000 (10 %, 30 %, seeds
   0–2): precision, recall, ATE and χ² of robust LAGO (graduated non-convexity) against the clean solution;
   ``--robust-gtsam``: GTSAM's GNC on the same graphs;
+* ``clean``    — ``lago-cvx solve F --robust --refine`` against ``lago-cvx solve F --refine`` as whole processes on
+  every clean public graph, planar and 3-D: edges rejected, χ² over every edge, the ratio (≤ 1.001 passes);
 * ``million``  — ``lago-cvx solve -o`` as a whole process on 100 000 to 1 000 000-pose worlds by both routes,
   step by step with peak memory, and phase 3 by the C kernels against the NumPy fallback.
 
@@ -68,7 +70,7 @@ from pathlib import Path
 import _bench
 
 SECTIONS = ("datasets", "scaling", "perf", "endtoend", "chordal", "certify", "integer", "theorem1", "route", "io",
-            "unseen", "million", "processes", "space", "spaceprocess", "costs", "robust")
+            "unseen", "million", "processes", "space", "spaceprocess", "costs", "robust", "clean")
 #: Sections whose module has another name (``io`` would be the standard library's).
 MODULE_OF = {"io": "io_bench"}
 
