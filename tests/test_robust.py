@@ -242,10 +242,11 @@ def test_mit_clean_robust_is_least_squares():
 
 
 #: Public graphs, planar and 3-D, on which benchmarks/clean.md measures robust LAGO + refinement within 0.1 % of plain
-#: LAGO + refinement over every edge (it is not so on manhattan / M3500_P_toro nor on pose3example: see there).
+#: LAGO + refinement over every edge (it is not so on pose3example, whose information makes every edge an outlier:
+#: see there). manhattan.g2o is the file on which GNC dropped 14 true loop closures before ``alarm_for``.
 CLEAN_PASSING = ["se-sync/MIT.g2o", "se-sync/intel.g2o", "carlone/INTEL_P_toro.graph", "se-sync-3d/smallGrid3D.g2o",
                  "gtsam/pose3example-grid.txt", "se-sync-3d/sphere2500.g2o", "carlone/input_M3500_g2o.g2o",
-                 "se-sync-3d/torus3D.g2o"]
+                 "se-sync-3d/torus3D.g2o", "se-sync/manhattan.g2o"]
 
 
 @pytest.mark.parametrize("rel", CLEAN_PASSING)
