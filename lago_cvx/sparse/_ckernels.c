@@ -164,7 +164,14 @@ __attribute__((target("avx2"))) CK_UPDATE(ck_update4, 4)
 #define CK_UPDATE_ANY ck_update2
 #endif
 #else
-#define CK_UPDATE_ANY(F, D, p0, p1, c0) ck_update_rest(F, D, p0, p1, c0, D, 0)
+/* The same pivot by pivot, for compilers without vector extensions (each entry's subtractions in pivot order). */
+static void CK_UPDATE_ANY(double *F, i64 D, i64 p0, i64 p1, i64 c0)
+{
+    for (i64 p = p0; p < p1; p++)
+        for (i64 c = c0; c < D; c++)
+            for (i64 i = c; i < D; i++)
+                F[c * D + i] -= F[p * D + i] * F[p * D + c];
+}
 #endif
 
 /* Partial Cholesky of the column-major D x D front F, right-looking by panels of CK_PANEL columns: a panel's
