@@ -29,8 +29,9 @@ with truncated least squares and the odometric edges as known inliers) once on e
 process of ours on it (``python -m lago_cvx solve IN --robust --refine -o OUT``).
 
 ``--robust-3d`` adds the 3-D files (``robust3d``: sphere2500, torus3D, parking-garage, smallGrid3D at 10 %, seeds
-0–2, GTSAM's GNC on ``--robust-3d-gtsam-seeds``); ``--robust-3d-only`` runs only them and keeps the planar tables
-of the existing result file.
+0–2, each at the confidences of ``--robust-3d-confidence`` (default 0.99 and 0.999), GTSAM's GNC on
+``--robust-3d-gtsam-seeds``); ``--robust-3d-only`` runs only them and keeps the planar tables of the existing result
+file.
 """
 
 from __future__ import annotations

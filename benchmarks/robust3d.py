@@ -5,7 +5,9 @@ and the odometric edges as known inliers).
 
 Protocol (``lago_cvx.synthetic.add_false_loop_closures`` on a ``PoseGraph3D``): ⌊0.1 · m⌋ false loop closures
 appended to the file's m edges — random pairs of poses (never consecutive ids), the translation uniform in a 20 m
-cube, the rotation uniform on SO(3), the 6×6 information of a real edge — seeds 0–2. For each corrupted graph:
+cube, the rotation uniform on SO(3), the 6×6 information of a real edge — seeds 0–2, each corrupted graph solved at
+every confidence of ``--robust-3d-confidence`` (default 0.99 and 0.999: ``RobustSettings(confidence=c)``, c̄² = χ²₆(c)
+= 16.81 and 22.46). For each corrupted graph and confidence:
 
 * precision and recall of the rejected edges, and the number of true edges rejected;
 * ATE [m] (RMS position error after the best rigid 3-D alignment) against the clean solution — LAGO on the file's
@@ -15,8 +17,16 @@ cube, the rotation uniform on SO(3), the 6×6 information of a real edge — see
 * seconds of the robust run (GNC, every inner ``lago3d`` and the final one);
 * pass: every false edge rejected, at most 1 % of the true edges rejected, χ² ratio ≤ 1.001.
 
-GTSAM's side runs as a whole process on the same written graph (``--robust-3d-gtsam-seeds``, each run stopped after
-``--robust-3d-gtsam-timeout`` seconds), beside the whole process of ours on it
+Robust LAGO in 3-D (``lago(graph3d, robust=RobustSettings(confidence=c))``): GNC-TLS around ``lago3d``, then the
+rejected edges within 9 c̄² of fitting tried back together (``RobustSettings.readmit``); the single-edge local search
+after GNC stays planar. Where true edges are rejected, "Why the true edges are rejected" weighs them: with A the
+accepted edges and T the q rejected true ones, the truncated cost Σ_k min(r_k², c̄²) over every edge of the corrupted
+graph at ``refine3d``'s minimum on A and at its minimum on A ∪ T, the rise Δχ² of the χ² of the chosen set from A to
+A ∪ T (each at its minimum), the χ²₆q quantile at 0.99 and Δχ²'s p-value (``scipy.stats.chi2.sf``): a p-value
+below 0.01 says the q edges are inconsistent with the accepted ones at the 1 % level.
+
+GTSAM's side runs as a whole process on the same written graph (``--robust-3d-gtsam-seeds``, once per seed, each run
+stopped after ``--robust-3d-gtsam-timeout`` seconds), beside the whole process of ours on it at the default confidence
 (``python -m lago_cvx solve IN --robust --refine -o OUT``). GTSAM reads the files' information as the information of
 its own error (Log of SE(3)): its χ² ratio is taken in that cost (``graph.with_cost("gtsam")``) against the clean
 graph refined in that cost, so that each optimizer is measured in the cost it minimizes.
@@ -25,6 +35,7 @@ graph refined in that cost, so that each optimizer is measured in the cost it mi
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 import tempfile
@@ -32,6 +43,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from scipy.stats import chi2 as chi2_dist
 
 import _bench
 from lago_cvx import lago
@@ -39,18 +51,26 @@ from lago_cvx.io import read_graph, write_graph
 from lago_cvx.posegraph3d import chi2_3d
 from lago_cvx.space import refine3d
 from lago_cvx.synthetic import add_false_loop_closures
+from lago_cvx.variants import RobustSettings
+from lago_cvx.variants.gnc import truncated_cost
 
 FILES3D = ("se-sync-3d/sphere2500.g2o", "se-sync-3d/torus3D.g2o", "se-sync-3d/parking-garage.g2o",
            "se-sync-3d/smallGrid3D.g2o")
 FRACTION = 0.1
 SEEDS = (0, 1, 2)
+CONFIDENCES = (0.99, 0.999)
 GTSAM_SCRIPT = _bench.HERE.parent.parent / "shared" / "bench" / "gtsam_gnc.py"
 
-HEAD = ["file", "false edges", "seed", "precision", "recall", "true rejected", "ATE LAGO [m]", "ATE robust [m]",
+HEAD = ["file", "false edges", "c̄²", "seed", "precision", "recall", "true rejected", "ATE LAGO [m]", "ATE robust [m]",
         "χ² clean edges / clean χ²", "GNC iterations", "time [s]", "pass"]
 HEAD_GTSAM = ["file", "false edges", "seed", "precision", "recall", "true rejected", "ATE [m]",
               "χ² clean edges / clean χ² (GTSAM's cost)", "GNC [s]", "process [s]", "our process [s]",
               "GTSAM process / ours"]
+HEAD_SUMMARY = ["file", "false edges", "c̄²", "runs passing", "runs with recall 1", "runs",
+                "true edges rejected (all runs)", "worst ATE robust [m]", "worst χ² clean edges / clean χ²",
+                "median time [s]"]
+HEAD_WHY = ["file", "c̄²", "seed", "true rejected q", "truncated cost, A", "truncated cost, A ∪ T", "Δχ² (A → A ∪ T)",
+            "χ²₆q(0.99)", "p-value"]
 
 
 def add_arguments(group) -> None:
@@ -64,6 +84,9 @@ def add_arguments(group) -> None:
     group.add_argument("--robust-3d-keep", action="store_true",
                        help="keep the 3-D rows of the existing robust.md for the files not in --robust-3d-files (one "
                             "file's runs at a time; each kept row as it was measured)")
+    group.add_argument("--robust-3d-confidence", nargs="*", type=float, default=list(CONFIDENCES), metavar="P",
+                       help="confidences of the 3-D runs (RobustSettings(confidence=P), c̄² = χ²₆(P); default "
+                            "0.99 0.999): every run is made at each")
     group.add_argument("--robust-3d-gtsam-timeout", type=float, default=1800.0, metavar="S",
                        help="seconds after which a GTSAM run is stopped (reported as such)")
 
@@ -83,19 +106,45 @@ def scores(rejected, outliers) -> tuple[float, float, int]:
     return (hit / len(rej) if rej else 1.0), hit / max(len(out), 1), len(rej - out)
 
 
-def one_run(graph, clean, seed) -> dict:
+def corrupted(graph, seed, clean) -> dict:
+    """The corrupted graph of ``seed`` (module docstring), its false edges and plain LAGO's ATE on it."""
     go, idx = add_false_loop_closures(graph, FRACTION, seed=seed)
     plain = lago(go)
+    return dict(graph=go, outliers=idx, ate_lago=ate3d(plain.t, clean.t))
+
+
+def one_run(graph, clean, bad: dict, confidence: float) -> dict:
+    """Every number of one row (module docstring): robust LAGO at ``confidence`` on the corrupted graph ``bad``
+    (``corrupted``), refined on its accepted edges; ``why`` the numbers of ``why_rejected`` when true edges are
+    rejected."""
+    go, idx = bad["graph"], bad["outliers"]
+    settings = RobustSettings(confidence=confidence)
     t = time.perf_counter()
-    res = lago(go, robust=True)
+    res = lago(go, robust=settings)
     seconds = time.perf_counter() - t
     ref = refine3d(res.graph, res.t, res.R)
     precision, recall, wrong = scores(res.rejected_edges, idx)
     ratio = chi2_3d(graph, ref.t, ref.R) / clean.chi2
+    why = why_rejected(go, res, ref, idx, settings.c2_for(3)) if wrong else None
     return dict(n_false=int(idx.size), precision=precision, recall=recall, wrong=wrong, ratio=ratio,
                 ok=recall == 1.0 and wrong <= 0.01 * graph.n_edges and ratio <= 1.001,
-                ate_lago=ate3d(plain.t, clean.t), ate_robust=ate3d(ref.t, clean.t), iterations=res.iterations,
-                seconds=seconds, graph=go, outliers=idx)
+                ate_lago=bad["ate_lago"], ate_robust=ate3d(ref.t, clean.t), iterations=res.iterations,
+                seconds=seconds, why=why)
+
+
+def why_rejected(go, res, ref, outliers, c2: float) -> dict:
+    """Whether the q rejected true edges T fit with the accepted edges A (module docstring): the truncated cost
+    Σ_k min(r_k², c̄²) over every edge of ``go`` at ``refine3d``'s minimum on A (``ref``, refined from ``res``) and on
+    A ∪ T (refined from ``ref``); Δχ² = χ²_{A∪T} − χ²_A at the two minima, the χ² quantile of 6q dof at 0.99 and
+    Δχ²'s p-value (the upper tail of χ²_{6q})."""
+    true_rejected = np.setdiff1d(res.rejected_edges, outliers)
+    q = int(true_rejected.size)
+    both = np.union1d(res.accepted_edges, true_rejected)
+    ref_both = refine3d(go.subgraph_edges(both), ref.t, ref.R)
+    d_chi2 = ref_both.chi2 - ref.chi2
+    return dict(q=q, cost_a=truncated_cost(go, (ref.t, ref.R), c2),
+                cost_both=truncated_cost(go, (ref_both.t, ref_both.R), c2), chi2_a=ref.chi2, chi2_both=ref_both.chi2,
+                d_chi2=d_chi2, quantile=float(chi2_dist.ppf(0.99, 6 * q)), p=float(chi2_dist.sf(d_chi2, 6 * q)))
 
 
 def gtsam_run(go, idx, graph, clean, clean_gtsam, timeout) -> dict:
@@ -125,8 +174,10 @@ def gtsam_run(go, idx, graph, clean, clean_gtsam, timeout) -> dict:
 
 def kept_rows(folder: Path, files) -> dict:
     """The rows of the 3-D tables of ``folder``/robust.md whose file is not in ``files`` (``--robust-3d-keep``):
-    ``{"summary": [...], "runs": [...], "gtsam": [...]}``, each row its list of cells."""
-    kept = {"summary": [], "runs": [], "gtsam": []}
+    ``{"summary": [...], "runs": [...], "gtsam": [...], "why": [...]}``, each row its list of cells; rows of another
+    layout than the current headers (an older table) are left out."""
+    kept = {"summary": [], "runs": [], "gtsam": [], "why": []}
+    width = {"summary": len(HEAD_SUMMARY), "runs": len(HEAD), "gtsam": len(HEAD_GTSAM), "why": len(HEAD_WHY)}
     path = Path(folder) / "robust.md"
     text = path.read_text(encoding="utf-8") if path.is_file() else ""
     if "\n## 3-D graphs" not in text:
@@ -134,20 +185,22 @@ def kept_rows(folder: Path, files) -> dict:
     key = None
     for line in text.split("\n## 3-D graphs", 1)[1].splitlines():
         if line.startswith("### "):
-            key = next((k for head, k in (("### Summary", "summary"), ("### Every run", "runs"), ("### GTSAM", "gtsam"))
-                        if line.startswith(head)), None)
+            key = next((k for head, k in (("### Summary", "summary"), ("### Every run", "runs"), ("### GTSAM", "gtsam"),
+                                          ("### Why", "why")) if line.startswith(head)), None)
         elif line.startswith("## "):
             break
         elif key and line.startswith("| ") and not line.startswith("| file "):
             cells = [c.strip() for c in line.strip().strip("|").split("|")]
-            if cells[0] not in files:
+            if cells[0] not in files and len(cells) == width[key]:
                 kept[key].append(cells)
     return kept
 
 
 def section(args) -> str:
     """The 3-D tables (module docstring) as Markdown."""
-    rows, gtsam_rows, summary = [], [], []
+    rows, gtsam_rows, summary, why_rows = [], [], [], []
+    confidences = list(args.robust_3d_confidence)
+    c2s = {c: RobustSettings(confidence=c).c2_for(3) for c in confidences}
     gtsam_skipped = _bench.gtsam_script_skipped(GTSAM_SCRIPT) if args.robust_3d_gtsam_seeds else None
     for rel in args.robust_3d_files:
         path = _bench.find(rel)
@@ -157,51 +210,67 @@ def section(args) -> str:
         first = lago(graph)
         clean = refine3d(graph, first.t, first.R)
         clean_gtsam = None
-        runs = []
-        for seed in SEEDS:
-            r = one_run(graph, clean, seed)
-            runs.append(r)
-            rows.append([rel, f"{r['n_false']} ({FRACTION:.0%})", seed, f"{r['precision']:.3f}", f"{r['recall']:.3f}",
-                         r["wrong"], f"{r['ate_lago']:.3g}", f"{r['ate_robust']:.3g}", f"{r['ratio']:.6g}",
-                         r["iterations"], f"{r['seconds']:.2f}", "yes" if r["ok"] else "no"])
-            print(" | ".join(map(str, rows[-1])), flush=True)
-            if gtsam_skipped is None and seed in args.robust_3d_gtsam_seeds:
-                if clean_gtsam is None:
-                    gg = graph.with_cost("gtsam")
-                    clean_gtsam = refine3d(gg, clean.t, clean.R).chi2
-                g = gtsam_run(r["graph"], r["outliers"], graph, clean, clean_gtsam, args.robust_3d_gtsam_timeout)
-                if g.get("timeout") or g.get("failed"):
-                    what = (f"stopped after {g['seconds']:.0f} s" if g.get("timeout") else "failed")
-                    gtsam_rows.append([rel, f"{g['n_false']} ({FRACTION:.0%})", seed, what, "–", "–", "–", "–", "–",
-                                       f"> {g['seconds']:.0f}" if g.get("timeout") else "–", f"{g['ours']:.2f}",
-                                       f"> {g['seconds'] / g['ours']:.0f}" if g.get("timeout") else "–"])
-                else:
-                    gtsam_rows.append([rel, f"{g['n_false']} ({FRACTION:.0%})", seed, f"{g['precision']:.3f}",
-                                       f"{g['recall']:.3f}", g["wrong"], f"{g['ate']:.3g}", f"{g['ratio']:.6g}",
-                                       f"{g['gnc_s']:.2f}", f"{g['seconds']:.2f}", f"{g['ours']:.2f}",
-                                       f"{g['seconds'] / g['ours']:.1f}"])
-                print("GTSAM: " + " | ".join(map(str, gtsam_rows[-1])), flush=True)
-        summary.append([rel, f"{FRACTION:.0%}", sum(r["ok"] for r in runs), sum(r["recall"] == 1.0 for r in runs),
-                        len(runs), sum(r["wrong"] for r in runs), f"{max(r['ate_robust'] for r in runs):.3g}",
-                        f"{max(r['ratio'] for r in runs):.6g}", f"{np.median([r['seconds'] for r in runs]):.2f}"])
+        bad = {seed: corrupted(graph, seed, clean) for seed in SEEDS}
+        for seed in (s for s in SEEDS if gtsam_skipped is None and s in args.robust_3d_gtsam_seeds):
+            if clean_gtsam is None:
+                clean_gtsam = refine3d(graph.with_cost("gtsam"), clean.t, clean.R).chi2
+            g = gtsam_run(bad[seed]["graph"], bad[seed]["outliers"], graph, clean, clean_gtsam,
+                          args.robust_3d_gtsam_timeout)
+            if g.get("timeout") or g.get("failed"):
+                what = (f"stopped after {g['seconds']:.0f} s" if g.get("timeout") else "failed")
+                gtsam_rows.append([rel, f"{g['n_false']} ({FRACTION:.0%})", seed, what, "–", "–", "–", "–", "–",
+                                   f"> {g['seconds']:.0f}" if g.get("timeout") else "–", f"{g['ours']:.2f}",
+                                   f"> {g['seconds'] / g['ours']:.0f}" if g.get("timeout") else "–"])
+            else:
+                gtsam_rows.append([rel, f"{g['n_false']} ({FRACTION:.0%})", seed, f"{g['precision']:.3f}",
+                                   f"{g['recall']:.3f}", g["wrong"], f"{g['ate']:.3g}", f"{g['ratio']:.6g}",
+                                   f"{g['gnc_s']:.2f}", f"{g['seconds']:.2f}", f"{g['ours']:.2f}",
+                                   f"{g['seconds'] / g['ours']:.1f}"])
+            print("GTSAM: " + " | ".join(map(str, gtsam_rows[-1])), flush=True)
+        for confidence in confidences:
+            c2 = f"{c2s[confidence]:.2f}"
+            runs = []
+            for seed in SEEDS:
+                r = one_run(graph, clean, bad[seed], confidence)
+                runs.append(r)
+                rows.append([rel, f"{r['n_false']} ({FRACTION:.0%})", c2, seed, f"{r['precision']:.3f}",
+                             f"{r['recall']:.3f}", r["wrong"], f"{r['ate_lago']:.3g}", f"{r['ate_robust']:.3g}",
+                             f"{r['ratio']:.6g}", r["iterations"], f"{r['seconds']:.2f}", "yes" if r["ok"] else "no"])
+                print(" | ".join(map(str, rows[-1])), flush=True)
+                w = r["why"]
+                if w is not None:
+                    why_rows.append([rel, c2, seed, w["q"], f"{w['cost_a']:.2f}", f"{w['cost_both']:.2f}",
+                                     f"{w['d_chi2']:.1f}", f"{w['quantile']:.1f}", f"{w['p']:.2g}"])
+                    print("why: " + " | ".join(map(str, why_rows[-1])), flush=True)
+            summary.append([rel, f"{FRACTION:.0%}", c2, sum(r["ok"] for r in runs),
+                            sum(r["recall"] == 1.0 for r in runs), len(runs), sum(r["wrong"] for r in runs),
+                            f"{max(r['ate_robust'] for r in runs):.3g}", f"{max(r['ratio'] for r in runs):.6g}",
+                            f"{np.median([r['seconds'] for r in runs]):.2f}"])
     # read at the end: a run of the other files may have written the file meanwhile
-    old = kept_rows(args.out, args.robust_3d_files) if args.robust_3d_keep else {"summary": [], "runs": [], "gtsam": []}
+    old = (kept_rows(args.out, args.robust_3d_files) if args.robust_3d_keep
+           else {"summary": [], "runs": [], "gtsam": [], "why": []})
     rows, gtsam_rows, summary = old["runs"] + rows, old["gtsam"] + gtsam_rows, old["summary"] + summary
+    why_rows = old["why"] + why_rows
     kept_files = sorted({r[0] for r in rows + gtsam_rows + summary} - set(args.robust_3d_files))
+    quantiles = " and ".join(f"χ²₆({c:g}) = {c2s[c]:.2f}" for c in confidences)
     text = ["## 3-D graphs", "", __doc__.split("\n\n", 1)[1].strip(), "",
-            "Robust LAGO in 3-D: `lago(graph3d, robust=True)` — GNC-TLS around `lago3d` (chordal relaxation, positions,",
-            "joint step, each weighted by w_k Ω_k), c̄² = χ²₆(0.99) = 16.81, μ × 1.4 per iteration, odometric edges",
-            "trusted (complete chains in every file here); no local search after GNC (planar only).", "",
+            f"Settings: c̄² = {quantiles}; each inner `lago3d` (chordal relaxation, positions, joint step) weighted",
+            "by w_k Ω_k, μ × 1.4 per GNC iteration, odometric edges trusted (complete chains in every file here),",
+            "readmission κ = 9 (`RobustSettings.readmit`).", "",
             *([f"The rows of {', '.join(kept_files)} were measured by an earlier run of this section "
                "(`--robust-3d-files` naming them) and kept (`--robust-3d-keep`).", ""] if kept_files else []),
-            "### Summary per file", "",
-            _bench.table(["file", "false edges", "runs passing", "runs with recall 1", "runs",
-                          "true edges rejected (all runs)", "worst ATE robust [m]", "worst χ² clean edges / clean χ²",
-                          "median time [s]"], summary),
+            "### Summary per file and c̄²", "", _bench.table(HEAD_SUMMARY, summary),
             "", "### Every run", "", _bench.table(HEAD, rows)]
+    if why_rows:
+        text += ["", "### Why the true edges are rejected", "",
+                 "A: the accepted edges, T: the q rejected true edges; truncated cost Σ min(r², c̄²) over every edge "
+                 "of the corrupted graph at `refine3d`'s minimum on A and on A ∪ T; Δχ²: the rise of the χ² of the "
+                 "chosen set from A to A ∪ T (each at its minimum); p-value: P(χ²₆q > Δχ²).", "",
+                 _bench.table(HEAD_WHY, why_rows)]
     if gtsam_rows:
         text += ["", "### GTSAM's GNC on the same corrupted graphs", "",
-                 "On the seeds of `--robust-3d-gtsam-seeds` of the files shown; a run still going after its time "
+                 "Once per seed of `--robust-3d-gtsam-seeds` of the files shown (our process beside it: "
+                 "`lago-cvx solve --robust --refine`, the default confidence 0.99); a run still going after its time "
                  "limit (`--robust-3d-gtsam-timeout`) is stopped and shown as such.", "",
                  _bench.table(HEAD_GTSAM, gtsam_rows)]
     elif args.robust_3d_gtsam_seeds:
@@ -209,22 +278,38 @@ def section(args) -> str:
     return "\n".join(text)
 
 
+#: the header line of a result file (``_bench.header``) and its form kept for the planar tables
+_GENERATED, _PLANAR = "Generated by ", "The planar tables were generated by "
+
+
+def _command(line: str) -> str:
+    """The command quoted (between the first two backticks) in a header line, '' if none."""
+    parts = line.split("`")
+    return parts[1] if len(parts) > 2 else ""
+
+
 def kept_planar(folder: Path) -> str:
-    """The planar part of the existing ``robust.md`` in ``folder`` (``--robust-3d-only``): its header turned into a
-    sentence about the planar tables, its old 3-D part dropped."""
+    """The planar part of the existing ``robust.md`` in ``folder`` (``--robust-3d-only``), its old 3-D part dropped.
+
+    The line naming the planar tables' command: the file's first line ("Generated by …") turned into "The planar
+    tables were generated by …" when its command is not a ``--robust-3d-only`` one (a run that wrote planar tables);
+    otherwise the first existing "The planar tables were generated by …" line whose command is not one either. Lines
+    of that form naming a ``--robust-3d-only`` command are dropped (they never described the planar tables)."""
     path = Path(folder) / "robust.md"
     if not path.is_file():
         return "# False loop closures: robust LAGO by graduated non-convexity\n\n(no planar tables: run without " \
                "--robust-3d-only)"
     text = path.read_text(encoding="utf-8")
     text = text.split("\n## 3-D graphs", 1)[0].rstrip()
-    head, body = text.split("\n", 1) if text.startswith("Generated by") else ("", text)
-    if head.startswith("Generated by"):
-        head = "The planar tables were g" + head[1:]
-    body = body.replace("\nSection time:", "\nPlanar section time:")
-    while body.startswith("\n"):
-        body = body[1:]
+    head, body = text.split("\n", 1) if text.startswith(_GENERATED) else ("", text)
+    lines = body.split("\n")
+    named = [line for line in ([_PLANAR + head[len(_GENERATED):]] if head else []) +
+             [line for line in lines if line.startswith(_PLANAR)] if "--robust-3d-only" not in _command(line).split()]
+    lines = [line for line in lines if not line.startswith(_PLANAR)]
+    body = "\n".join(lines).replace("\nSection time:", "\nPlanar section time:")
+    body = re.sub(r"\n{3,}", "\n\n", body).strip("\n")
+    planar = named[0] if named else "The command of the planar tables is not recorded."
     if body.startswith("# "):
-        title, rest = body.split("\n", 1)
-        return f"{title}\n\n{head}\n{rest}".rstrip()
-    return f"{head}\n\n{body}".rstrip()
+        title, rest = (body.split("\n", 1) + [""])[:2]
+        return f"{title}\n\n{planar}\n\n{rest.lstrip(chr(10))}".rstrip()
+    return f"{planar}\n\n{body}".rstrip()
