@@ -59,6 +59,7 @@ FILES3D = ("se-sync-3d/sphere2500.g2o", "se-sync-3d/torus3D.g2o", "se-sync-3d/pa
 FRACTION = 0.1
 SEEDS = (0, 1, 2)
 CONFIDENCES = (0.99, 0.999)
+SWEEP = (0.02, 0.05, 0.1, 0.2, 0.3, 0.4, 0.5)
 GTSAM_SCRIPT = _bench.HERE.parent.parent / "shared" / "bench" / "gtsam_gnc.py"
 
 HEAD = ["file", "false edges", "c̄²", "seed", "precision", "recall", "true rejected", "ATE LAGO [m]", "ATE robust [m]",
@@ -89,6 +90,9 @@ def add_arguments(group) -> None:
                             "0.99 0.999): every run is made at each")
     group.add_argument("--robust-3d-gtsam-timeout", type=float, default=1800.0, metavar="S",
                        help="seconds after which a GTSAM run is stopped (reported as such)")
+    group.add_argument("--robust-3d-sweep", nargs="*", default=None, metavar="FILE",
+                       help="raise the fraction of false edges (2 %%-50 %%, seeds 0-2) on each FILE (default: the "
+                            "four 3-D files) at each --robust-3d-confidence until a run fails")
 
 
 def ate3d(estimate: np.ndarray, truth: np.ndarray) -> float:
@@ -106,9 +110,9 @@ def scores(rejected, outliers) -> tuple[float, float, int]:
     return (hit / len(rej) if rej else 1.0), hit / max(len(out), 1), len(rej - out)
 
 
-def corrupted(graph, seed, clean) -> dict:
+def corrupted(graph, seed, clean, fraction: float = FRACTION) -> dict:
     """The corrupted graph of ``seed`` (module docstring), its false edges and plain LAGO's ATE on it."""
-    go, idx = add_false_loop_closures(graph, FRACTION, seed=seed)
+    go, idx = add_false_loop_closures(graph, fraction, seed=seed)
     plain = lago(go)
     return dict(graph=go, outliers=idx, ate_lago=ate3d(plain.t, clean.t))
 
@@ -257,8 +261,8 @@ def section(args) -> str:
             f"Settings: c̄² = {quantiles}; each inner `lago3d` (chordal relaxation, positions, joint step) weighted",
             "by w_k Ω_k, μ × 1.4 per GNC iteration, odometric edges trusted (complete chains in every file here),",
             "readmission κ = 9 (`RobustSettings.readmit`).", "",
-            *([f"The rows of {', '.join(kept_files)} were measured by an earlier run of this section "
-               "(`--robust-3d-files` naming them) and kept (`--robust-3d-keep`).", ""] if kept_files else []),
+            *([f"The rows of {', '.join(kept_files)} were measured by an earlier run of this section"
+               f"{_kept_by(args.out)} and kept (`--robust-3d-keep`).", ""] if kept_files else []),
             "### Summary per file and c̄²", "", _bench.table(HEAD_SUMMARY, summary),
             "", "### Every run", "", _bench.table(HEAD, rows)]
     if why_rows:
@@ -275,11 +279,61 @@ def section(args) -> str:
                  _bench.table(HEAD_GTSAM, gtsam_rows)]
     elif args.robust_3d_gtsam_seeds:
         text += ["", f"GTSAM's GNC: {gtsam_skipped or 'failed'}."]
+    if args.robust_3d_sweep is not None:
+        text += ["", "### The fraction at which robust LAGO first fails in 3-D", "",
+                 f"Fractions {', '.join(f'{f:.0%}' for f in SWEEP)}, seeds {SEEDS[0]}–{SEEDS[-1]}, at each confidence; "
+                 "a run passes as above (every false edge rejected, at most 1 % of the true edges, χ² ratio ≤ 1.001); "
+                 "the sweep of a file ends at the first fraction where a run fails.", "",
+                 sweep(args.robust_3d_sweep or list(FILES3D), confidences, c2s)]
     return "\n".join(text)
+
+
+def sweep(files, confidences, c2s) -> str:
+    """The table of ``--robust-3d-sweep``: for each file and confidence the largest fraction of ``SWEEP`` at which every
+    seed passes and the first at which one fails."""
+    out = []
+    for rel in files:
+        path = _bench.find(rel)
+        if path is None:
+            continue
+        graph = read_graph(path)
+        first = lago(graph)
+        clean = refine3d(graph, first.t, first.R)
+        for confidence in confidences:
+            passed, failed, detail = None, None, ""
+            for fraction in SWEEP:
+                runs = [one_run(graph, clean, corrupted(graph, seed, clean, fraction), confidence) for seed in SEEDS]
+                print(f"sweep {rel} {confidence:g} {fraction:.0%}: " + ", ".join(
+                    f"seed {s}: {'pass' if r['ok'] else 'fail'}" for s, r in zip(SEEDS, runs)), flush=True)
+                if all(r["ok"] for r in runs):
+                    passed = fraction
+                    continue
+                failed = fraction
+                detail = "; ".join(f"seed {s}: {round((1 - r['recall']) * r['n_false'])} false kept, {r['wrong']} "
+                                   f"true rejected, χ² ratio {r['ratio']:.4g}" for s, r in zip(SEEDS, runs) if not r["ok"])
+                break
+            out.append([rel, f"{c2s[confidence]:.2f}", "–" if passed is None else f"{passed:.0%}",
+                        "none up to 50 %" if failed is None else f"{failed:.0%}", detail])
+    return _bench.table(["file", "c̄²", "largest fraction passing (all seeds)", "first failing fraction",
+                         "failing runs"], out)
 
 
 #: the header line of a result file (``_bench.header``) and its form kept for the planar tables
 _GENERATED, _PLANAR = "Generated by ", "The planar tables were generated by "
+
+
+def _kept_by(folder: Path) -> str:
+    """`` (`command`, version)`` of the run that measured the 3-D rows of ``folder``/robust.md: the command its kept-rows
+    sentence names, else its header's when that ran the 3-D part; '' when the file records neither."""
+    path = Path(folder) / "robust.md"
+    text = path.read_text(encoding="utf-8") if path.is_file() else ""
+    found = re.search(r"were measured by an earlier run of this section \((`[^`]+`[^)]*)\)", text)
+    if found:
+        return f" ({found.group(1)})"
+    head = text.split("\n", 1)[0]
+    if head.startswith(_GENERATED) and "--robust-3d" in _command(head):
+        return f" (`{_command(head)}`{head.split('`')[2].split(' on ')[0].rstrip(',')})"
+    return ""
 
 
 def _command(line: str) -> str:
