@@ -57,7 +57,7 @@ FILES = ("se-sync/intel.g2o", "carlone/input_M3500_g2o.g2o", "se-sync/CSAIL.g2o"
 CITY = "se-sync/city10000.g2o"
 QUICK_FILES = ("se-sync/MIT.g2o", "se-sync/intel.g2o")
 FRACTIONS = (0.1, 0.3)
-SWEEP = (0.02, 0.05, 0.1, 0.2, 0.3, 0.4, 0.5)
+SWEEP = robust3d.SWEEP
 SEEDS = (0, 1, 2)
 GTSAM_SCRIPT = _bench.HERE.parent.parent / "shared" / "bench" / "gtsam_gnc.py"
 GTSAM_FILES = ("se-sync/intel.g2o", "carlone/input_M3500_g2o.g2o")
@@ -232,20 +232,7 @@ def sweep(files) -> str:
             continue
         graph = read_graph(path)
         clean = refine(graph, lago(graph).poses)
-        passed, failed, detail = None, None, ""
-        for fraction in SWEEP:
-            runs = [one_run(graph, clean.poses, clean.chi2, fraction, seed, SETTINGS[0][1]) for seed in SEEDS]
-            print(f"sweep {rel} {fraction:.0%}: " + ", ".join(
-                f"seed {s}: missed {round((1 - r['recall']) * r['n_false'])}, true rejected {r['wrong']}, "
-                f"χ² ratio {r['chi2_ratio']:.6g}" for s, r in zip(SEEDS, runs)), flush=True)
-            if all(r["ok"] for r in runs):
-                passed = fraction
-                continue
-            failed = fraction
-            detail = "; ".join(f"seed {s}: {round((1 - r['recall']) * r['n_false'])} false kept, {r['wrong']} true "
-                               f"rejected, χ² ratio {r['chi2_ratio']:.4g}" for s, r in zip(SEEDS, runs) if not r["ok"])
-            break
-        rows.append([rel, "–" if passed is None else f"{passed:.0%}", "none up to 50 %" if failed is None else
-                     f"{failed:.0%}", detail])
+        rows.append([rel, *robust3d.first_failure(rel, "chi2_ratio", lambda fraction: [
+            one_run(graph, clean.poses, clean.chi2, fraction, seed, SETTINGS[0][1]) for seed in SEEDS])])
     return _bench.table(["file", "largest fraction passing (all seeds)", "first failing fraction", "failing runs"],
                         rows)

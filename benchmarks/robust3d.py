@@ -206,13 +206,7 @@ def section(args) -> str:
     confidences = list(args.robust_3d_confidence)
     c2s = {c: RobustSettings(confidence=c).c2_for(3) for c in confidences}
     gtsam_skipped = _bench.gtsam_script_skipped(GTSAM_SCRIPT) if args.robust_3d_gtsam_seeds else None
-    for rel in args.robust_3d_files:
-        path = _bench.find(rel)
-        if path is None:
-            continue
-        graph = read_graph(path)
-        first = lago(graph)
-        clean = refine3d(graph, first.t, first.R)
+    for rel, graph, clean in _graphs(args.robust_3d_files):
         clean_gtsam = None
         bad = {seed: corrupted(graph, seed, clean) for seed in SEEDS}
         for seed in (s for s in SEEDS if gtsam_skipped is None and s in args.robust_3d_gtsam_seeds):
@@ -290,32 +284,46 @@ def section(args) -> str:
 
 def sweep(files, confidences, c2s) -> str:
     """The table of ``--robust-3d-sweep``: for each file and confidence the largest fraction of ``SWEEP`` at which every
-    seed passes and the first at which one fails."""
+    seed passes and the first at which one fails (``first_failure``)."""
     out = []
-    for rel in files:
-        path = _bench.find(rel)
-        if path is None:
-            continue
-        graph = read_graph(path)
-        first = lago(graph)
-        clean = refine3d(graph, first.t, first.R)
+    for rel, graph, clean in _graphs(files):
         for confidence in confidences:
-            passed, failed, detail = None, None, ""
-            for fraction in SWEEP:
-                runs = [one_run(graph, clean, corrupted(graph, seed, clean, fraction), confidence) for seed in SEEDS]
-                print(f"sweep {rel} {confidence:g} {fraction:.0%}: " + ", ".join(
-                    f"seed {s}: {'pass' if r['ok'] else 'fail'}" for s, r in zip(SEEDS, runs)), flush=True)
-                if all(r["ok"] for r in runs):
-                    passed = fraction
-                    continue
-                failed = fraction
-                detail = "; ".join(f"seed {s}: {round((1 - r['recall']) * r['n_false'])} false kept, {r['wrong']} "
-                                   f"true rejected, χ² ratio {r['ratio']:.4g}" for s, r in zip(SEEDS, runs) if not r["ok"])
-                break
-            out.append([rel, f"{c2s[confidence]:.2f}", "–" if passed is None else f"{passed:.0%}",
-                        "none up to 50 %" if failed is None else f"{failed:.0%}", detail])
+            found = first_failure(f"{rel} {confidence:g}", "ratio", lambda fraction: [
+                one_run(graph, clean, corrupted(graph, seed, clean, fraction), confidence) for seed in SEEDS])
+            out.append([rel, f"{c2s[confidence]:.2f}", *found])
     return _bench.table(["file", "c̄²", "largest fraction passing (all seeds)", "first failing fraction",
                          "failing runs"], out)
+
+
+def _graphs(files):
+    """(file, graph, clean solution: LAGO refined by ``refine3d``) of each of ``files`` found in the datasets."""
+    for rel in files:
+        path = _bench.find(rel)
+        if path is not None:
+            graph = read_graph(path)
+            first = lago(graph)
+            yield rel, graph, refine3d(graph, first.t, first.R)
+
+
+def first_failure(label: str, ratio: str, runs_at) -> list:
+    """The sweep over ``SWEEP`` shared by the planar and 3-D tables: ``runs_at(fraction)`` gives one run per seed
+    (dicts with ``ok``, ``recall``, ``n_false``, ``wrong`` and the χ² ratio under the key ``ratio``); returns the
+    cells [largest fraction where every seed passes, first fraction where one fails, its failing runs]."""
+    passed, failed, detail = None, None, ""
+    for fraction in SWEEP:
+        runs = runs_at(fraction)
+        print(f"sweep {label} {fraction:.0%}: " + ", ".join(
+            f"seed {s}: missed {round((1 - r['recall']) * r['n_false'])}, true rejected {r['wrong']}, "
+            f"χ² ratio {r[ratio]:.6g}" for s, r in zip(SEEDS, runs)), flush=True)
+        if all(r["ok"] for r in runs):
+            passed = fraction
+            continue
+        failed = fraction
+        detail = "; ".join(f"seed {s}: {round((1 - r['recall']) * r['n_false'])} false kept, {r['wrong']} true "
+                           f"rejected, χ² ratio {r[ratio]:.4g}" for s, r in zip(SEEDS, runs) if not r["ok"])
+        break
+    return ["–" if passed is None else f"{passed:.0%}", "none up to 50 %" if failed is None else f"{failed:.0%}",
+            detail]
 
 
 #: the header line of a result file (``_bench.header``) and its form kept for the planar tables
