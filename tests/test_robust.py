@@ -20,6 +20,7 @@ from lago_cvx.synthetic.space import sphere_world
 from lago_cvx.synthetic import FALSE_LOOP_BOX, add_false_loop_closures, manhattan_world
 from lago_cvx.variants import (RobustResult, RobustSettings, gnc_threshold, gnc_weights, odometric_chain_complete,
                                robust_settings)
+from lago_cvx.variants.gnc import truncated_cost
 
 from conftest import dataset_path
 
@@ -415,6 +416,26 @@ def test_local_search_recovers_mit_at_ten_percent():
     rob = refine(res.graph, res.poses)
     clean = refine(g, lc.lago(g).poses)
     assert chi2(g, rob.poses) <= 1.001 * clean.chi2
+
+
+def test_swap_moves_recover_mit_at_five_percent(monkeypatch):
+    """MIT + 5 % (41 false loop closures), seed 0: the false edge 60→39 fits beside the true 58→29 but not beside
+    338→61, so GNC keeps it and rejects two true ones (truncated cost 524.1 against the clean 506.7), and no
+    single toggle lowers the cost. Swapping it for the rejected edge that fits best without it does."""
+    from lago_cvx.variants import gnc
+
+    g = read_graph(dataset_path("se-sync/MIT.g2o"))
+    go, idx = add_false_loop_closures(g, 0.05, seed=0)
+    res = lc.lago(go, robust=True)
+    _, recall, wrong = scores(res.rejected_edges, idx)
+    assert recall == 1.0 and wrong == 0
+    clean = refine(g, lc.lago(g).poses)
+    assert chi2(g, refine(res.graph, res.poses).poses) <= 1.001 * clean.chi2
+    monkeypatch.setattr(gnc, "SWAP_CANDIDATES", 0)  # toggles and descents only
+    toggles = lc.lago(go, robust=True)
+    c2 = RobustSettings().c2
+    assert truncated_cost(go, toggles.poses, c2) > truncated_cost(go, res.poses, c2) + c2
+    assert scores(toggles.rejected_edges, idx)[2] > 0
 
 
 @pytest.mark.parametrize("start", ["pcm", "best"])
