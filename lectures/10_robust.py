@@ -283,8 +283,10 @@ check(np.all((runs["tls"][-1] < 1e-4) | (runs["tls"][-1] > 1 - 1e-4)), "TLS ends
 # as $\mu$ grows the weights separate, the true loop closures climbing back to 1 as the estimate fits them. Each
 # weighted solve is a LAGO run, milliseconds here. GM's weights never reach 0; an edge is rejected where its
 # residual exceeds $\bar c^2$ at the end, and here GM's run leaves one true loop closure there. GNC is a local
-# method; the package adds aids (`RobustSettings`): on small planar graphs single-edge moves that lower the truncated
-# cost $\sum_k\min(r_k^2, \bar c^2)$ — which accept that edge back — and a start from pairwise consistency; on every
+# method; the package adds aids (`RobustSettings`): on small planar graphs moves that lower the truncated cost
+# $\sum_k\min(r_k^2, \bar c^2)$ — one edge toggled (which accepts that edge back), or an accepted edge swapped for a
+# rejected one, each followed by a descent that re-classifies at the estimate — and a start from pairwise
+# consistency; on every
 # graph the rejected edges within $9\bar c^2$ of fitting are tried back together (`readmit`), kept when that cost
 # falls. And GNC runs only where the unweighted LAGO shows an outlier at all: a residual above the $\chi^2$ quantile
 # at $1 - 0.01/q$ over the $q$ loop closures (`alarm_for`), so that a clean graph keeps every edge.
