@@ -438,6 +438,20 @@ def test_swap_moves_recover_mit_at_five_percent(monkeypatch):
     assert scores(toggles.rejected_edges, idx)[2] > 0
 
 
+def test_descent_after_gnc_on_a_graph_too_large_for_the_moves():
+    """M3500 + 30 % (3 589 loop closures, above LOCAL_SEARCH_MAX_EDGES), seed 1: GNC rejects one true loop closure;
+    the descent after it (classification at the estimate, LAGO on it) accepts it back in one LAGO run."""
+    g = read_graph(dataset_path("carlone/input_M3500_g2o.g2o"))
+    go, idx = add_false_loop_closures(g, 0.3, seed=1)
+    res = lc.lago(go, robust=True)
+    _, recall, wrong = scores(res.rejected_edges, idx)
+    assert recall == 1.0 and wrong == 0
+    alone = lc.lago(go, robust=GNC_ONLY)  # local_search=0: no descent either
+    assert scores(alone.rejected_edges, idx)[2] == 1
+    c2 = RobustSettings().c2
+    assert truncated_cost(go, res.poses, c2) < truncated_cost(go, alone.poses, c2)
+
+
 @pytest.mark.parametrize("start", ["pcm", "best"])
 def test_consistent_starts_reject_nothing_on_clean_graphs_and_find_the_false_edges(start):
     g = manhattan_world(300, seed=5).graph

@@ -118,7 +118,9 @@ class RobustSettings:
       toggled, or an accepted edge swapped for a rejected one, each followed by a descent; ``_local_search``),
       0: none. Only where GNC ran, the
       odometric chain is complete and trusted, and there are at most ``LOCAL_SEARCH_MAX_EDGES`` loop closures;
-      planar graphs only (in 3-D its moves, judged at LAGO's estimates, rejected more true edges);
+      on other planar graphs where GNC ran, the moves' descent alone (at most ``DESCENT_RUNS`` LAGO runs; M3500 +
+      30 %, seed 1: one run, a true loop closure accepted back); planar graphs only (in 3-D single-edge moves,
+      judged at LAGO's estimates, rejected more true edges);
     readmit — κ: after GNC (and the local search), the rejected edges with r_k² ≤ κ c̄² at the estimate are tried
       back **together** (``_readmit``; one or two LAGO runs per round), the move kept when it lowers the truncated
       cost; 0: never. A group of true loop closures that only fit together is out of reach of single-edge moves.
@@ -295,6 +297,8 @@ def gnc_lago(graph: PoseGraph, settings: RobustSettings, *, solve: Callable) -> 
     if (settings.local_search and it > 0 and trust and graph.dim == 2 and odometric_chain_complete(graph)
             and int((~known).sum()) <= LOCAL_SEARCH_MAX_EDGES):
         keep, final, cost, moves = _local_search(graph, keep, final, cost, known, settings, solve)
+    elif settings.local_search and it > 0 and graph.dim == 2:  # too large for the moves: their descent alone
+        keep, final, cost = _descend(graph, keep, final, cost, known, c2, solve, [DESCENT_RUNS], held=[])
     if settings.readmit and it > 0:
         keep, final, cost, regained = _readmit(graph, keep, final, cost, known, settings, solve)
         moves += regained
@@ -342,6 +346,10 @@ def _local_search(graph, keep, final, cost, known, settings, solve):
         keep, final, cost = found
         moves += 1
     return keep, final, cost, moves
+
+
+#: LAGO runs at most of the descent (``_descend``) that follows GNC on planar graphs too large for the local search.
+DESCENT_RUNS = 20
 
 
 #: The swap move of the local search tries, for each accepted edge rejected, this many of the rejected edges that fit
