@@ -348,22 +348,17 @@ def _local_search(graph, keep, final, cost, known, settings, solve):
     return keep, final, cost, moves
 
 
-#: LAGO runs at most of the descent (``_descend``) that follows GNC on planar graphs too large for the local search.
-DESCENT_RUNS = 20
-
-
-#: The swap move of the local search tries, for each accepted edge rejected, this many of the rejected edges that fit
-#: best at the estimate without it.
-SWAP_CANDIDATES = 1
+#: LAGO runs at most of the descent (``_descend``) that follows GNC on planar graphs too large for the local search;
+#: rejected edges tried by a swap for each accepted edge taken out (those that fit best without it).
+DESCENT_RUNS, SWAP_CANDIDATES = 20, 1
 
 
 def _toggle(graph, keep, held, cost, known, c2, solve, budget):
     """The edges ``held`` change class, then ``_descend``: (keep, LagoResult, cost) when the cost falls, else None."""
     trial = keep.copy()
     trial[held] = ~trial[held]
-    if connected_components(graph.subgraph_edges(trial))[0] > 1:
-        return None
-    return _lower(graph, trial, cost, known, c2, solve, budget, held)
+    linked = connected_components(graph.subgraph_edges(trial))[0] == 1
+    return _lower(graph, trial, cost, known, c2, solve, budget, held) if linked else None
 
 
 def _swap(graph, keep, final, cost, known, c2, solve, budget):
