@@ -438,18 +438,23 @@ def test_swap_moves_recover_mit_at_five_percent(monkeypatch):
     assert scores(toggles.rejected_edges, idx)[2] > 0
 
 
-def test_descent_after_gnc_on_a_graph_too_large_for_the_moves():
-    """M3500 + 30 % (3 589 loop closures, above LOCAL_SEARCH_MAX_EDGES), seed 1: GNC rejects one true loop closure;
-    the descent after it (classification at the estimate, LAGO on it) accepts it back in one LAGO run."""
+def test_bounded_toggles_on_a_graph_too_large_for_the_full_search():
+    """M3500 + 30 % (3 589 loop closures, above LOCAL_SEARCH_MAX_EDGES), seed 0: GNC alone rejects 26 true loop
+    closures; toggling the accepted edges of the largest r² (BOUNDED_TRIALS, then descents) takes out the false ones
+    that bent the estimate and brings every true one back, at a truncated cost at or below the clean
+    classification's (the one false edge still kept fits: the objective's choice, benchmarks/robust.md)."""
     g = read_graph(dataset_path("carlone/input_M3500_g2o.g2o"))
-    go, idx = add_false_loop_closures(g, 0.3, seed=1)
+    go, idx = add_false_loop_closures(g, 0.3, seed=0)
     res = lc.lago(go, robust=True)
     _, recall, wrong = scores(res.rejected_edges, idx)
-    assert recall == 1.0 and wrong == 0
-    alone = lc.lago(go, robust=GNC_ONLY)  # local_search=0: no descent either
-    assert scores(alone.rejected_edges, idx)[2] == 1
+    assert wrong == 0 and recall > 0.99
+    alone = lc.lago(go, robust=GNC_ONLY)  # local_search=0: no move either
+    assert scores(alone.rejected_edges, idx)[2] >= 20
     c2 = RobustSettings().c2
-    assert truncated_cost(go, res.poses, c2) < truncated_cost(go, alone.poses, c2)
+    clean = np.ones(go.n_edges, bool)
+    clean[idx] = False
+    clean_cost = truncated_cost(go, lc.lago(go.subgraph_edges(clean)).poses, c2)
+    assert truncated_cost(go, res.poses, c2) <= clean_cost + 1e-6 < truncated_cost(go, alone.poses, c2)
 
 
 @pytest.mark.parametrize("start", ["pcm", "best"])

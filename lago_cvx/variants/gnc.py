@@ -48,7 +48,7 @@ Where GNC ends at a local minimum. GNC minimizes the TLS cost Σ_k min(r_k², c�
 loop closures, 807 odometric edges, 82 false ones) it rejects about half the true loop closures, at a truncated
 cost above the clean classification's. Three aids, ``RobustSettings``:
 
-* ``local_search`` (default on, graphs with at most ``LOCAL_SEARCH_MAX_EDGES`` loop closures): after GNC,
+* ``local_search`` (default on, planar; bounded above ``LOCAL_SEARCH_MAX_EDGES`` loop closures): after GNC,
   moves — one edge toggled (a rejected edge accepted, an accepted one rejected), or an accepted edge swapped for
   the rejected one that fits best without it — each followed by a descent that alternates the classification
   at the estimate (accept r_k² ≤ c̄²) and LAGO on it, and taken when it lowers the truncated cost over every
@@ -118,9 +118,9 @@ class RobustSettings:
       toggled, or an accepted edge swapped for a rejected one, each followed by a descent; ``_local_search``),
       0: none. Only where GNC ran, the
       odometric chain is complete and trusted, and there are at most ``LOCAL_SEARCH_MAX_EDGES`` loop closures;
-      on other planar graphs where GNC ran, the moves' descent alone (at most ``DESCENT_RUNS`` LAGO runs; M3500 +
-      30 %, seed 1: one run, a true loop closure accepted back); planar graphs only (in 3-D single-edge moves,
-      judged at LAGO's estimates, rejected more true edges);
+      on other planar graphs where GNC ran, toggles of the ``BOUNDED_TRIALS`` accepted edges of the largest r_k² (at
+      most ``BOUNDED_RUNS`` LAGO runs; M3500 + 30 %, seed 0: 26 true loop closures accepted back); planar graphs
+      only (in 3-D single-edge moves, judged at LAGO's estimates, rejected more true edges);
     readmit — κ: after GNC (and the local search), the rejected edges with r_k² ≤ κ c̄² at the estimate are tried
       back **together** (``_readmit``; one or two LAGO runs per round), the move kept when it lowers the truncated
       cost; 0: never. A group of true loop closures that only fit together is out of reach of single-edge moves.
@@ -294,11 +294,9 @@ def gnc_lago(graph: PoseGraph, settings: RobustSettings, *, solve: Callable) -> 
         runs.append(_gnc_run(graph, settings, solve, known, w0, first if start == "lago" else None) + (start,))
     w, keep, final, it, history, cost, start = min(runs, key=lambda r: r[5])
     moves = 0
-    if (settings.local_search and it > 0 and trust and graph.dim == 2 and odometric_chain_complete(graph)
-            and int((~known).sum()) <= LOCAL_SEARCH_MAX_EDGES):
-        keep, final, cost, moves = _local_search(graph, keep, final, cost, known, settings, solve)
-    elif settings.local_search and it > 0 and graph.dim == 2:  # too large for the moves: their descent alone
-        keep, final, cost = _descend(graph, keep, final, cost, known, c2, solve, [DESCENT_RUNS], held=[])
+    if settings.local_search and it > 0 and graph.dim == 2:
+        full = trust and odometric_chain_complete(graph) and int((~known).sum()) <= LOCAL_SEARCH_MAX_EDGES
+        keep, final, cost, moves = _local_search(graph, keep, final, cost, known, settings, solve, full)
     if settings.readmit and it > 0:
         keep, final, cost, regained = _readmit(graph, keep, final, cost, known, settings, solve)
         moves += regained
@@ -314,7 +312,7 @@ def gnc_lago(graph: PoseGraph, settings: RobustSettings, *, solve: Callable) -> 
                                iterations=it, known_inliers=known, history=history)
 
 
-def _local_search(graph, keep, final, cost, known, settings, solve):
+def _local_search(graph, keep, final, cost, known, settings, solve, full):
     """Moves on GNC's classification that lower the truncated cost Σ_k min(r_k², c̄²) over every edge, at the LAGO
     estimate of the accepted edges; each move ends in a descent (``_descend``), and is taken when the cost falls:
 
@@ -326,16 +324,19 @@ def _local_search(graph, keep, final, cost, known, settings, solve):
         out of reach of one toggle.
 
     Toggles first; swaps when no toggle helps; after a move taken, toggles again. Until no move helps or
-    ``settings.local_search`` LAGO runs are spent. Returns (keep, final LagoResult, cost, moves taken)."""
+    ``settings.local_search`` LAGO runs are spent. Not ``full`` (graphs too large for these moves): toggles of the
+    ``BOUNDED_TRIALS`` accepted edges of the largest r_k² only, no swap, at most ``BOUNDED_RUNS`` LAGO runs (M3500 +
+    30 %, seed 0: two toggles bring 26 rejected true loop closures back). Returns (keep, final LagoResult, cost,
+    moves taken)."""
     c2, moves = settings.c2_for(graph.dim), 0
-    budget = [settings.local_search]
+    budget = [settings.local_search if full else min(settings.local_search, BOUNDED_RUNS)]
     keep, final, cost = _descend(graph, keep, final, cost, known, c2, solve, budget, held=[])
     while budget[0] > 0:
         r2 = edge_r2(graph, final.poses)
         rejected, accepted = np.flatnonzero(~keep), np.flatnonzero(keep & ~known)
-        trials = [[k] for k in np.r_[accepted[np.argsort(-r2[accepted], kind="stable")],
-                                     rejected[np.argsort(r2[rejected], kind="stable")]]]
-        trials.append(None)  # then the swaps
+        order = accepted[np.argsort(-r2[accepted], kind="stable")]
+        order = np.r_[order, rejected[np.argsort(r2[rejected], kind="stable")]] if full else order[:BOUNDED_TRIALS]
+        trials, found = [[k] for k in order] + ([None] if full else []), None  # then the swaps
         for held in trials:
             found = (_toggle(graph, keep, held, cost, known, c2, solve, budget) if held is not None
                      else _swap(graph, keep, final, cost, known, c2, solve, budget))
@@ -348,9 +349,9 @@ def _local_search(graph, keep, final, cost, known, settings, solve):
     return keep, final, cost, moves
 
 
-#: LAGO runs at most of the descent (``_descend``) that follows GNC on planar graphs too large for the local search;
-#: rejected edges tried by a swap for each accepted edge taken out (those that fit best without it).
-DESCENT_RUNS, SWAP_CANDIDATES = 20, 1
+#: On planar graphs too large for the full local search: accepted edges toggled, LAGO runs at most; rejected
+#: edges tried by a swap for each accepted edge taken out (those that fit best without it).
+BOUNDED_TRIALS, BOUNDED_RUNS, SWAP_CANDIDATES = 5, 100, 1
 
 
 def _toggle(graph, keep, held, cost, known, c2, solve, budget):
