@@ -285,7 +285,8 @@ check(np.all((runs["tls"][-1] < 1e-4) | (runs["tls"][-1] > 1 - 1e-4)), "TLS ends
 # residual exceeds $\bar c^2$ at the end, and here GM's run leaves one true loop closure there. GNC is a local
 # method; the package adds aids (`RobustSettings`): on small planar graphs moves that lower the truncated cost
 # $\sum_k\min(r_k^2, \bar c^2)$ — one edge toggled (which accepts that edge back), or an accepted edge swapped for a
-# rejected one, each followed by a descent that re-classifies at the estimate — and a start from pairwise
+# rejected one, each followed by a descent that re-classifies at the estimate — on larger ones (more than 500 loop
+# closures) the toggles of the five accepted edges of the largest residual, and a start from pairwise
 # consistency; on every
 # graph the rejected edges within $9\bar c^2$ of fitting are tried back together (`readmit`), kept when that cost
 # falls. And GNC runs only where the unweighted LAGO shows an outlier at all: a residual above the $\chi^2$ quantile
