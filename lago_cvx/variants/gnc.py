@@ -358,8 +358,7 @@ def _toggle(graph, keep, held, cost, known, c2, solve, budget):
     """The edges ``held`` change class, then ``_descend``: (keep, LagoResult, cost) when the cost falls, else None."""
     trial = keep.copy()
     trial[held] = ~trial[held]
-    linked = connected_components(graph.subgraph_edges(trial))[0] == 1
-    return _lower(graph, trial, cost, known, c2, solve, budget, held) if linked else None
+    return _lower(graph, trial, cost, known, c2, solve, budget, held)
 
 
 def _swap(graph, keep, final, cost, known, c2, solve, budget):
@@ -372,10 +371,10 @@ def _swap(graph, keep, final, cost, known, c2, solve, budget):
             return None
         without = keep.copy()
         without[a] = False
-        if connected_components(graph.subgraph_edges(without))[0] > 1:
+        if connected_components(sub := graph.subgraph_edges(without))[0] > 1:
             continue
         with _quiet():
-            res = solve(graph.subgraph_edges(without))
+            res = solve(sub)
         budget[0] -= 1
         r2a = edge_r2(graph, res.poses)
         rejected = np.flatnonzero(~without)
@@ -393,9 +392,11 @@ def _swap(graph, keep, final, cost, known, c2, solve, budget):
 
 def _lower(graph, trial, cost, known, c2, solve, budget, held):
     """LAGO on ``trial``, then ``_descend`` with ``held`` fixed, then without: (keep, LagoResult, cost) when the cost
-    ends below ``cost``, else None."""
+    ends below ``cost``, else None (also when the edges of ``trial`` do not link every pose)."""
+    if connected_components(sub := graph.subgraph_edges(trial))[0] > 1:
+        return None
     with _quiet():
-        res = solve(graph.subgraph_edges(trial))
+        res = solve(sub)
     budget[0] -= 1
     c = truncated_cost(graph, res.poses, c2)
     trial, res, c = _descend(graph, trial, res, c, known, c2, solve, budget, held)
@@ -411,10 +412,11 @@ def _descend(graph, keep, res, cost, known, c2, solve, budget, held):
     for _ in range(20):
         new = known | (edge_r2(graph, res.poses) <= c2)
         new[held] = keep[held]
-        if budget[0] <= 0 or np.array_equal(new, keep) or connected_components(graph.subgraph_edges(new))[0] > 1:
+        if (budget[0] <= 0 or np.array_equal(new, keep)
+                or connected_components(sub := graph.subgraph_edges(new))[0] > 1):  # the subgraph built once
             break
         with _quiet():
-            trial = solve(graph.subgraph_edges(new))
+            trial = solve(sub)
         budget[0] -= 1
         c = truncated_cost(graph, trial.poses, c2)
         if not c < cost:
