@@ -281,13 +281,32 @@ def compare_methods(graph: PoseGraph, *, solver_settings: ClarabelSettings | Non
     (the polish at the orientations it chose) with ``positions="resolve"``, and ``chordal`` (the relaxed
     rotations) with ``regularization="chordal"``}, the cvxpy timings and the problems.
     ``anchors`` as in ``lago`` (then ``lago_cvx.variants.compare_anchored_methods``, which honours every
-    keyword of ``lago`` too). ``kwargs``: the keywords of ``lago`` but ``method`` (both run: ``OptionError``)."""
+    keyword of ``lago`` too). ``kwargs``: the keywords of ``lago`` but ``method`` (both run: ``OptionError``).
+
+    ``robust`` (as in ``lago``): graduated non-convexity runs first, in closed form; the comparison is then made
+    on its result's final least-squares run, LAGO on the accepted edges (``result.graph``), whose closed form
+    is the robust result's estimate. Returns (the robust result, that report, with ``accepted_edges``).
+    A 3-D graph goes to ``lago_cvx.space.compare_methods3d`` (keywords ``route`` and ``anchor``)."""
     if "method" in kwargs:
         raise OptionError("method: compare_methods solves both ways (closed form, then cvxpy); do not pass method")
-    if kwargs.get("robust") not in (None, False):
-        raise OptionError("robust: compare_methods compares one least-squares run; run lago(graph, robust=...)")
     if kwargs.get("cost") is not None:
         graph = graph.with_cost(kwargs.pop("cost"))
+    if kwargs.get("robust") not in (None, False):
+        res = lago(graph, **kwargs, **({} if anchors is None else {"anchors": anchors}))
+        kwargs.pop("robust")
+        _, report = compare_methods(res.graph, solver_settings=solver_settings, anchors=anchors, **kwargs)
+        report["accepted_edges"] = int(res.graph.n_edges)
+        return res, report
+    kwargs.pop("robust", None)
+    if getattr(graph, "dim", 2) == 3:  # one door: a 3-D graph is compared by lago_cvx.space.compare_methods3d
+        from .space import compare_methods3d
+
+        given = sorted(k for k, v in kwargs.items() if v is not None and k not in ("route", "anchor"))
+        if given or anchors is not None:
+            raise OptionError(f"compare_methods on a 3-D graph takes route and anchor only, got "
+                              f"{', '.join(given + ['anchors'] * (anchors is not None))}")
+        return compare_methods3d(graph, route=kwargs.get("route", "default"), anchor=kwargs.get("anchor"),
+                                 solver_settings=solver_settings)
     if anchors is not None:
         from .variants import compare_anchored_methods
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import pickle
+import re
 
 import numpy as np
 import pytest
@@ -101,8 +102,6 @@ def test_robust_settings_and_options():
                dict(threshold=-1.0), dict(trust_odometry="yes")):
         with pytest.raises(OptionError):
             RobustSettings(**kw)
-    with pytest.raises(OptionError, match="robust"):
-        lc.compare_methods(manhattan_world(50, seed=0).graph, robust=True)
     small = manhattan_world(60, seed=1).graph  # the cvxpy route inside GNC too
     assert lc.lago(small, robust=True, method="cvxpy").method == "cvxpy"
     with pytest.raises(OptionError, match="planar graphs only"):  # planar options on a 3-D graph, robust or not
@@ -213,8 +212,32 @@ def test_cli_generate_outliers_and_solve_robust(tmp_path, capsys):
     est = out.splitlines()
     assert code == 0 and sum(line.startswith("EDGE") for line in est) == g.n_edges  # all edges, estimated vertices
     assert "rejected" in err
-    code, _, err = run(capsys, "solve", f, "--robust", "--check")
-    assert code == 2 and "--robust" in err and len(err.strip().splitlines()) == 1
+    code, out, _ = run(capsys, "solve", f, "--robust", "--check", "--anchor", 4, "--json")  # on the accepted edges
+    c = json.loads(out)
+    assert code == 0 and c["check_edges"] == "accepted" and c["rejected_edges"] == d["rejected_edges"]
+    assert c["chi2"] == pytest.approx(d["chi2"], rel=1e-12) and max(c["max_rel_diff"].values()) < 1e-6
+    code, out, _ = run(capsys, "solve", f, "--robust", "--check", "--route", "seed")
+    rejected = int(re.search(r"(\d+) of \d+ edges rejected", out).group(1))
+    assert code == 0 and f"(LAGO on the {g.n_edges - rejected} accepted edges), max relative difference" in out
+
+
+@pytest.mark.parametrize("kw", [dict(), dict(route="seed"), dict(anchor=7), dict(anchors={3: (1.0, 2.0, 0.3)}),
+                                dict(robust="gnc-gm", anchor=7)], ids=["default", "seed", "anchor", "anchors", "gm"])
+def test_compare_methods_with_robust_checks_the_final_run_on_the_accepted_edges(kw):
+    """compare_methods(graph, robust=...) returns the robust result and compares both ways LAGO on its accepted
+    edges: that run's closed form is the robust estimate itself, and its cvxpy problems hold only those edges."""
+    go, idx = add_false_loop_closures(manhattan_world(120, seed=2).graph, 0.1, seed=0)
+    kw = {"robust": True, **kw}
+    res, report = lc.compare_methods(go, **kw)
+    again = lc.lago(go, **kw)
+    assert type(res) is type(again) and np.array_equal(res.rejected_edges, again.rejected_edges)
+    assert np.array_equal(res.poses, again.poses) and res.chi2 == again.chi2
+    assert scores(res.rejected_edges, idx)[1] == 1.0
+    assert report["accepted_edges"] == res.graph.n_edges == go.n_edges - res.rejected_edges.size
+    assert max(report["max_rel_diff"].values()) < 1e-6
+    # the report is the one of LAGO on the accepted edges, as compare_methods gives it without robust
+    _, plain = lc.compare_methods(res.graph, **{k: v for k, v in kw.items() if k != "robust"})
+    assert plain["max_rel_diff"] == report["max_rel_diff"]
 
 
 # ---------------------------------------------------------------------- real graphs, 10 % false
@@ -563,8 +586,11 @@ def test_cli_3d_generate_outliers_solve_and_certify_robust(tmp_path, capsys):
     assert written.n_edges == g.n_edges  # every edge, the refined estimate as vertices
     chi2_written = lc.posegraph3d.chi2_3d(g.subgraph_edges(keep), *written.initial)
     assert d["chi2_refined"] == pytest.approx(chi2_written, rel=1e-6) and d["chi2_refined"] <= d["chi2"]
-    code, _, err = run(capsys, "solve", f, "--robust", "--check")
-    assert code == 2 and "--robust" in err and len(err.strip().splitlines()) == 1
+    code, out, _ = run(capsys, "solve", f, "--robust", "--check", "--json")  # 3-D: on the accepted edges too
+    k = json.loads(out)
+    assert code == 0 and k["check_edges"] == "accepted" and k["rejected_edges"] == d["rejected_edges"]
+    assert k["chi2"] == pytest.approx(d["chi2"], rel=1e-12) and set(k["max_rel_diff"]) == {"chordal", "positions"}
+    assert max(k["max_rel_diff"].values()) < 1e-6
     code, out, _ = run(capsys, "certify", f, "--robust", "--json")
     c = json.loads(out)
     assert code == c["exit_status"] == 0 and c["certified"] and c["certified_edges"] == "accepted"

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from conftest import dataset_path
-from lago_cvx import lago
+from lago_cvx import compare_methods, lago
 from lago_cvx.errors import GraphError, OptionError
 from lago_cvx.io import read_graph
 from lago_cvx.posegraph3d import PoseGraph3D, chi2_3d, edge_errors3d
@@ -69,6 +69,16 @@ def test_check_on_datasets(name):
     g = read_graph(dataset_path(name))
     _, report = compare_methods3d(g)
     assert max(report["max_rel_diff"].values()) < 1e-6, report
+
+
+def test_compare_methods_hands_a_3d_graph_to_compare_methods3d(grid):
+    """One door: pipeline.compare_methods on a 3-D graph is compare_methods3d (route and anchor); the planar
+    options are refused by name."""
+    res, report = compare_methods(grid.graph, route="seed", anchor=3)
+    res3, report3 = compare_methods3d(grid.graph, route="seed", anchor=3)
+    assert np.array_equal(res.t, res3.t) and report["max_rel_diff"] == report3["max_rel_diff"]
+    with pytest.raises(OptionError, match="spanning_tree"):
+        compare_methods(grid.graph, spanning_tree="bfs")
 
 
 def test_weights():

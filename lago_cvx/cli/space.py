@@ -111,7 +111,7 @@ def _anchors3d(specs, graph):
 
 
 def solve3d(args, graph, out) -> int:
-    from ..space import compare_methods3d, lago3d, refine3d
+    from ..space import lago3d, refine3d
 
     refuse_planar_options(args)
     anchor, fixed = _anchors3d(args.anchor, graph)
@@ -123,8 +123,10 @@ def solve3d(args, graph, out) -> int:
             if given:
                 raise UsageError(f"{flag} with --anchor ID:X,Y,Z,QX,QY,QZ,QW on a 3-D graph: "
                                  "poses known exactly are solved in closed form only")
-    if args.check:
-        res, report = compare_methods3d(graph, route=args.route, anchor=anchor)
+    if args.check:  # with --robust, on the accepted edges (pipeline.compare_methods)
+        from ..pipeline import compare_methods
+
+        res, report = compare_methods(graph, robust=args.robust, route=args.route, anchor=anchor)
     elif args.robust:  # GNC around lago3d (lago_cvx.variants.robust3d): χ² and --refine over the accepted edges
         from ..pipeline import lago
 
@@ -149,6 +151,8 @@ def solve3d(args, graph, out) -> int:
     if report is not None:
         payload["max_rel_diff"] = report["max_rel_diff"]
         payload["cvxpy_timings"] = report["cvxpy_timings"]
+        if args.robust:
+            payload["check_edges"] = "accepted"
     if fixed:
         from ..so3 import rot_to_quat
 
@@ -180,7 +184,9 @@ def solve3d(args, graph, out) -> int:
              + (f"; at the file's initial guess {payload['chi2_initial']:.6g}" if "chi2_initial" in payload else ""),
              "  time [s]: " + ", ".join(f"{k} {v:.4f}" for k, v in t.items())]
     if report is not None:
-        lines.append("  cvxpy vs closed form, max relative difference: "
+        lines.append("  cvxpy vs closed form"
+                     + (f" (LAGO on the {report['accepted_edges']} accepted edges)" if args.robust else "")
+                     + ", max relative difference: "
                      + ", ".join(f"{k} {v:.2e}" for k, v in report["max_rel_diff"].items()))
     if fixed:
         lines.append(f"  anchors {sorted(fixed)}: poses known exactly (the frame they define)")
