@@ -48,6 +48,9 @@ date):
   ``--robust-gtsam``: GTSAM's GNC on the same graphs;
 * ``clean``    — ``lago-cvx solve F --robust --refine`` against ``lago-cvx solve F --refine`` as whole processes on
   every clean public graph, planar and 3-D: edges rejected, χ² over every edge, the ratio (≤ 1.001 passes);
+* ``separable`` — the false loop closures robust LAGO keeps (intel, M3500, CSAIL, MIT at 10 % and 30 %, seeds
+  0–5): each one's leave-one-out cost change Δχ² against the true loop closures', i.e. whether any threshold
+  could reject it and keep the true ones; and a per-file threshold from the trusted odometry;
 * ``million``  — ``lago-cvx solve -o`` as a whole process on 100 000 to 1 000 000-pose worlds by both routes,
   step by step with peak memory, and phase 3 by the C kernels against the NumPy fallback.
 
@@ -70,7 +73,7 @@ from pathlib import Path
 import _bench
 
 SECTIONS = ("datasets", "scaling", "perf", "endtoend", "chordal", "certify", "integer", "theorem1", "route", "io",
-            "unseen", "million", "processes", "space", "spaceprocess", "costs", "robust", "clean")
+            "unseen", "million", "processes", "space", "spaceprocess", "costs", "robust", "clean", "separable")
 #: Sections whose module has another name (``io`` would be the standard library's).
 MODULE_OF = {"io": "io_bench"}
 

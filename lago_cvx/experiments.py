@@ -15,6 +15,9 @@ Rows are plain dicts (one per σ_θ and regularizer) so they print as a table (`
 ``integer_noise_sweep`` — the integer program of the cycle integers against the seed's rounding over
 rising rotation noise (``format_integer_sweep`` prints it; ``python benchmarks/run.py integer``).
 
+``removal_costs`` — how much each loop closure strains the rest of a graph: the leave-one-out change of LAGO's χ²
+(lecture 10, ``python benchmarks/run.py separable``).
+
 Beyond one machine. Each sweep is a list of independent trials, one per (σ_θ, seed), and each trial builds
 its world from its own seed (never from a generator shared between trials), so its numbers do not
 depend on where or in which order it runs. ``n_jobs`` hands the trials to joblib (``run_trials``):
@@ -33,6 +36,7 @@ from typing import Callable, Iterable
 
 import numpy as np
 
+from .graph import connected_components
 from .metrics import chi2
 from .phases import phase1_closed_form, phase2, phase3_closed_form
 from .pipeline import lago
@@ -45,7 +49,7 @@ from .synthetic import circle_world, manhattan_world
 from .uncertainty import EdgeUncertainty, edge_uncertainty
 
 __all__ = ["DEFAULT_REGULARIZERS", "true_cycle_integers", "run_trials", "rotation_noise_sweep", "format_sweep",
-           "integer_noise_sweep", "format_integer_sweep"]
+           "integer_noise_sweep", "format_integer_sweep", "removal_costs"]
 
 log = logging.getLogger(__name__)
 
@@ -274,3 +278,24 @@ def format_integer_sweep(rows: list[dict]) -> str:
             f"{r['time']:.2f} | "
             f"{r['not_optimal']} |")
     return "\n".join(lines)
+
+
+def removal_costs(graph: PoseGraph, *, progress: Callable | None = None) -> np.ndarray:
+    """Δχ²_k = χ²(graph) − χ²(graph without edge k) for every loop closure k, χ² of LAGO's estimate (each edge's
+    leave-one-out cost change: what keeping it costs the rest); NaN for the odometric edges and for a loop closure
+    whose removal disconnects the graph. Shape (m,); one LAGO
+    run per loop closure. A test that rejects loop closures by their Δχ², at any threshold, cannot reject one without
+    rejecting every one whose Δχ² is larger; the truncated cost Σ min(r², c̄²) is such a test for one edge at a
+    time (rejecting edge k lowers it when Δχ²_k > c̄², up to LAGO's approximation of the minimum). ``progress``:
+    called with (done, total) after each run."""
+    base = lago(graph).chi2
+    out = np.full(graph.n_edges, np.nan)
+    loops = np.flatnonzero(~graph.is_odometric)
+    for i, k in enumerate(loops):
+        keep = np.ones(graph.n_edges, bool)
+        keep[k] = False
+        if connected_components(sub := graph.subgraph_edges(keep))[0] == 1:
+            out[k] = base - lago(sub).chi2
+        if progress is not None:
+            progress(i + 1, loops.size)
+    return out

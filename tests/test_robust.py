@@ -216,6 +216,11 @@ def test_cli_generate_outliers_and_solve_robust(tmp_path, capsys):
     c = json.loads(out)
     assert code == 0 and c["check_edges"] == "accepted" and c["rejected_edges"] == d["rejected_edges"]
     assert c["chi2"] == pytest.approx(d["chi2"], rel=1e-12) and max(c["max_rel_diff"].values()) < 1e-6
+    code, out, _ = run(capsys, "solve", f, "--robust-calibrate", 4.7, "--refine", "--json")  # implies --robust
+    k = json.loads(out)
+    assert code == 0 and k["robust"] == "gnc-tls" and k["robust_calibrate"] == 4.7 and k["chi2_edges"] == "accepted"
+    assert scores(k["rejected_edges"], gen["outlier_edges"])[1] == 1.0
+    assert (k["robust_threshold"] < 11.345) == k["robust_calibrated"]  # the c̄² of the run returned
     code, out, _ = run(capsys, "solve", f, "--robust", "--check", "--route", "seed")
     rejected = int(re.search(r"(\d+) of \d+ edges rejected", out).group(1))
     assert code == 0 and f"(LAGO on the {g.n_edges - rejected} accepted edges), max relative difference" in out
@@ -441,6 +446,50 @@ def test_local_search_recovers_mit_at_ten_percent():
     assert chi2(g, rob.poses) <= 1.001 * clean.chi2
 
 
+def test_calibrated_truncation_rejects_the_false_edges_that_fit_and_keeps_the_default_where_it_is_better():
+    """RobustSettings(calibrate=4.7): GNC again at c̄² = min(11.34, 4.7 · the largest odometric r²). intel + 30 %,
+    seed 0: the default keeps 2 false loop closures that fit (χ² × 1.29); at the calibrated c̄² ≈ 2.6 none is kept
+    and no true edge rejected. MIT + 10 %, seed 3: GNC at the calibrated c̄² ≈ 6.9 ends at a worse local minimum
+    (8 true loop closures rejected); its truncated cost at that c̄² is higher, so the default run is returned."""
+    g = read_graph(dataset_path("se-sync/intel.g2o"))
+    go, idx = add_false_loop_closures(g, 0.3, seed=0)
+    default, cal = lc.lago(go, robust=True), lc.lago(go, robust=RobustSettings(calibrate=4.7))
+    assert scores(default.rejected_edges, idx)[1] < 1.0
+    _, recall, wrong = scores(cal.rejected_edges, idx)
+    assert recall == 1.0 and wrong == 0
+    c2 = cal.settings.threshold
+    r2 = lc.variants.gnc.edge_r2(go, default.poses)
+    assert c2 == pytest.approx(4.7 * r2[go.is_odometric].max(), rel=1e-12) and 1.0 < c2 < 11.34
+    assert truncated_cost(go, cal.poses, c2) < truncated_cost(go, default.poses, c2)
+    assert chi2(g, refine(cal.graph, cal.poses).poses) <= 1.001 * refine(g, lc.lago(g).poses).chi2
+    m = read_graph(dataset_path("se-sync/MIT.g2o"))
+    mo, midx = add_false_loop_closures(m, 0.1, seed=3)
+    kept = lc.lago(mo, robust=RobustSettings(calibrate=4.7))
+    lower = lc.lago(mo, robust=RobustSettings(threshold=4.7 * float(
+        lc.variants.gnc.edge_r2(mo, lc.lago(mo, robust=True).poses)[mo.is_odometric].max())))
+    assert scores(lower.rejected_edges, midx)[2] > 5  # the calibrated run alone: true loop closures rejected
+    assert kept.settings.threshold is None and scores(kept.rejected_edges, midx)[1:] == (1.0, 0)
+
+
+def test_calibrate_is_planar_checked_and_a_no_op_where_gnc_does_not_run():
+    for bad in (0.0, -1.0, float("nan"), float("inf")):
+        with pytest.raises(OptionError, match="calibrate"):
+            RobustSettings(calibrate=bad)
+    with pytest.raises(OptionError, match="planar graphs only"):
+        lc.lago(sphere_world(4, 6, seed=0).graph, robust=RobustSettings(calibrate=4.7))
+    g = manhattan_world(150, seed=3).graph  # clean: no alarm, GNC does not run, nothing calibrated
+    plain, cal = lc.lago(g, robust=True), lc.lago(g, robust=RobustSettings(calibrate=4.7))
+    assert cal.iterations == 0 and cal.rejected_edges.size == 0 and np.array_equal(cal.poses, plain.poses)
+    w = manhattan_world(200, seed=1)  # false loop closures: GNC runs twice, the result pickles with its c̄²
+    go, idx = add_false_loop_closures(w.graph, 0.1, seed=2)
+    res = lc.lago(go, robust=RobustSettings(calibrate=4.7, trust_odometry=True))
+    assert scores(res.rejected_edges, idx)[1] == 1.0
+    back = pickle.loads(pickle.dumps(res))
+    assert back.settings == res.settings and np.array_equal(back.rejected_edges, res.rejected_edges)
+    free = lc.lago(go, robust=RobustSettings(calibrate=4.7, trust_odometry=False))  # no known inliers: default
+    assert free.settings.threshold is None
+
+
 def test_swap_moves_recover_mit_at_five_percent(monkeypatch):
     """MIT + 5 % (41 false loop closures), seed 0: the false edge 60→39 fits beside the true 58→29 but not beside
     338→61, so GNC keeps it and rejects two true ones (truncated cost 524.1 against the clean 506.7), and no
@@ -586,6 +635,8 @@ def test_cli_3d_generate_outliers_solve_and_certify_robust(tmp_path, capsys):
     assert written.n_edges == g.n_edges  # every edge, the refined estimate as vertices
     chi2_written = lc.posegraph3d.chi2_3d(g.subgraph_edges(keep), *written.initial)
     assert d["chi2_refined"] == pytest.approx(chi2_written, rel=1e-6) and d["chi2_refined"] <= d["chi2"]
+    code, _, err = run(capsys, "solve", f, "--robust-calibrate", 4.7)
+    assert code == 2 and "planar graphs only" in err and len(err.strip().splitlines()) == 1
     code, out, _ = run(capsys, "solve", f, "--robust", "--check", "--json")  # 3-D: on the accepted edges too
     k = json.loads(out)
     assert code == 0 and k["check_edges"] == "accepted" and k["rejected_edges"] == d["rejected_edges"]

@@ -22,6 +22,7 @@ from .common import (
     method_arg,
     nonneg_int,
     output_target,
+    positive_float,
     progress_callback,
     read_input,
     route_information,
@@ -134,8 +135,12 @@ def cmd_info(args) -> int:
 def cmd_solve(args) -> int:
     out = output_target(args)
     graph = read_input(args)
-    args.robust = f"gnc-{args.robust_loss or 'tls'}" if (args.robust or args.robust_loss) else None
+    calibrate = args.robust_calibrate
+    args.robust = f"gnc-{args.robust_loss or 'tls'}" if (args.robust or args.robust_loss or calibrate) else None
     if graph.dim == 3:
+        if calibrate is not None:
+            raise UsageError("--robust-calibrate: planar graphs only (a 3-D file's truncation is the χ² quantile of "
+                             "6 dof)")
         from .space import solve3d
 
         return solve3d(args, graph, out)
@@ -153,7 +158,10 @@ def cmd_solve(args) -> int:
     if anchors:
         kw["anchors"] = anchors
     if args.robust:
-        kw["robust"] = args.robust
+        from ..variants import RobustSettings
+
+        kw["robust"] = (args.robust if calibrate is None
+                        else RobustSettings(loss=args.robust_loss or "tls", calibrate=calibrate))
     if args.check:
         res, report = compare_methods(graph, **kw)
     elif anchors and not args.robust:  # the variants engine directly: it honours every option of lago (the integer limits too)
@@ -184,6 +192,8 @@ def cmd_solve(args) -> int:
         payload.update(robust=args.robust, chi2_edges="accepted", n_rejected=int(res.rejected_edges.size),
                        rejected_edges=res.rejected_edges.tolist(), robust_iterations=res.iterations,
                        robust_threshold=res.settings.c2_for(2))
+        if calibrate is not None:  # the c̄² of the run returned: calibrated, or the default where that run was kept
+            payload.update(robust_calibrate=calibrate, robust_calibrated=res.settings.threshold is not None)
         payload["timings"]["robust"] = res.timings["robust"]
     strained = getattr(res, "strained", None)
     if anchors:
@@ -217,7 +227,11 @@ def cmd_solve(args) -> int:
         f"{args.file}",
         f"  poses {graph.n_poses}, edges {graph.n_edges}, chords {reg.chords.size}, "
         f"regularized {reg.n_regularized}, ambiguous {reg.ambiguous.size}",
-        *([f"  robust ({args.robust}): {res.rejected_edges.size} of {graph.n_edges} edges rejected as outliers "
+        *([f"  robust ({args.robust}"
+           + (f", c̄² = {res.settings.c2_for(2):.4g} "
+              + ("calibrated on the odometry" if res.settings.threshold is not None else "(the default run kept)")
+              if calibrate is not None else "")
+           + f"): {res.rejected_edges.size} of {graph.n_edges} edges rejected as outliers "
            f"after {res.iterations} GNC iterations ({res.timings['robust']:.3f} s); every chi2 below is over the "
            f"{solved.n_edges} accepted edges"] if args.robust else []),
         f"  chi2 = {res.chi2:.6g}  (cost {graph.cost}: sum e'Ωe, no 1/2)"
@@ -276,6 +290,10 @@ def add_parsers(sub) -> None:
     s.add_argument("--robust-loss", choices=["tls", "gm"], default=None,
                    help="the loss of --robust (implies it): tls, truncated least squares (default), or gm, "
                         "Geman-McClure")
+    s.add_argument("--robust-calibrate", type=positive_float, default=None, metavar="K",
+                   help="with --robust (implies it; planar): GNC again at c̄² = min(c̄², K × the largest r² of the "
+                        "trusted odometric edges), the classification of the lower truncated cost at that c̄² kept; "
+                        "4.7 in benchmarks/separable.md")
     s.add_argument("--refine", action="store_true", help="refine the LAGO estimate on the full nonlinear cost (--cost; "
                                                          "with --robust: on the accepted edges)")
     s.add_argument("--refine-method", choices=["gauss-newton", "levenberg-marquardt"], default="gauss-newton")

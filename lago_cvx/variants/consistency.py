@@ -33,6 +33,7 @@ estimate of the inliers.
 
 from __future__ import annotations
 
+import logging
 import time
 from dataclasses import dataclass
 
@@ -40,7 +41,10 @@ import numpy as np
 
 from ..posegraph import wrap_angle
 
-__all__ = ["OdometryChain", "odometry_chain", "chain_consistency", "pairwise_consistency", "maximum_clique"]
+__all__ = ["OdometryChain", "odometry_chain", "chain_consistency", "pairwise_consistency", "maximum_clique",
+           "consistent_start"]
+
+log = logging.getLogger("lago_cvx.variants")
 
 _S = np.array([[0.0, -1.0], [1.0, 0.0]])
 
@@ -250,3 +254,25 @@ def maximum_clique(adjacency: np.ndarray, *, time_limit: float = 2.0) -> np.ndar
 
     expand([], sorted(range(q), key=lambda u: -deg[u]))
     return np.array(sorted(best), np.int64)
+
+
+def consistent_start(graph, known: np.ndarray, c2: float, clique_seconds: float) -> np.ndarray:
+    """Start weights (m,): 1 on the known inliers and on a maximum clique of pairwise-consistent loop closures
+    (d²_kl ≤ c̄² = ``c2``; the clique search given ``clique_seconds``), 0 elsewhere; the odometric chain must be
+    complete. GNC's start ``"pcm"`` (``gnc.RobustSettings``)."""
+    t = time.perf_counter()
+    free = np.flatnonzero(~known)
+    chain = odometry_chain(graph)
+    q = free.size
+    adj = np.zeros((q, q), bool)
+    I, J = np.triu_indices(q, 1)
+    for s in range(0, I.size, 200_000):  # bounded temporaries
+        sl = slice(s, s + 200_000)
+        ok = pairwise_consistency(graph, chain, free[I[sl]], free[J[sl]]) <= c2
+        adj[I[sl][ok], J[sl][ok]] = True
+    adj |= adj.T
+    clique = maximum_clique(adj, time_limit=clique_seconds)
+    w = known.astype(float)
+    w[free[clique]] = 1.0
+    log.info("pairwise consistency: a clique of %d of %d loop closures (%.3f s)", clique.size, q, time.perf_counter() - t)
+    return w

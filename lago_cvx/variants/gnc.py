@@ -48,17 +48,16 @@ Where GNC ends at a local minimum. GNC minimizes the TLS cost Σ_k min(r_k², c�
 loop closures, 807 odometric edges, 82 false ones) it rejects about half the true loop closures, at a truncated
 cost above the clean classification's. Three aids, ``RobustSettings``:
 
-* ``local_search`` (default on, planar; bounded above ``LOCAL_SEARCH_MAX_EDGES`` loop closures): after GNC,
-  moves — one edge toggled (a rejected edge accepted, an accepted one rejected), or an accepted edge swapped for
-  the rejected one that fits best without it — each followed by a descent that alternates the classification
-  at the estimate (accept r_k² ≤ c̄²) and LAGO on it, and taken when it lowers the truncated cost over every
-  edge; the cost never rises, and where GNC did not run (no residual above ``alarm_for``) nothing runs. On MIT
-  + 5 % (seeds 0–2) GNC alone ends at truncated costs 524–602, single-edge moves do not leave them, and these
-  moves reach the clean classification's 506.7 on each seed;
+* ``local_search`` (default on, planar; bounded above ``LOCAL_SEARCH_MAX_EDGES`` loop closures): moves after GNC
+  that lower the truncated cost over every edge (``_local_search``), only where GNC ran; on MIT + 5 % (seeds 0–2)
+  they take GNC's truncated costs 524–602 to the clean classification's 506.7;
 * ``readmit`` (default κ = 9, every size): the rejected edges within κ c̄² of fitting tried back together, taken
   when the truncated cost falls (smallGrid3D + 10 % by the seed route: 11 true edges rejected by GNC, 1 after);
 * ``start="pcm"`` / ``"best"``: GNC from the odometry and a maximum clique of pairwise-consistent loop closures
   (``consistency``; Mangelson et al., ICRA 2018), or from both starts, the lower truncated cost kept.
+
+The truncation itself, calibrated (``RobustSettings(calibrate=κ)``, ``calibrated``, planar, opt-in): GNC again at
+c̄² = min(c̄², κ · the largest r² of the trusted odometric edges), the lower truncated cost at that c̄² kept.
 """
 
 from __future__ import annotations
@@ -77,6 +76,7 @@ from ..graph import connected_components, minimum_spanning_edges
 from ..metrics import whitened_errors
 from ..posegraph import PoseGraph
 from ..result import AcceptedEdges, LagoResult
+from .consistency import consistent_start
 from .engine import VariantResult
 
 __all__ = ["RobustSettings", "RobustResult", "RobustVariantResult", "ROBUST_LOSSES", "robust_settings", "gnc_lago", "gnc_threshold",
@@ -116,14 +116,17 @@ class RobustSettings:
     clique_seconds — time allowed to the exact maximum-clique search (then the largest clique found);
     local_search — after GNC, at most this many LAGO runs of moves that lower the truncated cost (one edge
       toggled, or an accepted edge swapped for a rejected one, each followed by a descent; ``_local_search``),
-      0: none. Only where GNC ran, the
-      odometric chain is complete and trusted, and there are at most ``LOCAL_SEARCH_MAX_EDGES`` loop closures;
+      0: none. Only where GNC ran, the odometric chain is complete and trusted, and there are at most
+      ``LOCAL_SEARCH_MAX_EDGES`` loop closures;
       on other planar graphs where GNC ran, toggles of the ``BOUNDED_TRIALS`` accepted edges of the largest r_k² (at
       most ``BOUNDED_RUNS`` LAGO runs; M3500 + 30 %, seed 0: 26 true loop closures accepted back); planar graphs
       only (in 3-D single-edge moves, judged at LAGO's estimates, rejected more true edges);
     readmit — κ: after GNC (and the local search), the rejected edges with r_k² ≤ κ c̄² at the estimate are tried
       back **together** (``_readmit``; one or two LAGO runs per round), the move kept when it lowers the truncated
-      cost; 0: never. A group of true loop closures that only fit together is out of reach of single-edge moves.
+      cost; 0: never. A group of true loop closures that only fit together is out of reach of single-edge moves;
+    calibrate — None (default), or κ > 0: planar, GNC again at c̄² = min(c̄², κ · the largest r_k² of the trusted
+      odometric edges) and the classification of the lower truncated cost at that c̄² kept (``calibrated``; κ = 4.7
+      fitted on benchmarks/separable.md's files).
     """
 
     loss: str = "tls"
@@ -138,6 +141,7 @@ class RobustSettings:
     clique_seconds: float = 2.0
     local_search: int = 2000
     readmit: float = 9.0
+    calibrate: float | None = None
 
     def __post_init__(self):
         if self.loss not in ("tls", "gm"):
@@ -162,6 +166,8 @@ class RobustSettings:
             raise OptionError(f"readmit must be a finite number ≥ 0, got {self.readmit}")
         if not (math.isfinite(self.clique_seconds) and self.clique_seconds > 0):
             raise OptionError(f"clique_seconds must be a finite number > 0, got {self.clique_seconds}")
+        if self.calibrate is not None and not (math.isfinite(self.calibrate) and self.calibrate > 0):
+            raise OptionError(f"calibrate must be None or a finite number > 0, got {self.calibrate}")
         if not 0.0 < self.weight_tolerance < 0.5:
             raise OptionError(f"weight_tolerance must be in (0, 0.5), got {self.weight_tolerance}")
 
@@ -265,7 +271,12 @@ def gnc_lago(graph: PoseGraph, settings: RobustSettings, *, solve: Callable) -> 
     (same poses, fewer edges, scaled information) and once on the accepted edges. With ``settings.start``
     ``"pcm"`` GNC starts from the odometry and the maximum clique of pairwise-consistent loop closures instead
     of the unweighted LAGO; ``"best"`` runs from both and keeps the result of the lower truncated cost
-    Σ_k min(r_k², c̄²) over every edge (``RobustSettings``). Returns a ``RobustResult``."""
+    Σ_k min(r_k², c̄²) over every edge (``RobustSettings``); ``calibrate``: ``calibrated``. Returns a
+    ``RobustResult``."""
+    if settings.calibrate is not None:
+        from .calibrated import calibrated_gnc
+
+        return calibrated_gnc(graph, settings, gnc=lambda g, s: gnc_lago(g, s, solve=solve), edge_r2=edge_r2)
     t0 = time.perf_counter()
     m, c2 = graph.n_edges, settings.c2_for(graph.dim)
     trust = settings.trust_odometry
@@ -290,7 +301,8 @@ def gnc_lago(graph: PoseGraph, settings: RobustSettings, *, solve: Callable) -> 
         starts = ("lago",)
     runs = []
     for start in starts:
-        w0 = None if start == "lago" else consistent_start(graph, known, settings)
+        w0 = (None if start == "lago"
+              else consistent_start(graph, known, settings.c2_for(graph.dim), settings.clique_seconds))
         runs.append(_gnc_run(graph, settings, solve, known, w0, first if start == "lago" else None) + (start,))
     w, keep, final, it, history, cost, start = min(runs, key=lambda r: r[5])
     moves = 0
@@ -469,29 +481,6 @@ def edge_r2(graph, poses) -> np.ndarray:
 def truncated_cost(graph: PoseGraph, poses, c2: float) -> float:
     """The TLS cost Σ_k min(r_k², c̄²) of every edge at ``poses`` (``edge_r2``)."""
     return float(np.minimum(edge_r2(graph, poses), c2).sum())
-
-
-def consistent_start(graph: PoseGraph, known: np.ndarray, settings: RobustSettings) -> np.ndarray:
-    """Start weights (m,): 1 on the known inliers and on a maximum clique of pairwise-consistent loop closures
-    (``consistency``, d²_kl ≤ c̄²), 0 elsewhere; the odometric chain must be complete."""
-    from .consistency import maximum_clique, odometry_chain, pairwise_consistency
-
-    t = time.perf_counter()
-    free = np.flatnonzero(~known)
-    chain = odometry_chain(graph)
-    q = free.size
-    adj = np.zeros((q, q), bool)
-    I, J = np.triu_indices(q, 1)
-    for s in range(0, I.size, 200_000):  # bounded temporaries
-        sl = slice(s, s + 200_000)
-        ok = pairwise_consistency(graph, chain, free[I[sl]], free[J[sl]]) <= settings.c2_for(graph.dim)
-        adj[I[sl][ok], J[sl][ok]] = True
-    adj |= adj.T
-    clique = maximum_clique(adj, time_limit=settings.clique_seconds)
-    w = known.astype(float)
-    w[free[clique]] = 1.0
-    log.info("pairwise consistency: a clique of %d of %d loop closures (%.3f s)", clique.size, q, time.perf_counter() - t)
-    return w
 
 
 def _gnc_run(graph, settings, solve, known, w0, first=None):
