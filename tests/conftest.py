@@ -4,6 +4,8 @@ with the reason printed, when the folder is absent; everything else runs on synt
 
 from __future__ import annotations
 
+import importlib
+import sys
 from pathlib import Path
 
 import pytest
@@ -29,3 +31,13 @@ def dataset_path(rel: str) -> Path:
     if not p.is_file():
         pytest.skip(f"dataset {rel} not found under {DATASETS}")
     return p
+
+
+def bench_module(name: str):
+    """A module of benchmarks/ (``robust3d``, ``separable``, …), imported with that folder on the path only
+    while importing."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    try:
+        return importlib.import_module(name)
+    finally:
+        sys.path.remove(str(ROOT / "benchmarks"))

@@ -3,10 +3,7 @@ benchmarks/robust.md, with one line naming the command that wrote them — never
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
-ROOT = Path(__file__).resolve().parents[1]
+from conftest import bench_module
 
 TITLE = "# False loop closures: robust LAGO by graduated non-convexity"
 TAIL = " with lago_cvx 0.5.0 on AMD EPYC, 2 cores, x86_64, 24 GiB, Python 3.11.7, numpy 2.4.6, 2026-12-05."
@@ -18,12 +15,7 @@ THREE_D = "## 3-D graphs\n\nold 3-D tables\n\nSection time: 626 s."
 
 
 def _robust3d():
-    sys.path.insert(0, str(ROOT / "benchmarks"))
-    try:
-        import robust3d
-    finally:
-        sys.path.remove(str(ROOT / "benchmarks"))
-    return robust3d
+    return bench_module("robust3d")
 
 
 def _write(folder: Path, text: str) -> None:

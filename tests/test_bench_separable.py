@@ -3,27 +3,18 @@ benchmarks/separable.py draws from it."""
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 
+from conftest import bench_module
 from lago_cvx import lago
 from lago_cvx.experiments import removal_costs
 from lago_cvx.synthetic import add_false_loop_closures, manhattan_world
 
-ROOT = Path(__file__).resolve().parents[1]
-
 
 @pytest.fixture(scope="module")
 def separable():
-    sys.path.insert(0, str(ROOT / "benchmarks"))
-    try:
-        import separable
-    finally:
-        sys.path.remove(str(ROOT / "benchmarks"))
-    return separable
+    return bench_module("separable")
 
 
 def test_verdict_counts_the_true_loop_closures_at_or_above_the_weakest_false_one(separable):
