@@ -68,7 +68,7 @@ def verdict(d_true: np.ndarray, d_false: np.ndarray) -> tuple[str, int]:
     return ("not separable" if above else "separable"), above
 
 
-def score(graph, go, idx, res, clean_chi2) -> tuple[int, int, float, bool]:
+def score(graph, idx, res, clean_chi2) -> tuple[int, int, float, bool]:
     """(false kept, true rejected, χ² of the clean edges after refine / clean refined χ², pass) of a robust run."""
     rejected = set(res.rejected_edges.tolist())
     kept_false = len(set(idx.tolist()) - rejected)
@@ -97,7 +97,7 @@ def run(args) -> str:
                 t = time.perf_counter()
                 go, idx = add_false_loop_closures(graph, fraction, seed=seed)
                 res = lago(go, robust=True)
-                kept, wrong, ratio, ok = score(graph, go, idx, res, clean_chi2)
+                kept, wrong, ratio, ok = score(graph, idx, res, clean_chi2)
                 d_false_s = d_true_max = above_s = "–"
                 kind = "pass" if ok else "true edges rejected" if wrong else "false kept" if kept else "χ² ratio"
                 if kept and not wrong:
@@ -111,7 +111,7 @@ def run(args) -> str:
                     d_true_max, above_s = f"{np.nanmax(d[true_lc]):.3g}", above
                 cal = lago(go, robust=RobustSettings(calibrate=args.separable_kappa))
                 c2 = cal.settings.c2 if cal.settings.threshold is not None else float("nan")
-                kept_c, wrong_c, ratio_c, ok_c = score(graph, go, idx, cal, clean_chi2)
+                kept_c, wrong_c, ratio_c, ok_c = score(graph, idx, cal, clean_chi2)
                 rows.append([rel, f"{idx.size} ({fraction:.0%})", seed, f"{kept} / {wrong}", f"{ratio:.4g}",
                              "yes" if ok else "no", d_false_s, d_true_max, above_s, kind, _bench.fmt(c2, ".3g"),
                              f"{kept_c} / {wrong_c}", f"{ratio_c:.4g}", "yes" if ok_c else "no"])

@@ -285,6 +285,19 @@ def abs_tol_hint(cert, args) -> str:
 
 
 # ---------------------------------------------------------------------------------- printing
+def check_fields(report: dict, robust) -> dict:
+    """``--check``'s JSON fields: the largest relative differences and cvxpy's timings; with ``--robust`` they are
+    those of LAGO on the accepted edges (``check_edges``)."""
+    return {"max_rel_diff": report["max_rel_diff"], "cvxpy_timings": report["cvxpy_timings"],
+            **({"check_edges": "accepted"} if robust else {})}
+
+
+def check_line(report: dict, robust) -> str:
+    """``--check``'s line of text (with ``--robust``: on how many accepted edges)."""
+    return ("  cvxpy vs closed form" + (f" (LAGO on the {report['accepted_edges']} accepted edges)" if robust else "")
+            + ", max relative difference: " + ", ".join(f"{k} {v:.2e}" for k, v in report["max_rel_diff"].items()))
+
+
 def graph_lines(graph, components: int, cyclomatic_number: int) -> list[str]:
     """``info``'s human lines on the graph's size, planar and 3-D alike: poses, edges, odometric edges, loop
     closures, connected components and the cyclomatic number l = m − n + components."""

@@ -14,7 +14,9 @@ from .common import (
     UsageError,
     add_input_options,
     add_route_options,
+    check_fields,
     check_finite,
+    check_line,
     check_regularization,
     emit,
     graph_lines,
@@ -200,10 +202,7 @@ def cmd_solve(args) -> int:
         payload["anchors"] = {str(k): list(v) for k, v in anchors.items()}
         payload["strained_anchors"] = [int(a) for a in (strained or [])]
     if report is not None:
-        payload["max_rel_diff"] = report["max_rel_diff"]
-        payload["cvxpy_timings"] = report["cvxpy_timings"]
-        if args.robust:
-            payload["check_edges"] = "accepted"
+        payload.update(check_fields(report, args.robust))
     final = res.poses
     if args.refine:
         from ..refinement import refine
@@ -241,11 +240,7 @@ def cmd_solve(args) -> int:
         f"phase2 {t['phase2']:.4f}, phase3 {t['phase3']:.4f}, positions {t['positions']:.4f}, total {t['total']:.4f}",
     ]
     if report is not None:
-        d = report["max_rel_diff"]
-        lines.append("  cvxpy vs closed form"
-                     + (f" (LAGO on the {report['accepted_edges']} accepted edges)" if args.robust else "")
-                     + ", max relative difference: "
-                     + ", ".join(f"{k} {v:.2e}" for k, v in d.items()))
+        lines.append(check_line(report, args.robust))
     if anchors:
         lines.append(f"  anchors {sorted(anchors)}; strained: {payload['strained_anchors'] or 'none'}")
     if args.refine:

@@ -10,9 +10,8 @@ from dataclasses import replace
 import numpy as np
 
 from ..conventions import CHI2_CONVENTION, COST_DESCRIPTION
-from .common import (EXIT_NOT_CERTIFIED, EXIT_OK, UsageError, abs_tol_hint, check_finite, emit, graph_lines,
-                     robust_payload,
-                     sigma_keywords, write_estimate)
+from .common import (EXIT_NOT_CERTIFIED, EXIT_OK, UsageError, abs_tol_hint, check_fields, check_finite, check_line,
+                     emit, graph_lines, robust_payload, sigma_keywords, write_estimate)
 
 WORLDS3D = ("sphere3d", "torus3d", "grid3d")
 
@@ -149,10 +148,7 @@ def solve3d(args, graph, out) -> int:
                        rejected_edges=res.rejected_edges.tolist(), robust_iterations=res.iterations,
                        robust_threshold=res.settings.c2_for(3))
     if report is not None:
-        payload["max_rel_diff"] = report["max_rel_diff"]
-        payload["cvxpy_timings"] = report["cvxpy_timings"]
-        if args.robust:
-            payload["check_edges"] = "accepted"
+        payload.update(check_fields(report, args.robust))
     if fixed:
         from ..so3 import rot_to_quat
 
@@ -184,10 +180,7 @@ def solve3d(args, graph, out) -> int:
              + (f"; at the file's initial guess {payload['chi2_initial']:.6g}" if "chi2_initial" in payload else ""),
              "  time [s]: " + ", ".join(f"{k} {v:.4f}" for k, v in t.items())]
     if report is not None:
-        lines.append("  cvxpy vs closed form"
-                     + (f" (LAGO on the {report['accepted_edges']} accepted edges)" if args.robust else "")
-                     + ", max relative difference: "
-                     + ", ".join(f"{k} {v:.2e}" for k, v in report["max_rel_diff"].items()))
+        lines.append(check_line(report, args.robust))
     if fixed:
         lines.append(f"  anchors {sorted(fixed)}: poses known exactly (the frame they define)")
     if args.refine:
