@@ -371,7 +371,7 @@ def _numeric_d2(graph, error, edges):
 def test_chain_and_pairwise_consistency_equal_their_first_order_propagation():
     """(a) and (b) of ``variants.consistency`` against central differences of dead reckoning composed as SE(2)
     matrices (an independent computation), on a chain with a reversed edge and a loop closure against it."""
-    from lago_cvx.variants.consistency import chain_consistency, odometry_chain, pairwise_consistency
+    from lago_cvx.variants.consistency import chain_consistency, odometry_chain, pairwise_consistency, pairwise_matrix
 
     g = _small_graph(np.random.default_rng(3))
     odo = np.arange(6)
@@ -410,6 +410,9 @@ def test_chain_and_pairwise_consistency_equal_their_first_order_propagation():
     got = pairwise_consistency(g, chain, np.array([p[0] for p in pairs]), np.array([p[1] for p in pairs]))
     for i, (k, l) in enumerate(pairs):
         assert got[i] == pytest.approx(_numeric_d2(g, cycle_error(k, l), [*range(6), k, l]), rel=1e-4)
+    D = pairwise_matrix(g, chain, np.array([6, 7, 8]))  # every pair at once: symmetric, 0 on the diagonal
+    assert D.shape == (3, 3) and np.array_equal(D, D.T) and not D.diagonal().any()
+    assert [D[0, 1], D[0, 2], D[1, 2], D[2, 0]] == pytest.approx(got, rel=1e-12)
 
 
 def test_maximum_clique_is_maximum():

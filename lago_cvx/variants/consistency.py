@@ -41,8 +41,8 @@ import numpy as np
 
 from ..posegraph import wrap_angle
 
-__all__ = ["OdometryChain", "odometry_chain", "chain_consistency", "pairwise_consistency", "maximum_clique",
-           "consistent_start"]
+__all__ = ["OdometryChain", "odometry_chain", "chain_consistency", "pairwise_consistency", "pairwise_matrix",
+           "maximum_clique", "consistent_start"]
 
 log = logging.getLogger("lago_cvx.variants")
 
@@ -204,6 +204,19 @@ def pairwise_consistency(graph, chain: OdometryChain, k: np.ndarray, l: np.ndarr
     return _mahalanobis(e, _sandwich(M, cyc))
 
 
+def pairwise_matrix(graph, chain: OdometryChain, edges: np.ndarray) -> np.ndarray:
+    """(b) for every pair of the ``edges`` (q,): the symmetric matrix (q, q) of d²_kl, 0 on the diagonal; q(q − 1)/2
+    cycles, evaluated in blocks of bounded size."""
+    edges = np.asarray(edges, np.int64)
+    q = edges.size
+    d2 = np.zeros((q, q))
+    I, J = np.triu_indices(q, 1)
+    for s in range(0, I.size, 200_000):  # bounded temporaries
+        sl = slice(s, s + 200_000)
+        d2[I[sl], J[sl]] = pairwise_consistency(graph, chain, edges[I[sl]], edges[J[sl]])
+    return d2 + d2.T
+
+
 def maximum_clique(adjacency: np.ndarray, *, time_limit: float = 2.0) -> np.ndarray:
     """A maximum clique (sorted vertex indices) of the undirected graph ``adjacency`` (q, q) bool, symmetric,
     by branch and bound with greedy-colouring bounds (Tomita & Seki's MCQ); past ``time_limit`` seconds the
@@ -262,17 +275,11 @@ def consistent_start(graph, known: np.ndarray, c2: float, clique_seconds: float)
     complete. GNC's start ``"pcm"`` (``gnc.RobustSettings``)."""
     t = time.perf_counter()
     free = np.flatnonzero(~known)
-    chain = odometry_chain(graph)
-    q = free.size
-    adj = np.zeros((q, q), bool)
-    I, J = np.triu_indices(q, 1)
-    for s in range(0, I.size, 200_000):  # bounded temporaries
-        sl = slice(s, s + 200_000)
-        ok = pairwise_consistency(graph, chain, free[I[sl]], free[J[sl]]) <= c2
-        adj[I[sl][ok], J[sl][ok]] = True
-    adj |= adj.T
+    adj = pairwise_matrix(graph, odometry_chain(graph), free) <= c2
+    np.fill_diagonal(adj, False)
     clique = maximum_clique(adj, time_limit=clique_seconds)
     w = known.astype(float)
     w[free[clique]] = 1.0
-    log.info("pairwise consistency: a clique of %d of %d loop closures (%.3f s)", clique.size, q, time.perf_counter() - t)
+    log.info("pairwise consistency: a clique of %d of %d loop closures (%.3f s)", clique.size, free.size,
+             time.perf_counter() - t)
     return w
