@@ -548,6 +548,36 @@ def test_consistent_starts_reject_nothing_on_clean_graphs_and_find_the_false_edg
         RobustSettings(local_search=-1)
 
 
+def test_best_start_compares_the_runs_where_each_ends_after_its_moves(monkeypatch, caplog):
+    """``start="best"``: each start's GNC is followed by its own local moves, and the lower cost *after* them wins.
+    The costs are shifted so that GNC alone ranks the LAGO start first and the moves rank the PCM start first: the
+    PCM run must be returned, and the moves must have run once per start."""
+    import logging
+
+    from lago_cvx.variants import gnc
+
+    real_run, real_moves, calls = gnc._gnc_run, gnc._moves, []
+
+    def run(graph, settings, solve, known, w0, first=None):
+        out = real_run(graph, settings, solve, known, w0, first)
+        return out[:5] + (out[5] - (1e6 if w0 is None else 0.0),)  # the LAGO start looks far better before moves
+
+    def moves(*args):
+        keep, final, cost, n = real_moves(*args)
+        calls.append(len(calls))
+        return keep, final, truncated_cost(args[0], final.poses, args[5].c2) + (1e6 if len(calls) == 1 else 0.0), n
+
+    monkeypatch.setattr(gnc, "_gnc_run", run)
+    monkeypatch.setattr(gnc, "_moves", moves)
+    w = manhattan_world(300, seed=6)
+    go, _ = add_false_loop_closures(w.graph, 0.1, seed=6)
+    with caplog.at_level(logging.INFO, logger="lago_cvx.variants"):
+        res = lc.lago(go, robust=RobustSettings(start="best"))
+    assert calls == [0, 1]
+    assert "(start pcm)" in caplog.text and "(start lago)" not in caplog.text
+    assert res.rejected_edges.size > 0
+
+
 # ------------------------------------------------------------------------------------- 3-D
 @pytest.fixture(scope="module")
 def world3d():

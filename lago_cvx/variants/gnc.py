@@ -54,7 +54,8 @@ cost above the clean classification's. Three aids, ``RobustSettings``:
 * ``readmit`` (default κ = 9, every size): the rejected edges within κ c̄² of fitting tried back together, taken
   when the truncated cost falls (smallGrid3D + 10 % by the seed route: 11 true edges rejected by GNC, 1 after);
 * ``start="pcm"`` / ``"best"``: GNC from the odometry and a maximum clique of pairwise-consistent loop closures
-  (``consistency``; Mangelson et al., ICRA 2018), or from both starts, the lower truncated cost kept.
+  (``consistency``; Mangelson et al., ICRA 2018), or from both starts, each with its local moves, the lower
+  truncated cost kept.
 
 The truncation itself, calibrated (``RobustSettings(calibrate=κ)``, ``calibrated``, planar, opt-in): GNC again at
 c̄² = min(c̄², κ · the largest r² of the trusted odometric edges), the lower truncated cost at that c̄² kept.
@@ -111,8 +112,8 @@ class RobustSettings:
     weight_tolerance — a weight within this of 0 or 1 counts as binary; the GM stopping tolerance;
     start — where GNC starts: ``"lago"`` (the unweighted LAGO of every edge, Yang et al.), ``"pcm"`` (LAGO on the
       trusted odometry and a maximum clique of pairwise-consistent loop closures, ``consistency``; needs the
-      odometric chain complete and trusted, else ``"lago"``), ``"best"`` (both; the result of the lower
-      truncated cost Σ_k min(r_k², c̄²) over every edge is kept);
+      odometric chain complete and trusted, else ``"lago"``), ``"best"`` (both, each followed by its local
+      search and readmission; the result of the lower truncated cost Σ_k min(r_k², c̄²) over every edge is kept);
     clique_seconds — time allowed to the exact maximum-clique search (then the largest clique found);
     local_search — after GNC, at most this many LAGO runs of moves that lower the truncated cost (one edge
       toggled, or an accepted edge swapped for a rejected one, each followed by a descent; ``_local_search``),
@@ -300,18 +301,14 @@ def gnc_lago(graph: PoseGraph, settings: RobustSettings, *, solve: Callable) -> 
     if (~known).any() and float(edge_r2(graph, first.poses)[~known].max()) <= alarm:
         starts = ("lago",)
     runs = []
-    for start in starts:
+    for start in starts:  # each start's GNC and local moves; "best" compares the costs where each run ends
         w0 = (None if start == "lago"
               else consistent_start(graph, known, settings.c2_for(graph.dim), settings.clique_seconds))
-        runs.append(_gnc_run(graph, settings, solve, known, w0, first if start == "lago" else None) + (start,))
-    w, keep, final, it, history, cost, start = min(runs, key=lambda r: r[5])
-    moves = 0
-    if settings.local_search and it > 0 and graph.dim == 2:
-        full = trust and odometric_chain_complete(graph) and int((~known).sum()) <= LOCAL_SEARCH_MAX_EDGES
-        keep, final, cost, moves = _local_search(graph, keep, final, cost, known, settings, solve, full)
-    if settings.readmit and it > 0:
-        keep, final, cost, regained = _readmit(graph, keep, final, cost, known, settings, solve)
-        moves += regained
+        w, keep, final, it, history, cost = _gnc_run(graph, settings, solve, known, w0,
+                                                     first if start == "lago" else None)
+        keep, final, cost, moves = _moves(graph, keep, final, cost, known, settings, solve, trust, it)
+        runs.append((w, keep, final, it, history, cost, start, moves))
+    w, keep, final, it, history, cost, start, moves = min(runs, key=lambda r: r[5])
     rejected = np.flatnonzero(~keep).astype(np.int64)
     timings = dict(final.timings)
     timings["robust"] = timings["total"] = time.perf_counter() - t0  # GNC's run, the final LAGO included
@@ -322,6 +319,19 @@ def gnc_lago(graph: PoseGraph, settings: RobustSettings, *, solve: Callable) -> 
     fields.update(timings=timings)
     return _result_type(final)(**fields, input_graph=graph, rejected_edges=rejected, weights=w, settings=settings,
                                iterations=it, known_inliers=known, history=history)
+
+
+def _moves(graph, keep, final, cost, known, settings, solve, trust, it):
+    """After a GNC run of ``it`` iterations (none: nothing to move): the local search (planar) and the readmission
+    of ``settings``. Returns (keep, final LagoResult, cost, moves taken)."""
+    moves = 0
+    if settings.local_search and it > 0 and graph.dim == 2:
+        full = trust and odometric_chain_complete(graph) and int((~known).sum()) <= LOCAL_SEARCH_MAX_EDGES
+        keep, final, cost, moves = _local_search(graph, keep, final, cost, known, settings, solve, full)
+    if settings.readmit and it > 0:
+        keep, final, cost, regained = _readmit(graph, keep, final, cost, known, settings, solve)
+        moves += regained
+    return keep, final, cost, moves
 
 
 def _local_search(graph, keep, final, cost, known, settings, solve, full):
