@@ -192,6 +192,14 @@ def find(rel: str) -> Path | None:
         return None
 
 
+def corrupted_plan(args, files, quick_files, fractions, n_seeds: int) -> tuple:
+    """(files, fractions, seeds) of a section over real graphs with false loop closures: ``files``, ``fractions`` and
+    seeds 0..``n_seeds``−1, or with ``--quick`` the ``quick_files``, the first fraction and seed 0."""
+    if args.quick:
+        return quick_files, fractions[:1], range(1)
+    return files, fractions, range(n_seeds)
+
+
 def each_dataset(files=FILES):
     """Yield (file, PoseGraph) for every file of ``files`` that is found (``find``)."""
     for rel in files:

@@ -51,6 +51,9 @@ date):
 * ``separable`` — the false loop closures robust LAGO keeps (intel, M3500, CSAIL, MIT at 10 % and 30 %, seeds
   0–5): each one's leave-one-out cost change Δχ² against the true loop closures', i.e. whether any threshold
   could reject it and keep the true ones; and a per-file threshold from the trusted odometry;
+* ``share``    — the share of the loop closures that are false at 10 % and 30 % of the edges (intel, M3500, CSAIL,
+  MIT), how many false and true ones pass dead reckoning's test alone and in consistent pairs, and robust LAGO's
+  result beside them; ``--share-variants``: the package's other robust settings on MIT + 30 %;
 * ``million``  — ``lago-cvx solve -o`` as a whole process on 100 000 to 1 000 000-pose worlds by both routes,
   step by step with peak memory, and phase 3 by the C kernels against the NumPy fallback.
 
@@ -73,7 +76,8 @@ from pathlib import Path
 import _bench
 
 SECTIONS = ("datasets", "scaling", "perf", "endtoend", "chordal", "certify", "integer", "theorem1", "route", "io",
-            "unseen", "million", "processes", "space", "spaceprocess", "costs", "robust", "clean", "separable")
+            "unseen", "million", "processes", "space", "spaceprocess", "costs", "robust", "clean", "separable",
+            "share")
 #: Sections whose module has another name (``io`` would be the standard library's).
 MODULE_OF = {"io": "io_bench"}
 

@@ -40,7 +40,6 @@ import numpy as np
 import _bench
 from lago_cvx import lago, refine
 from lago_cvx.experiments import removal_costs
-from lago_cvx.io import read_graph
 from lago_cvx.metrics import chi2
 from lago_cvx.synthetic import add_false_loop_closures
 from lago_cvx.variants import RobustSettings
@@ -82,15 +81,9 @@ def run(args) -> str:
     skipped = _bench.datasets_skipped()
     if skipped:
         return f"{title}\n\n{skipped}"
-    files = QUICK_FILES if args.quick else FILES
-    fractions = FRACTIONS[:1] if args.quick else FRACTIONS
-    seeds = range(1 if args.quick else args.separable_seeds)
+    files, fractions, seeds = _bench.corrupted_plan(args, FILES, QUICK_FILES, FRACTIONS, args.separable_seeds)
     rows, tally = [], {}
-    for rel in files:
-        path = _bench.find(rel)
-        if path is None:
-            continue
-        graph = read_graph(path)
+    for rel, graph in _bench.each_dataset(files):
         clean_chi2 = refine(graph, lago(graph).poses).chi2
         for fraction in fractions:
             for seed in seeds:
