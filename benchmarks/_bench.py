@@ -193,11 +193,12 @@ def find(rel: str) -> Path | None:
 
 
 def corrupted_plan(args, files, quick_files, fractions, n_seeds: int) -> tuple:
-    """(files, fractions, seeds) of a section over real graphs with false loop closures: ``files``, ``fractions`` and
-    seeds 0..``n_seeds``−1, or with ``--quick`` the ``quick_files``, the first fraction and seed 0."""
+    """(skipped, files, fractions, seeds) of a section over real graphs with false loop closures: ``skipped`` the line
+    of ``datasets_skipped`` (None when the datasets are found); ``files``, ``fractions`` and seeds 0..``n_seeds``−1,
+    or with ``--quick`` the ``quick_files``, the first fraction and seed 0."""
     if args.quick:
-        return quick_files, fractions[:1], range(1)
-    return files, fractions, range(n_seeds)
+        return datasets_skipped(), quick_files, fractions[:1], range(1)
+    return datasets_skipped(), files, fractions, range(n_seeds)
 
 
 def each_dataset(files=FILES):

@@ -78,10 +78,9 @@ def score(graph, idx, res, clean_chi2) -> tuple[int, int, float, bool]:
 
 def run(args) -> str:
     title = "# Which kept false loop closures a threshold could reject"
-    skipped = _bench.datasets_skipped()
+    skipped, files, fractions, seeds = _bench.corrupted_plan(args, FILES, QUICK_FILES, FRACTIONS, args.separable_seeds)
     if skipped:
         return f"{title}\n\n{skipped}"
-    files, fractions, seeds = _bench.corrupted_plan(args, FILES, QUICK_FILES, FRACTIONS, args.separable_seeds)
     rows, tally = [], {}
     for rel, graph in _bench.each_dataset(files):
         clean_chi2 = refine(graph, lago(graph).poses).chi2

@@ -90,10 +90,9 @@ def corrupted(graph, fraction, seed):
 
 def run(args) -> str:
     title = "# The share of false loop closures, and what the odometry can tell"
-    skipped = _bench.datasets_skipped()
+    skipped, files, fractions, seeds = _bench.corrupted_plan(args, FILES, QUICK_FILES, FRACTIONS, args.share_seeds)
     if skipped:
         return f"{title}\n\n{skipped}"
-    files, fractions, seeds = _bench.corrupted_plan(args, FILES, QUICK_FILES, FRACTIONS, args.share_seeds)
     rows, summary, variant_rows = [], [], []
     for rel, graph in _bench.each_dataset(files):
         clean_chi2 = refine(graph, lago(graph).poses).chi2

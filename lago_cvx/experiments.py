@@ -283,11 +283,10 @@ def format_integer_sweep(rows: list[dict]) -> str:
 def removal_costs(graph: PoseGraph, *, progress: Callable | None = None) -> np.ndarray:
     """Δχ²_k = χ²(graph) − χ²(graph without edge k) for every loop closure k, χ² of LAGO's estimate (each edge's
     leave-one-out cost change: what keeping it costs the rest); NaN for the odometric edges and for a loop closure
-    whose removal disconnects the graph. Shape (m,); one LAGO
-    run per loop closure. A test that rejects loop closures by their Δχ², at any threshold, cannot reject one without
-    rejecting every one whose Δχ² is larger; the truncated cost Σ min(r², c̄²) is such a test for one edge at a
-    time (rejecting edge k lowers it when Δχ²_k > c̄², up to LAGO's approximation of the minimum). ``progress``:
-    called with (done, total) after each run."""
+    whose removal disconnects the graph. Shape (m,); one LAGO run per loop closure. A test that rejects loop closures
+    by their Δχ², at any threshold, cannot reject one without rejecting every one whose Δχ² is larger; the truncated
+    cost Σ min(r², c̄²) is such a test for one edge at a time (rejecting edge k lowers it when Δχ²_k > c̄², up to
+    LAGO's approximation of the minimum). ``progress``: called with (done, total) after each run."""
     base = lago(graph).chi2
     out = np.full(graph.n_edges, np.nan)
     loops = np.flatnonzero(~graph.is_odometric)

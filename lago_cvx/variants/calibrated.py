@@ -15,12 +15,12 @@ classification is kept.
 
 Measured (``python benchmarks/run.py separable``: intel, M3500, CSAIL, MIT at 10 % and 30 %, seeds 0–5), κ = 4.7:
 39 of 48 runs pass (every false edge rejected, ≤ 1 % of the true ones, χ² of the clean edges after refinement
-within 0.1 %) against the default's 30 — intel 9 of 12 (6), M3500 12 (7), CSAIL 12 (12), MIT 6 (5). κ was chosen on seeds 0–2, where it must lie in about 4.45–4.90 (MIT + 10 %, seed 2 passes only at c̄² ≥ 6.7;
-intel + 10 %, seed 1 only at c̄² ≤ 2.66), so it is a value fitted to these four files, not a law (seeds 3–5, not used
-to choose it: 18 of 24 runs pass against the default's 14). It runs GNC twice. In 3-D the rule does not pay: the
-false edges GNC keeps on parking-garage bend the odometry itself, so its largest odometric r² is no scale.
-No false edge whose Δχ² is below a true loop closure's can be rejected this way
-(``lago_cvx.experiments.removal_costs``). Needs trusted odometric edges (``trust_odometry``), and acts only where
+within 0.1 %) against the default's 30 — intel 9 of 12 (6), M3500 12 (7), CSAIL 12 (12), MIT 6 (5). κ was chosen
+on seeds 0–2, where it must lie in about 4.45–4.90 (MIT + 10 %, seed 2 passes only at c̄² ≥ 6.7; intel + 10 %,
+seed 1 only at c̄² ≤ 2.66), so it is a value fitted to these four files, not a law (seeds 3–5, not used to choose
+it: 18 of 24 runs pass against the default's 14). It runs GNC twice. In 3-D the rule does not pay: the false edges
+GNC keeps on parking-garage bend the odometry itself, so its largest odometric r² is no scale. No false edge whose
+Δχ² is below a true loop closure's can be rejected this way (``lago_cvx.experiments.removal_costs``). Needs trusted odometric edges (``trust_odometry``), and acts only where
 GNC ran (the default run's alarm); otherwise the default run is returned. Planar graphs only (``OptionError`` in
 3-D).
 """
