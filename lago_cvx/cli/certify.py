@@ -27,6 +27,7 @@ from .common import (
     robust_payload,
     write_estimate,
 )
+from .robust import add_robust_options, robust_request
 
 
 def _tol_arg(value: str) -> float:
@@ -135,8 +136,9 @@ def cmd_certify(args) -> int:
     if graph.n_edges == 0:
         raise GraphError(f"{args.file}: the graph has {graph.n_poses} pose(s) and no edges: nothing to certify")
     written, robust = graph, None
-    if args.robust or args.robust_loss:  # certify LAGO on the edges GNC accepts (-o still writes every edge)
-        robust = _robust_run(args, graph)
+    settings = robust_request(args, graph.dim)
+    if settings is not None:  # certify LAGO on the edges GNC accepts (-o still writes every edge)
+        robust = _robust_run(args, graph, settings)
         graph = robust.graph
     if graph.dim == 3:  # --anchor ID or ID:X,Y,Z,QX,QY,QZ,QW (cli/space.py)
         from .space import certify3d_cmd
@@ -168,15 +170,15 @@ def cmd_certify(args) -> int:
     return status
 
 
-def _robust_run(args, graph):
-    """``--robust``: GNC around LAGO with the command's route options (``lago(graph, robust=...)``), planar or 3-D."""
+def _robust_run(args, graph, settings):
+    """``--robust``: GNC around LAGO with the command's route options (``lago(graph, robust=settings)``), planar or
+    3-D."""
     from ..pipeline import lago
 
-    args.robust = f"gnc-{args.robust_loss or 'tls'}"
     if graph.dim == 3:
-        return lago(graph, robust=args.robust, route=args.route)
+        return lago(graph, robust=settings, route=args.route)
     check_regularization(graph, args.regularization)
-    return lago(graph, robust=args.robust, route=args.route, spanning_tree=args.spanning_tree,
+    return lago(graph, robust=settings, route=args.route, spanning_tree=args.spanning_tree,
                 regularization=args.regularization, integer_search=integer_search(args))
 
 
@@ -217,12 +219,10 @@ def add_parser(sub) -> None:
                    help="at most one: the pose ID (at the origin) or ID:X,Y,THETA (empty fields keep the estimate's "
                         "own; 3-D: ID:X,Y,Z,QX,QY,QZ,QW) fixes the frame of the written estimate; several poses are "
                         "refused")
-    s.add_argument("--robust", action="store_true",
-                   help="first reject false loop closures as solve --robust does (graduated non-convexity), then "
-                        "certify LAGO on the accepted edges: chi2, f and the certificate are about them (JSON "
-                        "certified_edges = accepted, rejected_edges in file order); -o still writes every edge")
-    s.add_argument("--robust-loss", choices=["tls", "gm"], default=None,
-                   help="the loss of --robust (implies it): tls (default) or gm")
+    add_robust_options(s, calibrate=False, robust_help=(
+        "first reject false loop closures as solve --robust does (graduated non-convexity), then certify LAGO on the "
+        "accepted edges: chi2, f and the certificate are about them (JSON certified_edges = accepted, rejected_edges "
+        "in file order); -o still writes every edge"))
     s.add_argument("--overwrite-input", action="store_true", help="allow -o to name the input file")
     s.add_argument("--json", action="store_true", help="print one JSON object")
     s.set_defaults(func=cmd_certify)

@@ -396,4 +396,5 @@ def robust_payload(args, graph, robust) -> dict:
     certificate is about the accepted edges (``robust`` a ``RobustResult`` or ``Robust3DResult`` of ``graph``)."""
     return {"robust": args.robust, "certified_edges": "accepted", "n_edges_input": graph.n_edges,
             "n_edges": robust.graph.n_edges, "n_rejected": int(robust.rejected_edges.size),
-            "rejected_edges": robust.rejected_edges.tolist(), "robust_iterations": robust.iterations}
+            "rejected_edges": robust.rejected_edges.tolist(), "robust_iterations": robust.iterations,
+            "robust_threshold": robust.settings.c2_for(graph.dim)}

@@ -24,13 +24,13 @@ from .common import (
     method_arg,
     nonneg_int,
     output_target,
-    positive_float,
     progress_callback,
     read_input,
     route_information,
     speak_cli,
     write_estimate,
 )
+from .robust import add_robust_options, robust_request
 
 _FIELD = r"\s*([^,]*)\s*"
 _SPEC = re.compile(r"^\s*([+-]?\d+)\s*:" + _FIELD + "," + _FIELD + "," + _FIELD + "$")
@@ -138,11 +138,8 @@ def cmd_solve(args) -> int:
     out = output_target(args)
     graph = read_input(args)
     calibrate = args.robust_calibrate
-    args.robust = f"gnc-{args.robust_loss or 'tls'}" if (args.robust or args.robust_loss or calibrate) else None
+    args.robust_settings = robust_request(args, graph.dim)  # None, or the RobustSettings of the --robust options
     if graph.dim == 3:
-        if calibrate is not None:
-            raise UsageError("--robust-calibrate: planar graphs only (a 3-D file's truncation is the χ² quantile of "
-                             "6 dof)")
         from .space import solve3d
 
         return solve3d(args, graph, out)
@@ -160,10 +157,7 @@ def cmd_solve(args) -> int:
     if anchors:
         kw["anchors"] = anchors
     if args.robust:
-        from ..variants import RobustSettings
-
-        kw["robust"] = (args.robust if calibrate is None
-                        else RobustSettings(loss=args.robust_loss or "tls", calibrate=calibrate))
+        kw["robust"] = args.robust_settings
     if args.check:
         res, report = compare_methods(graph, **kw)
     elif anchors and not args.robust:  # the variants engine directly: it honours every option of lago (the integer limits too)
@@ -195,7 +189,8 @@ def cmd_solve(args) -> int:
                        rejected_edges=res.rejected_edges.tolist(), robust_iterations=res.iterations,
                        robust_threshold=res.settings.c2_for(2))
         if calibrate is not None:  # the c̄² of the run returned: calibrated, or the default where that run was kept
-            payload.update(robust_calibrate=calibrate, robust_calibrated=res.settings.threshold is not None)
+            payload.update(robust_calibrate=calibrate,
+                           robust_calibrated=res.settings.threshold != args.robust_settings.threshold)
         payload["timings"]["robust"] = res.timings["robust"]
     strained = getattr(res, "strained", None)
     if anchors:
@@ -226,9 +221,8 @@ def cmd_solve(args) -> int:
         f"{args.file}",
         f"  poses {graph.n_poses}, edges {graph.n_edges}, chords {reg.chords.size}, "
         f"regularized {reg.n_regularized}, ambiguous {reg.ambiguous.size}",
-        *([f"  robust ({args.robust}"
-           + (f", c̄² = {res.settings.c2_for(2):.4g} "
-              + ("calibrated on the odometry" if res.settings.threshold is not None else "(the default run kept)")
+        *([f"  robust ({args.robust}, c̄² = {res.settings.c2_for(2):.4g}"
+           + ((" calibrated on the odometry" if payload["robust_calibrated"] else " (the default run kept)")
               if calibrate is not None else "")
            + f"): {res.rejected_edges.size} of {graph.n_edges} edges rejected as outliers "
            f"after {res.iterations} GNC iterations ({res.timings['robust']:.3f} s); every chi2 below is over the "
@@ -277,18 +271,10 @@ def add_parsers(sub) -> None:
                         "on a 3-D file ID:X,Y,Z,QX,QY,QZ,QW (all seven fields)")
     s.add_argument("--check", action="store_true", help="solve both ways and report the largest relative "
                                                         "difference per phase")
-    s.add_argument("--robust", action="store_true",
-                   help="reject false loop closures by graduated non-convexity around weighted LAGO runs "
-                        "(truncated least squares); odometric edges trusted when the odometric chain is complete. "
-                        "JSON gives rejected_edges (indices of EDGE records in file order); chi2 (and --refine) are "
-                        "over the accepted edges")
-    s.add_argument("--robust-loss", choices=["tls", "gm"], default=None,
-                   help="the loss of --robust (implies it): tls, truncated least squares (default), or gm, "
-                        "Geman-McClure")
-    s.add_argument("--robust-calibrate", type=positive_float, default=None, metavar="K",
-                   help="with --robust (implies it; planar): GNC again at c̄² = min(c̄², K × the largest r² of the "
-                        "trusted odometric edges), the classification of the lower truncated cost at that c̄² kept; "
-                        "4.7 in benchmarks/separable.md")
+    add_robust_options(s, calibrate=True, robust_help=(
+        "reject false loop closures by graduated non-convexity around weighted LAGO runs (truncated least squares); "
+        "odometric edges trusted when the odometric chain is complete. JSON gives rejected_edges (indices of EDGE "
+        "records in file order); chi2 (and --refine) are over the accepted edges"))
     s.add_argument("--refine", action="store_true", help="refine the LAGO estimate on the full nonlinear cost (--cost; "
                                                          "with --robust: on the accepted edges)")
     s.add_argument("--refine-method", choices=["gauss-newton", "levenberg-marquardt"], default="gauss-newton")

@@ -125,11 +125,11 @@ def solve3d(args, graph, out) -> int:
     if args.check:  # with --robust, on the accepted edges (pipeline.compare_methods)
         from ..pipeline import compare_methods
 
-        res, report = compare_methods(graph, robust=args.robust, route=args.route, anchor=anchor)
+        res, report = compare_methods(graph, robust=args.robust_settings, route=args.route, anchor=anchor)
     elif args.robust:  # GNC around lago3d (lago_cvx.variants.robust3d): χ² and --refine over the accepted edges
         from ..pipeline import lago
 
-        res, report = lago(graph, robust=args.robust, route=args.route, method=args.method, anchor=anchor), None
+        res, report = lago(graph, robust=args.robust_settings, route=args.route, method=args.method, anchor=anchor), None
     else:
         res, report = lago3d(graph, route=args.route, method=args.method, anchor=anchor, fixed=fixed or None), None
     check_finite(res.chi2, res.t, what="LAGO estimate")
