@@ -41,6 +41,7 @@ import numpy as np
 
 import lago_cvx as lc
 from lago_cvx import course_figures as _figures
+from lago_cvx.progress import held_back
 from lago_cvx.course_figures import *  # noqa: F401,F403 — the lectures' figures, named here for them
 from lago_cvx.datasets import DatasetNotFound, dataset
 
@@ -93,15 +94,10 @@ def setup(prefix: str) -> None:
 @contextlib.contextmanager
 def quiet():
     """Within the block only, the package's warnings (e.g. ambiguous 2kπ roundings, which a lecture counts
-    itself) stay out of the output; the logger's level is restored afterwards. The helpers here that run the
+    itself) stay out of the output (``progress.held_back``: no logger's level changes). The helpers here that run the
     package (``paper_lago``, ``real``) use it; a lecture's own calls do not."""
-    logger = logging.getLogger("lago_cvx")
-    level = logger.level
-    logger.setLevel(logging.ERROR)
-    try:
+    with held_back():
         yield
-    finally:
-        logger.setLevel(level)
 
 
 def check(condition, claim: str) -> None:
@@ -348,7 +344,6 @@ def intuition_figure(lecture: str):
     ``lecture`` is the lecture's stem prefix: ``"01"``, ``"02"``, ``"03"``, ``"04a"``, ``"04b"``, ``"05"``, ``"06"``."""
     import matplotlib.pyplot as plt
 
-    from lago_cvx.posegraph import wrap_angle
     from lago_cvx.theorem1 import theorem1
 
     world = running_example()

@@ -13,6 +13,10 @@ in two ways:
 
 Nothing is printed: drawing a bar is the caller's business (e.g. the command line's).
 
+``held_back()`` keeps the package's records below ERROR out of the log within a block, in the calling thread
+only (the inner runs of an iterative method such as graduated non-convexity, whose warnings are not the
+result's). It changes no logger's level: another thread's records, and a process forked meanwhile, are untouched.
+
     def show(stage, fraction):
         print(f"\\r{stage}: {100 * fraction:5.1f} %", end="")
     res = lago_cvx.lago(graph, progress=show)
@@ -20,11 +24,13 @@ Nothing is printed: drawing a bar is the caller's business (e.g. the command lin
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import logging
 import time
 from typing import Callable, Optional
 
-__all__ = ["ProgressCallback", "Progress", "PROGRESS_INTERVAL"]
+__all__ = ["ProgressCallback", "Progress", "PROGRESS_INTERVAL", "held_back"]
 
 #: ``progress(stage, fraction)``: ``stage`` a short name of the running step, ``fraction`` in [0, 1].
 ProgressCallback = Callable[[str, float], None]
@@ -88,3 +94,34 @@ class Progress:
     def __exit__(self, *exc) -> None:
         if exc[0] is None:
             self.finish()
+
+
+#: True inside ``held_back()``, per thread (and per asyncio task): a context variable, not a global.
+_HELD_BACK = contextvars.ContextVar("lago_cvx_held_back", default=False)
+
+
+class _HoldBack(logging.Filter):
+    """Drops a record below ERROR while its thread is inside ``held_back()``."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return record.levelno >= logging.ERROR or not _HELD_BACK.get()
+
+
+_FILTER = _HoldBack()
+
+
+@contextlib.contextmanager
+def held_back():
+    """Within the block, the package's log records below ERROR from the calling thread are dropped (module
+    docstring). The filter sits on every ``lago_cvx`` logger (a logger's filters see only its own records) and does
+    nothing outside such a block; loggers created later get it at the next block."""
+    logging.getLogger("lago_cvx")
+    for name, logger in list(logging.Logger.manager.loggerDict.items()):
+        if (name == "lago_cvx" or name.startswith("lago_cvx.")) and isinstance(logger, logging.Logger) \
+                and _FILTER not in logger.filters:
+            logger.addFilter(_FILTER)
+    token = _HELD_BACK.set(True)
+    try:
+        yield
+    finally:
+        _HELD_BACK.reset(token)

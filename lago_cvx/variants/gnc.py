@@ -63,7 +63,6 @@ c̄² = min(c̄², κ · the largest r² of the trusted odometric edges), the lo
 
 from __future__ import annotations
 
-import contextlib
 import logging
 import math
 import time
@@ -76,6 +75,7 @@ from ..errors import OptionError
 from ..graph import connected_components, minimum_spanning_edges
 from ..metrics import whitened_errors
 from ..posegraph import PoseGraph
+from ..progress import held_back as _quiet  # the inner runs' records below ERROR, this thread only
 from ..result import AcceptedEdges, LagoResult
 from .consistency import consistent_start
 from .engine import VariantResult
@@ -542,19 +542,6 @@ def _gnc_run(graph, settings, solve, known, w0, first=None):
         accepted = graph.subgraph_edges(keep)
     final = solve(accepted)
     return w, keep, final, it, history, truncated_cost(graph, final.poses, c2)
-
-
-@contextlib.contextmanager
-def _quiet():
-    """The package's log records below ERROR held back while GNC's inner LAGO runs (a false loop closure
-    makes the regularizer warn about ambiguous roundings on every run; the final run logs as usual)."""
-    pkg = logging.getLogger("lago_cvx")
-    level = pkg.level
-    pkg.setLevel(max(logging.ERROR, level))
-    try:
-        yield
-    finally:
-        pkg.setLevel(level)
 
 
 def _converged(w: np.ndarray, prev: np.ndarray | None, mu: float, settings: RobustSettings) -> bool:

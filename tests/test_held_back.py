@@ -1,0 +1,58 @@
+"""``progress.held_back``: the inner runs of graduated non-convexity keep their records below ERROR out of the log in
+their own thread only, and leave every logger's level as it was — under threads too (it used to set the package
+logger's level, which two concurrent robust runs could leave at ERROR for the rest of the process)."""
+
+from __future__ import annotations
+
+import logging
+import threading
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+
+import lago_cvx as lc
+from lago_cvx.progress import held_back
+from lago_cvx.synthetic import add_false_loop_closures, manhattan_world
+from lago_cvx.variants import RobustSettings
+
+LOG = logging.getLogger("lago_cvx.variants")
+
+
+def test_only_the_blocks_thread_is_held_back(caplog):
+    inside, done = threading.Event(), threading.Event()
+
+    def worker():
+        with held_back():
+            LOG.warning("held warning")
+            LOG.error("passing error")
+            inside.set()
+            done.wait(10)
+        LOG.warning("after the block")
+
+    with caplog.at_level(logging.INFO, logger="lago_cvx"):
+        t = threading.Thread(target=worker)
+        t.start()
+        assert inside.wait(10)
+        LOG.warning("other thread meanwhile")
+        logging.getLogger("lago_cvx.a_new_module").info("a logger created meanwhile")
+        done.set()
+        t.join(10)
+    text = caplog.text
+    assert "held warning" not in text
+    assert all(m in text for m in ("passing error", "after the block", "other thread meanwhile",
+                                   "a logger created meanwhile"))
+
+
+def test_concurrent_robust_runs_leave_the_levels_and_later_warnings_alone(caplog):
+    levels = {n: logging.getLogger(n).level for n in ("lago_cvx", "lago_cvx.variants")}
+    graphs = [add_false_loop_closures(manhattan_world(100, seed=s).graph, 0.1, seed=s)[0] for s in (1, 2)]
+    settings = RobustSettings(local_search=0)
+    with ThreadPoolExecutor(2) as pool:
+        for _ in range(2):
+            together = list(pool.map(lambda g: lc.lago(g, robust=settings), graphs))
+    alone = [lc.lago(g, robust=settings) for g in graphs]
+    assert all(np.array_equal(a.rejected_edges, b.rejected_edges) for a, b in zip(together, alone))
+    assert {n: logging.getLogger(n).level for n in levels} == levels
+    with caplog.at_level(logging.WARNING, logger="lago_cvx"):
+        lc.lago(graphs[0], robust=RobustSettings(max_iterations=2))
+    assert "without converging" in caplog.text
