@@ -147,3 +147,10 @@ class AcceptedEdges:
         keep = np.ones(self.input_graph.n_edges, bool)
         keep[self.rejected_edges] = False
         return np.flatnonzero(keep)
+
+    def _robust_line(self) -> str:
+        """The line of ``repr`` that says what GNC rejected."""
+        s = self.settings
+        return (f"robust GNC-{s.loss.upper()} (c̄² = {s.c2_for(self.input_graph.dim):.4g}): {self.rejected_edges.size} "
+                f"of {self.input_graph.n_edges} edges rejected after {self.iterations} iterations; χ² over the "
+                "accepted edges")

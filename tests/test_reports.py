@@ -86,3 +86,31 @@ def test_certificate_and_refinement_reprs(big):
 def test_short_repr_caps_the_length():
     text = short_repr("X", "head", ["word " * 1000])
     assert len(text) == REPR_LIMIT and text.endswith("…>")
+
+
+def test_robust_and_3d_result_reprs_are_a_few_lines_and_results_hash_with_joblib():
+    """Robust results (planar, anchored, 3-D) and 3-D results print as a few lines, the robust ones with what GNC
+    rejected; every result goes through joblib's hasher (``joblib.Memory`` keys), factors included."""
+    from lago_cvx import sphere_world
+    from lago_cvx.synthetic import add_false_loop_closures
+    from lago_cvx.variants import RobustSettings
+
+    go, _ = add_false_loop_closures(manhattan_world(300, seed=1).graph, 0.1, seed=1)
+    g3, _ = add_false_loop_closures(sphere_world(8, 10, seed=0).graph, 0.1, seed=0)
+    quick = RobustSettings(local_search=0, readmit=0.0)
+    results = {"RobustResult": lc.lago(go, robust=quick),
+               "RobustVariantResult": lc.lago(go, robust=quick, anchors={3: (1.0, 2.0, 0.3)}),
+               "Robust3DResult": lc.lago(g3, robust=True), "Lago3DResult": lc.lago(g3)}
+    for kind, res in results.items():
+        text = repr(res)
+        _short(text)
+        assert text.startswith(f"<{kind} ") and f"χ² = {res.chi2:.6g}" in text
+        assert ("robust GNC-TLS" in text) == kind.startswith("Robust")
+        if kind.startswith("Robust"):
+            assert f"{res.rejected_edges.size} of {res.input_graph.n_edges} edges rejected" in " ".join(text.split())
+    joblib = pytest.importorskip("joblib")
+    plain = lc.lago(go)
+    plain.pose_covariances()  # a factor inside: pickled as None
+    for res in [plain, *results.values()]:
+        back = pickle.loads(pickle.dumps(res))
+        assert len(joblib.hash(res)) == 32 and joblib.hash(back) == joblib.hash(pickle.loads(pickle.dumps(back)))

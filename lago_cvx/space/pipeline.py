@@ -29,6 +29,7 @@ import numpy as np
 from ..errors import OptionError, check_choice
 from ..graph import check_connected
 from ..posegraph3d import chi2_3d
+from ..reports import fmt_timings, short_repr
 from ..solvers import check_method
 from ..so3 import exp_so3
 from ..sparse import threads_option
@@ -76,6 +77,20 @@ class Lago3DResult:
     def poses(self):
         """(t, R)."""
         return self.t, self.R
+
+    def _describe(self) -> tuple[str, list[str]]:
+        """The head and lines of ``repr``: counts, χ², route, timings (never an array)."""
+        g = self.graph
+        head = (f"{self.t.shape[0]} poses" + (f", {g.n_edges} edges ({g.n_loop_closures} loop closures)" if g is not None
+                                              else "") + f": χ² = {self.chi2:.6g} ({self.cost}, Σ eᵀΩe)")
+        alpha = "seed route, no joint step" if self.alpha is None else f"joint step α = {self.alpha:.3g}"
+        return head, [f"route {self.route}, {self.weighting} weighting, method {self.method}; χ² after chordal → "
+                      f"positions {self.chi2_seed:.6g}; {alpha}", f"anchor pose {self.anchor}",
+                      "time " + fmt_timings(self.timings)]
+
+    def __repr__(self) -> str:
+        """A few lines whatever the size; the arrays are ``t`` and ``R``."""
+        return short_repr(type(self).__name__, *self._describe())
 
     def pose_covariances(self) -> np.ndarray:
         """First-order covariances Σ_ii (n, 6, 6) of δ = (δv, δφ) at the estimate, (JᵀΩJ)⁻¹ blocks with the anchor

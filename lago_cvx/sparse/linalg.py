@@ -92,6 +92,11 @@ class NotPositiveDefinite(NumericalError):
     """A pivot block was not numerically positive definite (the matrix is not SPD in floating point)."""
 
 
+def _no_factor() -> None:
+    """What a pickled ``Factor`` becomes (a named function: joblib's hasher cannot pickle ``type(None)``)."""
+    return None
+
+
 class Factor:
     """A factored sparse SPD matrix N of shape (dim, dim): ``factor.solve(rhs)`` solves N x = rhs for rhs of shape
     (dim,) or (dim, r); ``factor.backend`` names the library used; ``matrix`` is N itself — whole and symmetric, in
@@ -100,7 +105,7 @@ class Factor:
     from which it is rebuilt, as ``Phase3.pose_covariances`` factors ``info`` anew)."""
 
     def __reduce__(self):
-        return type(None), ()
+        return _no_factor, ()
 
     def __init__(self, solve: Callable[[np.ndarray], np.ndarray], dim: int, backend: str, matrix=None):
         self._solve = solve

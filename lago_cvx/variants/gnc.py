@@ -235,7 +235,7 @@ def odometric_chain_complete(graph) -> bool:
     return np.unique(lower).size == graph.n_poses - 1
 
 
-@dataclass(eq=False)
+@dataclass(eq=False, repr=False)  # repr: LagoResult's few lines, with the robust one (``_describe``)
 class RobustResult(AcceptedEdges, LagoResult):
     """A ``LagoResult`` of LAGO on the **accepted** edges (``graph`` is that subgraph, so ``chi2`` is over
     them; the poses are indexed as in the input), plus the GNC record: ``input_graph`` the graph given;
@@ -254,11 +254,7 @@ class RobustResult(AcceptedEdges, LagoResult):
 
     def _describe(self) -> tuple[str, list[str]]:
         head, lines = super()._describe()
-        s = self.settings
-        lines.insert(0, f"robust GNC-{s.loss.upper()} (c̄² = {s.c2:.4g}): {self.rejected_edges.size} of "
-                        f"{self.input_graph.n_edges} edges rejected after {self.iterations} iterations; χ² over "
-                        "the accepted edges")
-        return head, lines
+        return head, [self._robust_line(), *lines]
 
     def _summary_rows(self) -> list:
         return super()._summary_rows() + [
@@ -570,7 +566,7 @@ def _weighted(graph: PoseGraph, w: np.ndarray, drop_below: float) -> PoseGraph:
     return replace(sub, information=sub.information * ww[:, None, None], **kept)
 
 
-@dataclass(eq=False)
+@dataclass(eq=False, repr=False)
 class RobustVariantResult(RobustResult, VariantResult):
     """A ``RobustResult`` whose inner runs were the variants engine's (``anchors=``): every field of a
     ``VariantResult`` (anchors, strain …) and of a ``RobustResult``."""

@@ -27,7 +27,7 @@ from ..result import AcceptedEdges
 __all__ = ["Robust3DResult"]
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, repr=False)  # repr: Lago3DResult's few lines, with the robust one
 class Robust3DResult(AcceptedEdges, Lago3DResult):
     """A ``Lago3DResult`` of ``lago3d`` on the **accepted** edges (``chi2`` and ``chi2_seed`` are over them; poses
     indexed as in the input), plus GNC's record as ``gnc.RobustResult``: ``input_graph`` the graph given,
@@ -41,6 +41,10 @@ class Robust3DResult(AcceptedEdges, Lago3DResult):
     iterations: int = 0
     known_inliers: np.ndarray | None = None
     history: list = field(default_factory=list)
+
+    def _describe(self) -> tuple[str, list[str]]:
+        head, lines = super()._describe()
+        return head, [self._robust_line(), *lines]
 
     def __post_init__(self):
         # ``graph``: the accepted edges of the input graph with their information as given (the graph ``chi2`` is
