@@ -695,3 +695,27 @@ def test_cli_certify_robust_planar(tmp_path, capsys):
     assert "robust" in c["timings"]
     code, out, _ = run(capsys, "certify", f, "--robust")
     assert code == 0 and "the accepted edges of" in out and "robust GNC" in out
+
+
+def test_weights_follow_the_moves_that_reclassify_after_gnc(monkeypatch):
+    """An edge the moves after GNC re-classify gets weight 1 (accepted) or 0 (rejected): TLS's rule "rejected ⇔
+    final weight < ½" holds for the result returned. The moves are replaced by one that rejects GNC's accepted loop
+    closure of the largest residual and accepts GNC's first rejected edge."""
+    from lago_cvx.variants import gnc
+
+    flipped = {}
+
+    def moves(graph, keep, final, cost, known, *rest):
+        r2 = np.where(keep & ~known, gnc.edge_r2(graph, final.poses), -1.0)
+        out, back = int(np.argmax(r2)), int(np.flatnonzero(~keep)[0])
+        keep[out], keep[back] = False, True
+        flipped.update(out=out, back=back)
+        return keep, final, cost, 2
+
+    monkeypatch.setattr(gnc, "_moves", moves)
+    go, _ = add_false_loop_closures(manhattan_world(200, seed=3).graph, 0.1, seed=3)
+    res = lc.lago(go, robust=GNC_ONLY)
+    assert res.weights[flipped["out"]] == 0.0 and res.weights[flipped["back"]] == 1.0
+    rejected = np.zeros(go.n_edges, bool)
+    rejected[res.rejected_edges] = True
+    assert np.array_equal(res.weights < 0.5, rejected)

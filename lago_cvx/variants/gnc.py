@@ -240,8 +240,8 @@ class RobustResult(AcceptedEdges, LagoResult):
     """A ``LagoResult`` of LAGO on the **accepted** edges (``graph`` is that subgraph, so ``chi2`` is over
     them; the poses are indexed as in the input), plus the GNC record: ``input_graph`` the graph given;
     ``rejected_edges`` (r,) int64 indices into its edges (file order); ``weights`` (m,) the final GNC
-    weights; ``settings``; ``iterations`` (outer); ``known_inliers`` (m,) bool the edges held at weight 1;
-    ``history`` one dict per iteration (μ, number of edges of weight < ½, seconds)."""
+    weights, 1 or 0 for an edge the moves after GNC re-classified; ``settings``; ``iterations`` (outer);
+    ``known_inliers`` (m,) bool the edges held at weight 1; ``history`` one dict per iteration (μ, number of edges of weight < ½, seconds)."""
 
     input_graph: PoseGraph | None = None
     rejected_edges: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
@@ -300,9 +300,10 @@ def gnc_lago(graph: PoseGraph, settings: RobustSettings, *, solve: Callable) -> 
     for start in starts:  # each start's GNC and local moves; "best" compares the costs where each run ends
         w0 = (None if start == "lago"
               else consistent_start(graph, known, settings.c2_for(graph.dim), settings.clique_seconds))
-        w, keep, final, it, history, cost = _gnc_run(graph, settings, solve, known, w0,
-                                                     first if start == "lago" else None)
-        keep, final, cost, moves = _moves(graph, keep, final, cost, known, settings, solve, trust, it)
+        w, gnc_keep, final, it, history, cost = _gnc_run(graph, settings, solve, known, w0,
+                                                         first if start == "lago" else None)
+        keep, final, cost, moves = _moves(graph, gnc_keep.copy(), final, cost, known, settings, solve, trust, it)
+        w = np.where(keep == gnc_keep, w, keep.astype(float))  # an edge the moves re-classified: weight 1 or 0
         runs.append((w, keep, final, it, history, cost, start, moves))
     w, keep, final, it, history, cost, start, moves = min(runs, key=lambda r: r[5])
     rejected = np.flatnonzero(~keep).astype(np.int64)

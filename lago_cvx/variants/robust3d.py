@@ -31,7 +31,7 @@ __all__ = ["Robust3DResult"]
 class Robust3DResult(AcceptedEdges, Lago3DResult):
     """A ``Lago3DResult`` of ``lago3d`` on the **accepted** edges (``chi2`` and ``chi2_seed`` are over them; poses
     indexed as in the input), plus GNC's record as ``gnc.RobustResult``: ``input_graph`` the graph given,
-    ``rejected_edges`` (r,) int64 indices into its edges (file order), ``weights`` (m,) the final GNC weights,
+    ``rejected_edges`` (r,) int64 indices into its edges (file order), ``weights`` (m,) the final GNC weights (1 or 0 for an edge the re-admission re-classified),
     ``settings``, ``iterations``, ``known_inliers`` (m,) bool, ``history``."""
 
     input_graph: object = None
