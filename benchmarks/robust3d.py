@@ -117,19 +117,18 @@ def corrupted(graph, seed, clean, fraction: float = FRACTION) -> dict:
     return dict(graph=go, outliers=idx, ate_lago=ate3d(plain.t, clean.t))
 
 
-def one_run(graph, clean, bad: dict, confidence: float) -> dict:
-    """Every number of one row (module docstring): robust LAGO at ``confidence`` on the corrupted graph ``bad``
+def one_run(graph, clean, bad: dict, settings: RobustSettings, *, why: bool = True) -> dict:
+    """Every number of one row (module docstring): robust LAGO with ``settings`` on the corrupted graph ``bad``
     (``corrupted``), refined on its accepted edges; ``why`` the numbers of ``why_rejected`` when true edges are
-    rejected."""
+    rejected (``why=False``: None)."""
     go, idx = bad["graph"], bad["outliers"]
-    settings = RobustSettings(confidence=confidence)
     t = time.perf_counter()
     res = lago(go, robust=settings)
     seconds = time.perf_counter() - t
     ref = refine3d(res.graph, res.t, res.R)
     precision, recall, wrong = scores(res.rejected_edges, idx)
     ratio = chi2_3d(graph, ref.t, ref.R) / clean.chi2
-    why = why_rejected(go, res, ref, idx, settings.c2_for(3)) if wrong else None
+    why = why_rejected(go, res, ref, idx, settings.c2_for(3)) if wrong and why else None
     return dict(n_false=int(idx.size), precision=precision, recall=recall, wrong=wrong, ratio=ratio,
                 ok=recall == 1.0 and wrong <= 0.01 * graph.n_edges and ratio <= 1.001,
                 ate_lago=bad["ate_lago"], ate_robust=ate3d(ref.t, clean.t), iterations=res.iterations,
@@ -229,7 +228,7 @@ def section(args) -> str:
             c2 = f"{c2s[confidence]:.2f}"
             runs = []
             for seed in SEEDS:
-                r = one_run(graph, clean, bad[seed], confidence)
+                r = one_run(graph, clean, bad[seed], RobustSettings(confidence=confidence))
                 runs.append(r)
                 rows.append([rel, f"{r['n_false']} ({FRACTION:.0%})", c2, seed, f"{r['precision']:.3f}",
                              f"{r['recall']:.3f}", r["wrong"], f"{r['ate_lago']:.3g}", f"{r['ate_robust']:.3g}",
@@ -289,7 +288,8 @@ def sweep(files, confidences, c2s) -> str:
     for rel, graph, clean in _graphs(files):
         for confidence in confidences:
             found = first_failure(f"{rel} {confidence:g}", "ratio", lambda fraction: [
-                one_run(graph, clean, corrupted(graph, seed, clean, fraction), confidence) for seed in SEEDS])
+                one_run(graph, clean, corrupted(graph, seed, clean, fraction), RobustSettings(confidence=confidence))
+                for seed in SEEDS])
             out.append([rel, f"{c2s[confidence]:.2f}", *found])
     return _bench.table(["file", "c̄²", "largest fraction passing (all seeds)", "first failing fraction",
                          "failing runs"], out)

@@ -54,6 +54,9 @@ date):
 * ``share``    — the share of the loop closures that are false at 10 % and 30 % of the edges (intel, M3500, CSAIL,
   MIT), how many false and true ones pass dead reckoning's test alone and in consistent pairs, and robust LAGO's
   result beside them; ``--share-variants``: the package's other robust settings on MIT + 30 %;
+* ``window``   — the truncation c̄² at which robust LAGO passes each 3-D file with 10 % false loop closures (a grid
+  of ``--robust-threshold`` values, the χ²₆ quantiles among them), beside each file's clean χ² per residual degree
+  of freedom;
 * ``million``  — ``lago-cvx solve -o`` as a whole process on 100 000 to 1 000 000-pose worlds by both routes,
   step by step with peak memory, and phase 3 by the C kernels against the NumPy fallback.
 
@@ -77,7 +80,7 @@ import _bench
 
 SECTIONS = ("datasets", "scaling", "perf", "endtoend", "chordal", "certify", "integer", "theorem1", "route", "io",
             "unseen", "million", "processes", "space", "spaceprocess", "costs", "robust", "clean", "separable",
-            "share")
+            "share", "window")
 #: Sections whose module has another name (``io`` would be the standard library's).
 MODULE_OF = {"io": "io_bench"}
 
