@@ -104,7 +104,8 @@ def anchor_forms(ids) -> dict[str, list[str]]:
 #: type joins the matrix with these; an unknown type fails ``test_parser_space_is_complete``.
 _BY_DEST = {"max_nodes": ["1", "100000"], "max_shift": ["0", "2"], "time_limit": ["30"], "max_iterations": ["0", "5"],
             "tol": ["1e-4"], "every": ["7"], "sigma": ["2"], "size": ["3"], "dpi": ["20"], "title": ["a title"]}
-_BY_TYPE = {"positive_int": ["3"], "nonneg_int": ["0", "3"], "positive_float": ["0.5"], "nonneg_float": ["0"]}
+_BY_TYPE = {"positive_int": ["3"], "nonneg_int": ["0", "3"], "positive_float": ["0.5"], "nonneg_float": ["0"],
+            "confidence_arg": ["0.999"]}
 _SKIPPED = ("help", "version")
 
 

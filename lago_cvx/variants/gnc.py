@@ -262,10 +262,12 @@ class RobustResult(AcceptedEdges, LagoResult):
             ("robust_iterations", "GNC iterations", self.iterations)]
 
 
-def gnc_lago(graph: PoseGraph, settings: RobustSettings, *, solve: Callable) -> RobustResult:
+def gnc_lago(graph: PoseGraph, settings: RobustSettings, *, solve: Callable,
+             final_solve: Callable | None = None) -> RobustResult:
     """GNC around a weighted LAGO (module docstring). ``solve(graph) -> LagoResult`` is LAGO with the
     caller's options (``lago_cvx.pipeline.lago`` without ``robust``); it is called on the weighted graphs
-    (same poses, fewer edges, scaled information) and once on the accepted edges. With ``settings.start``
+    (same poses, fewer edges, scaled information) and once on the accepted edges (``final_solve`` instead, when
+    given, for the result: another route than the classification's). With ``settings.start``
     ``"pcm"`` GNC starts from the odometry and the maximum clique of pairwise-consistent loop closures instead
     of the unweighted LAGO; ``"best"`` runs from both and keeps the result of the lower truncated cost
     Σ_k min(r_k², c̄²) over every edge (``RobustSettings``); ``calibrate``: ``calibrated``. Returns a
@@ -273,7 +275,8 @@ def gnc_lago(graph: PoseGraph, settings: RobustSettings, *, solve: Callable) -> 
     if settings.calibrate is not None:
         from .calibrated import calibrated_gnc
 
-        return calibrated_gnc(graph, settings, gnc=lambda g, s: gnc_lago(g, s, solve=solve), edge_r2=edge_r2)
+        return calibrated_gnc(graph, settings, gnc=lambda g, s: gnc_lago(g, s, solve=solve, final_solve=final_solve),
+                              edge_r2=edge_r2)
     t0 = time.perf_counter()
     m, c2 = graph.n_edges, settings.c2_for(graph.dim)
     trust = settings.trust_odometry
@@ -306,6 +309,8 @@ def gnc_lago(graph: PoseGraph, settings: RobustSettings, *, solve: Callable) -> 
         w = np.where(keep == gnc_keep, w, keep.astype(float))  # an edge the moves re-classified: weight 1 or 0
         runs.append((w, keep, final, it, history, cost, start, moves))
     w, keep, final, it, history, cost, start, moves = min(runs, key=lambda r: r[5])
+    if final_solve is not None:
+        final = final_solve(graph.subgraph_edges(keep))
     rejected = np.flatnonzero(~keep).astype(np.int64)
     timings = dict(final.timings)
     timings["robust"] = timings["total"] = time.perf_counter() - t0  # GNC's run, the final LAGO included
