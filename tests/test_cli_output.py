@@ -114,6 +114,23 @@ def test_a_full_device_is_a_clear_error_and_stays_a_device(capsys, tmp_path, gra
     assert stat.S_ISCHR(full.stat().st_mode)
 
 
+@pytest.mark.parametrize("argv", [["info", "{f}", "--json"], ["solve", "{f}"], ["solve", "{f}", "--json"],
+                                  ["solve", "{f}", "-o", "-"], ["certify", "{f}"]],
+                         ids=["info-json", "solve", "solve-json", "solve-dash", "certify"])
+def test_standard_output_on_a_full_device_exits_2_in_one_line(tmp_path, graph_file, argv):
+    """Standard output that cannot be written (a full disk) is bad output, exit 2 and one line — not an internal
+    error — whether the report, the JSON or the estimate goes there; a whole process, as a shell runs it."""
+    import subprocess
+    import sys
+
+    full = _device(tmp_path, "full", 7)
+    with open(full, "wb") as out:
+        done = subprocess.run([sys.executable, "-m", "lago_cvx", *(a.format(f=graph_file) for a in argv)],
+                              stdout=out, stderr=subprocess.PIPE, text=True, timeout=120)
+    assert done.returncode == 2, done.stderr
+    assert one_line(done.stderr) == "lago-cvx: error: cannot write standard output: No space left on device"
+
+
 def test_dash_writes_to_stdout_and_the_summary_to_stderr(capsys, graph_file):
     code, out, err = run(capsys, "solve", graph_file, "-o", "-")
     assert code == 0

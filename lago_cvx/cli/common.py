@@ -325,10 +325,22 @@ def strict_json(obj):
 def emit(args, payload: dict, lines: list[str], *, stdout_taken: bool = False) -> None:
     """Print one JSON object (``--json``) or the human lines; when the estimate itself goes to standard
     output (``-o -``), the human lines go to standard error."""
-    if getattr(args, "json", False):
-        print(json.dumps(strict_json(payload), allow_nan=False))
-    else:
-        print("\n".join(lines), file=sys.stderr if stdout_taken else sys.stdout)
+    try:
+        if getattr(args, "json", False):
+            print(json.dumps(strict_json(payload), allow_nan=False))
+        else:
+            print("\n".join(lines), file=sys.stderr if stdout_taken else sys.stdout)
+    except BrokenPipeError:  # the reader left: main ends quietly
+        raise
+    except OSError as exc:  # e.g. a full disk behind standard output: an output that cannot be written (exit 2)
+        raise stdout_error(exc) from None
+
+
+def stdout_error(exc: OSError):
+    """The ``OutputError`` of a failed write to standard output (path "-")."""
+    from ..errors import OutputError
+
+    return OutputError(f"cannot write standard output: {exc.strerror or exc}", path="-", errno=exc.errno)
 
 
 _KEYWORD_VALUE = re.compile(r'\b([a-z][a-z_]*)="([\w.-]+)"(?: or "([\w.-]+)")?')

@@ -11,7 +11,7 @@ import sys
 from .._version import __version__
 from ..errors import LagoError, OutputError
 from . import certify, data, plot, solve, worlds
-from .common import EXIT_INTERNAL, EXIT_OK, EXIT_TABLE, debug_enabled, speak_cli
+from .common import EXIT_INTERNAL, EXIT_OK, EXIT_TABLE, debug_enabled, speak_cli, stdout_error
 from .startup import defer_unused_numpy_modules
 
 log = logging.getLogger("lago_cvx")
@@ -156,11 +156,18 @@ def main(argv=None) -> int:
         with np.errstate(all="ignore"), engine_threads(blas_threads=1 if argv is None else None):
             status = args.func(args)  # overflow is reported as a non-finite estimate, not a warning
         if sys.stdout is not None:  # (None: started without a standard output)
-            sys.stdout.flush()  # a reader that left shows here, not in the interpreter's final flush
+            try:
+                sys.stdout.flush()  # a reader that left shows here, not in the interpreter's final flush
+            except BrokenPipeError:
+                raise
+            except OSError as exc:  # a full disk behind standard output
+                raise stdout_error(exc) from None
         return status
     except LagoError as exc:  # everything the package reports on purpose; the class carries the status
         if _reader_left(exc):
             return _quiet_stdout()
+        if isinstance(exc, OutputError) and exc.path == "-":  # what is still buffered cannot be written either
+            _quiet_stdout()
         if exc.exit_status == EXIT_INTERNAL and debug_enabled():
             raise
         prefix = "internal error" if exc.exit_status == EXIT_INTERNAL else "error"
