@@ -346,3 +346,20 @@ def test_progress_is_drawn_on_a_terminal_and_silent_otherwise(monkeypatch):
     assert progress_callback(SimpleNamespace(json=True)) is None  # --json: machine output, no bar
     monkeypatch.setattr("sys.stderr", io.StringIO())  # not a terminal
     assert progress_callback(SimpleNamespace(json=False)) is None
+
+
+@pytest.mark.parametrize("text, argv, fragment", [
+    ("VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0\nVERTEX_SE2 2 2 0 0\nVERTEX_SE2 3 3 0 0\n"
+     "EDGE_SE2 0 1 1 0 0 1 0 0 1 0 1\nEDGE_SE2 2 3 1 0 0 1 0 0 1 0 1\n", ["solve"], "is not connected"),
+    ("VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0\n", ["solve"], "no edges"),
+    ("VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0\nVERTEX_SE2 3 3 0 0\nEDGE_SE2 0 1 1 0 0 1 0 0 1 0 1\n"
+     "EDGE_SE2 1 3 1 0 0 1 0 0 1 0 1\n", ["solve", "--route", "seed"], "odometric chain is broken"),
+    ("VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0\nEDGE_SE2 0 1 1 0 0 1 0 0 1 0 1\n", ["solve", "--anchor", "9"],
+     "no pose with id 9"),
+], ids=["disconnected", "no-edges", "broken-chain", "unknown-anchor"])
+def test_an_unusable_graph_is_named_by_its_file(capsys, tmp_path, text, argv, fragment):
+    f = tmp_path / "odd.g2o"
+    f.write_text(text)
+    code, _, err = run(capsys, argv[0], f, *argv[1:])
+    line = one_line(err)
+    assert code == 2 and line.startswith(f"lago-cvx: error: {f}: ") and fragment in line and line.count(str(f)) == 1

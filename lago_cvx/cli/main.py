@@ -9,7 +9,7 @@ import os
 import sys
 
 from .._version import __version__
-from ..errors import LagoError, OutputError
+from ..errors import GraphError, LagoError, OutputError
 from . import certify, data, plot, solve, worlds
 from .common import EXIT_INTERNAL, EXIT_OK, EXIT_TABLE, debug_enabled, speak_cli, stdout_error
 from .startup import defer_unused_numpy_modules
@@ -171,7 +171,11 @@ def main(argv=None) -> int:
         if exc.exit_status == EXIT_INTERNAL and debug_enabled():
             raise
         prefix = "internal error" if exc.exit_status == EXIT_INTERNAL else "error"
-        print(f"lago-cvx: {prefix}: {speak_cli(str(exc))}", file=sys.stderr)
+        message = speak_cli(str(exc))
+        source = getattr(args, "file", None)
+        if isinstance(exc, GraphError) and source and str(source) not in message:  # the graph read: name its file
+            message = f"{source}: {message}"
+        print(f"lago-cvx: {prefix}: {message}", file=sys.stderr)
         return exc.exit_status
     except KeyboardInterrupt:
         print("lago-cvx: interrupted", file=sys.stderr)
