@@ -11,6 +11,8 @@ whole processes, one after the other, each timed by its wall clock (imports and 
     python -m lago_cvx solve F --refine --json -o plain.g2o
     python -m lago_cvx solve F --robust --refine --json -o robust.g2o
 
+(``--clean-routes default seed``: both pairs, the second with ``--route seed`` in both processes.)
+
 A run longer than ``--clean-timeout`` seconds (default 300) is stopped and reported as such. The estimates written
 are read back (``read_graph(out).initial``) and both scored by ``lago_cvx.chi2`` over **every** edge of the file,
 in the file's cost (``lago_cvx.conventions``): the robust run's own JSON χ² is over the edges it accepted only
@@ -52,6 +54,8 @@ PASS_RATIO = 1.001
 def add_arguments(group) -> None:
     group.add_argument("--clean-timeout", type=float, default=300.0, metavar="S",
                        help="clean section: stop a solve process after S seconds (default 300)")
+    group.add_argument("--clean-routes", nargs="+", choices=["default", "seed"], default=["default"], metavar="ROUTE",
+                       help="clean section: the routes both processes run by (--route; default: default only)")
 
 
 def _files(folder: Path) -> list[Path]:
@@ -108,12 +112,12 @@ def _diagnosis(rel: str, graph, plain, robust, payload: dict) -> str:
     return "\n".join(lines)
 
 
-def _row(rel: str, path: Path, graph, work: Path, timeout: float) -> tuple[list, str | None]:
+def _row(rel: str, path: Path, graph, work: Path, timeout: float, route: str = "default") -> tuple[list, str | None]:
     out_p, out_r = work / "out_plain.g2o", work / "out_robust.g2o"
     for out in (out_p, out_r):
         out.unlink(missing_ok=True)
-    wall_p, js_p, why_p = _solve(path, out_p, timeout)
-    wall_r, js_r, why_r = _solve(path, out_r, timeout, "--robust")
+    wall_p, js_p, why_p = _solve(path, out_p, timeout, "--route", route)
+    wall_r, js_r, why_r = _solve(path, out_r, timeout, "--route", route, "--robust")
     head = [rel, graph.dim, graph.n_poses, graph.n_edges]
     if why_p or why_r:
         note = "; ".join(f"{k}: {w}" for k, w in (("plain", why_p), ("robust", why_r)) if w)
@@ -136,24 +140,29 @@ def run(args) -> str:
         return f"{title}\n\n{skipped}"
     folder = datasets_dir()
     timeout = float(getattr(args, "clean_timeout", 300.0))
-    rows, diagnoses, refused = [], [], []
+    routes = list(dict.fromkeys(getattr(args, "clean_routes", None) or ["default"]))
+    parts, refused = [title, "", __doc__.split("\n\n", 1)[1].strip(), ""], []
     with tempfile.TemporaryDirectory() as tmp:
-        for path in _files(folder):
-            rel = path.relative_to(folder).as_posix()
-            try:
-                graph = read_graph(path)
-            except LagoError as exc:
-                refused.append(f"* `{rel}`: {str(exc).splitlines()[0]}")
-                continue
-            print(f"  {rel}", flush=True)
-            row, why = _row(rel, path, graph, Path(tmp), timeout)
-            rows.append(row)
-            if why:
-                diagnoses.append(why)
-    n_pass = sum(r[8] == "yes" for r in rows)
-    parts = [title, "", __doc__.split("\n\n", 1)[1].strip(), "",
-             f"Result: {n_pass} of {len(rows)} files pass (robust / plain ≤ {PASS_RATIO}).", "",
-             _bench.table(HEAD, rows), ""]
-    parts += ["## Failures", "", *(diagnoses or ["None."]), ""]
+        for route in routes:
+            rows, diagnoses = [], []
+            for path in _files(folder):
+                rel = path.relative_to(folder).as_posix()
+                try:
+                    graph = read_graph(path)
+                except LagoError as exc:
+                    if route == routes[0]:
+                        refused.append(f"* `{rel}`: {str(exc).splitlines()[0]}")
+                    continue
+                print(f"  {rel} ({route} route)", flush=True)
+                row, why = _row(rel, path, graph, Path(tmp), timeout, route)
+                rows.append(row)
+                if why:
+                    diagnoses.append(why)
+            n_pass = sum(r[8] == "yes" for r in rows)
+            if route != "default":
+                parts += [f"## The {route} route", "", f"Both processes with `--route {route}`.", ""]
+            parts += [f"Result: {n_pass} of {len(rows)} files pass (robust / plain ≤ {PASS_RATIO}).", "",
+                      _bench.table(HEAD, rows), "", "#" * (2 + (route != "default")) + " Failures", "",
+                      *(diagnoses or ["None."]), ""]
     parts += ["## Files skipped", "", *(refused or ["None."])]
     return "\n".join(parts)
