@@ -24,6 +24,9 @@ the CLI maps errors to statuses in one place:
 
 from __future__ import annotations
 
+import math
+import numbers
+import operator
 import os
 
 __all__ = [
@@ -149,3 +152,34 @@ def check_choice(name: str, value, choices) -> None:
     """Raise ``OptionError`` unless ``value`` is one of ``choices`` (message names the option)."""
     if value not in choices:
         raise OptionError(f"unknown {name} {value!r}; expected one of {tuple(choices)}")
+
+
+def check_real(name: str, value, *, optional: bool = False, low: float | None = None, open_low: bool = True,
+               high: float | None = None, open_high: bool = True) -> float | None:
+    """``value`` as a float when it is a finite real number (not a bool) within the bounds (open by default), None
+    when ``optional`` and None; ``OptionError`` naming the option otherwise."""
+    if value is None and optional:
+        return None
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
+        raise OptionError(f"{name} must be a finite number, got {value!r}")
+    v = float(value)
+    if (low is not None and (v <= low if open_low else v < low)) or \
+            (high is not None and (v >= high if open_high else v > high)):
+        span = (f"{'(' if open_low else '['}{'-inf' if low is None else f'{low:g}'}, "
+                f"{'inf' if high is None else f'{high:g}'}{')' if open_high else ']'}")
+        raise OptionError(f"{name} must be in {span}, got {value!r}")
+    return v
+
+
+def check_integer(name: str, value, *, low: int, optional: bool = False) -> int | None:
+    """``value`` as an int when it is an integer (Python's or NumPy's, not a bool) ≥ ``low``, None when
+    ``optional`` and None; ``OptionError`` naming the option otherwise."""
+    if value is None and optional:
+        return None
+    try:
+        v = None if isinstance(value, bool) else operator.index(value)
+    except TypeError:
+        v = None
+    if v is None or v < low:
+        raise OptionError(f"{name} must be an integer ≥ {low}, got {value!r}")
+    return v

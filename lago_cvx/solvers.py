@@ -17,7 +17,9 @@ import warnings
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field, fields, replace
 
-from .errors import OptionError, SolverError
+import numpy as np
+
+from .errors import OptionError, SolverError, check_integer, check_real
 
 __all__ = [
     "named_constant", "parameter",
@@ -68,6 +70,22 @@ class ClarabelSettings:
     chordal_decomposition_compact: bool | None = None
     chordal_decomposition_complete_dual: bool | None = None
     verbose: bool | None = None
+
+    def __post_init__(self):
+        for f in fields(self):  # None, or a value of the field's kind (Clarabel would refuse it only when solving)
+            v, kind = getattr(self, f.name), str(f.type)
+            if v is None:
+                continue
+            if kind.startswith("bool"):
+                if not isinstance(v, (bool, np.bool_)):
+                    raise OptionError(f"ClarabelSettings.{f.name} must be None, True or False, got {v!r}")
+                object.__setattr__(self, f.name, bool(v))
+            elif kind.startswith("int"):
+                object.__setattr__(self, f.name, check_integer(f"ClarabelSettings.{f.name}", v, low=1))
+            elif kind.startswith("float"):
+                object.__setattr__(self, f.name, check_real(f"ClarabelSettings.{f.name}", v, low=0.0, open_low=False))
+            elif not isinstance(v, str):
+                raise OptionError(f"ClarabelSettings.{f.name} must be None or a name, got {v!r}")
 
     def over(self, preset: "ClarabelSettings | None") -> "ClarabelSettings":
         """These settings with every ``None`` field taken from ``preset``."""
@@ -126,17 +144,16 @@ class IntegerSearch:
     max_nodes: int = 2_000_000
     max_shift: int | None = None
     exact: bool = True
-    solver_options: Mapping = field(default_factory=dict)
+    solver_options: Mapping = field(default_factory=dict, hash=False)  # a dict: settings hash without it
 
     def __post_init__(self):
         if self.form not in ("cycle", "phase1"):
             raise OptionError(f"unknown form {self.form!r}; expected 'cycle' or 'phase1'")
-        if not self.time_limit > 0:
-            raise OptionError(f"time_limit must be > 0, got {self.time_limit}")
-        if not int(self.max_nodes) >= 1:
-            raise OptionError(f"max_nodes must be >= 1, got {self.max_nodes}")
-        if self.max_shift is not None and int(self.max_shift) < 0:
-            raise OptionError(f"max_shift must be >= 0, got {self.max_shift}")
+        if not (self.solver is None or isinstance(self.solver, str)):
+            raise OptionError(f"solver must be None or a name, got {self.solver!r}")
+        object.__setattr__(self, "time_limit", check_real("time_limit", self.time_limit, low=0.0))
+        object.__setattr__(self, "max_nodes", check_integer("max_nodes", self.max_nodes, low=1))
+        object.__setattr__(self, "max_shift", check_integer("max_shift", self.max_shift, low=0, optional=True))
         if not self.exact and self.max_shift is None:
             raise OptionError("exact=False needs max_shift (the integers would be unbounded)")
 

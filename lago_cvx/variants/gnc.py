@@ -71,7 +71,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..errors import OptionError
+from ..errors import OptionError, check_choice, check_integer, check_real
 from ..graph import connected_components, minimum_spanning_edges
 from ..metrics import whitened_errors
 from ..posegraph import PoseGraph
@@ -145,32 +145,23 @@ class RobustSettings:
     calibrate: float | None = None
 
     def __post_init__(self):
-        if self.loss not in ("tls", "gm"):
-            raise OptionError(f"robust loss must be 'tls' or 'gm', got {self.loss!r}")
-        if not 0.0 < self.confidence < 1.0:
-            raise OptionError(f"robust confidence must be in (0, 1), got {self.confidence}")
-        if self.threshold is not None and not (math.isfinite(self.threshold) and self.threshold > 0):
-            raise OptionError(f"robust threshold must be a finite number > 0, got {self.threshold}")
-        if self.trust_odometry not in (None, True, False):
+        check_choice("robust loss", self.loss, ("tls", "gm"))
+        check_choice("robust start", self.start, ("lago", "pcm", "best"))
+        if not (self.trust_odometry is None or isinstance(self.trust_odometry, (bool, np.bool_))):
             raise OptionError(f"trust_odometry must be None, True or False, got {self.trust_odometry!r}")
-        if not self.mu_factor > 1.0:
-            raise OptionError(f"mu_factor must be > 1, got {self.mu_factor}")
-        if not (isinstance(self.max_iterations, int) and self.max_iterations >= 1):
-            raise OptionError(f"max_iterations must be an integer ≥ 1, got {self.max_iterations!r}")
-        if not 0.0 <= self.drop_below < 0.5:
-            raise OptionError(f"drop_below must be in [0, 0.5), got {self.drop_below}")
-        if self.start not in ("lago", "pcm", "best"):
-            raise OptionError(f"robust start must be 'lago', 'pcm' or 'best', got {self.start!r}")
-        if not (isinstance(self.local_search, int) and self.local_search >= 0):
-            raise OptionError(f"local_search must be an integer ≥ 0, got {self.local_search!r}")
-        if not (math.isfinite(self.readmit) and self.readmit >= 0):
-            raise OptionError(f"readmit must be a finite number ≥ 0, got {self.readmit}")
-        if not (math.isfinite(self.clique_seconds) and self.clique_seconds > 0):
-            raise OptionError(f"clique_seconds must be a finite number > 0, got {self.clique_seconds}")
-        if self.calibrate is not None and not (math.isfinite(self.calibrate) and self.calibrate > 0):
-            raise OptionError(f"calibrate must be None or a finite number > 0, got {self.calibrate}")
-        if not 0.0 < self.weight_tolerance < 0.5:
-            raise OptionError(f"weight_tolerance must be in (0, 0.5), got {self.weight_tolerance}")
+        checked = dict(confidence=check_real("robust confidence", self.confidence, low=0.0, high=1.0),
+                       threshold=check_real("robust threshold", self.threshold, optional=True, low=0.0),
+                       mu_factor=check_real("mu_factor", self.mu_factor, low=1.0),
+                       max_iterations=check_integer("max_iterations", self.max_iterations, low=1),
+                       drop_below=check_real("drop_below", self.drop_below, low=0.0, open_low=False, high=0.5),
+                       weight_tolerance=check_real("weight_tolerance", self.weight_tolerance, low=0.0, high=0.5),
+                       clique_seconds=check_real("clique_seconds", self.clique_seconds, low=0.0),
+                       local_search=check_integer("local_search", self.local_search, low=0),
+                       readmit=check_real("readmit", self.readmit, low=0.0, open_low=False),
+                       calibrate=check_real("calibrate", self.calibrate, optional=True, low=0.0),
+                       trust_odometry=None if self.trust_odometry is None else bool(self.trust_odometry))
+        for name, value in checked.items():  # plain floats, ints and bools (NumPy scalars accepted)
+            object.__setattr__(self, name, value)
 
     @property
     def c2(self) -> float:
