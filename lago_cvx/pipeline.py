@@ -62,9 +62,10 @@ def _robust_option(run):
         from .variants import gnc_lago, robust_settings
 
         settings = robust_settings(robust)
+        progress = options.pop("progress", None)  # the robust run reports its own stages (``progress.Stages``)
         inner = {k: v for k, v in options.items() if k not in ROUTE_OPTIONS or v in (None, "default")}
         final = None if inner == options else (lambda g: run(g, **options))  # the route asked, on the accepted edges
-        return gnc_lago(graph, settings, solve=lambda g: run(g, **inner), final_solve=final)
+        return gnc_lago(graph, settings, solve=lambda g: run(g, **inner), final_solve=final, progress=progress)
 
     sig = inspect.signature(run)
     lago.__signature__ = sig.replace(parameters=[*sig.parameters.values(),

@@ -30,7 +30,7 @@ import logging
 import time
 from typing import Callable, Optional
 
-__all__ = ["ProgressCallback", "Progress", "PROGRESS_INTERVAL", "held_back"]
+__all__ = ["ProgressCallback", "Progress", "PROGRESS_INTERVAL", "Stages", "held_back"]
 
 #: ``progress(stage, fraction)``: ``stage`` a short name of the running step, ``fraction`` in [0, 1].
 ProgressCallback = Callable[[str, float], None]
@@ -50,8 +50,9 @@ class Progress:
 
     def __init__(self, stage: str, *, callback: Optional[ProgressCallback] = None,
                  logger: Optional[logging.Logger] = None, interval: float = PROGRESS_INTERVAL,
-                 clock: Callable[[], float] = time.monotonic):
+                 clock: Callable[[], float] = time.monotonic, extra: Optional[dict] = None):
         self.stage = stage
+        self.extra = extra  # the log records' extra attributes (``Stages``: logged inside ``held_back`` too)
         self.callback = callback
         self.logger = logger
         self.interval = float(interval)
@@ -74,7 +75,7 @@ class Progress:
         if self.callback is not None:
             self.callback(self.stage, fraction)
         if self.logger is not None and self.logger.isEnabledFor(logging.INFO):
-            self.logger.info("%s: %.0f %% (%.1f s)", self.stage, 100.0 * fraction, now - self.start)
+            self.logger.info("%s: %.0f %% (%.1f s)", self.stage, 100.0 * fraction, now - self.start, extra=self.extra)
             self.logged = True
 
     def finish(self) -> None:
@@ -86,7 +87,7 @@ class Progress:
         if self.callback is not None:
             self.callback(self.stage, 1.0)
         if self.logger is not None and (self.logged or now - self.start >= self.interval):
-            self.logger.info("%s: done in %.1f s", self.stage, now - self.start)
+            self.logger.info("%s: done in %.1f s", self.stage, now - self.start, extra=self.extra)
 
     def __enter__(self) -> "Progress":
         return self
@@ -96,6 +97,37 @@ class Progress:
             self.finish()
 
 
+class Stages:
+    """Progress of an iterative method in named stages of counted steps (graduated non-convexity: its GNC
+    iterations, then its local moves, each step one inner LAGO run). ``stage(name, total)`` starts a stage of at most
+    ``total`` steps (and finishes the previous one), ``step()`` counts one, ``finish()`` ends the last. Reported as
+    ``Progress`` reports, "{prefix}: {name}", its log records kept even inside ``held_back()``."""
+
+    def __init__(self, prefix: str, *, callback: Optional[ProgressCallback] = None,
+                 logger: Optional[logging.Logger] = None, interval: float = PROGRESS_INTERVAL):
+        self.prefix, self.callback, self.logger, self.interval = prefix, callback, logger, interval
+        self.current, self.total, self.done = None, 1, 0
+
+    def stage(self, name: str, total: int) -> None:
+        self.finish()
+        self.current = Progress(f"{self.prefix}: {name}", callback=self.callback, logger=self.logger,
+                                interval=self.interval, extra={_OWN: True})
+        self.total, self.done = max(int(total), 1), 0
+
+    def step(self) -> None:
+        if self.current is not None:
+            self.done += 1
+            self.current.update(min(self.done, self.total), self.total)
+
+    def finish(self) -> None:
+        if self.current is not None:
+            self.current.finish()
+            self.current = None
+
+
+#: The attribute that lets a ``Stages`` record through ``held_back()``.
+_OWN = "lago_cvx_stages"
+
 #: True inside ``held_back()``, per thread (and per asyncio task): a context variable, not a global.
 _HELD_BACK = contextvars.ContextVar("lago_cvx_held_back", default=False)
 
@@ -104,7 +136,7 @@ class _HoldBack(logging.Filter):
     """Drops a record below ERROR while its thread is inside ``held_back()``."""
 
     def filter(self, record: logging.LogRecord) -> bool:
-        return record.levelno >= logging.ERROR or not _HELD_BACK.get()
+        return record.levelno >= logging.ERROR or not _HELD_BACK.get() or getattr(record, _OWN, False)
 
 
 _FILTER = _HoldBack()

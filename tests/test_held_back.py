@@ -56,3 +56,32 @@ def test_concurrent_robust_runs_leave_the_levels_and_later_warnings_alone(caplog
     with caplog.at_level(logging.WARNING, logger="lago_cvx"):
         lc.lago(graphs[0], robust=RobustSettings(max_iterations=2))
     assert "without converging" in caplog.text
+
+
+def test_stages_are_logged_inside_held_back_and_count_their_steps(caplog):
+    from lago_cvx.progress import Stages
+
+    calls = []
+    stages = Stages("robust", callback=lambda s, f: calls.append((s, f)), logger=LOG, interval=0.0)
+    with caplog.at_level(logging.INFO, logger="lago_cvx"), held_back():
+        stages.stage("GNC iterations", 4)
+        for _ in range(6):  # more steps than the total: the fraction stays at 1
+            stages.step()
+        stages.stage("local moves", 10)
+        stages.step()
+        LOG.info("an inner run's record")
+        stages.finish()
+    assert calls[0] == ("robust: GNC iterations", 0.0) and ("robust: GNC iterations", 0.5) in calls
+    assert max(f for s, f in calls if s == "robust: GNC iterations") == 1.0
+    assert calls[-2:] == [("robust: local moves", 0.1), ("robust: local moves", 1.0)]
+    assert "robust: GNC iterations: 50 %" in caplog.text and "robust: local moves: done" in caplog.text
+    assert "an inner run's record" not in caplog.text
+
+
+def test_a_robust_run_reports_its_stages_not_its_inner_runs():
+    calls = []
+    go = add_false_loop_closures(manhattan_world(100, seed=3).graph, 0.1, seed=3)[0]
+    res = lc.lago(go, robust=True, progress=lambda s, f: calls.append((s, f)))
+    stages = list(dict.fromkeys(s for s, _ in calls))
+    assert stages == ["robust GNC-TLS: GNC iterations (start lago)", "robust GNC-TLS: local moves"], stages
+    assert calls[-1] == ("robust GNC-TLS: local moves", 1.0) and res.rejected_edges.size > 0

@@ -75,6 +75,7 @@ from ..errors import OptionError, check_choice, check_integer, check_real
 from ..graph import connected_components, minimum_spanning_edges
 from ..metrics import whitened_errors
 from ..posegraph import PoseGraph
+from ..progress import Stages
 from ..progress import held_back as _quiet  # the inner runs' records below ERROR, this thread only
 from ..result import AcceptedEdges, LagoResult
 from .consistency import consistent_start
@@ -253,12 +254,13 @@ class RobustResult(AcceptedEdges, LagoResult):
             ("robust_iterations", "GNC iterations", self.iterations)]
 
 
-def gnc_lago(graph: PoseGraph, settings: RobustSettings, *, solve: Callable,
-             final_solve: Callable | None = None) -> RobustResult:
+def gnc_lago(graph: PoseGraph, settings: RobustSettings, *, solve: Callable, final_solve: Callable | None = None,
+             progress=None) -> RobustResult:
     """GNC around a weighted LAGO (module docstring). ``solve(graph) -> LagoResult`` is LAGO with the
     caller's options (``lago_cvx.pipeline.lago`` without ``robust``); it is called on the weighted graphs
     (same poses, fewer edges, scaled information) and once on the accepted edges (``final_solve`` instead, when
-    given, for the result: another route than the classification's). With ``settings.start``
+    given, for the result: another route than the classification's). ``progress(stage, fraction)``: the GNC
+    iterations, then the local moves, each counted in LAGO runs (``progress.Stages``; INFO records likewise). With ``settings.start``
     ``"pcm"`` GNC starts from the odometry and the maximum clique of pairwise-consistent loop closures instead
     of the unweighted LAGO; ``"best"`` runs from both and keeps the result of the lower truncated cost
     Σ_k min(r_k², c̄²) over every edge (``RobustSettings``); ``calibrate``: ``calibrated``. Returns a
@@ -266,9 +268,15 @@ def gnc_lago(graph: PoseGraph, settings: RobustSettings, *, solve: Callable,
     if settings.calibrate is not None:
         from .calibrated import calibrated_gnc
 
-        return calibrated_gnc(graph, settings, gnc=lambda g, s: gnc_lago(g, s, solve=solve, final_solve=final_solve),
-                              edge_r2=edge_r2)
+        return calibrated_gnc(graph, settings, edge_r2=edge_r2,
+                              gnc=lambda g, s: gnc_lago(g, s, solve=solve, final_solve=final_solve, progress=progress))
     t0 = time.perf_counter()
+    stages, lago_run = Stages(f"robust GNC-{settings.loss.upper()}", callback=progress, logger=log), solve
+
+    def solve(g):  # every LAGO run of the robust run, counted for its progress
+        stages.step()
+        return lago_run(g)
+
     m, c2 = graph.n_edges, settings.c2_for(graph.dim)
     trust = settings.trust_odometry
     if trust is None:
@@ -294,9 +302,12 @@ def gnc_lago(graph: PoseGraph, settings: RobustSettings, *, solve: Callable,
     for start in starts:  # each start's GNC and local moves; "best" compares the costs where each run ends
         w0 = (None if start == "lago"
               else consistent_start(graph, known, settings.c2_for(graph.dim), settings.clique_seconds))
+        stages.stage(f"GNC iterations (start {start})", settings.max_iterations + 1)
         w, gnc_keep, final, it, history, cost = _gnc_run(graph, settings, solve, known, w0,
                                                          first if start == "lago" else None)
+        stages.stage("local moves", settings.local_search + 1)
         keep, final, cost, moves = _moves(graph, gnc_keep.copy(), final, cost, known, settings, solve, trust, it)
+        stages.finish()
         w = np.where(keep == gnc_keep, w, keep.astype(float))  # an edge the moves re-classified: weight 1 or 0
         runs.append((w, keep, final, it, history, cost, start, moves))
     w, keep, final, it, history, cost, start, moves = min(runs, key=lambda r: r[5])
