@@ -87,6 +87,6 @@ def run(args) -> str:
         _bench.table(["file", "false edges", "clean χ² per residual dof", "largest true r² at the clean optimum",
                       "c̄² passing every seed", "χ²₆(0.99) passes"], summary),
         "", "## Every c̄²", "",
-        f"Seeds {seeds[0]}–{seeds[-1]}; each cell: false loop closures kept / true edges rejected / χ² of the clean "
-        "edges after the refinement over the clean refined χ².", "",
+        f"Seeds {seeds[0]}–{seeds[-1]}; each cell: false loop closures kept / true edges rejected / χ² of the "
+        "clean edges after the refinement over the clean refined χ².", "",
         _bench.table(head, rows)])

@@ -151,6 +151,7 @@ class AcceptedEdges:
     def _robust_line(self) -> str:
         """The line of ``repr`` that says what GNC rejected."""
         s = self.settings
-        return (f"robust GNC-{s.loss.upper()} (c̄² = {s.c2_for(self.input_graph.dim):.4g}): {self.rejected_edges.size} "
+        c2 = s.c2_for(self.input_graph.dim)
+        return (f"robust GNC-{s.loss.upper()} (c̄² = {c2:.4g}): {self.rejected_edges.size} "
                 f"of {self.input_graph.n_edges} edges rejected after {self.iterations} iterations; χ² over the "
                 "accepted edges")

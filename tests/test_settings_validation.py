@@ -1,5 +1,6 @@
-"""Settings are frozen dataclasses that refuse a bad value when they are made, with an ``OptionError`` naming the
-field — never a ``TypeError`` later, nor a bool or a string taken as a number — and take NumPy scalars as numbers."""
+"""Settings are frozen dataclasses that refuse a bad value when they are made, with an ``OptionError`` naming
+the field — never a ``TypeError`` later, nor a bool or a string taken as a number — and take NumPy scalars as
+numbers."""
 
 from __future__ import annotations
 

@@ -7,11 +7,11 @@ import math
 
 from .common import UsageError, positive_float
 
-THRESHOLD_HELP = ("with --robust (implies it): the truncation c̄² itself (whitened residual, squared) instead of the χ² "
-                  "quantile of --robust-confidence (11.34 planar, 16.81 in 3-D); for files whose information is loose "
-                  "for their residuals, see the c̄² windows of benchmarks/window.md")
-CONFIDENCE_HELP = ("with --robust (implies it): c̄² = the χ² quantile at P of 3 (planar) or 6 (3-D) degrees of freedom "
-                   "(default 0.99)")
+THRESHOLD_HELP = ("with --robust (implies it): the truncation c̄² itself (whitened residual, squared) instead of "
+                  "the χ² quantile of --robust-confidence (11.34 planar, 16.81 in 3-D); for files whose information "
+                  "is loose for their residuals, see the c̄² windows of benchmarks/window.md")
+CONFIDENCE_HELP = ("with --robust (implies it): c̄² = the χ² quantile at P of 3 (planar) or 6 (3-D) degrees of "
+                   "freedom (default 0.99)")
 
 
 def confidence_arg(value: str) -> float:
@@ -36,9 +36,9 @@ def add_robust_options(s, *, robust_help: str, calibrate: bool) -> None:
     s.add_argument("--robust-confidence", type=confidence_arg, default=None, metavar="P", help=CONFIDENCE_HELP)
     if calibrate:
         s.add_argument("--robust-calibrate", type=positive_float, default=None, metavar="K",
-                       help="with --robust (implies it; planar): GNC again at c̄² = min(c̄², K × the largest r² of the "
-                            "trusted odometric edges), the classification of the lower truncated cost at that c̄² "
-                            "kept; 4.7 in benchmarks/separable.md")
+                       help="with --robust (implies it; planar): GNC again at c̄² = min(c̄², K × the largest r² "
+                            "of the trusted odometric edges), the classification of the lower truncated cost at that "
+                            "c̄² kept; 4.7 in benchmarks/separable.md")
 
 
 def robust_request(args, dim: int):

@@ -233,7 +233,8 @@ class RobustResult(AcceptedEdges, LagoResult):
     them; the poses are indexed as in the input), plus the GNC record: ``input_graph`` the graph given;
     ``rejected_edges`` (r,) int64 indices into its edges (file order); ``weights`` (m,) the final GNC
     weights, 1 or 0 for an edge the moves after GNC re-classified; ``settings``; ``iterations`` (outer);
-    ``known_inliers`` (m,) bool the edges held at weight 1; ``history`` one dict per iteration (μ, number of edges of weight < ½, seconds)."""
+    ``known_inliers`` (m,) bool the edges held at weight 1; ``history`` one dict per iteration (μ, number of edges
+    of weight < ½, seconds)."""
 
     input_graph: PoseGraph | None = None
     rejected_edges: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
@@ -260,10 +261,10 @@ def gnc_lago(graph: PoseGraph, settings: RobustSettings, *, solve: Callable, fin
     caller's options (``lago_cvx.pipeline.lago`` without ``robust``); it is called on the weighted graphs
     (same poses, fewer edges, scaled information) and once on the accepted edges (``final_solve`` instead, when
     given, for the result: another route than the classification's). ``progress(stage, fraction)``: the GNC
-    iterations, then the local moves, each counted in LAGO runs (``progress.Stages``; INFO records likewise). With ``settings.start``
-    ``"pcm"`` GNC starts from the odometry and the maximum clique of pairwise-consistent loop closures instead
-    of the unweighted LAGO; ``"best"`` runs from both and keeps the result of the lower truncated cost
-    Σ_k min(r_k², c̄²) over every edge (``RobustSettings``); ``calibrate``: ``calibrated``. Returns a
+    iterations, then the local moves, each counted in LAGO runs (``progress.Stages``; INFO records likewise).
+    With ``settings.start`` ``"pcm"`` GNC starts from the odometry and the maximum clique of pairwise-consistent
+    loop closures instead of the unweighted LAGO; ``"best"`` runs from both and keeps the result of the lower
+    truncated cost Σ_k min(r_k², c̄²) over every edge (``RobustSettings``); ``calibrate``: ``calibrated``. Returns a
     ``RobustResult``."""
     if settings.calibrate is not None:
         from .calibrated import calibrated_gnc
