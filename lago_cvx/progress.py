@@ -156,16 +156,22 @@ def _package_loggers() -> tuple[str, ...]:
     return tuple(sorted(names))
 
 
+@functools.lru_cache(maxsize=1)
+def _install_filter() -> None:
+    """The filter on the logger of every module and package name, once per process (a forked child inherits it)."""
+    for name in _package_loggers():
+        logger = logging.getLogger(name)
+        if _FILTER not in logger.filters:
+            logger.addFilter(_FILTER)
+
+
 @contextlib.contextmanager
 def held_back():
     """Within the block, the package's log records below ERROR from the calling thread are dropped (module
     docstring). The filter sits on every ``lago_cvx`` logger (a logger's filters see only its own records) and does
     nothing outside such a block. Every module's logger (``__name__``, or the name of its package) is made on the
     first block, so that a module imported inside one is held back too."""
-    for name in _package_loggers():
-        logger = logging.getLogger(name)
-        if _FILTER not in logger.filters:
-            logger.addFilter(_FILTER)
+    _install_filter()
     token = _HELD_BACK.set(True)
     try:
         yield
