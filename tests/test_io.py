@@ -341,6 +341,21 @@ def test_comments_blank_lines_crlf_tabs(tmp_path):
     assert g.equals(plain)
 
 
+def test_classic_mac_line_endings_are_lines(tmp_path):
+    """A file whose lines end in CR alone (classic Mac OS) reads as its LF twin, planar, TORO and 3-D; a CR inside
+    a file of LF lines is left to the parser as before."""
+    from lago_cvx.io import write_graph
+    from lago_cvx.synthetic.space import sphere_world
+
+    three = tmp_path / "three.g2o"
+    write_graph(three, sphere_world(3, 4, seed=0).graph)
+    for lf in (_write(tmp_path, _chain(), "lf.g2o"), _write(tmp_path, _chain(fmt="toro"), "lf.graph"), three):
+        cr = tmp_path / f"cr{lf.suffix}"
+        cr.write_bytes(lf.read_bytes().replace(b"\n", b"\r"))
+        assert b"\n" not in cr.read_bytes() and read_graph(cr).equals(read_graph(lf))
+        assert detect_format(cr) == detect_format(lf)
+
+
 def test_comment_with_undecodable_bytes_is_ignored(tmp_path):
     p = _write(tmp_path, b"# caf\xe9 (latin-1 comment)\n" + _chain().encode())
     assert read_graph(p).n_poses == 4

@@ -16,6 +16,7 @@ Token grammar (ASCII only): ids ``[+-]?[0-9]+`` (fitting in 64 bits); numbers
 from __future__ import annotations
 
 import gc
+import logging
 import re
 import warnings
 from dataclasses import dataclass, field
@@ -76,11 +77,17 @@ class Parsed:
 
 # ----------------------------------------------------------------------------- reading the bytes
 def read_bytes(path) -> bytes:
-    """The file's bytes; ``ParseError`` (``path: cannot read file (...)``) when it cannot be read."""
+    """The file's bytes; ``ParseError`` (``path: cannot read file (...)``) when it cannot be read. A file whose
+    lines end in CR alone (classic Mac OS: a CR and no LF in its first 64 KiB) comes back with LF endings."""
     try:
-        return Path(path).read_bytes()
+        data = Path(path).read_bytes()
     except OSError as exc:
         raise ParseError(path, None, f"cannot read file ({exc.strerror or exc})") from None
+    head = data[:65536]
+    if b"\r" in head and b"\n" not in head:
+        logging.getLogger("lago_cvx.io").info("%s: lines end in CR alone (classic Mac OS), read as LF", path)
+        data = data.replace(b"\r", b"\n")
+    return data
 
 
 def decode(data: bytes) -> str:

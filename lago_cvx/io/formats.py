@@ -3,8 +3,8 @@ conversion of the information matrices. Reading is ``reader.py``, writing ``writ
 
 Formats
 =======
-Both formats are line based: one record per line, whitespace-separated tokens (spaces or tabs; LF or
-CRLF line ends; a UTF-8 byte-order mark is skipped). A token that starts with ``#`` starts a comment that
+Both formats are line based: one record per line, whitespace-separated tokens (spaces or tabs; LF, CRLF
+or, in a file without LF, CR line ends; a UTF-8 byte-order mark is skipped). A token that starts with ``#`` starts a comment that
 runs to the end of the line: blank lines and whole-line comments are skipped, and
 ``EDGE_SE2 0 1 … 0 0 1   # odometry`` is the edge (a ``#`` inside a token, as in ``1#2``, is not a
 comment but a bad number). Pose ids are integers; they need not be contiguous or start at 0

@@ -13,8 +13,8 @@ order (x, y, z, φx, φy, φz): translation first (:mod:`lago_cvx.posegraph3d`).
 SE-Sync's and Carlone's 3-D benchmarks and of GTSAM's ``pose3example*.txt``. A g2o file's information is written
 for g2o's error (``cost="g2o"``, the default); ``cost="gtsam"`` reads the same matrices as GTSAM's ``readG2o``
 does, for the Log error (:mod:`lago_cvx.posegraph3d`). The lexical rules are the planar files' (``formats.py``:
-``#`` comments, LF or CRLF, a byte-order mark skipped, a missing final newline accepted, ids any 64-bit integers,
-numbers plain ASCII decimals).
+``#`` comments, LF, CRLF or CR line ends, a byte-order mark skipped, a missing final newline accepted, ids any
+64-bit integers, numbers plain ASCII decimals).
 
 Every problem raises :class:`ParseError` naming ``file:line`` and the offending token or field: a wrong
 token count, a bad number or id, a quaternion of zero norm, an information matrix that is not positive
